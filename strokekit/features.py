@@ -1,0 +1,75 @@
+"""Feature edges of one frame (BRIEF 2): silhouette, border, crease, material, non-manifold.
+
+All vectorized over the scene's edges. Facing is decided per face in float64 from the face plane
+(n . eye - n . centroid), one rule per face, so two neighbours never disagree about a shared
+edge-on face: a face with n.(eye - P) <= 0 counts as back-facing."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .camera import Camera
+from .model import KIND_INDEX, FeatureEdges
+from .options import LineOptions
+from .scene import Scene
+
+
+def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
+    """(F,) True where the face's front side faces the eye (perspective) or the view (ortho)."""
+    n = scene.face_normals
+    if camera.is_ortho:
+        _, _, fwd = camera.basis
+        return (n @ -fwd) > 0.0
+    return (n @ np.asarray(camera.eye, float) - scene.face_offsets) > 0.0
+
+
+def static_feature_mask(scene: Scene, options: LineOptions) -> dict[str, np.ndarray]:
+    """Edge masks of the kinds that do not depend on the camera (computed once per scene)."""
+    out = {}
+    if "border" in options.kinds:
+        out["border"] = scene.is_border
+    if "nonmanifold" in options.kinds:
+        out["nonmanifold"] = scene.is_nonmanifold
+    if "crease" in options.kinds:
+        out["crease"] = scene.crease_mask(options.crease_angle_deg)
+    if "material" in options.kinds and len(scene.materials) > 1:
+        out["material"] = scene.is_material_boundary
+    return out
+
+
+def silhouette_mask(scene: Scene, camera: Camera) -> np.ndarray:
+    """(E,) manifold edges whose two faces face opposite ways."""
+    ff = front_facing(scene, camera)
+    ef = scene.edge_faces
+    m = scene.is_manifold
+    out = np.zeros(len(ef), bool)
+    out[m] = ff[ef[m, 0]] != ff[ef[m, 1]]
+    return out
+
+
+def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
+                  static: dict[str, np.ndarray] | None = None) -> FeatureEdges:
+    """Candidate feature edges for this camera. Each edge gets one kind, in priority order
+    silhouette > border > nonmanifold > crease > material."""
+    static = static_feature_mask(scene, options) if static is None else static
+    E = len(scene.edges)
+    kind = np.full(E, -1, np.int8)
+    # Lowest priority first so that higher kinds overwrite.
+    for name in ("material", "crease", "nonmanifold", "border"):
+        if name in static:
+            kind[static[name]] = KIND_INDEX[name]
+    if "silhouette" in options.kinds and options.contours == "mesh":
+        kind[silhouette_mask(scene, camera)] = KIND_INDEX["silhouette"]
+    sel = np.flatnonzero(kind >= 0)
+    e = scene.edges[sel]
+    # The face on the front side carries the surface point of a silhouette; the first face otherwise.
+    ef = scene.edge_faces[sel]
+    face = ef[:, 0].copy()
+    sil = kind[sel] == KIND_INDEX["silhouette"]
+    if sil.any():
+        ff = front_facing(scene, camera)
+        second_front = ff[ef[sil, 1]]
+        face[sil] = np.where(second_front, ef[sil, 1], ef[sil, 0])
+    v = scene.vertices
+    return FeatureEdges(a=v[e[:, 0]], b=v[e[:, 1]], kind=kind[sel], va=e[:, 0].astype(np.int64),
+                        vb=e[:, 1].astype(np.int64), face=face)

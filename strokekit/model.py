@@ -1,0 +1,176 @@
+"""The data passed between stages: small frozen dataclasses of numpy arrays.
+
+scene -> FeatureEdges (per frame) -> VisibleRuns -> Strokes -> (tracked) Strokes -> writers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+
+import numpy as np
+
+from .camera import Camera
+
+#: Line kinds in layer order. The index is what `kind` arrays hold.
+KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmanifold",
+                          "smooth_contour", "suggestive", "intersection")
+KIND_INDEX = {k: i for i, k in enumerate(KINDS)}
+
+
+@dataclass(frozen=True, eq=False)
+class FeatureEdges:
+    """Candidate feature segments of one frame, in world space.
+
+    a, b (N, 3) float64 endpoints; kind (N,) int8 into KINDS; va, vb (N,) int64 mesh vertex ids of
+    a and b (-1 where the endpoint is not a mesh vertex, e.g. inside a face); face (N,) int64 the
+    face the segment lies on (for surface lookups)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    kind: np.ndarray
+    va: np.ndarray
+    vb: np.ndarray
+    face: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.a)
+
+    @staticmethod
+    def empty() -> "FeatureEdges":
+        z3 = np.zeros((0, 3))
+        zi = np.zeros(0, np.int64)
+        return FeatureEdges(z3, z3, np.zeros(0, np.int8), zi, zi, zi)
+
+    @staticmethod
+    def concat(parts: list["FeatureEdges"]) -> "FeatureEdges":
+        parts = [p for p in parts if len(p)]
+        if not parts:
+            return FeatureEdges.empty()
+        return FeatureEdges(*(np.concatenate([getattr(p, n) for p in parts])
+                              for n in ("a", "b", "kind", "va", "vb", "face")))
+
+
+@dataclass(frozen=True, eq=False)
+class VisibleRuns:
+    """Visible pieces of feature segments. For run r: segment index `edge[r]` into the frame's
+    FeatureEdges, world endpoints X0, X1 (R, 3), pixel endpoints p0, p1 (R, 2), and chaining keys
+    key0, key1 (R,): the mesh vertex id where the run ends on a mesh vertex, else a unique
+    negative number (so the chain cannot continue there)."""
+
+    edge: np.ndarray
+    X0: np.ndarray
+    X1: np.ndarray
+    p0: np.ndarray
+    p1: np.ndarray
+    key0: np.ndarray
+    key1: np.ndarray
+    kind: np.ndarray
+    face: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.edge)
+
+    @property
+    def length_px(self) -> np.ndarray:
+        return np.linalg.norm(self.p1 - self.p0, axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class Strokes:
+    """The strokes of one frame as flat arrays.
+
+    points (N, 2) pixels; surface (N, 3) world points the 2D points came from; face (N,) the mesh
+    face under each point (-1 unknown); u (N,) parametrization in texture periods; offsets (S+1,)
+    so that stroke s is points[offsets[s]:offsets[s+1]]; kind (S,) int8 into KINDS; ids (S,)
+    persistent stroke ids; level, level_weight (S,) self-similar texture octave and blend weight."""
+
+    points: np.ndarray
+    surface: np.ndarray
+    face: np.ndarray
+    offsets: np.ndarray
+    kind: np.ndarray
+    ids: np.ndarray
+    u: np.ndarray
+    level: np.ndarray
+    level_weight: np.ndarray
+    camera: Camera | None = None
+    frame: int = 0
+    period_px: float = 30.0
+
+    def __len__(self) -> int:
+        return len(self.offsets) - 1
+
+    @cached_property
+    def segment_lengths(self) -> np.ndarray:
+        """(N,) length in px of the segment ending at each point (0 at each stroke's first point)."""
+        d = np.zeros(len(self.points))
+        if len(self.points) > 1:
+            d[1:] = np.linalg.norm(np.diff(self.points, axis=0), axis=1)
+        d[self.offsets[:-1]] = 0.0
+        return d
+
+    @cached_property
+    def arc_length(self) -> np.ndarray:
+        """(N,) cumulative arc length in px from each stroke's start."""
+        c = np.cumsum(self.segment_lengths)
+        start = np.repeat(c[self.offsets[:-1]], np.diff(self.offsets))
+        return c - start
+
+    @cached_property
+    def lengths(self) -> np.ndarray:
+        """(S,) stroke lengths in px."""
+        if len(self) == 0:
+            return np.zeros(0)
+        return self.arc_length[self.offsets[1:] - 1]
+
+    @cached_property
+    def stroke_of_point(self) -> np.ndarray:
+        return np.repeat(np.arange(len(self)), np.diff(self.offsets))
+
+    def stroke(self, s: int) -> slice:
+        return slice(int(self.offsets[s]), int(self.offsets[s + 1]))
+
+    def select(self, mask: np.ndarray) -> "Strokes":
+        """The strokes where mask (S,) is true, in order."""
+        mask = np.asarray(mask, bool)
+        counts = np.diff(self.offsets)[mask]
+        pm = np.repeat(mask, np.diff(self.offsets))
+        return replace(self, points=self.points[pm], surface=self.surface[pm], face=self.face[pm], u=self.u[pm],
+                       offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=self.kind[mask],
+                       ids=self.ids[mask], level=self.level[mask], level_weight=self.level_weight[mask])
+
+    @staticmethod
+    def build(points, surface, face, offsets, kind, *, ids=None, u=None, camera=None, frame=0,
+              period_px=30.0) -> "Strokes":
+        """Strokes with default ids (0..S-1), u = arc length / period and level 0."""
+        offsets = np.asarray(offsets, np.int64)
+        n_s = len(offsets) - 1
+        s = Strokes(points=np.asarray(points, float).reshape(-1, 2), surface=np.asarray(surface, float).reshape(-1, 3),
+                    face=np.asarray(face, np.int64), offsets=offsets, kind=np.asarray(kind, np.int8),
+                    ids=np.arange(n_s, dtype=np.int64) if ids is None else np.asarray(ids, np.int64),
+                    u=np.zeros(len(points)) if u is None else np.asarray(u, float),
+                    level=np.zeros(n_s), level_weight=np.ones(n_s), camera=camera, frame=frame,
+                    period_px=period_px)
+        if u is None:
+            s = replace(s, u=s.arc_length / period_px)
+        return s
+
+    @staticmethod
+    def empty(camera=None, frame=0, period_px=30.0) -> "Strokes":
+        return Strokes.build(np.zeros((0, 2)), np.zeros((0, 3)), np.zeros(0), [0], np.zeros(0),
+                             camera=camera, frame=frame, period_px=period_px)
+
+    @staticmethod
+    def concat(parts: list["Strokes"]) -> "Strokes":
+        """Join the strokes of several parts of one frame (ids are kept as they are)."""
+        parts = [p for p in parts if len(p)] or parts[:1]
+        counts = np.concatenate([np.diff(p.offsets) for p in parts])
+        first = parts[0]
+        return replace(first, points=np.concatenate([p.points for p in parts]),
+                       surface=np.concatenate([p.surface for p in parts]),
+                       face=np.concatenate([p.face for p in parts]), u=np.concatenate([p.u for p in parts]),
+                       offsets=np.r_[0, np.cumsum(counts)].astype(np.int64),
+                       kind=np.concatenate([p.kind for p in parts]), ids=np.concatenate([p.ids for p in parts]),
+                       level=np.concatenate([p.level for p in parts]),
+                       level_weight=np.concatenate([p.level_weight for p in parts]))

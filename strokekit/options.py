@@ -1,0 +1,69 @@
+"""Options of a line render, and the named accuracy presets (`--quality`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+
+from .errors import UsageError
+from .model import KINDS
+
+#: Accuracy knobs per preset. sample_spacing_px: distance between visibility samples along an
+#: edge on screen; bisection_tol_px: where visibility changes, the split point is located to
+#: this; supersample: raster masks; simplify_tol_px: polyline simplification (0 = none).
+QUALITY_PRESETS: dict[str, dict] = {
+    "draft": {"sample_spacing_px": 8.0, "bisection_tol_px": 0.5, "supersample": 1, "simplify_tol_px": 0.25},
+    "default": {"sample_spacing_px": 2.0, "bisection_tol_px": 0.05, "supersample": 2, "simplify_tol_px": 0.0},
+    "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "simplify_tol_px": 0.0},
+}
+
+DEFAULT_KINDS = ("silhouette", "border", "crease", "material", "nonmanifold")
+
+
+@dataclass(frozen=True)
+class LineOptions:
+    """What lines to find and how accurately. Pixel values are image-space pixels."""
+
+    kinds: tuple[str, ...] = DEFAULT_KINDS
+    crease_angle_deg: float = 60.0
+    sample_spacing_px: float = 2.0
+    bisection_tol_px: float = 0.05
+    split_angle_deg: float = 90.0
+    max_length_px: float = 0.0  # 0: no limit
+    min_length_px: float = 0.0  # strokes shorter than this are dropped
+    simplify_tol_px: float = 0.0
+    merge_overlaps: bool = True  # drop zig-zag spurs that retrace a longer stroke
+    overlap_tol_px: float = 0.5
+    occlusion_offset: float = 1e-5  # ray offset as a fraction of the scene radius
+    contours: str = "mesh"  # or "smooth" (needs the smooth-contour work)
+    period_px: float = 30.0  # texture period for u
+
+    def __post_init__(self):
+        unknown = [k for k in self.kinds if k not in KINDS]
+        if unknown:
+            raise UsageError(f"unknown line kind(s) {', '.join(unknown)} (known: {', '.join(KINDS)})")
+        if not self.kinds:
+            raise UsageError("no line kinds selected")
+        for name in ("sample_spacing_px", "bisection_tol_px", "period_px"):
+            if not getattr(self, name) > 0:
+                raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
+        if not 0 < self.crease_angle_deg < 180:
+            raise UsageError(f"crease angle must be in (0, 180) degrees, got {self.crease_angle_deg}")
+        if not 0 < self.split_angle_deg <= 180:
+            raise UsageError(f"split angle must be in (0, 180] degrees, got {self.split_angle_deg}")
+        if self.max_length_px < 0 or self.min_length_px < 0:
+            raise UsageError("max/min stroke length must be >= 0")
+        if self.contours not in ("mesh", "smooth"):
+            raise UsageError(f"contours must be 'mesh' or 'smooth', got {self.contours!r}")
+
+    @staticmethod
+    def preset(quality: str = "default", **overrides) -> "LineOptions":
+        """Options of a named quality preset with explicit overrides (None values ignored)."""
+        if quality not in QUALITY_PRESETS:
+            raise UsageError(f"unknown quality {quality!r} (known: {', '.join(QUALITY_PRESETS)})")
+        names = {f.name for f in fields(LineOptions)}
+        base = {k: v for k, v in QUALITY_PRESETS[quality].items() if k in names}
+        base.update({k: v for k, v in overrides.items() if v is not None})
+        return LineOptions(**base)
+
+    def to_json(self) -> dict:
+        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v) for f in fields(self)}

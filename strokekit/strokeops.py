@@ -1,0 +1,119 @@
+"""Operations on the strokes of one frame: split at a maximum length, drop short strokes, drop
+zig-zag spurs that retrace a longer stroke, simplify. All vectorized over points."""
+
+from __future__ import annotations
+
+import numpy as np
+from dataclasses import replace
+
+from .model import Strokes
+
+
+def split_max_length(strokes: Strokes, max_length_px: float) -> Strokes:
+    """Split every stroke into pieces of at most about `max_length_px` px, at its points
+    (the point where one piece ends starts the next)."""
+    if max_length_px <= 0 or len(strokes) == 0:
+        return strokes
+    arc = strokes.arc_length
+    piece = np.floor(arc / max_length_px).astype(np.int64)
+    sop = strokes.stroke_of_point
+    # A point starts a new piece when its piece number differs from its predecessor's within a stroke.
+    new = np.zeros(len(arc), bool)
+    new[1:] = (piece[1:] != piece[:-1]) & (sop[1:] == sop[:-1])
+    # Duplicate the point before each break so both pieces share it.
+    brk = np.flatnonzero(new)
+    if len(brk) == 0:
+        return strokes
+    src = np.insert(np.arange(len(arc)), brk, brk - 1)
+    starts = np.sort(np.r_[strokes.offsets[:-1], brk + np.arange(len(brk))])
+    stroke_src = np.r_[np.arange(len(strokes)), sop[brk]]
+    stroke_src = np.sort(stroke_src, kind="stable")
+    offsets = np.r_[starts, len(src)].astype(np.int64)
+    out = replace(strokes, points=strokes.points[src], surface=strokes.surface[src], face=strokes.face[src],
+                  u=strokes.u[src], offsets=offsets, kind=strokes.kind[stroke_src],
+                  ids=np.arange(len(starts), dtype=np.int64), level=strokes.level[stroke_src],
+                  level_weight=strokes.level_weight[stroke_src])
+    return replace(out, u=out.arc_length / out.period_px)
+
+
+def drop_short(strokes: Strokes, min_length_px: float) -> Strokes:
+    """Remove strokes shorter than `min_length_px` px."""
+    if min_length_px <= 0 or len(strokes) == 0:
+        return strokes
+    return strokes.select(strokes.lengths >= min_length_px)
+
+
+def resample(strokes: Strokes, step_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points every ~`step_px` along all strokes (stroke vertices included): (M, 2) points and the
+    (M,) stroke index of each."""
+    if len(strokes.points) == 0:
+        return np.zeros((0, 2)), np.zeros(0, np.int64)
+    seg = strokes.segment_lengths
+    sop = strokes.stroke_of_point
+    # Segment i runs from point i-1 to point i (for non-first points).
+    seg_idx = np.flatnonzero(seg > 0)
+    n = np.ceil(seg[seg_idx] / step_px).astype(np.int64)
+    rep = np.repeat(seg_idx, n)
+    k = np.arange(n.sum()) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+    t = (k / np.repeat(n, n))[:, None]
+    pts = strokes.points[rep - 1] * (1 - t) + strokes.points[rep] * t
+    last = strokes.offsets[1:] - 1
+    return np.concatenate([pts, strokes.points[last]]), np.concatenate([sop[rep], sop[last]])
+
+
+def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
+    """Drop strokes that lie entirely within `tol_px` of a longer (or equally long, earlier)
+    stroke of the same kind: the back-and-forth spurs of mesh contours (seed 000 Fig 3.5/3.6) that
+    would otherwise draw the same line twice."""
+    if len(strokes) < 2:
+        return strokes
+    from scipy.spatial import cKDTree
+
+    pts, owner = resample(strokes, tol_px)
+    tree = cKDTree(pts)
+    lengths = strokes.lengths
+    # Rank strokes: longer first, then earlier first. A stroke is covered if each of its samples
+    # has a sample of a higher-ranked stroke of the same kind within tol.
+    rank = np.empty(len(strokes), np.int64)
+    rank[np.lexsort((np.arange(len(strokes)), -lengths))] = np.arange(len(strokes))
+    pairs = tree.query_pairs(tol_px, output_type="ndarray")
+    if len(pairs) == 0:
+        return strokes
+    i, j = pairs[:, 0], pairs[:, 1]
+    si, sj = owner[i], owner[j]
+    same_kind = strokes.kind[si] == strokes.kind[sj]
+    diff = (si != sj) & same_kind
+    i, j, si, sj = i[diff], j[diff], si[diff], sj[diff]
+    covered = np.zeros(len(pts), bool)
+    covered[i[rank[sj] < rank[si]]] = True
+    covered[j[rank[si] < rank[sj]]] = True
+    n_cov = np.bincount(owner, weights=covered, minlength=len(strokes))
+    n_all = np.bincount(owner, minlength=len(strokes))
+    redundant = n_cov == n_all
+    if not redundant.any():
+        return strokes
+    return strokes.select(~redundant)
+
+
+def simplify(strokes: Strokes, tol_px: float) -> Strokes:
+    """Douglas-Peucker simplification of each stroke within `tol_px` (shapely); 0 keeps all points."""
+    if tol_px <= 0 or len(strokes) == 0:
+        return strokes
+    import shapely
+
+    keep = np.zeros(len(strokes.points), bool)
+    keep[strokes.offsets[:-1]] = True
+    keep[strokes.offsets[1:] - 1] = True
+    lines = shapely.linestrings(strokes.points, indices=strokes.stroke_of_point)
+    simp = shapely.simplify(lines, tol_px, preserve_topology=False)
+    # Keep the original points that survive (shapely keeps a subset of the input vertices).
+    coords, idx = shapely.get_coordinates(simp, return_index=True)
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(strokes.points)
+    _, nearest = tree.query(coords)
+    keep[nearest] = True
+    counts = np.bincount(strokes.stroke_of_point[keep], minlength=len(strokes))
+    out = replace(strokes, points=strokes.points[keep], surface=strokes.surface[keep], face=strokes.face[keep],
+                  u=strokes.u[keep], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    return out

@@ -1,0 +1,247 @@
+"""Visibility of feature edges (BRIEF 2): clipping, screen-space sampling, Embree occlusion rays
+and bisection of every visibility change.
+
+A point X is visible when the open segment from X to the eye meets no triangle. The ray starts a
+small offset (relative to the scene radius, never absolute) from X toward the eye. The Embree
+scene is built in coordinates centred on the scene so float32 keeps its precision far from the
+origin.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .camera import Camera
+from .errors import InputError
+from .model import FeatureEdges, VisibleRuns
+from .options import LineOptions
+from .scene import Scene
+
+
+class Occluder:
+    """Occlusion queries against a scene. Backend: open3d RaycastingScene (Embree); trimesh's
+    embreex intersector when open3d cannot be imported."""
+
+    def __init__(self, scene: Scene, backend: str | None = None):
+        self.scene = scene
+        self.origin = scene.center.copy()
+        self.radius = scene.radius
+        local = (scene.vertices - self.origin).astype(np.float32)
+        self.backend = backend
+        if backend in (None, "open3d"):
+            try:
+                import open3d as o3d
+
+                self._o3c = o3d.core
+                self._rs = o3d.t.geometry.RaycastingScene()
+                self._rs.add_triangles(o3d.core.Tensor(local), o3d.core.Tensor(scene.faces.astype(np.uint32)))
+                self.backend = "open3d"
+                return
+            except ImportError:
+                if backend == "open3d":
+                    raise
+        import trimesh
+
+        mesh = trimesh.Trimesh(local.astype(np.float64), scene.faces, process=False)
+        self._intersector = trimesh.ray.ray_pyembree.RayMeshIntersector(mesh) if _has_embreex() else mesh.ray
+        self.backend = "embreex" if _has_embreex() else "trimesh"
+
+    def occluded_segments(self, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """(N,) True where the segment origins -> targets (world, (N, 3)) hits a triangle.
+        Callers offset the origins; the target end is open."""
+        if len(origins) == 0:
+            return np.zeros(0, bool)
+        o = origins - self.origin
+        d = targets - origins
+        if self.backend == "open3d":
+            rays = np.concatenate([o, d], axis=1).astype(np.float32)
+            hit = self._rs.test_occlusions(self._o3c.Tensor(rays), tnear=0.0, tfar=1.0)
+            return hit.numpy().astype(bool)
+        length = np.linalg.norm(d, axis=1)
+        unit = d / np.where(length > 0, length, 1)[:, None]
+        idx_tri, idx_ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False, return_locations=True)
+        out = np.zeros(len(o), bool)
+        if len(idx_ray):
+            dist = np.einsum("ij,ij->i", loc - o[idx_ray], unit[idx_ray])
+            out[idx_ray[(dist > 0) & (dist < length[idx_ray])]] = True
+        return out
+
+    def first_hits(self, origins: np.ndarray, directions: np.ndarray) -> dict:
+        """Nearest hit per ray (world origins, unnormalized directions): 't_hit' (in units of the
+        direction), 'primitive_ids' (-1 none), 'primitive_uvs'. open3d only."""
+        if self.backend != "open3d":
+            raise RuntimeError("first_hits needs the open3d backend")
+        rays = np.concatenate([origins - self.origin, directions], axis=1).astype(np.float32)
+        r = self._rs.cast_rays(self._o3c.Tensor(rays))
+        ids = r["primitive_ids"].numpy().astype(np.int64)
+        ids[ids == np.iinfo(np.uint32).max] = -1
+        return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
+
+    def visible(self, points: np.ndarray, camera: Camera, offset: float = 1e-5) -> np.ndarray:
+        """(N,) True where world points (N, 3) are seen from the camera."""
+        eps = offset * self.radius
+        if camera.is_ortho:
+            _, _, fwd = camera.basis
+            toward = np.broadcast_to(-fwd, points.shape)
+            origins = points + eps * toward
+            far = 4.0 * self.radius + float(np.abs((points - self.origin) @ fwd).max(initial=0.0))
+            targets = origins + far * toward
+        else:
+            eye = np.asarray(camera.eye, float)
+            d = eye - points
+            dist = np.linalg.norm(d, axis=1)
+            toward = d / np.where(dist > 0, dist, 1.0)[:, None]
+            origins = points + np.minimum(eps, 0.5 * dist)[:, None] * toward
+            targets = np.broadcast_to(eye, points.shape)
+        return ~self.occluded_segments(origins, targets)
+
+    def eye_enclosed(self, camera: Camera, n: int = 64) -> bool:
+        """True when the perspective eye sits inside a closed part of the scene: nearly every
+        ray from it first meets a triangle from its back side."""
+        if camera.is_ortho or self.backend != "open3d":
+            return False
+        k = np.arange(n) + 0.5
+        phi = np.arccos(1 - 2 * k / n)
+        theta = math.pi * (1 + 5 ** 0.5) * k
+        dirs = np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], axis=1)
+        eye = np.broadcast_to(np.asarray(camera.eye, float), dirs.shape)
+        hits = self.first_hits(eye, dirs)
+        ids = hits["primitive_ids"]
+        if (ids < 0).any():
+            return False
+        back = np.einsum("ij,ij->i", self.scene.face_normals[ids], dirs) > 0
+        return bool(back.mean() >= 0.95)
+
+
+def _has_embreex() -> bool:
+    try:
+        import embreex  # noqa: F401
+
+        return True
+    except ImportError:
+        return False
+
+
+def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> tuple[np.ndarray, np.ndarray]:
+    """Parametric clip of world segments a + t (b - a) against the near plane and the four image
+    borders (Cyrus-Beck against the view frustum, seed 001 section 5). Returns (t0, t1), each (N,);
+    t0 > t1 where nothing is left."""
+    right, up, fwd = camera.basis
+    eye = np.asarray(camera.eye, float)
+    qa, qb = a - eye, b - eye
+    W, H, f = camera.width, camera.height, camera.focal_px
+    cam_a = np.stack([qa @ right, qa @ up, qa @ fwd], axis=1)
+    cam_b = np.stack([qb @ right, qb @ up, qb @ fwd], axis=1)
+    t0 = np.zeros(len(a))
+    t1 = np.ones(len(a))
+
+    def clip(ga, gb):  # keep where g >= 0, g linear along the segment
+        nonlocal t0, t1
+        denom = ga - gb
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = ga / denom
+        enter = (ga < 0) & (gb >= 0)
+        leave = (ga >= 0) & (gb < 0)
+        out = (ga < 0) & (gb < 0)
+        t0 = np.where(enter, np.maximum(t0, t), t0)
+        t1 = np.where(leave, np.minimum(t1, t), t1)
+        t1 = np.where(out, -1.0, t1)
+
+    xa, ya, za = cam_a.T
+    xb, yb, zb = cam_b.T
+    clip(za - near, zb - near)  # in front of the near plane
+    if camera.is_ortho:
+        clip(f * xa + W / 2, f * xb + W / 2)
+        clip(W / 2 - f * xa, W / 2 - f * xb)
+        clip(f * ya + H / 2, f * yb + H / 2)
+        clip(H / 2 - f * ya, H / 2 - f * yb)
+    else:
+        clip(f * xa + W / 2 * za, f * xb + W / 2 * zb)
+        clip(W / 2 * za - f * xa, W / 2 * zb - f * xb)
+        clip(f * ya + H / 2 * za, f * yb + H / 2 * zb)
+        clip(H / 2 * za - f * ya, H / 2 * zb - f * yb)
+    return t0, t1
+
+
+def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
+                 scene_radius: float) -> VisibleRuns:
+    """Clip, sample every `sample_spacing_px` on screen, test occlusion, bisect each change to
+    `bisection_tol_px`, and return the visible pieces."""
+    a, b = features.a, features.b
+    near = camera.near_distance(scene_radius)
+    t0, t1 = clip_segments(a, b, camera, near)
+    keep = t1 > t0 + 0.0
+    # A segment clipped to a single point still counts when it is not degenerate in 3D.
+    idx = np.flatnonzero(keep)
+    A = a[idx] + t0[idx, None] * (b[idx] - a[idx])
+    B = a[idx] + t1[idx, None] * (b[idx] - a[idx])
+    pa, za = camera.project(A)
+    pb, zb = camera.project(B)
+    L = np.linalg.norm(pb - pa, axis=1)
+    n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
+    # Samples: n_int + 1 per segment, uniform in screen space.
+    counts = n_int + 1
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    seg = np.repeat(np.arange(len(idx)), counts)
+    k = np.arange(counts.sum()) - np.repeat(starts, counts)
+    s = k / np.repeat(n_int, counts)
+
+    def world_at(seg_i, s_i):
+        if camera.is_ortho:
+            lam = s_i
+        else:
+            z0, z1 = za[seg_i], zb[seg_i]
+            lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
+        return A[seg_i] + lam[:, None] * (B[seg_i] - A[seg_i])
+
+    vis = occluder.visible(world_at(seg, s), camera, options.occlusion_offset)
+    # Changes of visibility between consecutive samples of one segment.
+    same = seg[1:] == seg[:-1]
+    change = np.flatnonzero(same & (vis[1:] != vis[:-1]))
+    if len(change):
+        cs = seg[change]
+        lo, hi = s[change].copy(), s[change + 1].copy()
+        vis_lo = vis[change]
+        width_px = (hi - lo) * L[cs]
+        iters = int(math.ceil(math.log2(max(width_px.max(), 1e-12) / options.bisection_tol_px))) if width_px.max() > options.bisection_tol_px else 0
+        for _ in range(max(iters, 0)):
+            mid = 0.5 * (lo + hi)
+            vm = occluder.visible(world_at(cs, mid), camera, options.occlusion_offset)
+            go_hi = vm == vis_lo  # the change lies in [mid, hi]
+            lo = np.where(go_hi, mid, lo)
+            hi = np.where(go_hi, hi, mid)
+        # The run endpoint is the visible side of the final bracket.
+        s_change = np.where(vis_lo, lo, hi)
+        rising = ~vis_lo  # hidden -> visible: a run starts
+    else:
+        cs = np.zeros(0, np.int64)
+        s_change = np.zeros(0)
+        rising = np.zeros(0, bool)
+    first = starts
+    last = starts + counts - 1
+    seg_ids = np.arange(len(idx))
+    on_seg = np.r_[seg_ids[vis[first]], cs[rising]]
+    on_s = np.r_[np.zeros(int(vis[first].sum())), s_change[rising]]
+    off_seg = np.r_[seg_ids[vis[last]], cs[~rising]]
+    off_s = np.r_[np.ones(int(vis[last].sum())), s_change[~rising]]
+    o_on = np.lexsort((on_s, on_seg))
+    o_off = np.lexsort((off_s, off_seg))
+    run_seg = on_seg[o_on]
+    s0, s1 = on_s[o_on], off_s[o_off]
+    assert np.array_equal(run_seg, off_seg[o_off]), "visibility events must pair up"
+    good = s1 >= s0
+    run_seg, s0, s1 = run_seg[good], s0[good], s1[good]
+    X0, X1 = world_at(run_seg, s0), world_at(run_seg, s1)
+    p0, _ = camera.project(X0)
+    p1, _ = camera.project(X1)
+    fe = idx[run_seg]
+    n = len(fe)
+    unique_key = -(np.arange(2 * n, dtype=np.int64) + 1)
+    start_on_vertex = (s0 == 0.0) & (t0[fe] == 0.0) & (features.va[fe] >= 0)
+    end_on_vertex = (s1 == 1.0) & (t1[fe] == 1.0) & (features.vb[fe] >= 0)
+    key0 = np.where(start_on_vertex, features.va[fe], unique_key[0::2])
+    key1 = np.where(end_on_vertex, features.vb[fe], unique_key[1::2])
+    return VisibleRuns(edge=fe, X0=X0, X1=X1, p0=p0, p1=p1, key0=key0, key1=key1, kind=features.kind[fe],
+                       face=features.face[fe])

@@ -1,0 +1,1 @@
+"""Writers turn finished strokes into files. They compute no geometry."""
