@@ -24,7 +24,10 @@ class FeatureEdges:
 
     a, b (N, 3) float64 endpoints; kind (N,) int8 into KINDS; va, vb (N,) int64 mesh vertex ids of
     a and b (-1 where the endpoint is not a mesh vertex, e.g. inside a face); face (N,) int64 the
-    face the segment lies on (for surface lookups)."""
+    face the segment lies on (for surface lookups). va/vb are chaining keys: two segments chain
+    where they share a key, so points on a mesh edge (not a vertex) should use V + edge index.
+    lift (N, 3) or None: a world-space offset added to the occlusion ray origin of every sample of
+    the segment (for lines inside faces, whose rays would graze the surface); zero when None."""
 
     a: np.ndarray
     b: np.ndarray
@@ -32,6 +35,7 @@ class FeatureEdges:
     va: np.ndarray
     vb: np.ndarray
     face: np.ndarray
+    lift: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.a)
@@ -47,8 +51,11 @@ class FeatureEdges:
         parts = [p for p in parts if len(p)]
         if not parts:
             return FeatureEdges.empty()
+        lift = None
+        if any(p.lift is not None for p in parts):
+            lift = np.concatenate([p.lift if p.lift is not None else np.zeros((len(p), 3)) for p in parts])
         return FeatureEdges(*(np.concatenate([getattr(p, n) for p in parts])
-                              for n in ("a", "b", "kind", "va", "vb", "face")))
+                              for n in ("a", "b", "kind", "va", "vb", "face")), lift=lift)
 
 
 @dataclass(frozen=True, eq=False)

@@ -79,9 +79,13 @@ class Occluder:
         ids[ids == np.iinfo(np.uint32).max] = -1
         return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
 
-    def visible(self, points: np.ndarray, camera: Camera, offset: float = 1e-5) -> np.ndarray:
-        """(N,) True where world points (N, 3) are seen from the camera."""
+    def visible(self, points: np.ndarray, camera: Camera, offset: float = 1e-5,
+                lift: np.ndarray | None = None) -> np.ndarray:
+        """(N,) True where world points (N, 3) are seen from the camera. `lift` (N, 3), if given,
+        moves each ray origin off the surface (world units) before the test."""
         eps = offset * self.radius
+        if lift is not None:
+            points = points + lift
         if camera.is_ortho:
             _, _, fwd = camera.basis
             toward = np.broadcast_to(-fwd, points.shape)
@@ -196,7 +200,9 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
             lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
         return A[seg_i] + lam[:, None] * (B[seg_i] - A[seg_i])
 
-    vis = occluder.visible(world_at(seg, s), camera, options.occlusion_offset)
+    lift = None if features.lift is None else features.lift[idx]
+    vis = occluder.visible(world_at(seg, s), camera, options.occlusion_offset,
+                           None if lift is None else lift[seg])
     # Changes of visibility between consecutive samples of one segment.
     same = seg[1:] == seg[:-1]
     change = np.flatnonzero(same & (vis[1:] != vis[:-1]))
@@ -208,7 +214,8 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         iters = int(math.ceil(math.log2(max(width_px.max(), 1e-12) / options.bisection_tol_px))) if width_px.max() > options.bisection_tol_px else 0
         for _ in range(max(iters, 0)):
             mid = 0.5 * (lo + hi)
-            vm = occluder.visible(world_at(cs, mid), camera, options.occlusion_offset)
+            vm = occluder.visible(world_at(cs, mid), camera, options.occlusion_offset,
+                                  None if lift is None else lift[cs])
             go_hi = vm == vis_lo  # the change lies in [mid, hi]
             lo = np.where(go_hi, mid, lo)
             hi = np.where(go_hi, hi, mid)
