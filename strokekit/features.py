@@ -1,4 +1,6 @@
-"""Feature edges of one frame (BRIEF 2): silhouette, border, crease, material, non-manifold.
+"""Feature edges of one frame (BRIEF 2): silhouette, border, crease, material, non-manifold, and
+the lines inside faces: smooth contours (contours.py), suggestive contours (suggestive.py) and
+intersection lines (intersections.py).
 
 All vectorized over the scene's edges. Facing is decided per face in float64 from the face plane
 (n . eye - n . centroid), one rule per face, so two neighbours never disagree about a shared
@@ -71,5 +73,27 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
         second_front = ff[ef[sil, 1]]
         face[sil] = np.where(second_front, ef[sil, 1], ef[sil, 0])
     v = scene.vertices
-    return FeatureEdges(a=v[e[:, 0]], b=v[e[:, 1]], kind=kind[sel], va=e[:, 0].astype(np.int64),
+    mesh = FeatureEdges(a=v[e[:, 0]], b=v[e[:, 1]], kind=kind[sel], va=e[:, 0].astype(np.int64),
                         vb=e[:, 1].astype(np.int64), face=face)
+    parts = [mesh]
+    if wants_smooth_contours(options):
+        from .contours import smooth_contour_edges
+
+        parts.append(smooth_contour_edges(scene, camera))
+    if "suggestive" in options.kinds:
+        from .suggestive import suggestive_contour_edges
+
+        parts.append(suggestive_contour_edges(scene, camera, options))
+    if "intersection" in options.kinds:
+        from .intersections import intersection_edges
+
+        parts.append(intersection_edges(scene))
+    if len(parts) == 1:
+        return mesh
+    return FeatureEdges.concat(parts)
+
+
+def wants_smooth_contours(options: LineOptions) -> bool:
+    """Smooth contours are drawn when asked for by kind, or when `contours == "smooth"` and
+    silhouettes are asked for (they then replace the mesh silhouettes)."""
+    return "smooth_contour" in options.kinds or (options.contours == "smooth" and "silhouette" in options.kinds)

@@ -106,13 +106,18 @@ def simplify(strokes: Strokes, tol_px: float) -> Strokes:
     keep[strokes.offsets[1:] - 1] = True
     lines = shapely.linestrings(strokes.points, indices=strokes.stroke_of_point)
     simp = shapely.simplify(lines, tol_px, preserve_topology=False)
-    # Keep the original points that survive (shapely keeps a subset of the input vertices).
+    # Keep the original points that survive (shapely keeps a subset of each line's own vertices,
+    # coordinates unchanged). Match on (stroke, x, y) exactly: strokes share positions where they
+    # meet, so a nearest-point match could keep another stroke's point and drop this one's.
     coords, idx = shapely.get_coordinates(simp, return_index=True)
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(strokes.points)
-    _, nearest = tree.query(coords)
-    keep[nearest] = True
+    n = len(strokes.points)
+    rows = np.concatenate([np.c_[strokes.stroke_of_point, strokes.points], np.c_[idx, coords]])
+    _, inv = np.unique(rows, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    first = np.full(inv.max() + 1, -1, np.int64)
+    first[inv[:n][::-1]] = np.arange(n)[::-1]  # first original point of each (stroke, x, y)
+    matched = first[inv[n:]]
+    keep[matched[matched >= 0]] = True
     counts = np.bincount(strokes.stroke_of_point[keep], minlength=len(strokes))
     out = replace(strokes, points=strokes.points[keep], surface=strokes.surface[keep], face=strokes.face[keep],
                   u=strokes.u[keep], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))

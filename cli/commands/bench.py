@@ -1,0 +1,57 @@
+"""`strokekit bench`: what accuracy costs in time (issue 6)."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from strokekit.errors import UsageError
+
+
+@click.command("bench")
+@click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
+@click.option("--camera", "camera_path", type=click.Path(dir_okay=False), default=None,
+              help="Camera path file (BRIEF 1.2); default: an orbit around the scene.")
+@click.option("--frames", type=int, default=8, show_default=True,
+              help="Orbit frames, or the first N frames of --camera.")
+@click.option("--repeats", type=int, default=3, show_default=True, help="Timed passes; the median is reported.")
+@click.option("--sweep", default=None,
+              help="Comma-separated values of sample_spacing_px to sweep (default 0.5,1,2,4,8,16).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
+              help="Write accuracy against time as a PNG (one curve per knob).")
+@click.option("--json", "as_json", is_flag=True, help="Print the results as JSON instead of a table.")
+def command(scene_path, camera_path, frames, repeats, sweep, plot_path, as_json):
+    """Time every --quality preset and a sweep of the sample spacing on SCENE, with precision and
+    recall at 0.5/1/2 px against the `exact` preset."""
+    from strokekit.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
+    from strokekit.camera import load_camera_path
+    from strokekit.scene import load_scene
+
+    if frames <= 0:
+        raise UsageError(f"--frames must be positive, got {frames}")
+    if repeats <= 0:
+        raise UsageError(f"--repeats must be positive, got {repeats}")
+    values = DEFAULT_SWEEP
+    if sweep:
+        try:
+            values = tuple(float(v) for v in sweep.split(",") if v.strip())
+        except ValueError:
+            raise UsageError(f"--sweep must be comma-separated numbers, got {sweep!r}") from None
+        if not values or min(values) <= 0:
+            raise UsageError("--sweep values must be > 0")
+    scene = load_scene(scene_path)
+    if camera_path:
+        cams = list(load_camera_path(camera_path).cameras)[:frames]
+    else:
+        cams = default_cameras(scene, frames)
+    log = None if as_json else (lambda m: click.echo(m, err=True))
+    result = run_bench(scene, cams, repeats=repeats, sweep=values, log=log)
+    if plot_path:
+        plot_bench(result, plot_path)
+    if as_json:
+        click.echo(json.dumps(result_json(result), indent=1))
+    else:
+        click.echo(format_table(result))
+        if plot_path:
+            click.echo(f"plot written to {plot_path}")

@@ -1,0 +1,64 @@
+"""`strokekit camera orbit|dolly SCENE`: write a camera path file (BRIEF 1.2) to stdout or a file."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from strokekit.camera import dolly_path, orbit_path
+from strokekit.fileio import atomic_write_text
+from strokekit.scene import load_scene
+
+
+def _emit(path, out):
+    text = json.dumps(path.to_json(), indent=1) + "\n"
+    if out:
+        atomic_write_text(out, text)
+    else:
+        click.echo(text, nl=False)
+
+
+_common = [
+    click.argument("scene", type=click.Path(dir_okay=False)),
+    click.option("--frames", type=click.IntRange(min=1), default=48, show_default=True, help="Number of frames."),
+    click.option("--elevation", type=float, default=15.0, show_default=True, help="Degrees above the horizon."),
+    click.option("--fov", type=click.FloatRange(0.1, 179.9), default=40.0, show_default=True, help="Vertical field of view, degrees."),
+    click.option("--width", type=click.IntRange(min=1), default=1024, show_default=True),
+    click.option("--height", type=click.IntRange(min=1), default=1024, show_default=True),
+    click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis."),
+    click.option("-o", "--out", type=click.Path(dir_okay=False), default=None, help="Write to a file instead of stdout."),
+]
+
+
+def _with_common(f):
+    for deco in reversed(_common):
+        f = deco(f)
+    return f
+
+
+@click.group("camera")
+def command():
+    """Generate camera paths (JSON, BRIEF 1.2) so every run can be reproduced from a file."""
+
+
+@command.command("orbit")
+@_with_common
+@click.option("--degrees-per-frame", type=float, default=None, help="Default: a full turn over the frames.")
+@click.option("--fps", type=float, default=24.0, show_default=True)
+def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
+    """A turntable orbit around the scene that keeps it in view."""
+    s = load_scene(scene)
+    _emit(orbit_path(s.center, s.radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
+                     fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
+
+
+@command.command("dolly")
+@_with_common
+@click.option("--start", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True, help="Start distance factor.")
+@click.option("--end", type=click.FloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
+def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
+    """The camera moves straight away from (or toward) the scene, geometrically."""
+    s = load_scene(scene)
+    _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
+                     elevation=elevation, up_axis=up), out)

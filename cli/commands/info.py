@@ -1,0 +1,43 @@
+"""`strokekit info SCENE`: what is in a scene and what lines it can have."""
+
+from __future__ import annotations
+
+import click
+
+from strokekit.scene import load_scene
+
+from ..common import echo_json
+
+
+@click.command("info")
+@click.argument("scene", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
+@click.option("--crease-angle", type=float, default=60.0, show_default=True, help="Crease threshold, degrees.")
+def command(scene: str, as_json: bool, crease_angle: float):
+    """Meshes, faces, materials, bounds, borders and non-manifold edges, and the line kinds present."""
+    s = load_scene(scene)
+    d = s.summary()
+    d["line_kinds"] = s.available_kinds(crease_angle)
+    d["crease_edges"] = int(s.crease_mask(crease_angle).sum())
+    if as_json:
+        echo_json(d)
+        return
+    rows = [
+        ("file", d["source"]),
+        ("objects", f"{d['objects']} ({', '.join(d['object_names'][:6])}{', ...' if d['objects'] > 6 else ''})"),
+        ("materials", f"{len(d['materials'])} ({', '.join(d['materials'][:6])})"),
+        ("faces", f"{d['faces']} (dropped: {d['dropped_degenerate_faces']} degenerate, "
+                  f"{d['dropped_duplicate_faces']} duplicate)"),
+        ("vertices", f"{d['vertices_welded']} welded by position ({d['vertices_in_file']} in file)"),
+        ("bounds", f"min {fmt(d['bounds_min'])}  max {fmt(d['bounds_max'])}"),
+        ("edges", f"{d['edges']}: {d['border_edges']} border, {d['nonmanifold_edges']} non-manifold, "
+                  f"{d['crease_edges']} crease (> {crease_angle:g} deg), {d['material_boundary_edges']} material boundary"),
+        ("line kinds", ", ".join(d["line_kinds"]) or "none"),
+    ]
+    w = max(len(k) for k, _ in rows)
+    for k, v in rows:
+        click.echo(f"{k:<{w}}  {v}")
+
+
+def fmt(v) -> str:
+    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"

@@ -1,0 +1,151 @@
+"""`strokekit render SCENE`: lines (and optional ribbons and masks) for every frame of a camera path."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import click
+
+from strokekit.camera import load_camera_path, orbit_path
+from strokekit.errors import UsageError
+from strokekit.fileio import atomic_write_text
+from strokekit.frames import parse_frames
+from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
+from strokekit.pipeline import OutputOptions, RunSpec, run, run_report
+from strokekit.scene import load_scene
+
+from ..common import is_interactive, split_list
+from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
+
+
+@click.command("render")
+@click.argument("scene", type=click.Path(dir_okay=False))
+@click.option("--camera", "camera_file", type=click.Path(dir_okay=False), default=None,
+              help="Camera path JSON (BRIEF 1.2), or a glTF/GLB file with a camera node.")
+@click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")
+@click.option("--elevation", type=float, default=15.0, show_default=True, help="Orbit elevation, degrees.")
+@click.option("--fov", type=click.FloatRange(0.1, 179.9), default=40.0, show_default=True, help="Orbit field of view, degrees.")
+@click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="Orbit up axis.")
+@click.option("--size", default=None, help="Image size WxH (overrides the camera file), e.g. 1024x1024.")
+@click.option("--frames", "frame_spec", default=None, help="Frames to render, 1-based: 1-24 or 1,3,5-9 (default all).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True)
+@click.option("--pattern", default="frame_{frame:04d}", show_default=True, help="File name pattern (no extension).")
+@click.option("--kinds", default=",".join(DEFAULT_KINDS), show_default=True,
+              help="Line kinds: silhouette,border,crease,material,nonmanifold,smooth_contour,suggestive,intersection.")
+@click.option("--contours", type=click.Choice(["mesh", "smooth"]), default="mesh", show_default=True,
+              help="Mesh contours (silhouette edges) or smooth interpolated contours.")
+@click.option("--quality", type=click.Choice(list(QUALITY_PRESETS)), default="default", show_default=True,
+              help="Accuracy preset: draft (fast), default, exact (slow reference).")
+@click.option("--crease-angle", type=float, default=None, help="Crease threshold in degrees [60].")
+@click.option("--sample-spacing", type=float, default=None, help="Visibility samples every N px (overrides --quality).")
+@click.option("--bisection-tol", type=float, default=None, help="Visibility change located to N px (overrides --quality).")
+@click.option("--split-angle", type=float, default=None, help="Split strokes at turns sharper than N degrees [90].")
+@click.option("--max-length", type=float, default=None, help="Split strokes longer than N px [no limit].")
+@click.option("--min-length", type=float, default=None, help="Drop strokes shorter than N px [0].")
+@click.option("--simplify", "simplify_tol", type=float, default=None, help="Simplify strokes within N px.")
+@click.option("--period", type=float, default=None, help="Texture period P in px for the parametrization u [30].")
+@click.option("--svg/--no-svg", default=True, show_default=True)
+@click.option("--json/--no-json", "write_json", default=True, show_default=True)
+@click.option("--decimals", type=click.IntRange(0, 8), default=2, show_default=True, help="SVG coordinate decimals.")
+@click.option("--stroke-width", type=float, default=1.5, show_default=True, help="SVG stroke width in px.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Worker processes (default: the machine's cores for 8 frames or more, else 1).")
+@click.option("--scheduler", default=None, help="dask.distributed scheduler address, e.g. tcp://host:8786.")
+@click.option("--skip-existing", is_flag=True, help="Resume: do not rewrite frames whose files all exist.")
+@click.option("--fail-fast", is_flag=True, help="Stop at the first failed frame.")
+@click.option("--quiet", "-q", is_flag=True, help="No progress and no summary.")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="Write a JSON run report.")
+@click.option("--explain", is_flag=True, help="List the stages that ran, why, and their time.")
+@render_extra_options
+def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out_dir, pattern, kinds, contours, quality,
+            crease_angle, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, period,
+            svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
+            explain, **extra):
+    """Render the visible feature lines of SCENE for every frame of a camera path.
+
+    Writes OUT/frame_0001.svg and .json (and .glb, band PNGs when asked) per frame."""
+    if camera_file and orbit:
+        raise UsageError("give either --camera or --orbit, not both")
+    if not (svg or write_json or extra.get("gltf") or extra.get("bands")):
+        raise UsageError("nothing to write: every output is turned off")
+    try:
+        pattern.format(frame=1)
+    except (KeyError, IndexError, ValueError):
+        raise UsageError(f"bad --pattern {pattern!r}: use {{frame}} e.g. frame_{{frame:04d}}") from None
+    width = height = None
+    if size:
+        try:
+            width, height = (int(x) for x in size.lower().split("x"))
+            assert width > 0 and height > 0
+        except Exception:
+            raise UsageError(f"bad --size {size!r}: use WxH, e.g. 1024x768") from None
+    s = load_scene(scene)
+    if camera_file:
+        path = load_camera_path(camera_file)
+        if width:
+            from dataclasses import replace
+
+            path = type(path)(cameras=tuple(replace(c, width=width, height=height) for c in path.cameras),
+                              fps=path.fps, source=path.source)
+    else:
+        path = orbit_path(s.center, s.radius, orbit or 48, elevation=elevation, fov_y=fov, width=width or 1024,
+                          height=height or 1024, up_axis=up)
+    frames = parse_frames(frame_spec, len(path))
+    lines = LineOptions.preset(quality, kinds=split_list(kinds), contours=contours, crease_angle_deg=crease_angle,
+                               sample_spacing_px=sample_spacing, bisection_tol_px=bisection_tol,
+                               split_angle_deg=split_angle, max_length_px=max_length, min_length_px=min_length,
+                               simplify_tol_px=simplify_tol, period_px=period)
+    outputs = OutputOptions(out_dir=Path(out_dir), pattern=pattern, svg=svg, json=write_json,
+                            decimals=decimals, stroke_width_px=stroke_width,
+                            gltf=bool(extra.get("gltf")), gltf_sequence=bool(extra.get("gltf_sequence")),
+                            gltf_options=gltf_options_from(extra, lines),
+                            raster_options=raster_options_from(extra, quality))
+    if workers is None:
+        workers = (os.cpu_count() or 1) if len(frames) >= 8 else 1
+    spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
+                   tracking=tracking_options_from(extra, lines, len(frames)), workers=min(workers, len(frames)),
+                   scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast)
+    res = _run_with_progress(spec, quiet)
+    if report_path:
+        atomic_write_text(report_path, json.dumps(run_report(spec, res), indent=1) + "\n")
+    if explain:
+        click.echo("stages:")
+        for st in res.stages:
+            mark = "ran " if st.ran else "skip"
+            t = f"{st.seconds * 1e3:9.1f} ms" if st.ran and not st.name.startswith(" ") else " " * 12
+            click.echo(f"  [{mark}] {st.name:<26} {t}  {st.why}")
+    for f, msg in sorted(res.failures.items()):
+        click.echo(f"strokekit: error: {msg}", err=True)
+    if not quiet:
+        n_ok = len(res.frames_ok)
+        msg = f"wrote {n_ok} frame(s) to {out_dir}/ in {res.wall_seconds:.2f} s"
+        if res.frames_skipped:
+            msg += f" ({len(res.frames_skipped)} already there, skipped)"
+        if res.failures:
+            msg += f"; {len(res.failures)} frame(s) failed"
+        click.echo(msg, err=True)
+    return res.exit_code
+
+
+def _run_with_progress(spec: RunSpec, quiet: bool):
+    if not is_interactive(quiet):
+        return run(spec)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TextColumn("{task.fields[fps]:.1f} frames/s"), TimeRemainingColumn(), transient=True) as prog:
+        tasks = {}
+        import time
+
+        t0 = {}
+
+        def cb(phase, done, total):
+            if phase not in tasks:
+                tasks[phase] = prog.add_task(phase, total=total, fps=0.0)
+                t0[phase] = time.perf_counter()
+            dt = max(time.perf_counter() - t0[phase], 1e-9)
+            prog.update(tasks[phase], completed=done, fps=done / dt)
+
+        return run(spec, progress=cb)

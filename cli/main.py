@@ -1,0 +1,58 @@
+"""The `strokekit` command: a click group whose commands live in cli/commands/*.py.
+
+The front end parses, calls the library and reports. Library errors become one line on stderr
+and an exit code (1 input, 2 usage, 3 partial failure); never a traceback unless
+STROKEKIT_DEBUG=1."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import pkgutil
+import sys
+
+import click
+
+from strokekit.errors import StrokekitError
+
+from . import commands
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
+@click.version_option(package_name="strokekit")
+def cli():
+    """Turn 3D scenes into coherent line drawings (SVG, JSON, glTF ribbons, toon masks)."""
+
+
+for _info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+    _mod = importlib.import_module(f"{commands.__name__}.{_info.name}")
+    _cmd = getattr(_mod, "command", None)
+    if isinstance(_cmd, click.Command):
+        cli.add_command(_cmd)
+
+
+def main(argv: list[str] | None = None) -> None:
+    try:
+        rv = cli.main(args=argv, prog_name="strokekit", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("strokekit: aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as e:
+        e.show()
+        sys.exit(e.exit_code)
+    except StrokekitError as e:
+        click.echo(f"strokekit: error: {e}", err=True)
+        sys.exit(e.exit_code)
+    except KeyboardInterrupt:
+        click.echo("strokekit: interrupted", err=True)
+        sys.exit(130)
+    except Exception as e:  # never a traceback for the user
+        if os.environ.get("STROKEKIT_DEBUG"):
+            raise
+        click.echo(f"strokekit: internal error: {type(e).__name__}: {e} (set STROKEKIT_DEBUG=1 for details)", err=True)
+        sys.exit(1)
+    sys.exit(rv if isinstance(rv, int) else 0)
+
+
+if __name__ == "__main__":
+    main()

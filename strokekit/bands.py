@@ -1,0 +1,429 @@
+"""Toon bands (seed 002, seed 001 section 6, seed 000 section 2.1.1): quantized Lambert shading
+from the raster pass, per-material 1D ramps, anti-aliased band masks and band polygons.
+
+Labels: 0 is background, 1..N are bands from darkest to brightest. With N bands and no explicit
+thresholds the band of a sample is floor(max(0, n.l) N) (seed 002: floor(diffuse * levels)),
+with n.l = 1 put in the top band. Lighting is two-sided: the normal is turned to face the viewer,
+so open meshes and inconsistent windings (common in glTF) are lit from the side we see.
+
+Entry points for the pipeline: `render_raster(scene, camera, occluder, options) -> RasterFrame`,
+`RasterFrame.png_outputs() -> {suffix: PNG bytes}`, `band_polygons_svg(frame) -> [svgwrite
+elements]`, and the shortcut `raster_outputs(...)`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from .camera import Camera
+from .errors import UsageError
+from .raster import RasterHits, box_filter, cast_pixels
+from .scene import Scene
+from .visibility import Occluder
+
+SHADINGS = ("flat", "smooth")
+LIGHT_SPACES = ("camera", "world")
+FILL_PATTERNS = ("hatch", "dots", "noise")
+#: The ramp's darkest shade, as a fraction of the base colour (seed 000 Fig 2.7: shades are the
+#: base colour darkened).
+RAMP_DARKEST = 0.45
+
+
+@dataclass(frozen=True)
+class RasterOptions:
+    """What the raster pass computes and writes. Only what is asked is computed.
+
+    bands: N; thresholds: explicit n.l thresholds (increasing, in (0, 1)), which override N with
+    len(thresholds) + 1; shading 'flat' (face normals) or 'smooth' (interpolated vertex normals);
+    light: direction toward the light, in camera space (x right, y up, z toward the viewer) or
+    world space; supersample K in {1, 2, 4}; masks: one anti-aliased PNG per band; shade: ramp
+    colours (RGBA); objectid, depth: compositing passes; fill: seed 003 hatching/dots/noise of
+    `fill_pattern` with a base period of `fill_period_px` output pixels; gooch: warm/cool ramps;
+    band_polygons: the bands as SVG polygons (see `band_polygons_svg`)."""
+
+    bands: int = 3
+    thresholds: tuple[float, ...] = ()
+    shading: str = "flat"
+    light: tuple[float, float, float] = (-0.4, 0.6, 0.7)
+    light_space: str = "camera"
+    supersample: int = 2
+    masks: bool = False
+    shade: bool = True
+    objectid: bool = False
+    depth: bool = False
+    fill: bool = False
+    fill_pattern: str = "hatch"
+    fill_period_px: float = 16.0
+    gooch: bool = False
+    band_polygons: bool = False
+
+    def __post_init__(self):
+        th = tuple(float(t) for t in self.thresholds)
+        object.__setattr__(self, "thresholds", th)
+        if th:
+            if not all(0.0 < t < 1.0 for t in th) or any(b <= a for a, b in zip(th, th[1:])):
+                raise UsageError(f"band thresholds must increase strictly inside (0, 1), got {list(th)}")
+            object.__setattr__(self, "bands", len(th) + 1)
+        if not 1 <= int(self.bands) <= 254:
+            raise UsageError(f"bands must be in 1..254, got {self.bands}")
+        if self.shading not in SHADINGS:
+            raise UsageError(f"shading must be one of {', '.join(SHADINGS)}, got {self.shading!r}")
+        if self.light_space not in LIGHT_SPACES:
+            raise UsageError(f"light space must be one of {', '.join(LIGHT_SPACES)}, got {self.light_space!r}")
+        light = np.asarray(self.light, float)
+        if light.shape != (3,) or not np.all(np.isfinite(light)) or np.linalg.norm(light) == 0:
+            raise UsageError(f"light must be 3 finite numbers, not all zero, got {self.light!r}")
+        if int(self.supersample) not in (1, 2, 4):
+            raise UsageError(f"supersample must be 1, 2 or 4, got {self.supersample}")
+        if self.fill_pattern not in FILL_PATTERNS:
+            raise UsageError(f"fill pattern must be one of {', '.join(FILL_PATTERNS)}, got {self.fill_pattern!r}")
+        if not self.fill_period_px > 0:
+            raise UsageError(f"fill period must be > 0 px, got {self.fill_period_px}")
+
+
+# --- shading --------------------------------------------------------------------------------------
+
+def vertex_normals(scene: Scene) -> np.ndarray:
+    """(V, 3) unit vertex normals: area-weighted sums of the face normals around each vertex
+    (the unnormalized cross product is area-weighted already). Isolated directions fall back to
+    +z rather than NaN."""
+    v, f = scene.vertices, scene.faces
+    a = v[f[:, 0]]
+    cross = np.cross(v[f[:, 1]] - a, v[f[:, 2]] - a)
+    idx = f.ravel()
+    n = np.stack([np.bincount(idx, np.repeat(cross[:, c], 3), minlength=len(v)) for c in range(3)], axis=1)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    out = np.where(norm > 0, n / np.where(norm > 0, norm, 1), np.array([0.0, 0.0, 1.0]))
+    return out
+
+
+def light_direction(camera: Camera, options: RasterOptions) -> np.ndarray:
+    """(3,) unit world vector toward the light."""
+    l = np.asarray(options.light, float)
+    if options.light_space == "camera":
+        right, up, fwd = camera.basis
+        l = l[0] * right + l[1] * up - l[2] * fwd
+    return l / np.linalg.norm(l)
+
+
+def _facing_sign(scene: Scene, hits: RasterHits, fi: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """(M,) +1 where the hit face's winding normal faces the viewer, -1 where we see its back."""
+    right, up, fwd = hits.camera.basis
+    nf = scene.face_normals
+    # n.d for d = fwd + x right + y up (perspective) or fwd (ortho), from per-face dot products.
+    s = (nf @ fwd)[fi]
+    if not hits.camera.is_ortho:
+        s = s + hits.ray_dir_x[cols] * (nf @ right)[fi] + hits.ray_dir_y[rows] * (nf @ up)[fi]
+    return np.where(s > 0, -1.0, 1.0)
+
+
+def n_dot_l(scene: Scene, hits: RasterHits, light: np.ndarray, shading: str = "flat",
+            vnormals: np.ndarray | None = None) -> np.ndarray:
+    """(HK, WK) float32 n.l per sample (NaN on background), two-sided.
+
+    flat: face normals; smooth: barycentric interpolation of vertex normals, renormalized. The
+    smooth case works on per-face scalars (vertex n.l and pairwise normal dot products), so no
+    (M, 3) normal array is built."""
+    face = hits.face.ravel()
+    sel = np.flatnonzero(face >= 0)
+    fi = face[sel]
+    WK = hits.shape[1]
+    rows, cols = np.divmod(sel, WK)
+    sign = _facing_sign(scene, hits, fi, rows, cols)
+    if shading == "flat":
+        d = (scene.face_normals @ light)[fi]
+    else:
+        vn = vertex_normals(scene) if vnormals is None else vnormals
+        f = scene.faces
+        vl = vn @ light
+        la, lb, lc = (vl[f[:, k]][fi] for k in range(3))
+        uv = hits.bary.reshape(-1, 2)[sel].astype(np.float64)
+        wb, wc = uv[:, 0], uv[:, 1]
+        wa = 1.0 - wb - wc
+        na, nb, nc = vn[f[:, 0]], vn[f[:, 1]], vn[f[:, 2]]
+        gab = np.einsum("ij,ij->i", na, nb)[fi]
+        gbc = np.einsum("ij,ij->i", nb, nc)[fi]
+        gca = np.einsum("ij,ij->i", nc, na)[fi]
+        norm2 = wa * wa + wb * wb + wc * wc + 2 * (wa * wb * gab + wb * wc * gbc + wc * wa * gca)
+        d = (wa * la + wb * lb + wc * lc) / np.sqrt(np.maximum(norm2, 1e-24))
+        # A vertex normal may point away where faces fold; the geometric side decides two-sidedness.
+    out = np.full(face.shape, np.nan, np.float32)
+    out[sel] = sign * d
+    return out.reshape(hits.shape)
+
+
+def quantize_bands(ndl: np.ndarray, bands: int, thresholds: tuple[float, ...] = ()) -> np.ndarray:
+    """uint8 labels, same shape as ndl: 0 where ndl is NaN (background), else 1..N.
+
+    Without thresholds: 1 + floor(max(0, n.l) N), n.l = 1 kept in band N (seed 002)."""
+    x = np.nan_to_num(ndl, nan=-1.0)
+    if thresholds:
+        lab = np.searchsorted(np.asarray(thresholds, np.float32), np.maximum(x, 0.0), side="right") + 1
+    else:
+        lab = np.minimum(np.floor(np.maximum(x, 0.0) * bands), bands - 1) + 1
+    lab = lab.astype(np.uint8)
+    lab[np.isnan(ndl)] = 0
+    return lab
+
+
+def band_ramps(scene: Scene, bands: int, gooch: bool = False) -> np.ndarray:
+    """(materials, N, 3) float RGB in [0, 1]: per material a 1D ramp from darker shades of its
+    base colour (band 1) up to the base colour (band N) (seed 000 Fig 2.7/2.8). With `gooch`,
+    the ramp goes from a cool (blue) to a warm (yellow) tone mixed with the base colour
+    (Gooch et al. 1998 constants)."""
+    mats = scene.materials or ()
+    base = np.array([m.base_color[:3] for m in mats], float).reshape(-1, 3)
+    if len(base) == 0:
+        base = np.array([[0.8, 0.8, 0.8]])
+    t = np.linspace(0.0, 1.0, bands) if bands > 1 else np.ones(1)
+    if gooch:
+        cool = np.array([0.0, 0.0, 0.55]) + 0.25 * base
+        warm = np.array([0.3, 0.3, 0.0]) + 0.5 * base
+        ramp = (1 - t)[None, :, None] * cool[:, None, :] + t[None, :, None] * warm[:, None, :]
+    else:
+        k = RAMP_DARKEST + (1 - RAMP_DARKEST) * t
+        ramp = base[:, None, :] * k[None, :, None]
+    return np.clip(ramp, 0.0, 1.0)
+
+
+# --- supersampled labels -> output images ---------------------------------------------------------
+
+def _blocks(img: np.ndarray, k: int) -> np.ndarray:
+    """(H*k, W*k) -> (H, W, k*k) samples of each output pixel."""
+    HK, WK = img.shape
+    return img.reshape(HK // k, k, WK // k, k).transpose(0, 2, 1, 3).reshape(HK // k, WK // k, k * k)
+
+
+def label_coverage(labels_ss: np.ndarray, k: int, n_labels: int) -> np.ndarray:
+    """(H, W, n_labels) float32 fraction of each output pixel's samples carrying each label
+    (box filter of the supersampled labels)."""
+    if k == 1:
+        return (labels_ss[..., None] == np.arange(n_labels, dtype=labels_ss.dtype)).astype(np.float32)
+    b = _blocks(labels_ss, k)
+    return np.stack([(b == c).sum(axis=2) for c in range(n_labels)], axis=-1).astype(np.float32) / (k * k)
+
+
+def representative(img: np.ndarray, k: int) -> np.ndarray:
+    """The sample nearest each output pixel's centre (for ids and depth, which must not be
+    averaged): index (k//2, k//2) of each k x k block."""
+    return img[k // 2::k, k // 2::k] if k > 1 else img
+
+
+@dataclass(frozen=True, eq=False)
+class RasterFrame:
+    """One frame's raster products. labels_ss (HK, WK) uint8 band labels at the supersampled
+    resolution; everything at output resolution is derived on demand."""
+
+    scene: Scene
+    camera: Camera
+    options: RasterOptions
+    hits: RasterHits
+    labels_ss: np.ndarray
+    light: np.ndarray
+
+    @property
+    def n_bands(self) -> int:
+        return int(self.options.bands)
+
+    @cached_property
+    def coverage(self) -> np.ndarray:
+        """(H, W, N+1) float32: coverage of background (0) and of each band."""
+        return label_coverage(self.labels_ss, self.hits.supersample, self.n_bands + 1)
+
+    @cached_property
+    def labels(self) -> np.ndarray:
+        """(H, W) uint8: the label covering most of each output pixel (ties: the lower label)."""
+        if self.hits.supersample == 1:
+            return self.labels_ss
+        return np.argmax(self.coverage, axis=2).astype(np.uint8)
+
+    def mask(self, band: int) -> np.ndarray:
+        """(H, W) uint8 anti-aliased mask of band 1..N (0 for background), 255 = fully covered."""
+        return np.round(self.coverage[..., band] * 255.0).astype(np.uint8)
+
+    @cached_property
+    def material_ss(self) -> np.ndarray:
+        """(HK, WK) int32 material index per sample, -1 on background."""
+        f = self.hits.face
+        return np.where(f >= 0, self.scene.face_material[np.maximum(f, 0)], -1).astype(np.int32)
+
+    def shade_image(self) -> np.ndarray:
+        """(H, W, 4) uint8 RGBA: the ramp colour of each sample's material and band, box-filtered
+        with alpha = covered fraction (straight, not premultiplied, alpha in the PNG)."""
+        ramps = band_ramps(self.scene, self.n_bands, self.options.gooch)
+        table = np.concatenate([np.zeros((1, 3)), ramps.reshape(-1, 3)])  # row 0: background
+        idx = np.where(self.labels_ss > 0, 1 + np.maximum(self.material_ss, 0) * self.n_bands
+                       + self.labels_ss.astype(np.int32) - 1, 0)
+        rgb = box_filter(table[idx].astype(np.float32), self.hits.supersample)
+        alpha = 1.0 - self.coverage[..., 0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            straight = np.where(alpha[..., None] > 0, rgb / alpha[..., None], 0.0)
+        out = np.concatenate([straight, alpha[..., None]], axis=2)
+        return np.round(np.clip(out, 0, 1) * 255.0).astype(np.uint8)
+
+    def objectid_image(self) -> np.ndarray:
+        """(H, W) uint8 (uint16 past 254 objects): 0 background, object index + 1."""
+        f = representative(self.hits.face, self.hits.supersample)
+        obj = np.where(f >= 0, self.scene.face_object[np.maximum(f, 0)].astype(np.int64) + 1, 0)
+        return obj.astype(np.uint8 if len(self.scene.objects) < 255 else np.uint16)
+
+    def depth_range(self) -> tuple[float, float]:
+        """(z_near, z_far) world units mapped to 0 and 65534 in the depth PNG: the scene's bounding
+        sphere along the view axis, so the mapping only moves with the camera."""
+        _, _, fwd = self.camera.basis
+        zc = float((self.scene.center - np.asarray(self.camera.eye)) @ fwd)
+        zn = max(zc - self.scene.radius, self.camera.near_distance(self.scene.radius))
+        return zn, max(zc + self.scene.radius, zn * (1 + 1e-9) + 1e-300)
+
+    def depth_image(self) -> np.ndarray:
+        """(H, W) uint16 linear view depth: 0 at z_near, 65534 at z_far (see depth_range), 65535
+        background."""
+        z = representative(self.hits.depth, self.hits.supersample)
+        zn, zf = self.depth_range()
+        q = np.clip(np.round((z - zn) / (zf - zn) * 65534.0), 0, 65534)
+        return np.where(np.isfinite(z), q, 65535).astype(np.uint16)
+
+    def fill_image(self) -> np.ndarray:
+        """(H, W) uint8 grey: seed 003 binary marks per band (0 ink, 255 paper), anti-aliased."""
+        from .fill import fill_ink
+
+        ink = fill_ink(self.scene, self.hits, self.labels_ss, self.n_bands, self.options.fill_pattern,
+                       self.options.fill_period_px)
+        return np.round(255.0 * (1.0 - box_filter(ink.astype(np.float32), self.hits.supersample))).astype(np.uint8)
+
+    def png_outputs(self) -> dict[str, bytes]:
+        """{file suffix: PNG bytes} of what the options ask: 'bands' always, then 'shade',
+        'mask_1'..'mask_N', 'objectid', 'depth', 'fill'."""
+        from .writers.png import png_bytes
+
+        o = self.options
+        out = {"bands": png_bytes(self.labels)}
+        if o.shade:
+            out["shade"] = png_bytes(self.shade_image())
+        if o.masks:
+            for b in range(1, self.n_bands + 1):
+                out[f"mask_{b}"] = png_bytes(self.mask(b))
+        if o.objectid:
+            out["objectid"] = png_bytes(self.objectid_image())
+        if o.depth:
+            out["depth"] = png_bytes(self.depth_image())
+        if o.fill:
+            out["fill"] = png_bytes(self.fill_image())
+        return out
+
+    # --- vector bands ----------------------------------------------------------------------
+    def region_keys(self) -> tuple[np.ndarray, dict[int, tuple[int, int]]]:
+        """(H, W) int32 region key per output pixel (0 background) and {key: (material, band)}.
+        A region is one band of one material; its material is the highest material index
+        among the pixel's samples (deterministic)."""
+        lab = self.labels.astype(np.int32)
+        k = self.hits.supersample
+        mat = self.material_ss if k == 1 else _blocks(self.material_ss, k).max(axis=2)
+        mat = np.maximum(mat, 0)
+        key = np.where(lab > 0, mat * self.n_bands + lab, 0)
+        keys = np.unique(key[key > 0])
+        return key, {int(q): (int((q - 1) // self.n_bands), int((q - 1) % self.n_bands + 1)) for q in keys}
+
+    def band_polygons(self, tolerance_px: float = 0.5) -> dict[int, object]:
+        """{region key: shapely (Multi)Polygon with holes} in output pixel coordinates, traced from
+        the label image (unions of pixel squares) and simplified within `tolerance_px`."""
+        key, _ = self.region_keys()
+        return label_polygons(key, tolerance_px)
+
+
+def label_polygons(key: np.ndarray, tolerance_px: float = 0.5) -> dict[int, object]:
+    """{label: shapely geometry} for every non-zero label of an (H, W) integer image.
+
+    Pixel (i, j) is the square [i, i+1] x [j, j+1]. Runs of equal labels along rows are merged
+    with identical runs of the rows below into rectangles, and the rectangles of one label are
+    unioned: few shapes even on large images, and holes come out of the union."""
+    import shapely
+
+    H, W = key.shape
+    brk = np.ones((H, W + 1), bool)
+    brk[:, 1:W] = key[:, 1:] != key[:, :-1]
+    r, c = np.nonzero(brk)  # run boundaries, row-major
+    # Consecutive boundaries in one row delimit runs; the last boundary of a row (c == W) ends it.
+    same_row = r[1:] == r[:-1]
+    r0, x0, x1 = r[:-1][same_row], c[:-1][same_row], c[1:][same_row]
+    lab = key[r0, x0]
+    keep = lab != 0
+    r0, x0, x1, lab = r0[keep], x0[keep], x1[keep], lab[keep]
+    if len(lab) == 0:
+        return {}
+    # Vertical merge: identical (label, x0, x1) runs on consecutive rows form one rectangle.
+    order = np.lexsort((r0, x1, x0, lab))
+    r0, x0, x1, lab = r0[order], x0[order], x1[order], lab[order]
+    new = np.ones(len(lab), bool)
+    new[1:] = (lab[1:] != lab[:-1]) | (x0[1:] != x0[:-1]) | (x1[1:] != x1[:-1]) | (r0[1:] != r0[:-1] + 1)
+    gid = np.cumsum(new) - 1
+    start = np.flatnonzero(new)
+    y0 = r0[start]
+    y1 = np.maximum.reduceat(r0, start) + 1
+    bx0, bx1, blab = x0[start], x1[start], lab[start]
+    boxes = shapely.box(bx0, y0, bx1, y1)
+    out = {}
+    bounds = np.flatnonzero(np.r_[True, blab[1:] != blab[:-1]])
+    ends = np.r_[bounds[1:], len(blab)]
+    for s, e in zip(bounds, ends):  # one union per label: few labels
+        geom = shapely.union_all(boxes[s:e])
+        out[int(blab[s])] = geom.simplify(tolerance_px, preserve_topology=True) if tolerance_px > 0 else geom
+    del gid
+    return out
+
+
+def _ring_path(coords: np.ndarray, decimals: int) -> str:
+    r = np.round(np.asarray(coords)[:-1], decimals) + 0.0
+    fmt = f"%.{decimals}f"
+    return "M" + " ".join(fmt % v for v in r.ravel()) + "Z"
+
+
+def band_polygons_svg(frame: RasterFrame, *, decimals: int = 2, tolerance_px: float = 0.5) -> list:
+    """svgwrite elements for an Inkscape layer 'bands' (id 'layer-bands') to place under the
+    line layers (writers.svg.svg_document(..., underlays=...)): one <path> per (material, band)
+    region, id 'b<material>-<band>', filled with the ramp colour, holes by the even-odd rule."""
+    import svgwrite
+    from svgwrite.extensions import Inkscape
+
+    dwg = svgwrite.Drawing(debug=False)
+    layer = Inkscape(dwg).layer(label="bands", id="layer-bands")
+    layer.attribs.update({"stroke": "none", "fill-rule": "evenodd"})
+    key, meaning = frame.region_keys()
+    polys = label_polygons(key, tolerance_px)
+    ramps = band_ramps(frame.scene, frame.n_bands, frame.options.gooch)
+    for q in sorted(polys):
+        geom = polys[q]
+        mat, band = meaning[q]
+        parts = getattr(geom, "geoms", [geom])
+        d = []
+        for p in parts:
+            if p.is_empty or p.geom_type != "Polygon":
+                continue
+            d.append(_ring_path(p.exterior.coords, decimals))
+            d.extend(_ring_path(h.coords, decimals) for h in p.interiors)
+        if not d:
+            continue
+        rgb = np.round(ramps[min(mat, len(ramps) - 1), band - 1] * 255).astype(int)
+        layer.add(dwg.path(d=" ".join(d), id=f"b{mat}-{band}", fill="#%02x%02x%02x" % tuple(rgb)))
+    return [layer]
+
+
+# --- entry points ---------------------------------------------------------------------------------
+
+def render_raster(scene: Scene, camera: Camera, occluder: Occluder, options: RasterOptions,
+                  vnormals: np.ndarray | None = None) -> RasterFrame:
+    """Cast the rays and label the bands of one frame. Call only when a raster output is asked
+    for. `vnormals` (V, 3) may be passed to reuse vertex normals across frames (smooth shading)."""
+    hits = cast_pixels(camera, occluder, options.supersample)
+    light = light_direction(camera, options)
+    ndl = n_dot_l(scene, hits, light, options.shading, vnormals)
+    labels_ss = quantize_bands(ndl, options.bands, options.thresholds)
+    return RasterFrame(scene=scene, camera=camera, options=options, hits=hits, labels_ss=labels_ss, light=light)
+
+
+def raster_outputs(scene: Scene, camera: Camera, occluder: Occluder, options: RasterOptions) -> dict[str, bytes]:
+    """{file suffix: PNG bytes} for one frame (write as frame_0001_<suffix>.png)."""
+    return render_raster(scene, camera, occluder, options).png_outputs()

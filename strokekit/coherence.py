@@ -1,0 +1,277 @@
+"""Temporal coherence metrics of BRIEF section 3, between the strokes of consecutive frames.
+
+Every stroke is resampled at 1 px of arc length. A sample carries its stroke id, position p (px),
+parameter u (texture periods), surface point X (world) and screen tangent t. Correspondence
+between frames f-1 and f: X of frame f-1 is projected with frame f's camera and matched to the
+nearest frame-f sample within `radius_px` (6) whose tangent agrees (|t.t'| >= `min_tangent_dot`,
+0.65); the same is run from f to f-1. Silhouettes slide over the surface, so matching is done on
+the screen position of the projected point, never on identical surface points.
+
+- M1 id persistence: matched length whose id is the same in both frames / matched length.
+- M2 popping: length without a match in the other frame (both directions) / both frames' length.
+- M4 sliding: |u' - u| wrapped into (-1/2, 1/2], times the period P, in px (median, p95, max).
+- M5 flatness: lambda = 1 / (P du/ds); length-weighted mean |log2 lambda| over a frame.
+  `flatness_raw` is that number on u as written. `flatness` is the same measure on the texture
+  as drawn with the self-similar levels of Benard 2010 (Strokes.level, level_weight, convention
+  of strokekit.tracking): octave k samples u * 2^-k, so its lambda is 2^k / (P du/ds); the two
+  blended octaves count with their blend weights.
+- M7 end growth: per id present in both frames, |L' - L| in px.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .errors import InputError
+from .model import Strokes
+
+#: BRIEF 3 constants.
+MATCH_RADIUS_PX = 6.0
+MIN_TANGENT_DOT = 0.65
+
+
+@dataclass(frozen=True, eq=False)
+class Samples:
+    """Strokes resampled at ~`step` px of arc length (midpoints of equal pieces of each stroke).
+
+    p (M, 2) px; X (M, 3) world; u (M,) periods; t (M, 2) unit screen tangents; ids (M,) stroke ids;
+    stroke (M,) stroke index; s (M,) arc length from the stroke start, px; w (M,) length each
+    sample stands for, px (sums to the stroke length)."""
+
+    p: np.ndarray
+    X: np.ndarray
+    u: np.ndarray
+    t: np.ndarray
+    ids: np.ndarray
+    stroke: np.ndarray
+    s: np.ndarray
+    w: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.p)
+
+
+def resample_strokes(strokes: Strokes, step_px: float = 1.0) -> Samples:
+    """Resample every stroke into pieces of at most `step_px` px; one sample at the middle of each
+    piece, with u, X and position interpolated linearly along the polyline (vectorized)."""
+    if len(strokes) == 0 or len(strokes.points) == 0:
+        z = np.zeros(0)
+        zi = np.zeros(0, np.int64)
+        return Samples(np.zeros((0, 2)), np.zeros((0, 3)), z, np.zeros((0, 2)), zi, zi, z, z)
+    L = strokes.lengths
+    S = len(strokes)
+    n = np.maximum(1, np.ceil(L / step_px - 1e-9)).astype(np.int64)
+    stroke = np.repeat(np.arange(S), n)
+    k = np.arange(n.sum()) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+    w = (L / n)[stroke]
+    s = (k + 0.5) * w
+    # A global, strictly increasing arc coordinate: stroke s starts at base[s] (1 px gap between
+    # strokes so that a search never crosses a stroke boundary).
+    base = np.r_[0.0, np.cumsum(L[:-1] + 1.0)]
+    G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
+    g = s + base[stroke]
+    first = strokes.offsets[:-1][stroke]
+    last = strokes.offsets[1:][stroke] - 1
+    j = np.clip(np.searchsorted(G, g, side="right"), first + 1, np.maximum(last, first + 1))
+    j = np.minimum(j, len(G) - 1)
+    i = np.maximum(j - 1, first)
+    single = last == first  # one-point stroke
+    j = np.where(single, first, j)
+    i = np.where(single, first, i)
+    d = G[j] - G[i]
+    a = np.where(d > 0, (g - G[i]) / np.where(d > 0, d, 1.0), 0.0)
+    a = np.clip(a, 0.0, 1.0)
+    P, X, U = strokes.points, strokes.surface, strokes.u
+    p = P[i] * (1 - a)[:, None] + P[j] * a[:, None]
+    Xs = X[i] * (1 - a)[:, None] + X[j] * a[:, None]
+    u = U[i] * (1 - a) + U[j] * a
+    t = P[j] - P[i]
+    tn = np.linalg.norm(t, axis=1)
+    t = np.where(tn[:, None] > 0, t / np.where(tn > 0, tn, 1.0)[:, None], 0.0)
+    return Samples(p=p, X=Xs, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
+
+
+def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None = None, *,
+                  radius_px: float = MATCH_RADIUS_PX, min_tangent_dot: float = MIN_TANGENT_DOT,
+                  k: int = 8) -> np.ndarray:
+    """For every sample of `src`: the index of its match in `dst` (or -1). src.X is projected
+    with `camera` (dst's camera); the match is the nearest dst sample within `radius_px` px
+    whose tangent agrees with the src tangent (|t.t'| >= min_tangent_dot)."""
+    out = np.full(len(src), -1, np.int64)
+    if len(src) == 0 or len(dst) == 0:
+        return out
+    q, z = camera.project(src.X)
+    ok = np.all(np.isfinite(q), axis=1) & ((z > 0) | camera.is_ortho)
+    if not ok.any():
+        return out
+    tree = dst_tree if dst_tree is not None else cKDTree(dst.p)
+    kk = min(k, len(dst))
+    dist, idx = tree.query(q[ok], k=kk, distance_upper_bound=radius_px)
+    dist = dist.reshape(len(dist), kk)
+    idx = idx.reshape(len(idx), kk)
+    valid = np.isfinite(dist)
+    safe = np.where(valid, idx, 0)
+    dots = np.abs(np.einsum("ikj,ij->ik", dst.t[safe], src.t[ok]))
+    good = valid & (dots >= min_tangent_dot)
+    # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.
+    has = good.any(axis=1)
+    first = np.argmax(good, axis=1)
+    m = np.where(has, safe[np.arange(len(safe)), first], -1)
+    out[np.flatnonzero(ok)] = m
+    return out
+
+
+def _wrap(du: np.ndarray) -> np.ndarray:
+    """Wrap a parameter difference into (-1/2, 1/2] (periodic texture)."""
+    return -((-du + 0.5) % 1.0 - 0.5)
+
+
+def _flatness(strokes: Strokes, smp: Samples, with_levels: bool) -> float:
+    """Length-weighted mean |log2 lambda| of one frame (see module doc)."""
+    if len(smp) < 2:
+        return 0.0
+    same = smp.stroke[1:] == smp.stroke[:-1]
+    ds = 0.5 * (smp.w[1:] + smp.w[:-1])
+    du = np.abs(smp.u[1:] - smp.u[:-1])
+    ok = same & (ds > 0) & (du > 0)
+    if not ok.any():
+        return 0.0
+    P = strokes.period_px
+    log_lam = -np.log2(P * du[ok] / ds[ok])  # lambda = 1 / (P du/ds)
+    w = ds[ok]
+    if not with_levels:
+        return float(np.sum(w * np.abs(log_lam)) / np.sum(w))
+    st = smp.stroke[1:][ok]
+    lev = strokes.level[st]
+    wt = np.clip(strokes.level_weight[st], 0.0, 1.0)
+    # Octave k samples u 2^-k: lambda_k = 2^k lambda. Octave `level` has weight `level_weight`,
+    # octave level + 1 the rest.
+    e = wt * np.abs(log_lam + lev) + (1 - wt) * np.abs(log_lam + lev + 1)
+    return float(np.sum(w * e) / np.sum(w))
+
+
+@dataclass
+class PairMetrics:
+    """Metrics of one frame pair (f-1, f). Lengths in px."""
+
+    frame: int
+    matched_px: float
+    same_id_px: float
+    unmatched_px: float
+    total_px: float
+    sliding_px: np.ndarray = field(repr=False)  # |wrapped du| * P of every matched sample
+    growth_px: np.ndarray = field(repr=False)  # |L' - L| per persisting id
+    flatness: float = 0.0  # of frame f, with levels
+    flatness_raw: float = 0.0  # of frame f, u as written
+
+    @property
+    def m1(self) -> float:
+        return self.same_id_px / self.matched_px if self.matched_px > 0 else 1.0
+
+    @property
+    def m2(self) -> float:
+        return self.unmatched_px / self.total_px if self.total_px > 0 else 0.0
+
+    def summary(self) -> dict:
+        return {"frame": self.frame, "M1": self.m1, "M2": self.m2, **_stats("M4", self.sliding_px),
+                "M5": self.flatness, "M5_raw": self.flatness_raw, **_stats("M7", self.growth_px),
+                "matched_px": self.matched_px, "total_px": self.total_px}
+
+
+def _stats(name: str, v: np.ndarray) -> dict:
+    if len(v) == 0:
+        return {f"{name}_median": 0.0, f"{name}_p95": 0.0, f"{name}_max": 0.0}
+    return {f"{name}_median": float(np.median(v)), f"{name}_p95": float(np.percentile(v, 95)),
+            f"{name}_max": float(np.max(v))}
+
+
+def pair_metrics(prev: Strokes, cur: Strokes, *, radius_px: float = MATCH_RADIUS_PX,
+                 min_tangent_dot: float = MIN_TANGENT_DOT, prev_samples: Samples | None = None,
+                 cur_samples: Samples | None = None) -> PairMetrics:
+    """BRIEF 3 metrics between the strokes of frame f-1 (`prev`) and frame f (`cur`). Both need
+    their camera. The sliding uses cur.period_px."""
+    if prev.camera is None or cur.camera is None:
+        raise InputError("coherence metrics need the camera of both frames")
+    a = prev_samples if prev_samples is not None else resample_strokes(prev, 1.0)
+    b = cur_samples if cur_samples is not None else resample_strokes(cur, 1.0)
+    P = cur.period_px
+    ta = cKDTree(a.p) if len(a) else None
+    tb = cKDTree(b.p) if len(b) else None
+    ab = match_samples(a, cur.camera, b, tb, radius_px=radius_px, min_tangent_dot=min_tangent_dot)
+    ba = match_samples(b, prev.camera, a, ta, radius_px=radius_px, min_tangent_dot=min_tangent_dot)
+    ma, mb = ab >= 0, ba >= 0
+    matched = a.w[ma].sum() + b.w[mb].sum()
+    same = a.w[ma][a.ids[ma] == b.ids[ab[ma]]].sum() + b.w[mb][b.ids[mb] == a.ids[ba[mb]]].sum()
+    unmatched = a.w[~ma].sum() + b.w[~mb].sum()
+    total = a.w.sum() + b.w.sum()
+    slide = np.concatenate([np.abs(_wrap(b.u[ab[ma]] - a.u[ma])), np.abs(_wrap(b.u[mb] - a.u[ba[mb]]))]) * P
+    common, ia, ib = np.intersect1d(prev.ids, cur.ids, return_indices=True)
+    # Ids are unique per frame when tracked; with repeated ids compare the first occurrences.
+    growth = np.abs(cur.lengths[ib] - prev.lengths[ia])
+    return PairMetrics(frame=int(cur.frame), matched_px=float(matched), same_id_px=float(same),
+                       unmatched_px=float(unmatched), total_px=float(total), sliding_px=slide, growth_px=growth,
+                       flatness=_flatness(cur, b, True), flatness_raw=_flatness(cur, b, False))
+
+
+def sequence_metrics(frames: list[Strokes], **kw) -> tuple[list[PairMetrics], dict]:
+    """Metrics of every consecutive pair of `frames` (in order) and the overall summary:
+    M1 over all matched length; M2 median and mean of the per-pair values; M4 and M7 median, p95
+    and max over all pairs' samples; M5 mean and max over frames 2..n (with levels and raw)."""
+    pairs = []
+    prev_s = None
+    for k in range(1, len(frames)):
+        a = prev_s if prev_s is not None else resample_strokes(frames[k - 1], 1.0)
+        b = resample_strokes(frames[k], 1.0)
+        pairs.append(pair_metrics(frames[k - 1], frames[k], prev_samples=a, cur_samples=b, **kw))
+        prev_s = b
+    return pairs, overall(pairs)
+
+
+def overall(pairs: list[PairMetrics]) -> dict:
+    """Summary of a list of pair metrics (see sequence_metrics)."""
+    if not pairs:
+        return {"pairs": 0}
+    matched = sum(p.matched_px for p in pairs)
+    same = sum(p.same_id_px for p in pairs)
+    m2 = np.array([p.m2 for p in pairs])
+    fl = np.array([p.flatness for p in pairs])
+    flr = np.array([p.flatness_raw for p in pairs])
+    return {"pairs": len(pairs), "M1": same / matched if matched > 0 else 1.0,
+            "M2_median": float(np.median(m2)), "M2_mean": float(np.mean(m2)), "M2_max": float(np.max(m2)),
+            **_stats("M4", np.concatenate([p.sliding_px for p in pairs])),
+            "M5": float(np.mean(fl)), "M5_max": float(np.max(fl)),
+            "M5_raw": float(np.mean(flr)), "M5_raw_max": float(np.max(flr)),
+            **_stats("M7", np.concatenate([p.growth_px for p in pairs]))}
+
+
+def frame_files(out_dir) -> list[Path]:
+    """The frame_*.json files of a folder in frame order."""
+    d = Path(out_dir)
+    if not d.is_dir():
+        raise InputError("not a folder", d)
+    files = sorted(d.glob("frame_*.json"))
+    if len(files) < 2:
+        raise InputError(f"needs at least 2 frame_*.json files to compare, found {len(files)}", d)
+    return files
+
+
+def folder_metrics(out_dir, **kw) -> tuple[list[PairMetrics], dict]:
+    """Read every frame_*.json of `out_dir` (strokekit.writers.strokes_json format), in frame
+    order, and return (per pair metrics, overall summary)."""
+    from .writers.strokes_json import read_strokes_json
+
+    frames = []
+    for f in frame_files(out_dir):
+        try:
+            st = read_strokes_json(f)
+        except (KeyError, ValueError, TypeError) as e:
+            raise InputError(f"not a strokekit frame JSON ({type(e).__name__}: {e})", f) from None
+        if st.camera is None:
+            raise InputError("frame JSON has no camera: cannot project surface points", f)
+        frames.append(st)
+    frames.sort(key=lambda s: s.frame)
+    return sequence_metrics(frames, **kw)

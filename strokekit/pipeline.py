@@ -1,0 +1,415 @@
+"""A render run: which stages the requested outputs need, per-frame work in parallel (process
+pool started with spawn, or a dask.distributed cluster), the tracking pass in frame order, then
+writing, with atomic files, resumption and a run report.
+
+Per-frame tasks carry only the scene path and content hash, the frame number and its camera;
+each worker loads the scene and builds its BVH once (cached per process).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import time
+import traceback
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .camera import Camera
+from .errors import InputError, StrokekitError, UsageError
+from .fileio import atomic_write_bytes
+from .lines import LineRenderer
+from .model import Strokes
+from .options import LineOptions
+from .scene import Scene, load_scene
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """What to write and where. `pattern` names a frame's files (without extension)."""
+
+    out_dir: Path
+    pattern: str = "frame_{frame:04d}"
+    svg: bool = True
+    json: bool = True
+    gltf: bool = False
+    gltf_sequence: bool = False
+    decimals: int = 2
+    stroke_width_px: float = 1.5
+    gltf_options: object | None = None  # strokekit.writers.gltf options
+    raster_options: object | None = None  # strokekit.raster options; None: no raster pass
+
+    def stem(self, frame: int) -> str:
+        return self.pattern.format(frame=frame)
+
+    def frame_files(self, frame: int) -> list[Path]:
+        """The files one frame produces with these options."""
+        stem = self.out_dir / self.stem(frame)
+        out = []
+        if self.svg:
+            out.append(stem.with_suffix(".svg"))
+        if self.json:
+            out.append(stem.with_suffix(".json"))
+        if self.gltf and not self.gltf_sequence:
+            out.append(stem.with_suffix(".glb"))
+        if self.raster_options is not None:
+            from .raster import raster_file_suffixes
+
+            out += [Path(f"{stem}_{s}.png") for s in raster_file_suffixes(self.raster_options)]
+        return out
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything a run needs; cheap to pickle."""
+
+    scene_path: str
+    cameras: tuple[tuple[int, Camera], ...]
+    lines: LineOptions
+    outputs: OutputOptions
+    tracking: object | None = None  # strokekit.tracking.TrackingOptions; None: no tracking
+    workers: int = 1
+    scheduler: str | None = None
+    skip_existing: bool = False
+    fail_fast: bool = False
+
+
+@dataclass
+class StageRecord:
+    name: str
+    ran: bool
+    why: str
+    seconds: float = 0.0
+
+
+@dataclass
+class RunResult:
+    frames_ok: list[int] = field(default_factory=list)
+    frames_skipped: list[int] = field(default_factory=list)
+    failures: dict[int, str] = field(default_factory=dict)
+    outputs: list[str] = field(default_factory=list)
+    stages: list[StageRecord] = field(default_factory=list)
+    frame_seconds: dict[int, float] = field(default_factory=dict)
+    wall_seconds: float = 0.0
+    scene_hash: str = ""
+    scene_summary: dict = field(default_factory=dict)
+
+    @property
+    def exit_code(self) -> int:
+        if not self.failures:
+            return 0
+        return 3 if self.frames_ok or self.frames_skipped else 1
+
+
+# --- the stage plan -------------------------------------------------------------------------------
+
+def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
+    """Which stages run for this scene and these outputs, and why (for --explain and the report)."""
+    o, L = spec.outputs, spec.lines
+    kinds = set(L.kinds)
+    st = [StageRecord("load scene + BVH", True, "every run needs the scene and its occlusion BVH")]
+
+    def add(name, ran, yes, no):
+        st.append(StageRecord(name, bool(ran), yes if ran else no))
+
+    st.append(StageRecord("feature edges", True, "candidate edges of the kinds below that ran"))
+    add("  silhouette (mesh contour)", "silhouette" in kinds and L.contours == "mesh" and scene.is_manifold.any(),
+        "silhouette lines requested", "not requested, smooth contours chosen, or no manifold edges")
+    add("  smooth contour", L.contours == "smooth" or "smooth_contour" in kinds, "smooth contours requested",
+        "mesh contours chosen")
+    add("  border", "border" in kinds and scene.is_border.any(), "border lines requested and the scene has borders",
+        "not requested or the scene has no border edges")
+    add("  crease", "crease" in kinds and scene.crease_mask(L.crease_angle_deg).any(),
+        f"crease lines requested, creases above {L.crease_angle_deg:g} deg exist",
+        "not requested or no edge is sharper than the crease angle")
+    add("  material boundary", "material" in kinds and len(scene.materials) > 1,
+        "requested and the scene has several materials", "not requested or the scene has one material")
+    add("  nonmanifold", "nonmanifold" in kinds and scene.is_nonmanifold.any(),
+        "requested and non-manifold edges exist", "not requested or no non-manifold edge")
+    add("  suggestive contour", "suggestive" in kinds, "requested", "not requested")
+    add("  intersection", "intersection" in kinds, "requested", "not requested")
+    st.append(StageRecord("visibility", True, "Embree occlusion samples and bisection of every change"))
+    st.append(StageRecord("chaining", True, "visible runs linked into strokes"))
+    n = len(spec.cameras)
+    add("tracking", spec.tracking is not None and n > 1,
+        f"{n} frames with coherence on", "single frame or --no-coherence")
+    add("svg", o.svg, "SVG output requested", "--no-svg")
+    add("json", o.json, "JSON output requested", "--no-json")
+    add("ribbons + glTF", o.gltf, "glTF output requested", "no glTF output requested")
+    add("raster pass", o.raster_options is not None, "a raster output was requested", "no raster output requested")
+    return st
+
+
+# --- worker side -----------------------------------------------------------------------------------
+
+_WORKER_CACHE: dict = {}
+
+
+def _renderer(scene_path: str, scene_hash: str, lines: LineOptions) -> LineRenderer:
+    key = (scene_path, scene_hash, lines)
+    r = _WORKER_CACHE.get(key)
+    if r is None:
+        _WORKER_CACHE.clear()
+        scene = load_scene(scene_path)
+        if scene_hash and scene.content_hash != scene_hash:
+            raise InputError("scene file changed during the run", scene_path)
+        r = LineRenderer(scene, lines)
+        _WORKER_CACHE[key] = r
+    return r
+
+
+def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int, camera: Camera,
+               outputs: OutputOptions, do_lines: bool = True) -> dict:
+    """Per-frame work that needs no other frame: lines, and the raster outputs (written here).
+    Returns {'frame', 'strokes', 'seconds', 'files'}; errors come back as {'error': message}."""
+    t0 = time.perf_counter()
+    try:
+        r = _renderer(scene_path, scene_hash, lines)
+        r.check_camera(camera, frame)
+        timings: dict = {}
+        strokes = r.render(camera, frame, timings) if do_lines else None
+        files = []
+        if outputs.raster_options is not None:
+            from .raster import raster_outputs
+
+            t1 = time.perf_counter()
+            stem = outputs.out_dir / outputs.stem(frame)
+            for suffix, data in raster_outputs(r.scene, camera, r.occluder, outputs.raster_options).items():
+                files.append(str(atomic_write_bytes(f"{stem}_{suffix}.png", data)))
+            timings["raster pass"] = time.perf_counter() - t1
+        return {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
+                "timings": timings}
+    except StrokekitError as e:
+        return {"frame": frame, "error": str(e)}
+    except Exception as e:  # a failed frame must not lose the others
+        return {"frame": frame, "error": f"frame {frame}: {type(e).__name__}: {e}",
+                "traceback": traceback.format_exc()}
+
+
+def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tuple[str, ...], extra: dict) -> dict:
+    """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}."""
+    t0 = time.perf_counter()
+    try:
+        cam = strokes.camera
+        stem = outputs.out_dir / outputs.stem(frame)
+        files = []
+        timings: dict = {}
+        if outputs.svg:
+            from .writers.svg import svg_document
+
+            underlays = None
+            text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
+                                stroke_width=outputs.stroke_width_px, underlays=underlays)
+            files.append(str(atomic_write_bytes(stem.with_suffix(".svg"), text.encode())))
+            timings["svg"] = time.perf_counter() - t0
+        if outputs.json:
+            from .writers.strokes_json import strokes_json
+
+            files.append(str(atomic_write_bytes(stem.with_suffix(".json"),
+                                                strokes_json(strokes, cam.width, cam.height, frame, extra=extra))))
+            timings["json"] = time.perf_counter() - t0 - sum(timings.values())
+        if outputs.gltf and not outputs.gltf_sequence:
+            from .writers.gltf import glb_for_frame
+
+            files.append(str(atomic_write_bytes(stem.with_suffix(".glb"), glb_for_frame(strokes, cam, outputs.gltf_options))))
+            timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())
+        return {"frame": frame, "files": files, "seconds": time.perf_counter() - t0, "timings": timings}
+    except Exception as e:
+        return {"frame": frame, "error": f"frame {frame}: writing failed: {type(e).__name__}: {e}"}
+
+
+# --- executors ---------------------------------------------------------------------------------------
+
+class _InlineExecutor(Executor):
+    """Runs tasks in this process, one by one (workers=1): no start-up cost."""
+
+    def submit(self, fn, *args, **kwargs):
+        f: Future = Future()
+        try:
+            f.set_result(fn(*args, **kwargs))
+        except BaseException as e:
+            f.set_exception(e)
+        return f
+
+
+def make_executor(workers: int, scheduler: str | None) -> tuple[Executor, Callable[[], None]]:
+    """(executor, close). `scheduler` 'tcp://host:port' uses a dask.distributed cluster."""
+    if scheduler:
+        try:
+            from distributed import Client
+        except ImportError:
+            raise UsageError("--scheduler needs dask.distributed (pip install 'dask[distributed]')") from None
+        try:
+            client = Client(scheduler, timeout=10)
+        except Exception as e:
+            raise InputError(f"cannot reach the dask scheduler at {scheduler} ({e})") from None
+        ex = client.get_executor(pure=False)
+        return ex, client.close
+    if workers <= 1:
+        return _InlineExecutor(), lambda: None
+    import multiprocessing as mp
+
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+    return ex, lambda: ex.shutdown(wait=True, cancel_futures=True)
+
+
+# --- the run -------------------------------------------------------------------------------------------
+
+def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) -> RunResult:
+    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish."""
+    t_start = time.perf_counter()
+    res = RunResult()
+    t = time.perf_counter()
+    scene = load_scene(spec.scene_path)
+    res.scene_hash = scene.content_hash
+    res.scene_summary = {"faces": int(len(scene.faces)), "objects": len(scene.objects),
+                         "materials": len(scene.materials)}
+    res.stages = plan_stages(scene, spec)
+    res.stages[0].seconds = time.perf_counter() - t
+    stage = {s.name: s for s in res.stages}
+    out = spec.outputs
+    out.out_dir.mkdir(parents=True, exist_ok=True)
+    frames = [f for f, _ in spec.cameras]
+    cams = dict(spec.cameras)
+    tracking_on = stage["tracking"].ran
+
+    # Resume: frames whose every file exists are not written again. With tracking their lines are
+    # still computed (the tracker's state depends on every earlier frame), so a resumed run gives
+    # the same bytes as an uninterrupted one.
+    done_before = set()
+    if spec.skip_existing:
+        done_before = {f for f in frames if all(p.exists() for p in out.frame_files(f))}
+    res.frames_skipped = sorted(done_before)
+    need_lines = [f for f in frames if f not in done_before or tracking_on]
+
+    executor, close = make_executor(spec.workers, spec.scheduler)
+    lines_results: dict[int, Strokes] = {}
+    try:
+        t = time.perf_counter()
+        futs = {}
+        for f in need_lines:
+            raster_out = out if f not in done_before else replace(out, raster_options=None)
+            futs[executor.submit(frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
+                                 raster_out)] = f
+        n_done = 0
+        for fut in as_completed(futs):
+            r = fut.result()
+            n_done += 1
+            if "error" in r:
+                res.failures[r["frame"]] = r["error"]
+                if spec.fail_fast:
+                    for other in futs:
+                        other.cancel()
+                    break
+            else:
+                lines_results[r["frame"]] = r["strokes"]
+                res.frame_seconds[r["frame"]] = r["seconds"]
+                res.outputs += r["files"]
+                _add_timings(stage, r["timings"])
+            if progress:
+                progress("lines", n_done, len(futs))
+
+        # Tracking walks the frames in order (the only sequential stage).
+        ordered = [f for f in frames if f in lines_results]
+        if tracking_on and ordered:
+            from .tracking import Tracker
+
+            t = time.perf_counter()
+            tracker = Tracker(spec.tracking)
+            for f in ordered:
+                lines_results[f] = tracker.step(lines_results[f])
+            stage["tracking"].seconds = time.perf_counter() - t
+
+        # Writing, in parallel again.
+        extra = {"contours": spec.lines.contours,
+                 "tracking": getattr(spec.tracking, "method", "none") if tracking_on else "none"}
+        wfuts = {}
+        for f in ordered:
+            if f in done_before:
+                continue
+            if spec.fail_fast and res.failures:
+                break
+            wfuts[executor.submit(write_task, lines_results[f], f, out, spec.lines.kinds, extra)] = f
+        n_done = 0
+        for fut in as_completed(wfuts):
+            r = fut.result()
+            n_done += 1
+            if "error" in r:
+                res.failures[r["frame"]] = r["error"]
+            else:
+                res.outputs += r["files"]
+                res.frames_ok.append(r["frame"])
+                res.frame_seconds[r["frame"]] = res.frame_seconds.get(r["frame"], 0.0) + r["seconds"]
+                _add_timings(stage, r["timings"])
+            if progress:
+                progress("write", n_done, len(wfuts))
+        if out.gltf and out.gltf_sequence and ordered:
+            from .writers.gltf import glb_for_sequence
+
+            t = time.perf_counter()
+            seq = [lines_results[f] for f in ordered]
+            path = out.out_dir / "sequence.glb"
+            res.outputs.append(str(atomic_write_bytes(path, glb_for_sequence(seq, out.gltf_options))))
+            stage["ribbons + glTF"].seconds += time.perf_counter() - t
+    finally:
+        close()
+    res.frames_ok.sort()
+    res.outputs.sort()
+    res.wall_seconds = time.perf_counter() - t_start
+    return res
+
+
+def _add_timings(stage: dict, timings: dict) -> None:
+    """Stage times are the sum of the work done in all workers (CPU time spent per stage)."""
+    for name, sec in timings.items():
+        if name in stage:
+            stage[name].seconds += sec
+
+
+def run_report(spec: RunSpec, res: RunResult) -> dict:
+    """The JSON run report: versions, input hashes, per-frame status, outputs, timings, stages."""
+    import hashlib
+
+    def versions():
+        out = {"python": platform.python_version()}
+        for mod in ("numpy", "trimesh", "open3d", "shapely", "svgwrite", "pygltflib", "click"):
+            try:
+                out[mod] = __import__(mod).__version__
+            except Exception:
+                out[mod] = None
+        from . import __version__
+
+        out["strokekit"] = __version__
+        return out
+
+    with open(spec.scene_path, "rb") as fh:
+        file_hash = hashlib.sha256(fh.read()).hexdigest()
+    frames = {}
+    for f, _ in spec.cameras:
+        if f in res.failures:
+            frames[str(f)] = {"status": "failed", "error": res.failures[f]}
+        elif f in res.frames_skipped and f not in res.frames_ok:
+            frames[str(f)] = {"status": "skipped (exists)"}
+        elif f in res.frames_ok:
+            frames[str(f)] = {"status": "ok", "seconds": round(res.frame_seconds.get(f, 0.0), 6)}
+        else:
+            frames[str(f)] = {"status": "not run"}
+    return {
+        "versions": versions(),
+        "platform": platform.platform(),
+        "scene": {"path": spec.scene_path, "sha256": file_hash, "content_hash": res.scene_hash, **res.scene_summary},
+        "options": {"lines": spec.lines.to_json(), "workers": spec.workers, "scheduler": spec.scheduler,
+                    "tracking": getattr(spec.tracking, "method", None) if spec.tracking is not None else "none",
+                    "contours": spec.lines.contours},
+        "stages": [{"stage": s.name, "ran": s.ran, "why": s.why, "seconds": round(s.seconds, 6)} for s in res.stages],
+        "frames": frames,
+        "failures": {str(k): v for k, v in sorted(res.failures.items())},
+        "outputs": res.outputs,
+        "wall_seconds": round(res.wall_seconds, 4),
+        "exit_code": res.exit_code,
+    }

@@ -1,0 +1,29 @@
+"""Helpers for tests: where the shared models are (skipped with a reason when absent) and small
+generated scenes that always exist. Import as `from helpers import ...`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+MODELS = ROOT.parent / "shared" / "models"
+SAMPLES = ROOT / "samples"
+
+
+def model_path(name: str) -> Path:
+    p = MODELS / name
+    if not p.exists():
+        pytest.skip(f"shared model {name} not found at {MODELS} (shared/ is expected beside the repo)")
+    return p
+
+
+def box_mesh(lo, hi):
+    """(vertices, faces) of an axis-aligned box with outward winding."""
+    import trimesh
+
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    m = trimesh.creation.box(extents=hi - lo)
+    return np.asarray(m.vertices) + (lo + hi) / 2, np.asarray(m.faces)

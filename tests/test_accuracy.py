@@ -1,0 +1,80 @@
+"""Accuracy (BRIEF 2): the metric itself, and the issue-2 bar: the `default` preset keeps precision
+and recall >= 0.999 at 1 px against `exact`, 8-frame orbit at 1024 x 1024."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from strokekit import LineOptions, LineRenderer, Strokes, load_scene, orbit_path
+from strokekit.accuracy import accuracy, frame_accuracy, length_samples
+
+MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
+
+
+def polyline_strokes(*lines) -> Strokes:
+    pts = np.concatenate([np.asarray(l, float) for l in lines])
+    offsets = np.r_[0, np.cumsum([len(l) for l in lines])]
+    return Strokes.build(pts, np.zeros((len(pts), 3)), np.full(len(pts), -1), offsets, np.zeros(len(lines)))
+
+
+def test_length_samples_weights_sum_to_drawn_length():
+    s = polyline_strokes([[0, 0], [10, 0], [10, 7.3]], [[50, 50], [50.05, 50]])
+    mid, w = length_samples(s, 0.1)
+    assert w.sum() == pytest.approx(17.3 + 0.05)
+    assert w.max() <= 0.1 + 1e-12
+    assert np.all((mid[:, 0] >= 0) & (mid[:, 0] <= 50.05))
+
+
+def test_identical_drawings_are_perfect():
+    s = polyline_strokes([[0, 0], [100, 0], [100, 100]])
+    fa = frame_accuracy(s, s)
+    assert fa.precision == {0.5: 1.0, 1.0: 1.0, 2.0: 1.0}
+    assert fa.recall == {0.5: 1.0, 1.0: 1.0, 2.0: 1.0}
+
+
+def test_offset_line_counts_only_within_tolerance():
+    # A line drawn 0.7 px beside the reference is wrong at 0.5 px and right at 1 px. The 0.7 px
+    # shift also overhangs the reference's ends by nothing (horizontal shift is vertical here).
+    ref = polyline_strokes([[0, 0], [200, 0]])
+    drawn = polyline_strokes([[0, 0.7], [200, 0.7]])
+    fa = frame_accuracy(drawn, ref, tols=(0.5, 1.0))
+    assert fa.precision[0.5] == 0.0 and fa.recall[0.5] == 0.0
+    assert fa.precision[1.0] == 1.0 and fa.recall[1.0] == 1.0
+
+
+def test_extra_and_missing_lengths_are_length_weighted():
+    ref = polyline_strokes([[0, 0], [300, 0]], [[0, 100], [100, 100]])
+    drawn = polyline_strokes([[0, 0], [300, 0]], [[0, 500], [50, 500]])  # misses 100, adds 50
+    fa = frame_accuracy(drawn, ref, tols=(1.0,))
+    assert fa.precision[1.0] == pytest.approx(300 / 350, abs=1e-3)
+    assert fa.recall[1.0] == pytest.approx(300 / 400, abs=1e-3)
+
+
+def test_aggregate_weights_frames_by_length_and_handles_empty_frames():
+    ref = [polyline_strokes([[0, 0], [100, 0]]), polyline_strokes([[0, 0], [300, 0]]), Strokes.empty()]
+    drawn = [polyline_strokes([[0, 50], [100, 50]]), polyline_strokes([[0, 0], [300, 0]]), Strokes.empty()]
+    a = accuracy(drawn, ref, tols=(1.0,))
+    assert a.precision[1.0] == pytest.approx(0.75, abs=1e-3)
+    assert a.recall[1.0] == pytest.approx(0.75, abs=1e-3)
+    empty_vs_line = frame_accuracy(Strokes.empty(), ref[0], tols=(1.0,))
+    assert empty_vs_line.recall[1.0] == 0.0 and empty_vs_line.precision[1.0] == 0.0
+
+
+@pytest.mark.parametrize("name", ["suzanne.obj", "spot.obj", "fandisk.obj"])
+def test_default_preset_matches_exact_at_1px(name):
+    path = MODELS / name
+    if not path.exists():
+        pytest.skip(f"shared model {path} not present")
+    scene = load_scene(path)
+    cams = orbit_path(scene.center, scene.radius, 8, width=1024, height=1024).cameras
+    exact = LineRenderer(scene, LineOptions.preset("exact"))
+    default = LineRenderer(scene, LineOptions.preset("default"))
+    ref = [exact.render(c, k + 1) for k, c in enumerate(cams)]
+    drawn = [default.render(c, k + 1) for k, c in enumerate(cams)]
+    a = accuracy(drawn, ref, tols=(1.0,))
+    assert a.ref_length > 1000.0  # the orbit really draws lines
+    assert a.precision[1.0] >= 0.999, a.to_json()
+    assert a.recall[1.0] >= 0.999, a.to_json()
