@@ -37,6 +37,15 @@ def main(argv: list[str] | None = None) -> None:
     except click.exceptions.Abort:
         click.echo("strokekit: aborted", err=True)
         sys.exit(130)
+    except click.exceptions.NoArgsIsHelpError as e:
+        click.echo(e.ctx.get_help() if e.ctx else str(e), err=True)
+        sys.exit(2)
+    except click.UsageError as e:
+        # One line, as every other error; `--help` shows the usage.
+        where = f" {e.ctx.command_path}" if e.ctx else ""
+        click.echo(f"strokekit{where[len(' strokekit'):] if where.startswith(' strokekit') else where}: error: "
+                   f"{e.format_message()} (see --help)", err=True)
+        sys.exit(e.exit_code)
     except click.ClickException as e:
         e.show()
         sys.exit(e.exit_code)

@@ -187,7 +187,7 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
     # Samples: n_int + 1 per segment, uniform in screen space.
     counts = n_int + 1
-    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    starts = np.cumsum(counts) - counts
     seg = np.repeat(np.arange(len(idx)), counts)
     k = np.arange(counts.sum()) - np.repeat(starts, counts)
     s = k / np.repeat(n_int, counts)

@@ -21,7 +21,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 
 
 @click.command("render")
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=click.Path())
 @click.option("--camera", "camera_file", type=click.Path(dir_okay=False), default=None,
               help="Camera path JSON (BRIEF 1.2), or a glTF/GLB file with a camera node.")
 @click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")

@@ -1,0 +1,189 @@
+"""The command line as a user meets it: outputs named per BRIEF 1.3, deterministic bytes, and one
+clear line plus the right exit code for every kind of bad input (never a traceback, never a
+partial file)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli.main import main
+from helpers import SAMPLES, model_path
+from strokekit.camera import load_camera_path
+
+
+def run_cli(args, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err
+
+
+CUBE_OBJ = """v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1
+f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8
+"""
+
+
+@pytest.fixture
+def cube(tmp_path) -> Path:
+    p = tmp_path / "cube.obj"
+    p.write_text(CUBE_OBJ)
+    return p
+
+
+def write_camera(path: Path, frames: list[dict], **top) -> Path:
+    path.write_text(json.dumps({"width": 200, "height": 100, "frames": frames, **top}))
+    return path
+
+
+def test_render_writes_svg_and_json_per_frame_with_brief_names(cube, tmp_path, capsys):
+    code, _, err = run_cli(["render", cube, "--orbit", "3", "--out", tmp_path / "o", "--size", "320x240"], capsys)
+    assert code == 0, err
+    names = sorted(p.name for p in (tmp_path / "o").iterdir())
+    assert names == [f"frame_000{i}.{e}" for i in (1, 2, 3) for e in ("json", "svg")]
+    svg = (tmp_path / "o" / "frame_0001.svg").read_text()
+    assert 'viewBox="0 0 320 240"' in svg and 'width="320px"' in svg
+    assert 'inkscape:label="silhouette"' in svg and 'id="layer-silhouette"' in svg
+    d = json.loads((tmp_path / "o" / "frame_0002.json").read_text())
+    assert d["frame"] == 2 and d["width"] == 320 and d["height"] == 240
+    s = d["strokes"][0]
+    assert len(s["points"]) == len(s["surface"]) == len(s["u"])
+    # Surface points are on the cube (|coordinate| max is 1).
+    assert np.allclose(np.abs(np.asarray(s["surface"])).max(axis=1), 1.0)
+    ids = [f"s{st['id']}" for st in d["strokes"]]
+    assert len(set(ids)) == len(ids)
+
+
+def test_same_input_gives_same_bytes(cube, tmp_path, capsys):
+    for name in ("a", "b"):
+        code, _, _ = run_cli(["render", cube, "--orbit", "4", "--out", tmp_path / name, "--quiet"], capsys)
+        assert code == 0
+    for f in sorted((tmp_path / "a").iterdir()):
+        assert f.read_bytes() == (tmp_path / "b" / f.name).read_bytes(), f.name
+
+
+def test_empty_frame_still_gets_files(cube, tmp_path, capsys):
+    cam = write_camera(tmp_path / "away.json", [{"eye": [0, 0, 10], "target": [0, 0, 20]}])
+    code, _, _ = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o", "-q"], capsys)
+    assert code == 0
+    svg = (tmp_path / "o" / "frame_0001.svg").read_text()
+    assert "layer-silhouette" in svg and "<path" not in svg
+    assert json.loads((tmp_path / "o" / "frame_0001.json").read_text())["strokes"] == []
+
+
+@pytest.mark.parametrize("case", ["missing", "unknown_ext", "empty", "point_cloud", "nan", "directory"])
+def test_bad_scene_gives_one_line_and_exit_1(case, tmp_path, capsys):
+    p = {"missing": tmp_path / "nope.obj", "unknown_ext": tmp_path / "scene.xyz", "empty": tmp_path / "empty.obj",
+         "point_cloud": tmp_path / "cloud.ply", "nan": tmp_path / "nan.obj", "directory": tmp_path}[case]
+    if case == "unknown_ext":
+        p.write_text("hello")
+    elif case == "empty":
+        p.write_text("")
+    elif case == "point_cloud":
+        p.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                     "end_header\n0 0 0\n1 0 0\n0 1 0\n")
+    elif case == "nan":
+        p.write_text("v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n")
+    out = tmp_path / "out"
+    code, _, err = run_cli(["render", p, "--orbit", "2", "--out", out], capsys)
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("strokekit: error: ")
+    assert str(p.name) in lines[0] or str(p) in lines[0]
+    assert "Traceback" not in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_shared_empty_obj_is_a_clear_error(capsys):
+    code, _, err = run_cli(["info", model_path("empty.obj")], capsys)
+    assert code == 1 and "empty.obj" in err and "no triangle faces" in err
+
+
+@pytest.mark.parametrize("content,needle", [
+    ('{"frames": [{"target": [0,0,0]}]}', "no 'eye'"),
+    ('{"frames": [{"eye": [0,0,5], "target": [0,0,5]}]}', "target equals eye"),
+    ('{"frames": [{"eye": [0,0,"nan"], "target": [0,0,0]}]}', "eye"),
+    ('{"frames": [{"eye": [0,0,NaN], "target": [0,0,0]}]}', "finite"),
+    ('{"frames": [', "not valid JSON"),
+    ('{"keyframes": [{"frame": 0, "eye": [0,0,5], "target": [0,0,0]}]}', "frame_count"),
+    ('{"frames": []}', "non-empty"),
+    ('[1, 2]', "JSON object"),
+])
+def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, content, needle):
+    cam = tmp_path / "cam.json"
+    cam.write_text(content)
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+    assert code == 1, err
+    assert len(err.strip().splitlines()) == 1 and "cam.json" in err and needle in err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["--kinds", "silhouette,sparkle"], "unknown line kind"),
+    (["--orbit", "3", "--camera", "x.json"], "either --camera or --orbit"),
+    (["--frames", "5-3"], "bad frame range"),
+    (["--frames", "1-99"], "beyond"),
+    (["--sample-spacing", "0"], "sample-spacing-px must be > 0"),
+    (["--no-svg", "--no-json"], "nothing to write"),
+    (["--size", "big"], "bad --size"),
+    (["--quality", "perfect"], "perfect"),
+])
+def test_impossible_options_exit_2(cube, tmp_path, capsys, args, needle):
+    code, _, err = run_cli(["render", cube, "--out", tmp_path / "o", *args], capsys)
+    assert code == 2, err
+    assert needle in err and "Traceback" not in err
+
+
+def test_camera_inside_the_mesh_is_an_input_error(cube, tmp_path, capsys):
+    cam = write_camera(tmp_path / "inside.json", [{"eye": [0.1, 0.2, 0.3], "target": [1, 0, 0]}])
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+    assert code == 1 and "inside the mesh" in err
+
+
+def test_camera_orbit_command_round_trips(cube, tmp_path, capsys):
+    code, out, _ = run_cli(["camera", "orbit", cube, "--frames", "12", "--elevation", "30"], capsys)
+    assert code == 0
+    p = tmp_path / "path.json"
+    p.write_text(out)
+    path = load_camera_path(p)
+    assert len(path) == 12
+    # Every camera looks at the cube's centre from 30 degrees above the horizon at the same distance.
+    eyes = np.array([c.eye for c in path.cameras])
+    el = np.degrees(np.arcsin(eyes[:, 1] / np.linalg.norm(eyes, axis=1)))
+    assert np.allclose(el, 30.0) and np.allclose(np.linalg.norm(eyes, axis=1), np.linalg.norm(eyes[0]))
+    code, _, _ = run_cli(["render", cube, "--camera", p, "--frames", "2,5", "--out", tmp_path / "o", "-q"], capsys)
+    assert code == 0
+    assert sorted(x.name for x in (tmp_path / "o").glob("*.svg")) == ["frame_0002.svg", "frame_0005.svg"]
+
+
+def test_keyframe_path_interpolates_position_rotation_and_fov(tmp_path):
+    p = tmp_path / "keys.json"
+    p.write_text(json.dumps({"width": 64, "height": 64, "frame_count": 5, "interpolation": "linear", "keyframes": [
+        {"frame": 0, "eye": [0, 0, 10], "target": [0, 0, 0], "fov_y": 30},
+        {"frame": 4, "eye": [10, 0, 0], "target": [0, 0, 0], "fov_y": 50}]}))
+    path = load_camera_path(p)
+    assert len(path) == 5
+    mid = path.cameras[2]
+    assert np.allclose(mid.eye, [5, 0, 5]) and mid.fov_y == pytest.approx(40.0)
+    # Rotation by slerp: halfway between looking down -z and down -x is looking down -(1,0,1)/sqrt 2.
+    assert np.allclose(mid.basis[2], -np.array([1, 0, 1]) / math.sqrt(2))
+
+
+def test_info_reports_counts_and_kinds(capsys):
+    code, out, _ = run_cli(["info", SAMPLES / "still_life.glb", "--json"], capsys)
+    assert code == 0
+    d = json.loads(out)
+    assert d["objects"] == 5 and len(d["materials"]) == 4
+    assert {"silhouette", "border", "crease"} <= set(d["line_kinds"])
+
+
+def test_glb_camera_node_is_a_camera_source(tmp_path, capsys):
+    code, _, err = run_cli(["render", model_path("Duck.glb"), "--camera", model_path("Duck.glb"), "--out",
+                            tmp_path / "o", "-q"], capsys)
+    assert code == 0, err
+    d = json.loads((tmp_path / "o" / "frame_0001.json").read_text())
+    assert len(d["strokes"]) > 0
