@@ -274,6 +274,9 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
     stage = {s.name: s for s in res.stages}
     out = spec.outputs
     out.out_dir.mkdir(parents=True, exist_ok=True)
+    # Temporary files of an interrupted earlier run are ours to remove (their final names never existed).
+    for stale in out.out_dir.glob(".*.part"):
+        stale.unlink(missing_ok=True)
     frames = [f for f, _ in spec.cameras]
     cams = dict(spec.cameras)
     tracking_on = stage["tracking"].ran
@@ -376,15 +379,15 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
     import hashlib
 
     def versions():
-        out = {"python": platform.python_version()}
-        for mod in ("numpy", "trimesh", "open3d", "shapely", "svgwrite", "pygltflib", "click"):
-            try:
-                out[mod] = __import__(mod).__version__
-            except Exception:
-                out[mod] = None
-        from . import __version__
+        from importlib.metadata import PackageNotFoundError, version
 
-        out["strokekit"] = __version__
+        out = {"python": platform.python_version()}
+        for dist in ("strokekit", "numpy", "scipy", "trimesh", "open3d", "embreex", "shapely", "svgwrite",
+                     "pygltflib", "click", "pillow"):
+            try:
+                out[dist] = version(dist)
+            except PackageNotFoundError:
+                out[dist] = None
         return out
 
     with open(spec.scene_path, "rb") as fh:

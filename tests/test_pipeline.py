@@ -1,0 +1,122 @@
+"""Issue 7: a run computes only what is asked, survives failed frames, resumes after being
+killed, and gives the same bytes in a process pool, inline or on a dask cluster."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cli.main import main
+from helpers import SAMPLES, model_path
+
+
+def run_cli(args, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err
+
+
+def tree_bytes(d: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(d.iterdir()) if p.is_file()}
+
+
+def test_explain_lists_only_needed_stages_for_lines_only_one_material(tmp_path, capsys):
+    code, out, _ = run_cli(["render", model_path("spot.obj"), "--orbit", "1", "--out", tmp_path, "--explain", "-q",
+                            "--report", tmp_path / "run.json"], capsys)
+    assert code == 0
+    ran = {s["stage"].strip(): s for s in json.loads((tmp_path / "run.json").read_text())["stages"]}
+    for name in ("material boundary", "raster pass", "ribbons + glTF", "tracking", "border"):
+        assert ran[name]["ran"] is False, name
+    for name in ("feature edges", "visibility", "chaining", "svg", "json"):
+        assert ran[name]["ran"] is True and ran[name]["seconds"] > 0, name
+    assert "[skip] raster pass" in out and "[skip]   material boundary" in out
+
+
+def test_failed_frame_does_not_lose_the_others(tmp_path, capsys):
+    cube = tmp_path / "cube.obj"
+    import trimesh
+
+    trimesh.creation.box(extents=[2, 2, 2]).export(cube)
+    cam = tmp_path / "cam.json"
+    cam.write_text(json.dumps({"width": 120, "height": 90, "frames": [
+        {"eye": [0, 1, 6], "target": [0, 0, 0]}, {"eye": [0.1, 0.1, 0.1], "target": [1, 0, 0]},
+        {"eye": [6, 1, 0], "target": [0, 0, 0]}]}))
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o", "--report",
+                            tmp_path / "run.json"], capsys)
+    assert code == 3
+    assert "frame 2" in err and "inside the mesh" in err
+    names = sorted(p.name for p in (tmp_path / "o").iterdir())
+    assert names == ["frame_0001.json", "frame_0001.svg", "frame_0003.json", "frame_0003.svg"]
+    rep = json.loads((tmp_path / "run.json").read_text())
+    assert rep["frames"]["2"]["status"] == "failed" and rep["frames"]["1"]["status"] == "ok"
+    assert rep["exit_code"] == 3 and list(rep["failures"]) == ["2"]
+    # --fail-fast stops at the failure and still reports it.
+    code, _, _ = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "ff", "--fail-fast", "-q"], capsys)
+    assert code in (1, 3)
+
+
+def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
+    code, _, _ = run_cli(["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-2",
+                          "--out", tmp_path / "o", "-q", "--report", tmp_path / "r.json"], capsys)
+    assert code == 0
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["versions"]["strokekit"] and rep["versions"]["numpy"]
+    assert len(rep["scene"]["sha256"]) == 64
+    assert set(rep["frames"]) == {"1", "2"} and all(f["status"] == "ok" for f in rep["frames"].values())
+    assert sorted(Path(p).name for p in rep["outputs"]) == sorted(p.name for p in (tmp_path / "o").iterdir())
+
+
+def test_pool_and_inline_give_identical_bytes(tmp_path, capsys):
+    args = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-4", "-q"]
+    assert run_cli(args + ["--out", tmp_path / "one", "--workers", "1"], capsys)[0] == 0
+    assert run_cli(args + ["--out", tmp_path / "two", "--workers", "2"], capsys)[0] == 0
+    assert tree_bytes(tmp_path / "one") == tree_bytes(tmp_path / "two")
+
+
+def test_dask_local_cluster_gives_identical_bytes(tmp_path, capsys):
+    distributed = pytest.importorskip("distributed")
+    args = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-3", "-q"]
+    assert run_cli(args + ["--out", tmp_path / "local", "--workers", "1"], capsys)[0] == 0
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as cl:
+        code, _, err = run_cli(args + ["--out", tmp_path / "dask", "--scheduler", cl.scheduler_address], capsys)
+    assert code == 0, err
+    assert tree_bytes(tmp_path / "local") == tree_bytes(tmp_path / "dask")
+
+
+def test_killed_run_resumes_to_identical_output(tmp_path):
+    """Kill a run midway (SIGKILL: no cleanup at all), resume with --skip-existing: every frame is there,
+    no half file anywhere, and the bytes equal an uninterrupted run."""
+    scene = SAMPLES / "still_life.glb"
+    base = [sys.executable, "-m", "cli.main", "render", str(scene), "--orbit", "40", "--size", "640x480", "-q",
+            "--workers", "1"]
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    full = tmp_path / "full"
+    subprocess.run(base + ["--out", str(full)], check=True, env=env)
+    part = tmp_path / "part"
+    proc = subprocess.Popen(base + ["--out", str(part)], env=env)
+    deadline = time.time() + 60
+    while time.time() < deadline:
+        if part.exists() and len(list(part.glob("*.svg"))) >= 8:
+            break
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    written = sorted(part.glob("frame_*.svg"))
+    assert 0 < len(written) < 40, "the kill must land midway"
+    # What is there is whole: every JSON present parses.
+    for j in part.glob("frame_*.json"):
+        json.loads(j.read_text())
+    before = {p.name: p.stat().st_mtime_ns for p in part.glob("frame_*")}
+    subprocess.run(base + ["--out", str(part), "--skip-existing"], check=True, env=env)
+    assert tree_bytes(part) == tree_bytes(full)
+    # Frames that were complete were not rewritten.
+    complete = [n for n in before if n.endswith(".svg") and n.replace(".svg", ".json") in before]
+    assert complete and all(before[n] == (part / n).stat().st_mtime_ns for n in complete)
