@@ -49,7 +49,7 @@ BACKGROUND_COLOR = (255, 255, 255)
 #: Kind name for paths that are not inside any layer.
 NO_LAYER = "(no layer)"
 #: Refuse to sample more than this many points for one kind and one side (memory ~ 100 bytes each).
-MAX_SAMPLES = 6_000_000
+MAX_SAMPLES = 5_000_000
 #: Float slack added to `tol` so that a shift of exactly `tol` written in decimal text still passes.
 _EPS = 1e-6
 
@@ -398,8 +398,9 @@ class _NearestStroke:
 
     The polylines are cut into pieces at most `piece` px long; a k-d tree holds the piece
     midpoints. A point within `tol` of a piece has that piece's midpoint within `tol + piece/2`,
-    so a bounded k-nearest query (falling back to a ball query when the k slots are full) finds
-    every candidate and the exact point-to-segment minimum decides. For points farther than `tol`
+    so a bounded k-nearest query (asking again with more slots, then a ball query, when the k
+    slots are full) finds every candidate and the exact point-to-segment minimum is the distance.
+    For points farther than `tol`
     the distance comes from the k nearest midpoints (exact in practice, never off by more than
     piece/2)."""
 
@@ -435,7 +436,7 @@ class _NearestStroke:
         best = np.minimum(idx[rows, arg], len(self.a) - 1)
         return dist[rows, arg], self.stroke[best]
 
-    def query(self, q: np.ndarray, tol: float, chunk: int = 200_000) -> tuple[np.ndarray, np.ndarray]:
+    def query(self, q: np.ndarray, tol: float, chunk: int = 32_768) -> tuple[np.ndarray, np.ndarray]:
         """(M,) distance in px from each point of q (M, 2) to the nearest polyline, and (M,) that
         polyline's index."""
         dist = np.empty(len(q))
@@ -447,13 +448,20 @@ class _NearestStroke:
             dm, idx = self.tree.query(qc, k=k, distance_upper_bound=r)
             dm, idx = dm.reshape(len(qc), k), idx.reshape(len(qc), k)
             d, st = self._best(qc, idx)
-            # all k slots full and still no piece within tol: more candidates may hide in the ball
-            full = np.flatnonzero(np.isfinite(dm[:, -1]) & (d > tol + _EPS))
-            for i in full:  # rare: only where many strokes crowd within tol + piece/2
-                cand = np.array(self.tree.query_ball_point(qc[i], r), np.int64)
-                dd = self._exact(qc[i:i + 1], cand[None, :])[0]
-                j = int(np.argmin(dd))
-                d[i], st[i] = dd[j], self.stroke[cand[j]]
+            # all k slots full: the nearest piece may be among the others within reach. Ask again
+            # with more slots, then one ball query per point that is still full (rare: only where
+            # many strokes crowd within tol + piece/2, as at junctions)
+            full = np.flatnonzero(np.isfinite(dm[:, -1]))
+            if len(full) and len(self.a) > k:
+                k2 = min(8 * k, len(self.a))
+                dm2, idx2 = self.tree.query(qc[full], k=k2, distance_upper_bound=r)
+                dm2, idx2 = dm2.reshape(len(full), k2), idx2.reshape(len(full), k2)
+                d[full], st[full] = self._best(qc[full], idx2)
+                for i in full[np.isfinite(dm2[:, -1])] if k2 < len(self.a) else ():
+                    cand = np.array(self.tree.query_ball_point(qc[i], r), np.int64)
+                    dd = self._exact(qc[i:i + 1], cand[None, :])[0]
+                    j = int(np.argmin(dd))
+                    d[i], st[i] = dd[j], self.stroke[cand[j]]
             far = np.flatnonzero(d > tol + _EPS)
             if len(far):
                 _, idx2 = self.tree.query(qc[far], k=k)
@@ -582,7 +590,8 @@ class DiffResult:
         lines = []
         if self.equal:
             dev = max((k.max_deviation or 0.0) for k in self.kinds.values()) if self.kinds else 0.0
-            how = "identical geometry" if all(k.identical for k in self.kinds.values()) else f"max deviation {dev:.3g} px"
+            identical = all(k.identical for k in self.kinds.values())
+            how = "identical geometry" if identical else f"max deviation {dev:.3g} px"
             lines.append(f"equal within {self.tol:g} px: {self.a} vs {self.b} ({how})")
         else:
             lines.append(f"DIFFERENT at {self.tol:g} px: {self.a} (A) vs {self.b} (B)")
@@ -591,13 +600,18 @@ class DiffResult:
                     continue
                 lines.append(f"  {k.kind}: {k.a_only_length:.1f} px only in A, {k.b_only_length:.1f} px only in B, "
                              f"max deviation {_fmt_dev(k.max_deviation)} "
-                             f"[A {k.length_a:.1f} px in {k.strokes_a} strokes, B {k.length_b:.1f} px in {k.strokes_b}]")
+                             f"[A {k.length_a:.1f} px in {k.strokes_a} strokes, "
+                             f"B {k.length_b:.1f} px in {k.strokes_b}]")
                 for r in k.regions[:max_regions]:
                     x0, y0, x1, y1 = r.bbox
                     where = f"x {x0:.1f}..{x1:.1f}, y {y0:.1f}..{y1:.1f}"
                     ids = f" (strokes {_fmt_ids(r.stroke_ids)})" if any(i is not None for i in r.stroke_ids) else ""
                     dev = "" if r.max_deviation is None else f", {r.max_deviation:.3g} px away"
-                    lines.append(f"    only in {r.side.upper()}: {r.length:.1f} px at {where}{dev}{ids}")
+                    if r.length < 0.05 and x1 - x0 < 0.05 and y1 - y0 < 0.05:  # a stroke end or a dot, not a stretch
+                        where = f"a point near ({(x0 + x1) / 2:.2f}, {(y0 + y1) / 2:.2f})"
+                        lines.append(f"    only in {r.side.upper()}: {where}{dev}{ids}")
+                    else:
+                        lines.append(f"    only in {r.side.upper()}: {r.length:.1f} px at {where}{dev}{ids}")
                 if len(k.regions) > max_regions:
                     lines.append(f"    ... {len(k.regions) - max_regions} more regions (see --json)")
             same = [k.kind for k in self.kinds.values() if k.equal and (k.strokes_a or k.strokes_b)]
@@ -769,7 +783,7 @@ def diff_polylines(kind: str, pa: Polylines, pb: Polylines, tol: float) -> KindD
     for side, pl in (("A", pa), ("B", pb)):
         n = _count_samples(pl, step)
         if n > MAX_SAMPLES:
-            need = 2.0 * pl.length / MAX_SAMPLES
+            need = 2.2 * pl.length / MAX_SAMPLES
             raise UsageError(f"tolerance {tol:g} px is too fine for the {pl.length:.0f} px of {kind} strokes in {side} "
                              f"({n} samples); use a tolerance of at least {need:.2g} px")
     sa = _resample(pa, step) if len(pa) else None
@@ -878,6 +892,16 @@ def diff_paths(a: str | Path, b: str | Path, tol: float = 0.05, *, png: str | Pa
     return diff_svgs(pa, pb, tol, png=png, png_scale=png_scale)
 
 
+def assert_same_drawing(a: str | Path, b: str | Path, tol: float = 0.05, *,
+                        png: str | Path | None = None) -> DiffResult | DirDiffResult:
+    """For tests against golden files: raise AssertionError with the human summary when the two
+    SVG files (or folders) differ within tol px; return the result otherwise."""
+    res = diff_paths(a, b, tol, png=png)
+    if not res.equal:
+        raise AssertionError(res.summary())
+    return res
+
+
 # ----------------------------------------------------------------------------------------------
 # Difference image
 # ----------------------------------------------------------------------------------------------
@@ -953,4 +977,7 @@ def write_diff_png(result: DiffResult, path: str | Path, *, scale: float = 1.0) 
                 polyline(part, color, thick)
     buf = io.BytesIO()
     img.save(buf, format="PNG")
-    return atomic_write_bytes(path, buf.getvalue())
+    try:
+        return atomic_write_bytes(path, buf.getvalue())
+    except OSError as e:
+        raise InputError(f"cannot write the difference image: {e.strerror or e}", path=path) from None

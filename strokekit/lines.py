@@ -48,6 +48,9 @@ class LineRenderer:
         runs = visible_runs(fe, camera, self.occluder, opts, self.scene.radius)
         clock.lap("visibility")
         strokes = chain_runs(runs, opts, camera=camera, frame=frame)
+        # A run visible at a single point (an edge touching the view only at one sample) has no
+        # length to draw.
+        strokes = strokes.select(strokes.lengths > 0.0)
         if opts.merge_overlaps:
             strokes = drop_retraced(strokes, opts.overlap_tol_px)
         strokes = split_max_length(strokes, opts.max_length_px)
