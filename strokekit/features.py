@@ -8,12 +8,17 @@ edge-on face: a face with n.(eye - P) <= 0 counts as back-facing."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .camera import Camera
+from .contours import face_edges, face_scale, face_size, smooth_contour_edges
+from .intersections import intersection_edges
 from .model import KIND_INDEX, FeatureEdges
 from .options import LineOptions
 from .scene import Scene
+from .suggestive import SMOOTH_PASSES, curvature_tensors, suggestive_contour_edges
 
 
 def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
@@ -36,6 +41,15 @@ def static_feature_mask(scene: Scene, options: LineOptions) -> dict[str, np.ndar
         out["crease"] = scene.crease_mask(options.crease_angle_deg)
     if "material" in options.kinds and len(scene.materials) > 1:
         out["material"] = scene.is_material_boundary
+    # Warm the per-scene caches of the lines inside faces now, so no frame pays for them: vertex
+    # normals and the face -> edge table (smooth contours), curvature tensors (suggestive), the
+    # intersection segments (BVH + narrow phase). They live in contours.scene_cache(scene).
+    if wants_smooth_contours(options) or "suggestive" in options.kinds:
+        face_edges(scene), face_scale(scene), face_size(scene)
+    if "suggestive" in options.kinds:
+        curvature_tensors(scene, SMOOTH_PASSES)
+    if "intersection" in options.kinds:
+        intersection_edges(scene)
     return out
 
 
@@ -51,8 +65,11 @@ def silhouette_mask(scene: Scene, camera: Camera) -> np.ndarray:
 
 def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
                   static: dict[str, np.ndarray] | None = None) -> FeatureEdges:
-    """Candidate feature edges for this camera. Each edge gets one kind, in priority order
-    silhouette > border > nonmanifold > crease > material."""
+    """Candidate feature edges for this camera. Each mesh edge gets one kind, in priority order
+    silhouette > border > nonmanifold > crease > material; then the lines inside faces, each with
+    its own occlusion-ray lift: smooth contours (`wants_smooth_contours`; they replace the mesh
+    silhouettes when contours == "smooth"), suggestive contours and intersection lines, when
+    their kinds are selected. Their va/vb chaining keys are >= V (or -1 where a stroke must end)."""
     static = static_feature_mask(scene, options) if static is None else static
     E = len(scene.edges)
     kind = np.full(E, -1, np.int8)
@@ -77,19 +94,19 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
                         vb=e[:, 1].astype(np.int64), face=face)
     parts = [mesh]
     if wants_smooth_contours(options):
-        from .contours import smooth_contour_edges
-
         parts.append(smooth_contour_edges(scene, camera))
     if "suggestive" in options.kinds:
-        from .suggestive import suggestive_contour_edges
-
         parts.append(suggestive_contour_edges(scene, camera, options))
     if "intersection" in options.kinds:
-        from .intersections import intersection_edges
-
         parts.append(intersection_edges(scene))
     if len(parts) == 1:
         return mesh
+    if len(mesh):
+        # Lines inside faces bring their own lift, so the concatenation has one and lines.py
+        # would not add the mesh edges' lift (it only fills a missing one): add it here.
+        from .lines import surface_lift
+
+        parts[0] = replace(mesh, lift=surface_lift(scene, mesh, camera, options.occlusion_offset))
     return FeatureEdges.concat(parts)
 
 

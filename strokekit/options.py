@@ -35,8 +35,8 @@ class LineOptions:
     overlap_tol_px: float = 0.5
     occlusion_offset: float = 1e-5  # ray offset as a fraction of the scene radius
     contours: str = "mesh"  # or "smooth": interpolated contours replace mesh silhouettes
-    suggestive_kr_threshold: float = 0.0  # radial curvature zero-crossing tolerance (1 / world unit)
-    suggestive_derivative_threshold: float = 0.05  # min D_w k_r, scaled by the object size
+    suggestive_kr_threshold: float = 0.0  # dimensionless (x 1/scene radius): skip faces with flatter radial curvature
+    suggestive_derivative_threshold: float = 50.0  # dimensionless (scaled by the scene radius): min R^2 D_w k_r tan(theta)
     period_px: float = 30.0  # texture period for u
 
     def __post_init__(self):

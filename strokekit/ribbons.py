@@ -18,9 +18,10 @@ and four triangles. At a turn between segments k and k+1 (turn angle theta):
 
 - inner side: the two inner vertices meet at the intersection I of the two inner offset lines
   (distance d / cos(theta/2) along the bisector), so the quads do not overlap and a translucent
-  brush never shows doubled opacity. When I would fall further back than half of either
-  segment (very short segments, hairpin turns) the quads keep their own inner vertices instead:
-  a small overlap, but never a flipped triangle;
+  brush never shows doubled opacity. When I would fall back further than a segment can take
+  (the retreats from both ends of a segment on the same side must fit in it: very short
+  segments, hairpin turns) the quads keep their own inner vertices instead: a small overlap,
+  but never a flipped triangle;
 - outer side: two join triangles (C, A, M), (C, M, B) fill the gap between the end edge of quad
   k and the start edge of quad k+1; M is the miter point while the miter ratio 1/cos(theta/2)
   stays under `miter_limit`, else the middle of A and B (a bevel, split in two).
@@ -55,7 +56,7 @@ class RibbonOptions:
     width_px: full ribbon width where the stroke is not tapered.
     taper_head_px / taper_tail_px: length of the width taper at the start / end (0: none);
       taper_min: width fraction at the very tip (> 0 keeps tip triangles non-degenerate);
-      taper_steps: vertices placed inside each taper so the profile is smooth.
+      taper_steps: vertices placed inside each taper (1: a linear ramp; more: an eased curve).
     head_px / tail_px: length on screen of the brush texture's head and tail regions;
       tex_head / tex_tail: the share of the texture width those regions occupy.
     miter_limit: largest miter length / half width before the outer join is bevelled (SVG's 4).
@@ -67,7 +68,7 @@ class RibbonOptions:
     taper_head_px: float = 6.0
     taper_tail_px: float = 10.0
     taper_min: float = 0.25
-    taper_steps: int = 4
+    taper_steps: int = 1
     head_px: float = 3.0
     tail_px: float = 6.0
     tex_head: float = 0.25
@@ -236,7 +237,9 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
         dist = float(np.linalg.norm(np.subtract(cam.target, cam.eye)))
         bad = ~np.isfinite(z) | (~cam.is_ortho & (z <= 1e-9 * dist))
         z = np.where(bad, dist, z)  # unknown surface point: place it at the target distance
-        arr["z"] = z
+        # points inserted inside a segment interpolate linearly in the image: 1/z is what is
+        # linear there under perspective (z itself under orthographic)
+        arr["z"] = z if cam.is_ortho else 1.0 / z
     arr, sid = _drop_short(arr, sid)
 
     # --- per-stroke lengths, head/tail and taper regions
@@ -274,7 +277,9 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     u0, u1 = u[bj], u[bj + 1]
     lo, hi = np.minimum(u0, u1), np.maximum(u0, u1)
     first = np.floor(lo) + 1.0
-    count = np.maximum(0, (np.ceil(hi) - 1.0 - first + 1.0)).astype(np.int64)
+    count = np.maximum(0, (np.ceil(hi) - first)).astype(np.int64)
+    # a segment spanning hundreds of periods shows sub-pixel marks anyway: no cuts (no blow-up)
+    count[count > 256] = 0
     if count.sum():
         rep = np.repeat(np.arange(len(bj)), count)
         within = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
@@ -297,17 +302,20 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     nrm = np.stack([-tan[:, 1], tan[:, 0]], axis=1)
 
     # half width at every point: tapered at both ends
-    prof = np.minimum(
-        np.where(thead[sid] > 0, o.taper_min + (1 - o.taper_min) * _ease(s / np.maximum(thead[sid], 1e-300)), 1.0),
-        np.where(ttail[sid] > 0, o.taper_min + (1 - o.taper_min) * _ease((L[sid] - s) / np.maximum(ttail[sid], 1e-300)), 1.0))
+    th_p, tt_p = thead[sid], ttail[sid]
+    grow = np.where(th_p > 0, _ease(s / np.maximum(th_p, 1e-300)), 1.0)
+    fade = np.where(tt_p > 0, _ease((L[sid] - s) / np.maximum(tt_p, 1e-300)), 1.0)
+    prof = o.taper_min + (1 - o.taper_min) * np.minimum(grow, fade)
     half = 0.5 * o.width_px * prof
 
-    # six vertices per segment: rows L, C, R at the start then at the end
+    # seven vertex slots per segment: rows L, C, R at the start, then at the end, then the outer
+    # join vertex M of the turn at its end (unused on the last segment and on straight joins)
     P0, P1 = p[seg_j], p[seg_j + 1]
     h0, h1 = half[seg_j][:, None], half[seg_j + 1][:, None]
-    vpix = np.empty((K, 6, 2))
+    vpix = np.empty((K, 7, 2))
     vpix[:, 0], vpix[:, 1], vpix[:, 2] = P0 + nrm * h0, P0, P0 - nrm * h0
     vpix[:, 3], vpix[:, 4], vpix[:, 5] = P1 + nrm * h1, P1, P1 - nrm * h1
+    vpix[:, 6] = P1
 
     # texture u per segment end: head, body (one period piece), tail
     th, tt = o.tex_head, o.tex_tail
@@ -326,18 +334,17 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
         return np.where(in_head, head_u, np.where(in_tail, tail_u, body_u))
 
     ua, ub = tex_u(sa, u[seg_j]), tex_u(sb, u[seg_j + 1])
-    vuv = np.empty((K, 6, 2))
+    vuv = np.empty((K, 7, 2))
     vuv[:, :3, 0] = ua[:, None]
     vuv[:, 3:, 0] = ub[:, None]
-    vuv[:, :, 1] = np.array([0.0, 0.5, 1.0, 0.0, 0.5, 1.0])
-    v_arc = np.repeat(np.stack([sa, sb], 1), 3, axis=1)
-    v_uraw = np.repeat(np.stack([u[seg_j], u[seg_j + 1]], 1), 3, axis=1)
-    v_pt = np.repeat(np.stack([seg_j, seg_j + 1], 1), 3, axis=1)  # the stroke point each vertex hangs on
+    vuv[:, :, 1] = np.array([0.0, 0.5, 1.0, 0.0, 0.5, 1.0, 0.5])
+    pt = np.empty((K, 7), np.int64)  # the stroke point each vertex hangs on (its depth, arc length, u)
+    pt[:, :3] = seg_j[:, None]
+    pt[:, 3:] = (seg_j + 1)[:, None]
 
-    base = 6 * np.arange(K)[:, None]
-    quad = np.array([[1, 4, 3], [1, 3, 0], [2, 5, 4], [2, 4, 1]])
-    tri_q = (base[:, :, None] + quad[None]).reshape(-1, 3)
-    tri_q_stroke = np.repeat(sk, 4)
+    tris = np.full((K, 6, 3), -1, np.int64)  # four quad triangles, then two join triangles
+    base = 7 * np.arange(K)[:, None, None]
+    tris[:, :4] = base + np.array([[1, 4, 3], [1, 3, 0], [2, 5, 4], [2, 4, 1]])[None]
 
     # --- joins between consecutive segments k, k+1 of one stroke
     jk = np.nonzero(seg_j[1:] == seg_j[:-1] + 1)[0]
@@ -354,59 +361,79 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     safe = np.maximum(one_c, 1e-12)  # hairpins (1 + cos theta ~ 0) use neither I nor the miter
     bis = (n1 + n2) / safe[:, None]  # (n1 + n2) / (1 + cos theta): the miter offset per unit half width
     retreat = dj * np.abs(cross) / safe  # d tan(theta / 2): how far I falls back along each segment
-    inner_ok = (one_c > 1e-9) & (retreat <= 0.5 * np.minimum(seg_len[jk], seg_len[jk + 1]))
-    I = Pj + (sig * dj)[:, None] * bis
-    prev_in = np.where(sig > 0, 3, 5)
-    next_in = np.where(sig > 0, 0, 2)
-    ki = jk[inner_ok]
-    vpix[ki, prev_in[inner_ok]] = I[inner_ok]
-    vpix[ki + 1, next_in[inner_ok]] = I[inner_ok]
-    miter_ok = (one_c / 2.0 >= 1.0 / o.miter_limit ** 2) & (one_c > 1e-9)
-    M = np.where(miter_ok[:, None], Pj - (sig * dj)[:, None] * bis,
-                 Pj - (0.5 * sig * dj)[:, None] * (n1 + n2))
-    J = len(jk)
-    m_idx = 6 * K + np.arange(J)
-    A = 6 * jk + np.where(sig > 0, 5, 3)
-    B = 6 * (jk + 1) + np.where(sig > 0, 2, 0)
-    C = 6 * jk + 4
+    # the inner vertex I may fall back along a segment as long as the retreats on the same side
+    # of it (from its two ends) fit in it; where they do not, the larger retreat gives up (a few
+    # vectorized passes). Retreats on opposite sides (an S bend) never meet.
+    inner_ok = (one_c > 1e-9) & (retreat <= np.minimum(seg_len[jk], seg_len[jk + 1]))
+
+    def overfull(ok):
+        r_start, r_end = np.zeros(K), np.zeros(K)  # retreat at each segment's start / end
+        s_start, s_end = np.zeros(K), np.zeros(K)  # and the side it is on
+        r_end[jk[ok]], s_end[jk[ok]] = retreat[ok], sig[ok]
+        r_start[jk[ok] + 1], s_start[jk[ok] + 1] = retreat[ok], sig[ok]
+        return (s_start == s_end) & (r_start + r_end > seg_len * (1 - 1e-9)), r_start, r_end
+
+    for _ in range(4):
+        over, r_start, r_end = overfull(inner_ok)
+        if not over.any():
+            break
+        drop_end = over[jk] & (retreat >= r_start[jk])  # the join ends an over-full segment
+        drop_start = over[jk + 1] & (retreat >= r_end[jk + 1])  # the join starts one
+        inner_ok &= ~(drop_end | drop_start)
+    else:  # still over-full after the passes: every join touching such a segment gives up
+        over = overfull(inner_ok)[0]
+        inner_ok &= ~(over[jk] | over[jk + 1])
     left = sig > 0
-    tj = np.empty((J, 2, 3), np.int64)
-    tj[:, 0] = np.where(left[:, None], np.stack([C, A, m_idx], 1), np.stack([C, m_idx, A], 1))
-    tj[:, 1] = np.where(left[:, None], np.stack([C, m_idx, B], 1), np.stack([C, B, m_idx], 1))
-    tri_j = tj.reshape(-1, 3)
-    tri_j_stroke = np.repeat(sk[jk], 2)
-    m_uv = np.stack([ub[jk], np.where(left, 1.0, 0.0)], 1)
+    ki = jk[inner_ok]
+    I = Pj[inner_ok] + (sig * dj)[inner_ok, None] * bis[inner_ok]
+    vpix[ki, np.where(left[inner_ok], 3, 5)] = I
+    vpix[ki + 1, np.where(left[inner_ok], 0, 2)] = I
+    miter_ok = (one_c / 2.0 >= 1.0 / o.miter_limit ** 2) & (one_c > 1e-9)
+    vpix[jk, 6] = np.where(miter_ok[:, None], Pj - (sig * dj)[:, None] * bis,
+                           Pj - (0.5 * sig * dj)[:, None] * (n1 + n2))
+    vuv[jk, 6, 1] = np.where(left, 1.0, 0.0)
+    A = 7 * jk + np.where(left, 5, 3)
+    B = 7 * (jk + 1) + np.where(left, 2, 0)
+    C = 7 * jk + 4
+    Mi = 7 * jk + 6
+    tris[jk, 4] = np.where(left[:, None], np.stack([C, A, Mi], 1), np.stack([C, Mi, A], 1))
+    tris[jk, 5] = np.where(left[:, None], np.stack([C, Mi, B], 1), np.stack([C, B, Mi], 1))
 
-    # --- gather, drop degenerate triangles, group by stroke
-    pix = np.concatenate([vpix.reshape(-1, 2), M])
-    uv = np.concatenate([vuv.reshape(-1, 2), m_uv])
-    arc = np.concatenate([v_arc.ravel(), s[seg_j[jk] + 1]])
-    uraw = np.concatenate([v_uraw.ravel(), u[seg_j[jk] + 1]])
-    vpt = np.concatenate([v_pt.ravel(), seg_j[jk] + 1])
-    v_stroke = np.concatenate([np.repeat(sk, 6), sk[jk]])
-    tris = np.concatenate([tri_q, tri_j])
-    t_stroke = np.concatenate([tri_q_stroke, tri_j_stroke])
-    a, b, c = pix[tris[:, 0]], pix[tris[:, 1]], pix[tris[:, 2]]
+    # --- drop missing and zero-area triangles, then the vertices no triangle uses
+    pix = vpix.reshape(-1, 2)
+    tris = tris.reshape(-1, 3)
+    t_stroke = np.repeat(sk, 6)
+    # only join triangles and quads whose inner vertices moved can have zero area (hairpins,
+    # inner points meeting): test those, drop the ones with nothing in them
+    maybe = np.zeros((K, 6), bool)
+    maybe[jk, 4:] = True
+    maybe[ki, :4] = True
+    maybe[ki + 1, :4] = True
+    maybe = maybe.ravel()
+    mt = tris[maybe]
+    a, b, c = pix[mt[:, 0]], pix[mt[:, 1]], pix[mt[:, 2]]
     area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    keep = area2 > 1e-10  # zero-area triangles (hairpins, straight joins) carry nothing
+    keep = tris[:, 0] >= 0
+    keep[maybe] &= area2 > 1e-10
     tris, t_stroke = tris[keep], t_stroke[keep]
-
-    vorder = np.argsort(v_stroke, kind="stable")
-    inv = np.empty_like(vorder)
-    inv[vorder] = np.arange(len(vorder))
-    torder = np.argsort(t_stroke, kind="stable")
-    tris = inv[tris[torder]][:, [0, 2, 1]]  # pixel y points down: reverse to be CCW seen from the camera
-    pix, uv, arc, uraw, vpt = pix[vorder], uv[vorder], arc[vorder], uraw[vorder], vpt[vorder]
-    v_stroke, t_stroke = v_stroke[vorder], t_stroke[torder]
+    used = np.zeros(len(pix), bool)
+    used[tris.ravel()] = True
+    remap = np.cumsum(used) - 1
+    tris = remap[tris][:, [0, 2, 1]]  # pixel y points down: reverse to be CCW seen from the camera
+    pix = pix[used]
+    uv = vuv.reshape(-1, 2)[used]
+    vpt = pt.ravel()[used]
+    v_stroke = sid[vpt]
     vo = np.searchsorted(v_stroke, np.arange(n_s + 1), side="left").astype(np.int64)
     to = np.searchsorted(t_stroke, np.arange(n_s + 1), side="left").astype(np.int64)
 
     if o.space == "image":
         pos = np.stack([pix[:, 0], cam.height - pix[:, 1], np.zeros(len(pix))], 1)
     else:
-        pos = unproject(cam, pix, arr["z"][vpt], o.pull)
+        zv = arr["z"][vpt]
+        pos = unproject(cam, pix, zv if cam.is_ortho else 1.0 / zv, o.pull)
     lvl = np.stack([strokes.level[v_stroke], strokes.level_weight[v_stroke]], 1) if len(v_stroke) else np.zeros((0, 2))
-    return RibbonMesh(positions=pos, pixels=pix, uv=uv, level_uv=lvl, arc=arc, u_raw=uraw, indices=tris,
+    return RibbonMesh(positions=pos, pixels=pix, uv=uv, level_uv=lvl, arc=s[vpt], u_raw=u[vpt], indices=tris,
                       vertex_offsets=vo, triangle_offsets=to, kind=strokes.kind, ids=strokes.ids,
                       level=np.asarray(strokes.level, float), level_weight=np.asarray(strokes.level_weight, float),
                       space=o.space)
@@ -418,11 +445,12 @@ def unproject(camera: Camera, pixels: np.ndarray, depth: np.ndarray, pull: float
     does not change). Orthographic cameras move by `pull` times the eye-target distance."""
     right, up, fwd = camera.basis
     f = camera.focal_px
-    x = (pixels[:, 0] - camera.width / 2.0) / f
-    y = (camera.height / 2.0 - pixels[:, 1]) / f
     eye = np.asarray(camera.eye)
+    x = (pixels[:, 0] - camera.width / 2.0) / f  # in-plane offsets per unit depth (perspective)
+    y = (camera.height / 2.0 - pixels[:, 1]) / f  # or in world units (orthographic)
     if camera.is_ortho:
         z = depth - pull * float(np.linalg.norm(np.subtract(camera.target, camera.eye)))
-        return eye + x[:, None] * right + y[:, None] * up + z[:, None] * fwd
-    z = depth * (1.0 - pull)
-    return eye + z[:, None] * (x[:, None] * right + y[:, None] * up + fwd)
+    else:
+        z = depth * (1.0 - pull)
+        x, y = x * z, y * z
+    return eye + x[:, None] * right + y[:, None] * up + z[:, None] * fwd

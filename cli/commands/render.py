@@ -46,6 +46,10 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--min-length", type=float, default=None, help="Drop strokes shorter than N px [0].")
 @click.option("--simplify", "simplify_tol", type=float, default=None, help="Simplify strokes within N px.")
 @click.option("--period", type=float, default=None, help="Texture period P in px for the parametrization u [30].")
+@click.option("--suggestive-threshold", type=float, default=None,
+              help="Suggestive contours: minimum derivative of radial curvature, scale-free [50].")
+@click.option("--suggestive-kr-threshold", type=float, default=None,
+              help="Suggestive contours: skip faces whose radial curvature stays below this / scene radius [0].")
 @click.option("--svg/--no-svg", default=True, show_default=True)
 @click.option("--json/--no-json", "write_json", default=True, show_default=True)
 @click.option("--decimals", type=click.IntRange(0, 8), default=2, show_default=True, help="SVG coordinate decimals.")
@@ -61,14 +65,14 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @render_extra_options
 def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out_dir, pattern, kinds, contours, quality,
             crease_angle, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, period,
-            svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
+            suggestive_threshold, suggestive_kr_threshold, svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
             explain, **extra):
     """Render the visible feature lines of SCENE for every frame of a camera path.
 
     Writes OUT/frame_0001.svg and .json (and .glb, band PNGs when asked) per frame."""
     if camera_file and orbit:
         raise UsageError("give either --camera or --orbit, not both")
-    if not (svg or write_json or extra.get("gltf") or extra.get("bands")):
+    if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
         raise UsageError("nothing to write: every output is turned off")
     try:
         pattern.format(frame=1)
@@ -96,12 +100,14 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     lines = LineOptions.preset(quality, kinds=split_list(kinds), contours=contours, crease_angle_deg=crease_angle,
                                sample_spacing_px=sample_spacing, bisection_tol_px=bisection_tol,
                                split_angle_deg=split_angle, max_length_px=max_length, min_length_px=min_length,
-                               simplify_tol_px=simplify_tol, period_px=period)
+                               simplify_tol_px=simplify_tol, period_px=period,
+                               suggestive_derivative_threshold=suggestive_threshold,
+                               suggestive_kr_threshold=suggestive_kr_threshold)
+    gltf_options = gltf_options_from(extra, lines, path.fps)
     outputs = OutputOptions(out_dir=Path(out_dir), pattern=pattern, svg=svg, json=write_json,
                             decimals=decimals, stroke_width_px=stroke_width,
-                            gltf=bool(extra.get("gltf")), gltf_sequence=bool(extra.get("gltf_sequence")),
-                            gltf_options=gltf_options_from(extra, lines),
-                            raster_options=raster_options_from(extra, quality))
+                            gltf=gltf_options is not None, gltf_sequence=bool(extra.get("gltf_sequence")),
+                            gltf_options=gltf_options, raster_options=raster_options_from(extra, quality))
     if workers is None:
         workers = (os.cpu_count() or 1) if len(frames) >= 8 else 1
     spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,

@@ -1,0 +1,367 @@
+"""Textured ribbons of the strokes as binary glTF (GLB), for Blender and any glTF viewer.
+
+One GLB per frame (`glb_for_frame`): a node "camera" holding the frame's camera (opening the file
+shows the same view) and a node "strokes_0001" (frame number) with one mesh, one primitive per
+line kind (one material each, tinted like the SVG layers). A sequence GLB (`glb_for_sequence`):
+one node "frame_0001", ... per frame under a node "strokes", each shown only on its own frame by
+STEP scale keys (0 -> 1 -> 0: the baseline every importer understands), and the camera node
+moved by STEP translation/rotation keys; all channels in one animation named "sequence". Key
+time = frame number / fps, so Blender's frame N shows our frame N. glTF cameras cannot animate
+their field of view without extensions: the sequence's camera keeps the first frame's lens.
+Image space ("image"): a fixed orthographic camera looking at the pixel rectangle.
+
+Layout of a primitive:
+- POSITION (float32): world units relative to the node's translation (keeps float32 precision
+  far from the origin), or pixels (x, H - y, 0) in image space;
+- TEXCOORD_0: brush texture coordinates (strokekit.ribbons: head | body | tail along u,
+  v = 0 / 0.5 / 1 across);
+- TEXCOORD_1: (level, level_weight) of each stroke's self-similar octave, constant along the
+  stroke (the material does not use it: it is there for custom shaders);
+- extras: {"kind": name, "strokes": {"id", "first_triangle", "triangle_count", "level",
+  "level_weight"}}: stroke s of the primitive owns triangles [first, first + count) of its indices.
+
+Material: KHR_materials_unlit (not required: viewers without it fall back on the PBR block,
+metallic 0, roughness 1), double sided, alpha BLEND (or MASK with a cutoff), base colour
+texture = the brush PNG embedded in a buffer view (every buffer view starts 4-byte aligned).
+No timestamps or versions inside: the same strokes give the same bytes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..brushes import Brush, get_brush
+from ..camera import Camera
+from ..errors import UsageError
+from ..model import KINDS, Strokes
+from ..ribbons import RibbonMesh, RibbonOptions, build_ribbons
+from .svg import KIND_COLORS
+
+
+@dataclass(frozen=True)
+class GltfOptions:
+    """glTF ribbon output. width_px: ribbon width on screen; taper: the width tapers linearly over
+    taper x the brush's head and tail lengths (bundled brushes: 2 widths each; 0 = no taper);
+    brush: a bundled brush name (plain, ink, dry) or a PNG path; alpha_mode: "BLEND" or "MASK" (alpha_cutoff);
+    space: "world" or "image"; color: None (per line kind for bundled brushes, the image's own
+    colour for a user's brush) or "#rrggbb" for all; fps: sequence timing; pull: world mode,
+    fraction of depth the ribbons move toward the camera."""
+
+    width_px: float = 3.0
+    taper: float = 1.0
+    brush: str = "ink"
+    alpha_mode: str = "BLEND"
+    alpha_cutoff: float = 0.5
+    space: str = "world"
+    color: str | None = None
+    fps: float = 24.0
+    miter_limit: float = 4.0
+    pull: float = 0.003
+    unlit: bool = True
+    level_texcoord: bool = True
+
+    def __post_init__(self):
+        if self.alpha_mode not in ("BLEND", "MASK"):
+            raise UsageError(f"alpha mode must be BLEND or MASK, got {self.alpha_mode!r}")
+        if not 0 <= self.alpha_cutoff <= 1:
+            raise UsageError(f"alpha cutoff must be in [0, 1], got {self.alpha_cutoff}")
+        if not (math.isfinite(self.taper) and self.taper >= 0):
+            raise UsageError(f"taper must be >= 0, got {self.taper}")
+        if not self.fps > 0:
+            raise UsageError(f"fps must be > 0, got {self.fps}")
+        if self.color is not None:
+            _hex_rgba(self.color)
+        RibbonOptions(width_px=self.width_px, space=self.space, miter_limit=self.miter_limit, pull=self.pull)
+
+    def ribbon_options(self, brush: Brush) -> RibbonOptions:
+        """The ribbon geometry these options ask for, head/tail sized from the brush."""
+        w = self.width_px
+        # the width tapers over the brush's head and tail (times `taper`): with taper 1 the taper
+        # ends where the texture regions end, so both share their vertices
+        head, tail = brush.head_px(w), brush.tail_px(w)
+        return RibbonOptions(width_px=w, taper_head_px=head * self.taper, taper_tail_px=tail * self.taper,
+                             head_px=head, tail_px=tail, tex_head=brush.tex_head,
+                             tex_tail=brush.tex_tail, miter_limit=self.miter_limit, space=self.space, pull=self.pull)
+
+
+def _hex_rgba(c: str) -> list[float]:
+    s = c.lstrip("#")
+    if len(s) != 6 or any(ch not in "0123456789abcdefABCDEF" for ch in s):
+        raise UsageError(f"colour must be #rrggbb, got {c!r}")
+    return [int(s[i:i + 2], 16) / 255.0 for i in (0, 2, 4)] + [1.0]
+
+
+# --- document building ----------------------------------------------------------------------------
+
+_FLOAT, _USHORT, _UINT = 5126, 5123, 5125
+_ARRAY, _ELEMENTS = 34962, 34963
+
+
+def _bounds(a: np.ndarray) -> tuple[list[float], list[float]]:
+    """Per-column min and max of (n, k) as lists; column by column (numpy reduces a strided axis 0
+    of a narrow array an order of magnitude slower)."""
+    return ([float(a[:, i].min()) for i in range(a.shape[1])], [float(a[:, i].max()) for i in range(a.shape[1])])
+
+
+class _Doc:
+    """A glTF document (plain JSON-ready dicts: pygltflib's serializer costs more than the whole
+    ribbon build) and its single binary buffer, grown piece by piece."""
+
+    def __init__(self, opts: GltfOptions):
+        self.opts = opts
+        self.j: dict = {"asset": {"generator": "strokekit", "version": "2.0"}, "scene": 0}
+        self.parts: list[bytes] = []
+        self.length = 0
+        self.brush = get_brush(opts.brush)
+        self.texture: int | None = None
+        self.materials: dict[int, int] = {}
+
+    def add(self, key: str, obj: dict) -> int:
+        lst = self.j.setdefault(key, [])
+        lst.append(obj)
+        return len(lst) - 1
+
+    def view(self, data: bytes, target: int | None = None) -> int:
+        pad = (-self.length) % 4  # every buffer view starts 4-byte aligned
+        if pad:
+            self.parts.append(b"\0" * pad)
+            self.length += pad
+        bv = {"buffer": 0, "byteOffset": self.length, "byteLength": len(data)}
+        if target is not None:
+            bv["target"] = target
+        self.parts.append(data)
+        self.length += len(data)
+        return self.add("bufferViews", bv)
+
+    def accessor(self, a: np.ndarray, type_: str, target: int | None = _ARRAY, minmax: bool = False) -> int:
+        if a.dtype == np.uint16:
+            ct = _USHORT
+        elif a.dtype == np.uint32:
+            ct = _UINT
+        else:
+            a, ct = a.astype("<f4"), _FLOAT
+        a = np.ascontiguousarray(a)
+        count = a.shape[0] if type_ != "SCALAR" else a.size
+        acc = {"bufferView": self.view(a.tobytes(), target), "componentType": ct, "count": int(count), "type": type_}
+        if minmax:  # bounds of the float32 values actually stored
+            flat = a.reshape(count, -1)
+            acc["min"], acc["max"] = _bounds(flat)
+        return self.add("accessors", acc)
+
+    def material(self, kind: int) -> int:
+        if kind in self.materials:
+            return self.materials[kind]
+        if self.texture is None:
+            img = self.add("images", {"bufferView": self.view(self.brush.png), "mimeType": "image/png",
+                                      "name": self.brush.name})
+            smp = self.add("samplers", {"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071})
+            self.texture = self.add("textures", {"source": img, "sampler": smp})
+        name = KINDS[kind] if 0 <= kind < len(KINDS) else f"kind{kind}"
+        if self.opts.color is not None:
+            rgba = _hex_rgba(self.opts.color)
+        elif self.brush.tinted:
+            rgba = _hex_rgba(KIND_COLORS.get(name, "#000000"))
+        else:
+            rgba = [1.0, 1.0, 1.0, 1.0]
+        m = {"name": name, "doubleSided": True, "alphaMode": self.opts.alpha_mode,
+             "pbrMetallicRoughness": {"baseColorFactor": rgba, "baseColorTexture": {"index": self.texture},
+                                      "metallicFactor": 0.0, "roughnessFactor": 1.0}}
+        if self.opts.alpha_mode == "MASK":
+            m["alphaCutoff"] = self.opts.alpha_cutoff
+        if self.opts.unlit:
+            m["extensions"] = {"KHR_materials_unlit": {}}
+            used = self.j.setdefault("extensionsUsed", [])
+            if "KHR_materials_unlit" not in used:
+                used.append("KHR_materials_unlit")
+        self.materials[kind] = self.add("materials", m)
+        return self.materials[kind]
+
+    def ribbon_node(self, mesh: RibbonMesh, name: str) -> int:
+        """A node holding the ribbons (one primitive per line kind); no mesh when there are none."""
+        node: dict = {"name": name}
+        if len(mesh.indices):
+            origin = np.zeros(3)
+            if mesh.space == "world":
+                lo, hi = _bounds(mesh.positions)
+                origin = np.round(0.5 * (np.array(lo) + np.array(hi)), 6)
+                node["translation"] = [float(x) for x in origin]
+            pos = mesh.positions - origin
+            vo, to = mesh.vertex_offsets, mesh.triangle_offsets
+            tcount_all = np.diff(to)
+            # strokes come grouped by kind (ribbons_for): each kind is one slice of vertices and triangles
+            kinds, first = np.unique(mesh.kind, return_index=True)
+            last = np.r_[first[1:], len(mesh.kind)]
+            prims = []
+            for k, a, b in zip(kinds, first, last):
+                v0, v1, t0, t1 = vo[a], vo[b], to[a], to[b]
+                if t1 == t0:
+                    continue
+                nv = int(v1 - v0)
+                idx = (mesh.indices[t0:t1] - v0).ravel().astype(np.uint16 if nv < 65535 else np.uint32)
+                strokes_k = a + np.nonzero(tcount_all[a:b] > 0)[0]
+                tcount = tcount_all[strokes_k]
+                attrs = {"POSITION": self.accessor(pos[v0:v1], "VEC3", minmax=True),
+                         "TEXCOORD_0": self.accessor(mesh.uv[v0:v1], "VEC2")}
+                if self.opts.level_texcoord:
+                    attrs["TEXCOORD_1"] = self.accessor(mesh.level_uv[v0:v1], "VEC2")
+                extras = {"kind": KINDS[k] if 0 <= k < len(KINDS) else int(k),
+                          "strokes": {"id": mesh.ids[strokes_k].tolist(),
+                                      "first_triangle": (np.cumsum(tcount) - tcount).tolist(),
+                                      "triangle_count": tcount.tolist(),
+                                      "level": mesh.level[strokes_k].tolist(),
+                                      "level_weight": mesh.level_weight[strokes_k].tolist()}}
+                prims.append({"attributes": attrs, "indices": self.accessor(idx, "SCALAR", _ELEMENTS),
+                              "material": self.material(int(k)), "mode": 4, "extras": extras})
+            node["mesh"] = self.add("meshes", {"name": name, "primitives": prims})
+        return self.add("nodes", node)
+
+    def camera_node(self, camera: Camera) -> int:
+        """The frame's camera: a glTF camera looks down its local -Z with +Y up."""
+        aspect = camera.width / camera.height
+        if self.opts.space == "image":
+            d = float(max(camera.width, camera.height))
+            cam = {"type": "orthographic", "name": "image", "orthographic": {
+                "xmag": camera.width / 2.0, "ymag": camera.height / 2.0, "znear": 0.01 * d, "zfar": 2.0 * d}}
+            node = {"name": "camera", "translation": [camera.width / 2.0, camera.height / 2.0, d]}
+        else:
+            dist = float(np.linalg.norm(np.subtract(camera.target, camera.eye)))
+            if camera.is_ortho:
+                h = camera.ortho_height / 2.0
+                cam = {"type": "orthographic", "name": "camera", "orthographic": {
+                    "xmag": h * aspect, "ymag": h, "znear": 0.0, "zfar": 100.0 * dist}}
+            else:
+                znear = float(camera.near) if camera.near else 1e-3 * dist
+                cam = {"type": "perspective", "name": "camera", "perspective": {
+                    "aspectRatio": aspect, "yfov": math.radians(camera.fov_y), "znear": znear}}
+            node = {"name": "camera", "translation": [float(x) for x in camera.eye], "rotation": _camera_quat(camera)}
+        node["camera"] = self.add("cameras", cam)
+        return self.add("nodes", node)
+
+    def glb(self, roots: list[int]) -> bytes:
+        self.j["scenes"] = [{"name": "strokes", "nodes": roots}]
+        blob = b"".join(self.parts)
+        blob += b"\0" * ((-len(blob)) % 4)
+        if blob:
+            self.j["buffers"] = [{"byteLength": len(blob)}]
+        js = json.dumps(self.j, separators=(",", ":")).encode("utf-8")
+        js += b" " * ((-len(js)) % 4)
+        chunks = [struct.pack("<I4s", len(js), b"JSON"), js]
+        if blob:
+            chunks += [struct.pack("<I4s", len(blob), b"BIN\0"), blob]
+        body = b"".join(chunks)
+        return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+def _camera_quat(camera: Camera) -> list[float]:
+    """glTF rotation (x, y, z, w) taking local +X, +Y, -Z to right, up, fwd."""
+    right, up, fwd = camera.basis
+    m = np.stack([right, up, -fwd], axis=1)
+    tr = np.trace(m)
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
+        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
+        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+    q = np.array(q)
+    q /= np.linalg.norm(q)
+    if q[3] < 0:  # one sign for the same rotation: deterministic and smooth keys
+        q = -q
+    return [float(x) for x in q]
+
+
+def by_kind(strokes: Strokes) -> Strokes:
+    """The same strokes reordered so each line kind is one run (stable: chain order kept inside a
+    kind); one primitive per kind is then a slice of the ribbon arrays."""
+    order = np.argsort(strokes.kind, kind="stable")
+    if np.all(order == np.arange(len(order))):
+        return strokes
+    counts = np.diff(strokes.offsets)[order]
+    starts = strokes.offsets[:-1][order]
+    new_off = np.r_[0, np.cumsum(counts)].astype(np.int64)
+    pidx = np.repeat(starts - new_off[:-1], counts) + np.arange(new_off[-1])
+    return replace(strokes, points=strokes.points[pidx], surface=strokes.surface[pidx], face=strokes.face[pidx],
+                   u=strokes.u[pidx], offsets=new_off, kind=strokes.kind[order], ids=strokes.ids[order],
+                   level=strokes.level[order], level_weight=strokes.level_weight[order])
+
+
+def ribbons_for(strokes: Strokes, camera: Camera | None, options: GltfOptions) -> RibbonMesh:
+    """The ribbons a GLB holds: strokes grouped by kind, geometry per options and brush."""
+    brush = get_brush(options.brush)
+    return build_ribbons(by_kind(strokes), camera, options.ribbon_options(brush))
+
+
+def glb_for_frame(strokes: Strokes, camera: Camera | None = None, options: GltfOptions | None = None) -> bytes:
+    """GLB bytes of one frame: its camera and its strokes as textured ribbons."""
+    opts = options if options is not None else GltfOptions()
+    cam = camera if camera is not None else strokes.camera
+    if cam is None:
+        raise UsageError("glTF output needs the frame's camera")
+    doc = _Doc(opts)
+    mesh = ribbons_for(strokes, cam, opts)
+    strokes_node = doc.ribbon_node(mesh, f"strokes_{int(strokes.frame):04d}")
+    cam_node = doc.camera_node(cam)
+    return doc.glb([cam_node, strokes_node])
+
+
+def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None) -> bytes:
+    """One GLB for a sequence: one node per frame (each Strokes carries its camera and frame number),
+    shown only on its frame (STEP scale keys), the camera moved by STEP keys, at options.fps."""
+    opts = options if options is not None else GltfOptions()
+    if not frames:
+        raise UsageError("a glTF sequence needs at least one frame")
+    if any(f.camera is None for f in frames):
+        raise UsageError("glTF output needs every frame's camera")
+    doc = _Doc(opts)
+    nums = np.array([int(f.frame) for f in frames])
+    # key time = frame number / fps, so an importer's frame N (Blender: time x fps) is our frame N;
+    # frames out of order or negative fall back on their list position
+    ok = np.all(np.diff(nums) > 0) and nums[0] >= 0
+    times = (nums if ok else np.arange(len(frames))) / float(opts.fps)
+    n = len(frames)
+    children = []
+    for f in frames:
+        node = doc.ribbon_node(ribbons_for(f, f.camera, opts), f"frame_{int(f.frame):04d}")
+        children.append(node)
+    anim: dict = {"name": "sequence", "channels": [], "samplers": []}
+    if n > 1:
+        for i, node in enumerate(children):
+            t_keys, s_keys = [], []
+            if i > 0:  # hidden from time 0 (importers hold the first key before it)
+                t_keys.append(0.0), s_keys.append(0.0)
+            t_keys.append(times[i]), s_keys.append(1.0)
+            if i < n - 1:
+                t_keys.append(times[i + 1]), s_keys.append(0.0)
+            doc.j["nodes"][node]["scale"] = [1.0, 1.0, 1.0] if i == 0 else [0.0, 0.0, 0.0]
+            _channel(doc, anim, node, "scale", np.array(t_keys), np.repeat(np.array(s_keys)[:, None], 3, 1))
+    root_i = doc.add("nodes", {"name": "strokes", "children": children})
+    cam_node = doc.camera_node(frames[0].camera)
+    if n > 1 and opts.space == "world":
+        eyes = np.array([f.camera.eye for f in frames], float)
+        quats = np.array([_camera_quat(f.camera) for f in frames])
+        for k in range(1, n):  # shortest path between consecutive keys
+            if np.dot(quats[k], quats[k - 1]) < 0:
+                quats[k] = -quats[k]
+        _channel(doc, anim, cam_node, "translation", times, eyes)
+        _channel(doc, anim, cam_node, "rotation", times, quats)
+    if anim["channels"]:
+        doc.add("animations", anim)
+    return doc.glb([cam_node, root_i])
+
+
+def _channel(doc: _Doc, anim: dict, node: int, path: str, t: np.ndarray, values: np.ndarray) -> None:
+    inp = doc.accessor(np.asarray(t, float), "SCALAR", target=None, minmax=True)
+    out = doc.accessor(np.asarray(values, float), "VEC4" if path == "rotation" else "VEC3", target=None)
+    anim["samplers"].append({"input": inp, "output": out, "interpolation": "STEP"})
+    anim["channels"].append({"sampler": len(anim["samplers"]) - 1, "target": {"node": node, "path": path}})
