@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from functools import cached_property
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -55,7 +56,7 @@ class Camera:
             raise InputError("camera target equals eye: the view direction has zero length")
 
     # --- frame -------------------------------------------------------------------------------
-    @property
+    @cached_property  # frozen: computed once per camera (the tracker asks for it often)
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(right, up', fwd) unit vectors, float64. A stable fallback up is used when up is
         (nearly) parallel to the view direction."""
@@ -101,10 +102,12 @@ class Camera:
         return xy, z
 
     def near_distance(self, scene_radius: float) -> float:
-        """Near plane distance along fwd (world units)."""
+        """Near plane distance along fwd (world units): `near` if given, else 1e-4 of the smaller of
+        the scene radius and the eye-target distance (a huge scene must not clip a close-up)."""
         if self.near is not None:
             return float(self.near)
-        return 1e-4 * max(scene_radius, 1e-300)
+        dist = float(np.linalg.norm(np.subtract(self.target, self.eye)))
+        return 1e-4 * max(min(scene_radius, dist), 1e-300)
 
     def to_json(self) -> dict:
         d = {"eye": list(self.eye), "target": list(self.target), "up": list(self.up), "fov_y": self.fov_y,

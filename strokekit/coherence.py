@@ -13,14 +13,17 @@ the screen position of the projected point, never on identical surface points.
 - M5 flatness: lambda = 1 / (P du/ds); length-weighted mean |log2 lambda| over a frame.
   `flatness_raw` is that number on u as written. `flatness` is the same measure on the texture
   as drawn with the self-similar levels of Benard 2010 (Strokes.level, level_weight, convention
-  of strokekit.tracking): octave k samples u * 2^-k, so its lambda is 2^k / (P du/ds); the two
-  blended octaves count with their blend weights.
+  of strokekit.tracking): octave k samples u * 2^-k, so its lambda is 2^k / (P du/ds); the
+  blend of octaves level and level+1 is read at its continuous level
+  c = level + 1 - level_weight. `flatness_blend` counts the two octaves apart with their
+  weights instead (an upper bound: 1/3 octave on average even for a perfect level choice).
 - M7 end growth: per id present in both frames, |L' - L| in px.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +58,41 @@ class Samples:
         return len(self.p)
 
 
+@lru_cache(maxsize=64)
+def _frame_of(camera) -> tuple:
+    """(right, up', fwd, eye, f) of a camera, computed once (Camera.basis is not cached)."""
+    right, up, fwd = camera.basis
+    return right, up, fwd, np.asarray(camera.eye, float), camera.focal_px
+
+
+def project(camera, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Camera.project (BRIEF 1.1) with the camera frame cached: (N, 2) px and (N,) depths."""
+    right, up, fwd, eye, f = _frame_of(camera)
+    q = np.asarray(X, float) - eye
+    z = q @ fwd
+    xr, yu = q @ right, q @ up
+    if camera.is_ortho:
+        return np.stack([camera.width / 2.0 + f * xr, camera.height / 2.0 - f * yu], axis=-1), z
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.stack([camera.width / 2.0 + f * xr / z, camera.height / 2.0 - f * yu / z], axis=-1), z
+
+
+def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """World points under the screen points p_i + a (p_j - p_i) (a (K,) in [0, 1]): the surface
+    points are interpolated perspective-correctly (1/z is linear on screen), so that a point in
+    the middle of a long receding segment is the world point actually drawn there."""
+    X = strokes.surface
+    cam = strokes.camera
+    a = np.asarray(a, float)
+    if cam is not None and not cam.is_ortho and len(i):
+        _, _, fwd, eye, _ = _frame_of(cam)
+        zi, zj = (X[i] - eye) @ fwd, (X[j] - eye) @ fwd
+        ok = (zi > 0) & (zj > 0)
+        den = (1 - a) * np.where(ok, zj, 1.0) + a * np.where(ok, zi, 1.0)
+        a = np.where(ok & (den > 0), a * np.where(ok, zi, 1.0) / np.where(den > 0, den, 1.0), a)
+    return X[i] * (1 - a)[:, None] + X[j] * a[:, None]
+
+
 def resample_strokes(strokes: Strokes, step_px: float = 1.0) -> Samples:
     """Resample every stroke into pieces of at most `step_px` px; one sample at the middle of each
     piece, with u, X and position interpolated linearly along the polyline (vectorized)."""
@@ -85,9 +123,9 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0) -> Samples:
     d = G[j] - G[i]
     a = np.where(d > 0, (g - G[i]) / np.where(d > 0, d, 1.0), 0.0)
     a = np.clip(a, 0.0, 1.0)
-    P, X, U = strokes.points, strokes.surface, strokes.u
+    P, U = strokes.points, strokes.u
     p = P[i] * (1 - a)[:, None] + P[j] * a[:, None]
-    Xs = X[i] * (1 - a)[:, None] + X[j] * a[:, None]
+    Xs = surface_between(strokes, i, j, a)
     u = U[i] * (1 - a) + U[j] * a
     t = P[j] - P[i]
     tn = np.linalg.norm(t, axis=1)
@@ -97,17 +135,18 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0) -> Samples:
 
 def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None = None, *,
                   radius_px: float = MATCH_RADIUS_PX, min_tangent_dot: float = MIN_TANGENT_DOT,
-                  k: int = 8) -> np.ndarray:
+                  k: int = 8, return_projected: bool = False):
     """For every sample of `src`: the index of its match in `dst` (or -1). src.X is projected
     with `camera` (dst's camera); the match is the nearest dst sample within `radius_px` px
-    whose tangent agrees with the src tangent (|t.t'| >= min_tangent_dot)."""
+    whose tangent agrees with the src tangent (|t.t'| >= min_tangent_dot). With
+    return_projected, also the (M, 2) projected pixel positions."""
     out = np.full(len(src), -1, np.int64)
     if len(src) == 0 or len(dst) == 0:
-        return out
-    q, z = camera.project(src.X)
+        return (out, np.full((len(src), 2), np.nan)) if return_projected else out
+    q, z = project(camera, src.X)
     ok = np.all(np.isfinite(q), axis=1) & ((z > 0) | camera.is_ortho)
     if not ok.any():
-        return out
+        return (out, q) if return_projected else out
     tree = dst_tree if dst_tree is not None else cKDTree(dst.p)
     kk = min(k, len(dst))
     dist, idx = tree.query(q[ok], k=kk, distance_upper_bound=radius_px)
@@ -122,7 +161,7 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     first = np.argmax(good, axis=1)
     m = np.where(has, safe[np.arange(len(safe)), first], -1)
     out[np.flatnonzero(ok)] = m
-    return out
+    return (out, q) if return_projected else out
 
 
 def _wrap(du: np.ndarray) -> np.ndarray:
@@ -130,8 +169,11 @@ def _wrap(du: np.ndarray) -> np.ndarray:
     return -((-du + 0.5) % 1.0 - 0.5)
 
 
-def _flatness(strokes: Strokes, smp: Samples, with_levels: bool) -> float:
-    """Length-weighted mean |log2 lambda| of one frame (see module doc)."""
+def _flatness(strokes: Strokes, smp: Samples, mode: str) -> float:
+    """Length-weighted mean |log2 lambda| of one frame (see module doc). mode "raw": u as
+    written; "level": the self-similar texture at its continuous level c = level + 1 -
+    level_weight (octave blend read as one texture of scale 2^c, as Benard 2010 designs it);
+    "blend": the two blended octaves counted separately with their weights (an upper bound)."""
     if len(smp) < 2:
         return 0.0
     same = smp.stroke[1:] == smp.stroke[:-1]
@@ -143,14 +185,17 @@ def _flatness(strokes: Strokes, smp: Samples, with_levels: bool) -> float:
     P = strokes.period_px
     log_lam = -np.log2(P * du[ok] / ds[ok])  # lambda = 1 / (P du/ds)
     w = ds[ok]
-    if not with_levels:
+    if mode == "raw":
         return float(np.sum(w * np.abs(log_lam)) / np.sum(w))
     st = smp.stroke[1:][ok]
     lev = strokes.level[st]
     wt = np.clip(strokes.level_weight[st], 0.0, 1.0)
     # Octave k samples u 2^-k: lambda_k = 2^k lambda. Octave `level` has weight `level_weight`,
     # octave level + 1 the rest.
-    e = wt * np.abs(log_lam + lev) + (1 - wt) * np.abs(log_lam + lev + 1)
+    if mode == "level":
+        e = np.abs(log_lam + lev + 1 - wt)
+    else:
+        e = wt * np.abs(log_lam + lev) + (1 - wt) * np.abs(log_lam + lev + 1)
     return float(np.sum(w * e) / np.sum(w))
 
 
@@ -165,8 +210,9 @@ class PairMetrics:
     total_px: float
     sliding_px: np.ndarray = field(repr=False)  # |wrapped du| * P of every matched sample
     growth_px: np.ndarray = field(repr=False)  # |L' - L| per persisting id
-    flatness: float = 0.0  # of frame f, with levels
+    flatness: float = 0.0  # of frame f, with self-similar levels
     flatness_raw: float = 0.0  # of frame f, u as written
+    flatness_blend: float = 0.0  # of frame f, blended octaves counted apart
 
     @property
     def m1(self) -> float:
@@ -178,7 +224,8 @@ class PairMetrics:
 
     def summary(self) -> dict:
         return {"frame": self.frame, "M1": self.m1, "M2": self.m2, **_stats("M4", self.sliding_px),
-                "M5": self.flatness, "M5_raw": self.flatness_raw, **_stats("M7", self.growth_px),
+                "M5": self.flatness, "M5_raw": self.flatness_raw,
+                "M5_blend": self.flatness_blend, **_stats("M7", self.growth_px),
                 "matched_px": self.matched_px, "total_px": self.total_px}
 
 
@@ -214,7 +261,8 @@ def pair_metrics(prev: Strokes, cur: Strokes, *, radius_px: float = MATCH_RADIUS
     growth = np.abs(cur.lengths[ib] - prev.lengths[ia])
     return PairMetrics(frame=int(cur.frame), matched_px=float(matched), same_id_px=float(same),
                        unmatched_px=float(unmatched), total_px=float(total), sliding_px=slide, growth_px=growth,
-                       flatness=_flatness(cur, b, True), flatness_raw=_flatness(cur, b, False))
+                       flatness=_flatness(cur, b, "level"), flatness_raw=_flatness(cur, b, "raw"),
+                       flatness_blend=_flatness(cur, b, "blend"))
 
 
 def sequence_metrics(frames: list[Strokes], **kw) -> tuple[list[PairMetrics], dict]:
@@ -245,6 +293,7 @@ def overall(pairs: list[PairMetrics]) -> dict:
             **_stats("M4", np.concatenate([p.sliding_px for p in pairs])),
             "M5": float(np.mean(fl)), "M5_max": float(np.max(fl)),
             "M5_raw": float(np.mean(flr)), "M5_raw_max": float(np.max(flr)),
+            "M5_blend": float(np.mean([p.flatness_blend for p in pairs])),
             **_stats("M7", np.concatenate([p.growth_px for p in pairs]))}
 
 

@@ -9,14 +9,19 @@ self-similar `level` / `level_weight`. Three methods:
 - "kalnins" (default; Kalnins et al. 2003, "Coherent Stylized Silhouettes"): the previous frame's
   strokes are sampled every `vote_spacing_px`; each sample carries its surface point X, its u and
   its stroke id. X is projected with the new camera and votes on the nearest new sample within
-  `search_radius_px` whose tangent agrees (the same correspondence the metrics of BRIEF 3 use).
-  Per new stroke the votes are grouped by the id they carry; the largest group fixes the stroke's
-  direction (the stroke is reversed if needed so that u increases along it) and its id; the other
-  groups are shifted by whole periods (the texture is periodic) to meet it, which heals strokes
-  that merged. u = a + b s is then fitted per stroke by least squares: close to the votes (no
-  sliding), and slope b close to the nominal 1/P (no stretch), weighted by `stretch_weight`;
-  votes that disagree by more than `outlier_px` are dropped and the fit redone. Parts of a stroke
-  without votes (growth) continue the fitted line; strokes without any vote start at u = s / P.
+  `search_radius_px` whose tangent agrees (the same correspondence the metrics of BRIEF 3 use);
+  with `reverse_votes` every new sample also looks back for the nearest old sample. Each new
+  chain is cut into segments where the id its votes carry changes (Kalnins' brush path
+  segments; runs shorter than `min_segment_px` are absorbed); closed loops are turned to start at
+  the old loop's seam; two segments carrying the same id whose chains now end at the same point
+  are healed into one stroke; each segment is oriented so that u increases along it. Per stroke,
+  votes of other ids are shifted by whole periods (the texture is periodic) to meet the largest
+  group, which heals strokes that merged. u is then fitted by least squares as a piecewise-linear
+  function of arc length (knots every `knot_spacing_px`, inserted as points so that downstream
+  linear interpolation of u is exact): close to the votes (no sliding), slope close to 1/P (no
+  stretch, `stretch_weight`), even stretch between knots (`bend_weight`); votes farther than
+  `outlier_px` from the fit are dropped and the fit redone. Parts without votes (growth) continue
+  the fit; strokes without any vote start at u = s / P.
 - "seed" (seed 000, section 2.2.2, as a baseline): strokes are re-cut so that they start near a
   previous start (strategy 1) in the preferred direction (strategy 2, weight = d + angle penalty),
   grow at most `max_growth_px` per frame (strategy 3), the rest of the lines is filled by the
@@ -46,7 +51,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .coherence import Samples, match_samples, resample_strokes
+from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
 from .model import Strokes
 
@@ -60,12 +65,22 @@ class TrackingOptions:
     method: "kalnins" | "seed" | "none". period_px: texture period P of u.
     search_radius_px, min_tangent_dot: correspondence of carried samples (BRIEF 3: 6 px, 0.65).
     vote_spacing_px: spacing of the samples carried from frame to frame (kalnins).
-    stretch_weight: weight of "slope close to 1/P" against "u close to the votes" (kalnins); the
-    drift of one period over a stroke costs like a uniform error of sqrt(stretch_weight) period.
+    stretch_weight: weight of "slope close to 1/P" against "u close to the votes" (kalnins): a
+    stroke of length L stretched by a factor (1 + d) costs stretch_weight L d^2, as much as votes
+    all missed by sqrt(stretch_weight) d periods; both scale with L, so short and long strokes
+    trade sliding for stretch alike.
     outlier_px: votes farther than this from the fit are dropped (kalnins).
     min_id_px: matched length needed for an id to persist.
     min_segment_px: a chain is cut between runs of votes carrying different ids (Kalnins' segments);
     runs shorter than this are absorbed by their neighbours (kalnins).
+    dense_spacing_px: spacing of the new strokes' samples that votes land on (positions along
+    the stroke are refined below it by projecting on the sample's tangent).
+    reverse_votes: new samples also look back for the nearest old sample (both ways, as BRIEF 3).
+    join_tol_px, join_angle_deg: two segments with the same carried id whose strokes end within
+    join_tol_px of each other, turning by at most join_angle_deg, are healed into one stroke
+    (0 disables).
+    knot_spacing_px: u is piecewise linear with knots this far apart (0: one line per stroke);
+    bend_weight: weight of even stretch between knots (kalnins).
     max_growth_px, min_carry_px, seed_search_px, seed_angle_penalty_px: seed 000 strategies 3, 5,
     the neighbourhood of strategy 1 and the direction penalty (px per radian) of strategy 2."""
 
@@ -74,7 +89,7 @@ class TrackingOptions:
     search_radius_px: float = 6.0
     min_tangent_dot: float = 0.65
     vote_spacing_px: float = 4.0
-    stretch_weight: float = 1e-3
+    stretch_weight: float = 3e-3
     outlier_px: float = 3.0
     min_id_px: float = 2.0
     max_growth_px: float = 20.0
@@ -82,6 +97,12 @@ class TrackingOptions:
     seed_search_px: float = 12.0
     seed_angle_penalty_px: float = 10.0
     min_segment_px: float = 10.0
+    knot_spacing_px: float = 24.0
+    join_tol_px: float = 1e-6
+    join_angle_deg: float = 90.0
+    dense_spacing_px: float = 3.0
+    reverse_votes: bool = True
+    bend_weight: float = 0.01
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -129,7 +150,7 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
         d = G[j] - G[i]
         a = np.clip(np.where(d > 0, (g - G[i]) / np.where(d > 0, d, 1.0), 0.0), 0, 1)
         p = strokes.points[i] * (1 - a)[:, None] + strokes.points[j] * a[:, None]
-        X = strokes.surface[i] * (1 - a)[:, None] + strokes.surface[j] * a[:, None]
+        X = surface_between(strokes, i, j, a)
         f = np.where(a < 0.5, strokes.face[i], strokes.face[j])
         return p, X, f
 
@@ -161,6 +182,288 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     return replace(out, u=out.arc_length / out.period_px)
 
 
+def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
+    """Strokes with extra points at arc lengths s (px) of strokes `stroke` (same polylines; the
+    new points interpolate position and surface point). Points closer than 1e-6 px to an existing
+    point are not added."""
+    if len(stroke) == 0:
+        return strokes
+    L = strokes.lengths
+    base = np.r_[0.0, np.cumsum(L[:-1] + 1.0)]
+    G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
+    g = base[stroke] + np.asarray(s, float)
+    first = strokes.offsets[:-1][stroke]
+    last = strokes.offsets[1:][stroke] - 1
+    j = np.clip(np.searchsorted(G, g, side="right"), first + 1, np.maximum(last, first + 1))
+    j = np.minimum(j, len(G) - 1)
+    i = np.maximum(j - 1, first)
+    d = G[j] - G[i]
+    keep = (d > 0) & (g - G[i] > 1e-6) & (G[j] - g > 1e-6)
+    i, j, g, stroke = i[keep], j[keep], g[keep], stroke[keep]
+    if len(i) == 0:
+        return strokes
+    a = ((g - G[i]) / (G[j] - G[i]))[:, None]
+    P = np.concatenate([strokes.points, strokes.points[i] * (1 - a) + strokes.points[j] * a])
+    X = np.concatenate([strokes.surface, surface_between(strokes, i, j, a[:, 0])])
+    F = np.concatenate([strokes.face, np.where(a[:, 0] < 0.5, strokes.face[i], strokes.face[j])])
+    U = np.concatenate([strokes.u, strokes.u[i] * (1 - a[:, 0]) + strokes.u[j] * a[:, 0]])
+    # Sort by (stroke, arc); an old point precedes a new point at the same place.
+    allg = np.r_[G, g]
+    owner = np.r_[strokes.stroke_of_point, stroke]
+    order = np.lexsort((np.r_[np.zeros(len(G)), np.ones(len(g))], allg, owner))
+    counts = np.bincount(owner, minlength=len(strokes))
+    return replace(strokes, points=P[order], surface=X[order], face=F[order], u=U[order],
+                   offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+
+
+def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> Strokes:
+    """Closed strokes `which` made to start at arc length `s_start` (px) instead; same loop."""
+    S = len(strokes)
+    L = strokes.lengths
+    rot = np.zeros(S, bool)
+    rot[which] = True
+    start = np.zeros(S)
+    start[which] = s_start
+    nr = int(rot.sum())
+    pst = np.r_[np.arange(S), np.flatnonzero(rot)]
+    second = np.r_[np.zeros(S, bool), np.ones(nr, bool)]
+    s0 = np.r_[start, np.zeros(nr)]
+    s1 = np.r_[L, start[rot]]
+    order = np.lexsort((second, pst))
+    pieces = cut_pieces(strokes, pst[order], s0[order], s1[order])
+    keep = np.ones(len(pieces.points), bool)
+    keep[pieces.offsets[:-1][second[order]]] = False  # the joint point is already there
+    owner = pst[order][pieces.stroke_of_point][keep]
+    counts = np.bincount(owner, minlength=S)
+    out = replace(strokes, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
+                  u=np.zeros(int(keep.sum())), offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    return replace(out, u=out.arc_length / out.period_px)
+
+
+def _turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.ndarray, vid: np.ndarray, P: float):
+    """Rotate closed strokes whose votes show the seam of an old loop (consecutive votes of one id
+    whose u differs by more than half the loop) so they start there. Returns the strokes, their
+    1 px samples (reordered, s measured from the new start) and the vote targets remapped."""
+    if len(vm) == 0 or len(cur) == 0:
+        return cur, dense, vm
+    first, last = cur.offsets[:-1], cur.offsets[1:] - 1
+    L = cur.lengths
+    closed = (L > 0) & (np.linalg.norm(cur.points[first] - cur.points[last], axis=1) < 1e-6)
+    if not closed.any():
+        return cur, dense, vm
+    vst, vs = dense.stroke[vm], dense.s[vm]
+    sel = np.flatnonzero(closed[vst])
+    if len(sel) < 2:
+        return cur, dense, vm
+    o = sel[np.lexsort((vs[sel], vid[sel], vst[sel]))]  # consecutive votes of one id
+    stq, sq, uq, idq = vst[o], vs[o], u[o], vid[o]
+    jump = np.abs(np.diff(uq))
+    ok = (stq[1:] == stq[:-1]) & (idq[1:] == idq[:-1]) & (jump > np.maximum(0.5 * L[stq[:-1]] / P, 1.0))
+    if not ok.any():
+        return cur, dense, vm
+    k = np.flatnonzero(ok)
+    # Largest jump per stroke.
+    k = k[np.lexsort((-jump[k], stq[k]))]
+    k = k[np.r_[True, stq[k][1:] != stq[k][:-1]]]
+    which = stq[k]
+    seam = 0.5 * (sq[k] + sq[k + 1])
+    cur = rotate_closed(cur, which, seam)
+    shift = np.zeros(len(L))
+    shift[which] = seam
+    s_new = np.mod(dense.s - shift[dense.stroke], np.where(L > 0, L, 1.0)[dense.stroke])
+    perm = np.lexsort((s_new, dense.stroke))
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(len(perm))
+    dense = Samples(p=dense.p[perm], X=dense.X[perm], u=dense.u[perm], t=dense.t[perm], ids=dense.ids[perm],
+                    stroke=dense.stroke[perm], s=s_new[perm], w=dense.w[perm])
+    return cur, dense, inv[vm]
+
+
+class PiecewiseU:
+    """u along every stroke as a piecewise-linear function of arc length, knots every ~`knot_px`
+    px (n_s = ceil(L_s / knot_px) equal intervals per stroke), solved for all strokes at once as
+    one sparse least-squares problem (block diagonal)."""
+
+    def __init__(self, lengths: np.ndarray, knot_px: float):
+        self.L = np.asarray(lengths, float)
+        self.n = np.maximum(1, np.ceil(self.L / knot_px - 1e-9)).astype(np.int64)
+        self.h = self.L / self.n
+        self.base = np.r_[0, np.cumsum(self.n + 1)].astype(np.int64)  # first knot of each stroke
+
+    def inner_knot_stroke(self) -> np.ndarray:
+        return np.repeat(np.arange(len(self.L)), self.n - 1)
+
+    def inner_knot_s(self) -> np.ndarray:
+        st = self.inner_knot_stroke()
+        j = np.arange(len(st)) - np.repeat(np.r_[0, np.cumsum(self.n - 1)[:-1]], self.n - 1) + 1
+        return j * self.h[st]
+
+    def _interval(self, st, s):
+        h = self.h[st]
+        x = np.where(h > 0, s / np.where(h > 0, h, 1.0), 0.0)
+        j = np.clip(np.floor(x), 0, self.n[st] - 1).astype(np.int64)
+        return self.base[st] + j, np.clip(x - j, 0.0, 1.0)
+
+    def eval(self, knots: np.ndarray, st: np.ndarray, s: np.ndarray) -> np.ndarray:
+        k, a = self._interval(st, s)
+        return knots[k] * (1 - a) + knots[k + 1] * a
+
+    def fit(self, st, s, u, w, prior_a, prior_b, b0, stretch_weight, bend_weight) -> np.ndarray:
+        """Knot values minimizing sum w (u(s) - u)^2 (votes) + stretch_weight / h (du - h b0)^2
+        per interval (slope close to the nominal b0 = 1/P) +
+        bend_weight L (second difference)^2 per inner knot (even stretch) + 1e-6 (knot - prior)^2
+        (the line fit a + b s; fixes strokes without votes)."""
+        from scipy.linalg import solveh_banded
+
+        nk = int(self.base[-1])
+        S = len(self.L)
+        # Normal equations accumulated straight into the 3 lower bands of a symmetric banded
+        # matrix (every residual touches at most 3 consecutive knots of one stroke).
+        band = np.zeros((3, nk))
+        rhs = np.zeros(nk)
+
+        def add(cols, vals, y):
+            """Residuals sum_a vals[a] x[cols[a]] - y (weights already in vals and y)."""
+            m = len(cols)
+            for a_ in range(m):
+                band[0] += np.bincount(cols[a_], vals[a_] * vals[a_], minlength=nk)
+                rhs[:] += np.bincount(cols[a_], vals[a_] * y, minlength=nk)
+                for b_ in range(a_ + 1, m):
+                    band[b_ - a_] += np.bincount(cols[a_], vals[a_] * vals[b_], minlength=nk)
+
+        # votes
+        k, a = self._interval(st, s)
+        sw = np.sqrt(w)
+        add([k, k + 1], [sw * (1 - a), sw * a], sw * u)
+        # stretch, per interval
+        js = np.repeat(np.arange(S), self.n)
+        kk = self.base[js] + (np.arange(self.n.sum()) - np.repeat(np.r_[0, np.cumsum(self.n)[:-1]], self.n))
+        hh = np.maximum(self.h[js], 1.0)
+        ws = np.sqrt(stretch_weight / hh)
+        add([kk, kk + 1], [-ws, ws], ws * self.h[js] * b0)
+        # bend, per inner knot (strokes with >= 2 intervals)
+        inner = np.flatnonzero(self.n[js] >= 2)
+        jb = kk[inner]
+        last_interval = jb + 1 >= self.base[js[inner]] + self.n[js[inner]]
+        jb, sb = jb[~last_interval], js[inner][~last_interval]
+        wb = np.sqrt(bend_weight * np.maximum(self.L[sb], 1.0))
+        add([jb, jb + 1, jb + 2], [wb, -2 * wb, wb], np.zeros(len(jb)))
+        # weak anchor to the line fit
+        ks = np.repeat(np.arange(S), self.n + 1)
+        sk = (np.arange(nk) - self.base[ks]) * self.h[ks]
+        we = 1e-3
+        add([np.arange(nk)], [np.full(nk, we)], we * (prior_a[ks] + prior_b[ks] * sk))
+        band[1, -1:] = 0.0
+        band[2, -2:] = 0.0
+        return solveh_banded(band, rhs, lower=True, check_finite=False)
+
+
+def _local_slope(smp: Samples) -> np.ndarray:
+    """du/ds (periods per px) at every sample, from its neighbours in the same stroke."""
+    n = len(smp)
+    if n < 2:
+        return np.zeros(n)
+    nxt = np.r_[np.arange(1, n), n - 1]
+    prv = np.r_[0, np.arange(n - 1)]
+    nxt = np.where(smp.stroke[nxt] == smp.stroke, nxt, np.arange(n))
+    prv = np.where(smp.stroke[prv] == smp.stroke, prv, np.arange(n))
+    ds = smp.s[nxt] - smp.s[prv]
+    return np.where(ds > 0, (smp.u[nxt] - smp.u[prv]) / np.where(ds > 0, ds, 1.0), 0.0)
+
+
+def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: float, angle_deg: float):
+    """Pairs of segments (runs) of different open strokes that carry the same id and end at the
+    same point (within tol_px, turn <= angle_deg) are put in one group. Returns group (R,) (a
+    group id per run; groups are numbered by their first run) and rev (R,): whether each run is
+    traversed backwards so that a pair meets end to start and u increases along the votes, and
+    second (R,): the run comes second in its pair."""
+    R = len(r_stroke)
+    group = np.arange(R)
+    rev = r_sign < 0
+    second = np.zeros(R, bool)
+    if R < 2 or tol_px <= 0:
+        return group, rev, second
+    L = cur.lengths
+    first, last = cur.offsets[:-1], cur.offsets[1:] - 1
+    closed = np.linalg.norm(cur.points[first] - cur.points[last], axis=1) < 1e-6
+    at_start = (r_s0 <= 1e-9) & ~closed[r_stroke]
+    at_end = (r_s1 >= L[r_stroke] - 1e-9) & ~closed[r_stroke]
+    # Ends of strokes that a labelled segment reaches: (run, 0 = stroke start | 1 = stroke end).
+    e_run = np.r_[np.flatnonzero(at_start & (r_label >= 0)), np.flatnonzero(at_end & (r_label >= 0))]
+    e_end = np.r_[np.zeros(int((at_start & (r_label >= 0)).sum()), np.int64),
+                  np.ones(int((at_end & (r_label >= 0)).sum()), np.int64)]
+    if len(e_run) < 2:
+        return group, rev, second
+    sk = r_stroke[e_run]
+    pt = np.where(e_end[:, None] == 0, cur.points[first[sk]], cur.points[last[sk]])
+    nb = np.where(e_end == 0, np.minimum(first[sk] + 1, last[sk]), np.maximum(last[sk] - 1, first[sk]))
+    d = cur.points[nb] - pt  # direction away from the end, into the stroke
+    d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-12)[:, None]
+    if tol_px < 1e-3:
+        # Ends at the same point: equal after rounding to the tolerance (sort, compare neighbours).
+        key = np.round(pt / max(tol_px, 1e-9)).astype(np.int64)
+        o = np.lexsort((key[:, 1], key[:, 0]))
+        eq = np.flatnonzero(np.all(key[o][1:] == key[o][:-1], axis=1))
+        pairs = np.stack([o[eq], o[eq + 1]], axis=1)
+    else:
+        from scipy.spatial import cKDTree
+
+        pairs = cKDTree(pt).query_pairs(tol_px, output_type="ndarray")
+    if len(pairs) == 0:
+        return group, rev, second
+    a, b = pairs[:, 0], pairs[:, 1]
+    ok = (r_label[e_run[a]] == r_label[e_run[b]]) & (sk[a] != sk[b])
+    ok &= -np.einsum("ij,ij->i", d[a], d[b]) >= np.cos(np.radians(angle_deg))
+    a, b = a[ok], b[ok]
+    if len(a) == 0:
+        return group, rev, second
+    # Deterministic, each run in one pair at most.
+    o = np.lexsort((e_run[b], e_run[a]))
+    used = set()
+    for k in o.tolist():  # a few pairs per frame
+        i, j = int(e_run[a[k]]), int(e_run[b[k]])
+        if i in used or j in used:
+            continue
+        used.update((i, j))
+        # i is traversed so that its joined end comes last, j so that its joined end comes first.
+        rev[i] = e_end[a[k]] == 0
+        rev[j] = e_end[b[k]] == 1
+        # Whole pair backwards if the votes say so (i then comes second).
+        s_pair = (r_sign[i] * (-1 if rev[i] else 1)) + (r_sign[j] * (-1 if rev[j] else 1))
+        group[i] = group[j] = min(i, j)
+        if s_pair < 0:
+            rev[i], rev[j] = not rev[i], not rev[j]
+            second[i] = True
+        else:
+            second[j] = True
+    return group, rev, second
+
+
+
+def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
+    """Join consecutive pieces with the same group id into one stroke (the joint point of the
+    second piece is dropped when it repeats the first's last point)."""
+    K = len(pieces)
+    if K == 0:
+        return pieces
+    new_g = np.r_[True, g_sorted[1:] != g_sorted[:-1]]
+    if new_g.all():
+        return pieces
+    keep = np.ones(len(pieces.points), bool)
+    cont = np.flatnonzero(~new_g)
+    head = pieces.offsets[:-1][cont]
+    same = np.linalg.norm(pieces.points[head] - pieces.points[head - 1], axis=1) < 1e-9
+    keep[head[same]] = False
+    owner = (np.cumsum(new_g) - 1)[pieces.stroke_of_point][keep]
+    counts = np.bincount(owner, minlength=int(new_g.sum()))
+    sel = np.flatnonzero(new_g)
+    out = replace(pieces, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
+                  u=np.zeros(int(keep.sum())), offsets=np.r_[0, np.cumsum(counts)].astype(np.int64),
+                  kind=pieces.kind[sel], ids=np.arange(len(sel), dtype=np.int64), level=pieces.level[sel],
+                  level_weight=pieces.level_weight[sel])
+    return replace(out, u=out.arc_length / out.period_px)
+
+
 def _segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
     return [np.bincount(idx, weights=w, minlength=n) for w in weights]
 
@@ -174,14 +477,23 @@ def assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, can
     ids = np.full(n_strokes, -1, np.int64)
     keep = cand_w >= max(min_w, 1e-12)
     cs, ci, cw = cand_stroke[keep], cand_id[keep], cand_w[keep]
+    # Rank of every pair in the greedy order (heaviest first; ties: lower stroke, lower id).
     order = np.lexsort((ci, cs, -np.round(cw, 9)))
-    used = set()
-    for k in order.tolist():  # one pass over candidate pairs (a few per stroke), not points
-        s, i = int(cs[k]), int(ci[k])
-        if ids[s] >= 0 or i in used:
-            continue
-        ids[s] = i
-        used.add(i)
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    alive = np.ones(len(cs), bool)
+    # Pairs that come first for both their stroke and their id are exactly the ones the greedy
+    # pass takes; take them all, drop what they exclude, repeat (a few rounds, all vectorized).
+    while alive.any():
+        idx = np.flatnonzero(alive)
+        best_s = np.full(n_strokes, np.iinfo(np.int64).max)
+        np.minimum.at(best_s, cs[idx], rank[idx])
+        _, id_inv = np.unique(ci[idx], return_inverse=True)
+        best_i = np.full(id_inv.max() + 1, np.iinfo(np.int64).max)
+        np.minimum.at(best_i, id_inv, rank[idx])
+        take = idx[(best_s[cs[idx]] == rank[idx]) & (best_i[id_inv] == rank[idx])]
+        ids[cs[take]] = ci[take]
+        alive &= ~np.isin(cs, cs[take]) & ~np.isin(ci, ci[take])
     fresh = np.flatnonzero(ids < 0)
     ids[fresh] = next_id + np.arange(len(fresh))
     return ids, next_id + len(fresh)
@@ -194,12 +506,14 @@ def levels_from_slope(slope_periods_per_px: np.ndarray, period_px: float) -> tup
     return level, 1.0 - (c - level)
 
 
-def segment_by_votes(dense: Samples, vm: np.ndarray, vid: np.ndarray, w: np.ndarray, min_segment_px: float):
-    """Cut the strokes sampled by `dense` (1 px samples, in stroke order) into runs of the same
+def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: np.ndarray, w: np.ndarray,
+                     min_segment_px: float):
+    """Cut the strokes sampled by `dense` (1 px samples, in stroke order; lengths (S,) px) into runs of the same
     carried id. vm (V,) dense sample hit by each vote, vid (V,) its carried id, w (V,) its weight.
     Samples without a vote take the label of the nearest voted sample of their stroke; runs
     shorter than `min_segment_px` (except the longest of a stroke) are absorbed by neighbours.
-    Returns run (D,) run of each dense sample, and per run: stroke, s0, s1 (px)."""
+    Returns run (D,) run of each dense sample, and per run: stroke, s0, s1 (px), label (carried
+    id, -1 where the stroke had no vote)."""
     D = len(dense)
     label = np.full(D, -1, np.int64)
     if len(vm):
@@ -241,7 +555,13 @@ def segment_by_votes(dense: Samples, vm: np.ndarray, vid: np.ndarray, w: np.ndar
     r, rl = runs(lab)
     first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]]) if D else np.zeros(0, np.int64)
     last = np.r_[first[1:] - 1, D - 1] if D else np.zeros(0, np.int64)
-    return r, stroke[first], s[first] - 0.5 * dense.w[first], s[last] + 0.5 * dense.w[last]
+    rs = stroke[first]
+    head = np.r_[True, rs[1:] != rs[:-1]] if D else np.zeros(0, bool)
+    tail = np.r_[rs[1:] != rs[:-1], True] if D else np.zeros(0, bool)
+    # Runs meet halfway between their samples; strokes are covered from 0 to their length.
+    s0 = np.where(head, 0.0, 0.5 * (s[first] + s[np.maximum(first - 1, 0)]))
+    s1 = np.where(tail, lengths[rs], 0.5 * (s[last] + s[np.minimum(last + 1, D - 1)]))
+    return r, rs, s0, s1, lab[first]
 
 
 # --- the tracker -----------------------------------------------------------------------------
@@ -292,32 +612,73 @@ class Tracker:
         P = o.period_px
         prev = self.prev
         votes = resample_strokes(prev, o.vote_spacing_px)
-        dense = resample_strokes(cur, 1.0)
-        m = match_samples(votes, cur.camera, dense, radius_px=o.search_radius_px, min_tangent_dot=o.min_tangent_dot)
+        dense = resample_strokes(cur, o.dense_spacing_px)
+        m, q = match_samples(votes, cur.camera, dense, radius_px=o.search_radius_px,
+                             min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
         hit = m >= 0
         vm = m[hit]
+        # Where along the new stroke each vote falls, finer than the sample spacing: the
+        # projection of the voter on the matched sample's tangent (within its piece).
+        ds = np.einsum("ij,ij->i", q[hit] - dense.p[vm], dense.t[vm])
+        ds = np.clip(ds, -0.5 * dense.w[vm], 0.5 * dense.w[vm])
         u = votes.u[hit]
         vid = votes.ids[hit]
         w = votes.w[hit]
         sign = np.sign(np.einsum("ij,ij->i", votes.t[hit], dense.t[vm]))
+        if o.reverse_votes and len(votes) and len(dense):
+            # The other way too (as the metrics do): every new sample looks back for the nearest
+            # old sample of the previous frame and takes its u (refined along the old tangent).
+            rm, rq = match_samples(dense, prev.camera, votes, radius_px=o.search_radius_px,
+                                   min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
+            rh = np.flatnonzero(rm >= 0)
+            src = rm[rh]
+            slope = _local_slope(votes)
+            off = np.clip(np.einsum("ij,ij->i", rq[rh] - votes.p[src], votes.t[src]),
+                          -0.5 * votes.w[src], 0.5 * votes.w[src])
+            vm = np.r_[vm, rh]
+            ds = np.r_[ds, np.zeros(len(rh))]
+            u = np.r_[u, votes.u[src] + off * slope[src]]
+            vid = np.r_[vid, votes.ids[src]]
+            w = np.r_[w, dense.w[rh]]
+            sign = np.r_[sign, np.sign(np.einsum("ij,ij->i", votes.t[src], dense.t[rh]))]
+        # Closed strokes (contour loops) start anywhere the chaining happened to start: turn them
+        # so that they start at the old seam, where the carried u jumps by a whole loop.
+        cur, dense, vm = _turn_loops_to_seams(cur, dense, vm, u, vid, P)
         # Segments (Kalnins' brush path segments): each new chain is cut where the id its votes
         # carry changes, so a chain that now runs through two old strokes keeps both ids.
-        run, r_stroke, r_s0, r_s1 = segment_by_votes(dense, vm, vid, w, o.min_segment_px)
-        st = run[vm]
-        s = dense.s[vm] - r_s0[st]
-        S = len(r_stroke)
-        L = r_s1 - r_s0
+        run, r_stroke, r_s0, r_s1, r_label = segment_by_votes(dense, cur.lengths, vm, vid, w, o.min_segment_px)
+        R = len(r_stroke)
+        rv = run[vm]
+        s_rel = dense.s[vm] + ds - r_s0[rv]
+        r_len = r_s1 - r_s0
         # Direction: previous strokes have u increasing along them; a segment whose samples run
         # against the voters' tangents is reversed (seed 000 strategy 2, in vote form).
-        flip = np.bincount(st, weights=w * sign, minlength=S) < 0
-        cur = cut_pieces(cur, r_stroke, r_s0, r_s1, flip)
-        L = cur.lengths  # same lengths up to rounding
-        s = np.clip(np.where(flip[st], L[st] - s, s), 0, L[st])
+        r_sign = np.bincount(rv, weights=w * sign, minlength=R)
+        # Healing: two segments carrying the same id that now end at the same point (the chaining
+        # stopped at a junction it went through in the previous frame) are drawn as one stroke.
+        group, rev, second = _join_segments(cur, r_stroke, r_s0, r_s1, r_label, r_sign, o.join_tol_px,
+                                            o.join_angle_deg)
+        order = np.lexsort((second, group))
+        pieces = cut_pieces(cur, r_stroke[order], r_s0[order], r_s1[order], rev[order])
+        g_sorted = group[order]
+        cur = _concat_groups(pieces, g_sorted)
+        S = len(cur)
+        # Offset of every run inside its output stroke.
+        off_sorted = np.cumsum(r_len[order]) - r_len[order]
+        g_start = np.r_[True, g_sorted[1:] != g_sorted[:-1]] if R else np.zeros(0, bool)
+        base = np.maximum.accumulate(np.where(g_start, off_sorted, 0.0)) if R else np.zeros(0)
+        offset = np.zeros(R)
+        offset[order] = off_sorted - base
+        st = np.searchsorted(np.unique(group), group)[rv] if R else np.zeros(0, np.int64)
+        L = cur.lengths
+        s = offset[rv] + np.where(rev[rv], r_len[rv] - s_rel, s_rel)
+        s = np.clip(s, 0, L[st])
         # Vote groups: (stroke, carried id).
         if len(st):
-            key = np.stack([st, vid], axis=1)
-            gkeys, ginv = np.unique(key, axis=0, return_inverse=True)
+            key = st.astype(np.int64) * (int(vid.max()) + 1) + vid  # (stroke, id) as one integer
+            ukey, ginv = np.unique(key, return_inverse=True)
             ginv = ginv.ravel()
+            gkeys = np.stack([ukey // (int(vid.max()) + 1), ukey % (int(vid.max()) + 1)], axis=1)
             gw = np.bincount(ginv, weights=w)
         else:
             gkeys, ginv, gw = np.zeros((0, 2), np.int64), np.zeros(0, np.int64), np.zeros(0)
@@ -328,7 +689,7 @@ class Tracker:
             gs = gkeys[order, 0]
             primary[order[np.r_[True, gs[1:] != gs[:-1]]]] = True
         b0 = 1.0 / P
-        lam = o.stretch_weight * L ** 3  # see TrackingOptions.stretch_weight
+        lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
 
         def fit(mask):
             w_ = w * mask
@@ -349,12 +710,19 @@ class Tracker:
             shift[primary] = 0
             u = u - shift[ginv]
             a, b, ok = fit(np.ones(len(st)))
-            res = np.abs(u - (a[st] + b[st] * s)) * P
-            inlier = (res <= o.outlier_px).astype(float)
-            a2, b2, ok2 = fit(inlier)
-            a, b, ok = np.where(ok2, a2, a), np.where(ok2, b2, b), ok | ok2
-            if len(gw):
-                gw_in = np.bincount(ginv, weights=w * inlier, minlength=len(gw))
+            inlier = np.ones(len(st))
+            if o.knot_spacing_px > 0:
+                # Piecewise-linear u (knots every ~knot_spacing_px): follows uneven stretch
+                # (perspective, edges of a loop growing at different rates) without sliding.
+                pw = PiecewiseU(L, o.knot_spacing_px)
+                for _ in range(2):
+                    knots = pw.fit(st, s, u, w * inlier, a, b, b0, o.stretch_weight * P * P, o.bend_weight)
+                    inlier = (np.abs(u - pw.eval(knots, st, s)) * P <= o.outlier_px).astype(float)
+            else:
+                inlier = (np.abs(u - (a[st] + b[st] * s)) * P <= o.outlier_px).astype(float)
+                a2, b2, ok2 = fit(inlier)
+                a, b, ok = np.where(ok2, a2, a), np.where(ok2, b2, b), ok | ok2
+            gw_in = np.bincount(ginv, weights=w * inlier, minlength=len(gw))
             cand_s, cand_i, cand_w = gkeys[:, 0], gkeys[:, 1], gw_in
         else:
             a, b, ok = np.zeros(S), np.full(S, b0), np.zeros(S, bool)
@@ -362,7 +730,14 @@ class Tracker:
             cand_w = np.zeros(0)
         b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
         sop = cur.stroke_of_point
-        u_new = a[sop] + b[sop] * cur.arc_length
+        if len(st) and o.knot_spacing_px > 0:
+            # u is interpolated linearly between points downstream: give it the knots as points.
+            cur = insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
+            sop = cur.stroke_of_point
+            u_new = pw.eval(knots, sop, cur.arc_length)
+            b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
+        else:
+            u_new = a[sop] + b[sop] * cur.arc_length
         ids, self.next_id = assign_ids(S, cand_s, cand_i, cand_w, self.next_id, o.min_id_px)
         level, weight = levels_from_slope(b, P)
         return replace(cur, ids=ids, u=u_new, level=level, level_weight=weight)
@@ -383,7 +758,7 @@ class Tracker:
 
             st0 = prev.offsets[:-1][carried]
             X0 = prev.surface[st0]
-            d0 = prev.points[st0 + 1] - prev.points[st0]
+            d0 = prev.points[np.minimum(st0 + 1, prev.offsets[1:][carried] - 1)] - prev.points[st0]
             d0 = d0 / np.maximum(np.linalg.norm(d0, axis=1), 1e-12)[:, None]
             q, z = cur.camera.project(X0)
             tree = cKDTree(dense.p)

@@ -20,14 +20,32 @@ _GLTF = [
 ]
 
 
+_TRACKING = [
+    click.option("--coherence", "coherence_method", type=click.Choice(["kalnins", "seed", "none"]), default="kalnins",
+                 show_default=True, help="Frame-to-frame tracking: Kalnins-style votes, the seed-000 baseline, or none."),
+    click.option("--no-coherence", is_flag=True, help="Same as --coherence none: ids per frame, u = arc length / P."),
+    click.option("--max-growth", type=float, default=20.0, show_default=True,
+                 help="Seed baseline: a stroke grows at most N px per frame (strategy 3)."),
+    click.option("--min-carry", type=float, default=10.0, show_default=True,
+                 help="Seed baseline: strokes shorter than N px are not carried to the next frame (strategy 5)."),
+]
+
+
 def render_extra_options(f):
-    for deco in reversed(_GLTF):
+    for deco in reversed(_TRACKING + _GLTF):
         f = deco(f)
     return f
 
 
 def tracking_options_from(extra: dict, lines, n_frames: int):
-    return None
+    """TrackingOptions for a sequence with coherence on; None for one frame or --no-coherence."""
+    method = "none" if extra.get("no_coherence") else extra.get("coherence_method", "kalnins")
+    if n_frames < 2 or method == "none":
+        return None
+    from strokekit.tracking import TrackingOptions
+
+    return TrackingOptions(method=method, period_px=lines.period_px, max_growth_px=extra["max_growth"],
+                           min_carry_px=extra["min_carry"])
 
 
 def gltf_options_from(extra: dict, lines, fps: float = 24.0):

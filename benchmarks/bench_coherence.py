@@ -1,0 +1,104 @@
+"""Coherence bars of issue 3, side by side for the three tracking methods.
+
+For each model: a 120-frame orbit (3 degrees per frame) at 1024 x 1024 and a dolly from 1x to 8x
+the framing distance; frames rendered with LineRenderer(scene, LineOptions()) (independent per
+frame), then tracked in order with method none (`--no-coherence`), seed (seed 000 baseline) and
+kalnins (default). Prints M1, M2 (median per pair), M4 (median / p95 / max px), M5 (octaves, with
+self-similar levels; raw u in brackets) on the orbit, M5 on the dolly, and the tracking time per
+frame against the lines-only time per frame (process CPU time, medians over frames, best of
+`--repeat` runs: the machine is shared, CPU time is steadier than wall time).
+
+    python benchmarks/bench_coherence.py [--frames 120] [--models spot,fandisk,bunny] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from strokekit.camera import dolly_path, orbit_path
+from strokekit.coherence import sequence_metrics
+from strokekit.lines import LineRenderer
+from strokekit.options import LineOptions
+from strokekit.scene import load_scene
+from strokekit.tracking import Tracker, TrackingOptions
+
+MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
+FILES = {"spot": "spot.obj", "fandisk": "fandisk.obj", "bunny": "stanford-bunny.obj", "cow": "cow.obj",
+         "torus": "torus.STL"}
+METHODS = ("none", "seed", "kalnins")
+BARS = "bars: M1 >= 0.95, M2 median <= 0.02, M4 median <= 0.5 px and p95 <= 1.5 px, M5 (dolly) <= 0.35, track <= +30%"
+
+
+def render(renderer: LineRenderer, path) -> tuple[list, np.ndarray]:
+    frames, times = [], []
+    for k, cam in enumerate(path.cameras):
+        t = time.process_time()
+        frames.append(renderer.render(cam, k + 1))
+        times.append(time.process_time() - t)
+    return frames, np.array(times)
+
+
+def track(frames, method: str, repeat: int) -> tuple[list, np.ndarray]:
+    best = None
+    for _ in range(repeat):
+        tr = Tracker(TrackingOptions(method=method))
+        out, times = [], []
+        for f in frames:
+            t = time.process_time()
+            out.append(tr.step(f))
+            times.append(time.process_time() - t)
+        times = np.array(times)
+        if best is None or np.median(times) < np.median(best):
+            best = times
+    return out, best
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--frames", type=int, default=120)
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--models", default="spot,fandisk,bunny")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--json", default=None, help="also write the rows as JSON here")
+    a = ap.parse_args()
+    rows = []
+    print(BARS)
+    head = (f"{'model':8} {'method':8} {'M1':>6} {'M2 med':>7} {'M4 med':>7} {'M4 p95':>7} {'M4 max':>7} "
+            f"{'M5 orb':>13} {'M5 dolly':>14} {'M7 med':>7} {'lines ms':>9} {'track ms':>9} {'+%':>6}")
+    print(head)
+    for name in a.models.split(","):
+        sc = load_scene(MODELS / FILES[name])
+        r = LineRenderer(sc, LineOptions())
+        orbit = orbit_path(sc.center, sc.radius, a.frames, degrees_per_frame=3.0, width=a.size, height=a.size)
+        dolly = dolly_path(sc.center, sc.radius, a.frames, start=1.0, end=8.0, width=a.size, height=a.size)
+        frames, t_lines = render(r, orbit)
+        for _ in range(a.repeat - 1):  # lines-only time: best median of several runs
+            t2 = render(r, orbit)[1]
+            if np.median(t2) < np.median(t_lines):
+                t_lines = t2
+        dframes, _ = render(r, dolly)
+        for method in METHODS:
+            out, t_track = track(frames, method, a.repeat)
+            _, ov = sequence_metrics(out)
+            dout, _ = track(dframes, method, 1)
+            _, dv = sequence_metrics(dout)
+            lm, tm = 1e3 * np.median(t_lines), 1e3 * np.median(t_track)
+            row = {"model": name, "method": method, "frames": a.frames, **ov, "dolly_M5": dv["M5"],
+                   "dolly_M5_raw": dv["M5_raw"], "dolly_M1": dv["M1"], "dolly_M4_median": dv["M4_median"],
+                   "lines_ms": lm, "track_ms": tm, "track_overhead": tm / lm}
+            rows.append(row)
+            print(f"{name:8} {method:8} {ov['M1']:6.3f} {ov['M2_median']:7.4f} {ov['M4_median']:7.2f} "
+                  f"{ov['M4_p95']:7.2f} {ov['M4_max']:7.2f} {ov['M5']:6.3f} ({ov['M5_raw']:4.2f}) "
+                  f"{dv['M5']:6.3f} ({dv['M5_raw']:5.2f}) {ov['M7_median']:7.2f} {lm:9.1f} {tm:9.2f} "
+                  f"{100 * tm / lm:5.0f}%", flush=True)
+    if a.json:
+        Path(a.json).write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
