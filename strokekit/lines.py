@@ -62,12 +62,14 @@ class LineRenderer:
 
 def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float) -> np.ndarray:
     """(N, 3) ray-origin offsets for mesh-edge features: `fraction` x scene radius along the mean
-    normal of the edge's faces, turned to the eye's side of the surface.
+    normal of the edge's faces that face the eye (all its faces, turned around, when none does).
 
     Why: a ray from a silhouette point toward the eye is tangent to the surface, so faces of the
     vertex's 1-ring lie within float32 rounding of it and Embree reports false hits. Lifting the
     origin off the surface by far more than the rounding (1e-5 r vs ~1e-7 r) removes them; true
-    occluders closer than that are far below a pixel."""
+    occluders closer than that are far below a pixel. Only the eye-facing side is used: the back
+    face of a silhouette often rests on another object (a box on the ground), and a lift along
+    it would start the ray inside that object."""
     lift = np.zeros((len(fe), 3))
     V = len(scene.vertices)
     mesh = (fe.va >= 0) & (fe.va < V) & (fe.vb >= 0) & (fe.vb < V)
@@ -81,15 +83,18 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     found = keys[pos] == q
     ef = scene.edge_faces[pos]
     n = scene.face_normals
-    m = n[ef[:, 0]] + np.where((ef[:, 1] >= 0)[:, None], n[np.maximum(ef[:, 1], 0)], 0.0)
+    ff = front_facing(scene, camera)
+    has1 = ef[:, 1] >= 0
+    f1 = np.maximum(ef[:, 1], 0)
+    front0, front1 = ff[ef[:, 0]], has1 & ff[f1]
+    any_front = front0 | front1
+    # Eye-facing faces' normals; where no face faces the eye, the reverse of all of them.
+    w0 = np.where(any_front, front0, True).astype(float)
+    w1 = np.where(any_front, front1, has1).astype(float)
+    m = w0[:, None] * n[ef[:, 0]] + w1[:, None] * n[f1]
+    m = np.where(any_front[:, None], m, -m)
     ln = np.linalg.norm(m, axis=1)
     ok = found & (ln > 1e-6)
-    # The mean normal points out of the surface. Where no face of the edge faces the eye (a border
-    # or crease seen from behind), the eye's side is the other one: turn the lift around.
-    # (A silhouette has one front face and keeps the outward direction.)
-    ff = front_facing(scene, camera)
-    any_front = ff[ef[:, 0]] | ((ef[:, 1] >= 0) & ff[np.maximum(ef[:, 1], 0)])
-    m = np.where(any_front[:, None], m, -m)
     out = np.zeros((len(q), 3))
     out[ok] = m[ok] / ln[ok, None] * (fraction * scene.radius)
     lift[mesh] = out

@@ -147,3 +147,24 @@ def test_partly_hidden_edge_is_split_not_dropped():
     assert xs.min() == pytest.approx(50.0, abs=1e-6) and xs.max() == pytest.approx(450.0, abs=1e-6)
     assert not np.any((xs > 230.01) & (xs < 269.99))
     assert np.any(np.isclose(xs, 230.0, atol=0.01)) and np.any(np.isclose(xs, 270.0, atol=0.01))
+
+
+def test_box_resting_on_ground_keeps_its_bottom_silhouette():
+    """Touching objects: the bottom edges of a box standing on a slab are visible silhouettes
+    (front face seen, bottom face away). The occlusion ray must not start inside the slab."""
+    vb, fb = box_mesh([-0.5, 0.0, -0.5], [0.5, 1.0, 0.5])
+    vg, fg = box_mesh([-3, -0.2, -3], [3, 0.0, 3])
+    scene = build_scene(np.r_[vb, vg], np.r_[fb, fg + len(vb)], np.r_[np.zeros(12), np.ones(12)])
+    cam = Camera(eye=(0.0, 2.0, 6.0), target=(0.0, 0.3, 0.0), fov_y=40.0, width=800, height=600)
+    st = LineRenderer(scene, LineOptions()).render(cam)
+    bottom, _ = cam.project(np.array([[-0.5, 0.0, 0.5], [0.5, 0.0, 0.5]]))
+    d = bottom[1] - bottom[0]
+    t = np.linspace(0, 1, 101)[1:-1]
+    probe = bottom[0] + t[:, None] * d
+    from scipy.spatial import cKDTree
+
+    from strokekit.strokeops import resample
+
+    pts, _ = resample(st, 0.05)
+    dist, _ = cKDTree(pts).query(probe)
+    assert dist.max() < 0.05  # the whole front bottom edge is drawn
