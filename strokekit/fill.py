@@ -1,17 +1,18 @@
 """Self-similar volumetric fills (seed 003, Benard et al.'s infinite zoom for solid textures).
 
-Each hit's object-space position feeds 4 octaves of one 3D texture. With z the view depth of
-the hit (seed 003: the camera-space z of the fragment) measured in units of the object's
-radius R, k = floor(log2 z) and s = frac(log2 z) (BRIEF 4):
+Each hit's object-space position P (relative to its object's centre c, object radius R) feeds
+4 octaves of one 3D texture. With z the view depth of the hit (seed 003: the camera-space z of
+the fragment) expressed in units of the object, z' = z period_px / (f R) (f: focal length in
+pixels), k = floor(log2 z') and s = frac(log2 z') (BRIEF 4):
 
-    T_i = 2^(i-1) (P - c) / (cell 2^k),   i = 1..4
+    T_i = 2^(i-1) (P - c) / (R 2^k),   i = 1..4
     a1 = s/2, a2 = 1/2 - s/6, a3 = 1/3 - s/6, a4 = 1/6 - s/6,   h = sum a_i tex(T_i)
 
-so octave i at the end of a zoom cycle is octave i+1 at the start of the next: the blend is
-continuous in z while each octave's screen period stays within a factor 2. `cell` scales the
-texture to the object: cell = period_px R / f, so octave 1 spans `period_px` output pixels at
-the start of a cycle (f: the camera's focal length in pixels; a fixed lens keeps the texture
-fixed on the object: nothing slides when the camera turns).
+Octave i at the end of a zoom cycle is octave i+1 at the start of the next, so the blend is
+continuous in z, and octave 1 spans period_px 2^-s output pixels: the marks keep their screen
+size under a dolly. T depends on the point and on k only, so nothing slides when the camera
+turns. Orthographic cameras use z / f = 1 / f (world size of a pixel), so changing
+ortho_height zooms the texture the same way.
 
 Tone map (seed 003 4.2, after Durand et al.): the blended height field h is equalized (its CDF
 over the texture) and thresholded by the band's darkness, giving binary marks per band.
@@ -92,17 +93,20 @@ def texture3d(T: np.ndarray, pattern: str) -> np.ndarray:
     raise ValueError(f"unknown fill pattern {pattern!r}")
 
 
-def self_similar_field(points: np.ndarray, obj: np.ndarray, depth: np.ndarray, centres: np.ndarray,
-                       radii: np.ndarray, focal_px: float, period_px: float, pattern: str) -> np.ndarray:
-    """(M,) blended 4-octave texture at world points (M, 3) of objects obj (M,) seen at view
-    depth (M,) world units. centres/radii from object_frames; focal_px of the output image."""
+def self_similar_field(points: np.ndarray, obj: np.ndarray, pixel_size: np.ndarray, centres: np.ndarray,
+                       radii: np.ndarray, period_px: float, pattern: str) -> np.ndarray:
+    """(M,) blended 4-octave texture at world points (M, 3) of objects obj (M,).
+
+    pixel_size (M,): world size of one output pixel at each point (perspective z / f, so this
+    is the seed's camera z in units of f; orthographic 1 / f); centres/radii from object_frames.
+    The zoom variable is log2(pixel_size * period_px / R): the seed's log2 z with z measured in
+    units of the object's size, so s = frac(log2 z) up to that fixed unit."""
     R = radii[obj]
-    zl = np.log2(np.maximum(depth / R, 1e-300))
+    zl = np.log2(np.maximum(pixel_size * period_px / R, 1e-300))
     k = np.floor(zl)
     s = zl - k
     a = octave_weights(s)
-    cell = period_px * R / focal_px
-    base = (points - centres[obj]) / (cell * np.exp2(k))[:, None]
+    base = (points - centres[obj]) / (R * np.exp2(k))[:, None]
     h = np.zeros(len(points))
     for i in range(4):
         h += a[:, i] * texture3d(base * (2.0 ** i), pattern)
@@ -142,8 +146,12 @@ def fill_field(scene: Scene, hits: RasterHits, period_px: float, pattern: str) -
     centres, radii = object_frames(scene)
     pts = hits.position.reshape(-1, 3)[sel]
     obj = scene.face_object[face[sel]]
-    h = self_similar_field(pts, obj, hits.depth.ravel()[sel], centres, radii,
-                           hits.camera.focal_px, period_px, pattern)
+    f = hits.camera.focal_px
+    if hits.camera.is_ortho:
+        pixel_size = np.full(len(sel), 1.0 / f)
+    else:
+        pixel_size = hits.depth.ravel()[sel].astype(np.float64) / f
+    h = self_similar_field(pts, obj, pixel_size, centres, radii, period_px, pattern)
     out = np.full(face.shape, np.nan)
     out[sel] = h
     return out.reshape(hits.shape)

@@ -174,16 +174,18 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
         timings: dict = {}
         strokes = r.render(camera, frame, timings) if do_lines else None
         files = []
+        underlays = None
         if outputs.raster_options is not None:
-            from .raster import raster_outputs
+            from .raster import raster_outputs_with_bands_layer
 
             t1 = time.perf_counter()
             stem = outputs.out_dir / outputs.stem(frame)
-            for suffix, data in raster_outputs(r.scene, camera, r.occluder, outputs.raster_options).items():
+            pngs, underlays = raster_outputs_with_bands_layer(r.scene, camera, r.occluder, outputs.raster_options)
+            for suffix, data in pngs.items():
                 files.append(str(atomic_write_bytes(f"{stem}_{suffix}.png", data)))
             timings["raster pass"] = time.perf_counter() - t1
         return {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
-                "timings": timings}
+                "timings": timings, "underlays": underlays or None}
     except StrokekitError as e:
         return {"frame": frame, "error": str(e)}
     except Exception as e:  # a failed frame must not lose the others
@@ -191,7 +193,8 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
                 "traceback": traceback.format_exc()}
 
 
-def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tuple[str, ...], extra: dict) -> dict:
+def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tuple[str, ...], extra: dict,
+               underlays: list | None = None) -> dict:
     """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}."""
     t0 = time.perf_counter()
     try:
@@ -202,7 +205,6 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
         if outputs.svg:
             from .writers.svg import svg_document
 
-            underlays = None
             text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
                                 stroke_width=outputs.stroke_width_px, underlays=underlays)
             files.append(str(atomic_write_bytes(stem.with_suffix(".svg"), text.encode())))
@@ -292,6 +294,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
 
     executor, close = make_executor(spec.workers, spec.scheduler)
     lines_results: dict[int, Strokes] = {}
+    underlays: dict[int, list | None] = {}
     try:
         t = time.perf_counter()
         futs = {}
@@ -311,6 +314,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
                     break
             else:
                 lines_results[r["frame"]] = r["strokes"]
+                underlays[r["frame"]] = r["underlays"]
                 res.frame_seconds[r["frame"]] = r["seconds"]
                 res.outputs += r["files"]
                 _add_timings(stage, r["timings"])
@@ -337,7 +341,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
                 continue
             if spec.fail_fast and res.failures:
                 break
-            wfuts[executor.submit(write_task, lines_results[f], f, out, spec.lines.kinds, extra)] = f
+            wfuts[executor.submit(write_task, lines_results[f], f, out, spec.lines.kinds, extra, underlays.get(f))] = f
         n_done = 0
         for fut in as_completed(wfuts):
             r = fut.result()

@@ -26,9 +26,9 @@ SUPERSAMPLES = (1, 2, 4, 8)
 class RasterHits:
     """Per-sample first hits of one frame at the supersampled resolution (H*K, W*K).
 
-    face (HK, WK) int64: hit triangle, -1 for background;
+    face (HK, WK) int32: hit triangle, -1 for background;
     bary (HK, WK, 2) float32: open3d barycentrics (u, v) of the hit, P = (1-u-v) A + u B + v C;
-    depth (HK, WK) float64: view depth z in world units (inf for background);
+    depth (HK, WK) float32: view depth z in world units (inf for background);
     position (HK, WK, 3) float64 (computed on first use): world hit point (NaN for background).
     `supersample` K; `width`, `height` are the output (not supersampled) size in pixels."""
 
@@ -37,9 +37,12 @@ class RasterHits:
     depth: np.ndarray
     camera: Camera
     supersample: int
-    ray_origin: np.ndarray  # (3,) world, perspective eye-side origin (ortho: image-centre origin)
-    ray_dir_x: np.ndarray  # (WK,) per-column offset along camera right (world units per unit z, or world units)
-    ray_dir_y: np.ndarray  # (HK,) per-row offset along camera up'
+    ray_origin: np.ndarray  # (3,) world: the eye
+    # Per column / row offsets of the sample rays along camera right / up': perspective ray
+    # direction fwd + x right + y up (x, y per unit depth); orthographic ray origin eye + x right
+    # + y up (world units) with direction fwd.
+    ray_dir_x: np.ndarray  # (WK,)
+    ray_dir_y: np.ndarray  # (HK,)
 
     @property
     def width(self) -> int:
@@ -64,7 +67,7 @@ class RasterHits:
         """(HK, WK, 3) world hit points, NaN on background. Rebuilt from the ray and the depth in
         float64 (the BVH itself is float32 in scene-centred coordinates)."""
         right, up, fwd = self.camera.basis
-        z = np.where(self.hit, self.depth, np.nan)
+        z = np.where(self.hit, self.depth.astype(np.float64), np.nan)
         xr = self.ray_dir_x[None, :]
         yu = self.ray_dir_y[:, None]
         if self.camera.is_ortho:
@@ -104,51 +107,85 @@ def cast_pixels(camera: Camera, occluder: Occluder, supersample: int = 1) -> Ras
     ax, ay = px / f, py / f
     eye = np.asarray(camera.eye, float)
     near = 0.0 if camera.is_ortho else camera.near_distance(occluder.radius)
-    # Only the samples inside the scene's projected bounding box can hit anything: the others
-    # are background without a ray (the cost is in the rays).
-    c0, c1, r0, r1 = _scene_window(camera, occluder, K, near)
-    face = np.full((HK, WK), -1, np.int64)
-    bary = np.zeros((HK, WK, 2), np.float32)
-    depth = np.full((HK, WK), np.inf)
-    if c1 > c0 and r1 > r0:
-        h, w = r1 - r0, c1 - c0
-        # Rays in the occluder's centred float32 frame, one component at a time: no (N, 3)
-        # float64 temporaries (they cost as much as the BVH traversal at 1024 x 1024).
-        rays = np.empty((h, w, 6), np.float32)
-        base = eye - occluder.origin
-        for c in range(3):
-            if camera.is_ortho:
-                rays[..., c] = (base[c] + ay[r0:r1] * up[c])[:, None] + (ax[c0:c1] * right[c])[None, :]
-                rays[..., 3 + c] = fwd[c]
-            else:
-                # Perspective: d = fwd + x right + y up has unit component along fwd, so the hit
-                # distance is the view depth; the ray starts on the near plane.
-                rays[..., 3 + c] = (fwd[c] + ay[r0:r1] * up[c])[:, None] + (ax[c0:c1] * right[c])[None, :]
-                rays[..., c] = base[c] + near * rays[..., 3 + c]
-        hits = _cast(occluder, rays.reshape(-1, 6))
-        fw = hits["primitive_ids"].reshape(h, w)
-        face[r0:r1, c0:c1] = fw
-        bary[r0:r1, c0:c1] = hits["primitive_uvs"].reshape(h, w, 2)
-        depth[r0:r1, c0:c1] = np.where(fw >= 0, hits["t_hit"].reshape(h, w).astype(np.float64) + near, np.inf)
-    return RasterHits(face=face, bary=bary, depth=depth, camera=camera,
-                      supersample=K, ray_origin=eye, ray_dir_x=ax, ray_dir_y=ay)
+    # Only samples in blocks that some triangle's screen bounding box touches can hit anything;
+    # the others are background without a ray (the cost is in the rays).
+    sel = _candidate_samples(camera, occluder.scene, K, near)
+    face = np.full(HK * WK, -1, np.int32)
+    bary = np.zeros((HK * WK, 2), np.float32)
+    depth = np.full(HK * WK, np.inf, np.float32)
+    if len(sel):
+        rows, cols = np.divmod(sel, WK)
+        hits = cast_samples(camera, occluder, ax[cols], ay[rows])
+        face[sel], bary[sel], depth[sel] = hits["face"], hits["bary"], hits["depth"]
+    return RasterHits(face=face.reshape(HK, WK), bary=bary.reshape(HK, WK, 2), depth=depth.reshape(HK, WK),
+                      camera=camera, supersample=K, ray_origin=eye, ray_dir_x=ax, ray_dir_y=ay)
 
 
-def _scene_window(camera: Camera, occluder: Occluder, K: int, near: float) -> tuple[int, int, int, int]:
-    """(col0, col1, row0, row1) half-open window of supersampled samples that can see the scene:
-    the projection of the scene's bounding box grown by one sample; the whole image when a box
-    corner is behind the near plane (its projection is then unbounded)."""
+def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndarray) -> dict:
+    """First hits of rays through arbitrary image points given by their camera-plane offsets
+    ax, ay (M,) (ax = (x - W/2) / f, ay = (H/2 - y) / f for pixel coordinates x, y).
+
+    Returns {'face' (M,) int32 (-1: none), 'bary' (M, 2) float32, 'depth' (M,) float32 view z
+    (inf: none)}."""
+    right, up, fwd = camera.basis
+    eye = np.asarray(camera.eye, float)
+    near = 0.0 if camera.is_ortho else camera.near_distance(occluder.radius)
+    # Rays in the occluder's centred float32 frame, one component at a time: no (N, 3) float64
+    # temporaries (they cost as much as the BVH traversal at 1024 x 1024).
+    rays = np.empty((len(ax), 6), np.float32)
+    base = (eye - occluder.origin).astype(np.float32)
+    axc, ayr = np.asarray(ax, np.float32), np.asarray(ay, np.float32)
+    for c in range(3):
+        if camera.is_ortho:
+            rays[:, c] = base[c] + ayr * np.float32(up[c]) + axc * np.float32(right[c])
+            rays[:, 3 + c] = fwd[c]
+        else:
+            # Perspective: d = fwd + x right + y up has unit component along fwd, so the hit
+            # distance is the view depth; the ray starts on the near plane.
+            rays[:, 3 + c] = np.float32(fwd[c]) + ayr * np.float32(up[c]) + axc * np.float32(right[c])
+            rays[:, c] = base[c] + np.float32(near) * rays[:, 3 + c]
+    hits = _cast(occluder, rays)
+    fw = hits["primitive_ids"]
+    depth = np.where(fw >= 0, hits["t_hit"] + np.float32(near), np.float32(np.inf)).astype(np.float32)
+    return {"face": fw, "bary": hits["primitive_uvs"], "depth": depth}
+
+
+#: Side, in samples, of the blocks used to skip rays that cannot hit.
+BLOCK = 8
+
+
+def _candidate_samples(camera: Camera, scene, K: int, near: float) -> np.ndarray:
+    """Flat indices (row-major, supersampled image) of the samples whose ray may hit a triangle:
+    those in BLOCK x BLOCK blocks touched by the screen bounding box of some triangle, grown by
+    one sample for float32 slack. Conservative: every sample when a triangle crosses the near
+    plane (its projection is unbounded)."""
     W, H = int(camera.width) * K, int(camera.height) * K
-    lo, hi = occluder.scene.bounds
-    pad = 1e-6 * occluder.radius  # float32 BVH slack
-    corners = np.array([[x, y, z] for x in (lo[0] - pad, hi[0] + pad) for y in (lo[1] - pad, hi[1] + pad)
-                        for z in (lo[2] - pad, hi[2] + pad)])
-    xy, z = camera.project(corners)
-    if not camera.is_ortho and (z <= near).any():
-        return 0, W, 0, H
-    x0, y0 = np.floor(xy.min(axis=0) * K).astype(int) - 1
-    x1, y1 = np.ceil(xy.max(axis=0) * K).astype(int) + 1
-    return max(x0, 0), min(x1, W), max(y0, 0), min(y1, H)
+    xy, z = camera.project(scene.vertices)
+    f = scene.faces
+    if not camera.is_ortho:
+        zf = z[f]
+        front = zf.min(axis=1) > near
+        if (~front & (zf.max(axis=1) > near)).any():
+            return np.arange(W * H)
+        f = f[front]
+    x = xy[:, 0][f] * K
+    y = xy[:, 1][f] * K
+    nbx, nby = -(-W // BLOCK), -(-H // BLOCK)
+    bx0 = np.floor((x.min(axis=1) - 1.0) / BLOCK)
+    bx1 = np.floor((x.max(axis=1) + 1.0) / BLOCK)
+    by0 = np.floor((y.min(axis=1) - 1.0) / BLOCK)
+    by1 = np.floor((y.max(axis=1) + 1.0) / BLOCK)
+    on = (bx1 >= 0) & (bx0 < nbx) & (by1 >= 0) & (by0 < nby)
+    bx0, by0 = np.clip(bx0[on], 0, nbx - 1).astype(np.int64), np.clip(by0[on], 0, nby - 1).astype(np.int64)
+    bx1, by1 = np.clip(bx1[on], 0, nbx - 1).astype(np.int64) + 1, np.clip(by1[on], 0, nby - 1).astype(np.int64) + 1
+    # Rectangles by a 2D difference array: +1/-1 at the corners, then prefix sums.
+    stride = nbx + 1
+    corners = np.concatenate([by0 * stride + bx0, by0 * stride + bx1, by1 * stride + bx0, by1 * stride + bx1])
+    weights = np.concatenate([np.ones(len(bx0)), -np.ones(len(bx0)), -np.ones(len(bx0)), np.ones(len(bx0))])
+    diff = np.bincount(corners, weights, minlength=(nby + 1) * stride).reshape(nby + 1, stride)
+    blocks = diff.cumsum(axis=0).cumsum(axis=1)[:nby, :nbx] > 0.5
+    mask = np.repeat(np.repeat(blocks, BLOCK, axis=0), BLOCK, axis=1)[:H, :W]
+    return np.flatnonzero(mask)
 
 
 def _cast(occluder: Occluder, rays_local: np.ndarray) -> dict:
@@ -161,8 +198,8 @@ def _cast(occluder: Occluder, rays_local: np.ndarray) -> dict:
         o = rays_local[:, :3].astype(np.float64) + occluder.origin
         return occluder.first_hits(o, rays_local[:, 3:].astype(np.float64))
     r = rs.cast_rays(occluder._o3c.Tensor.from_numpy(np.ascontiguousarray(rays_local)))
-    ids = r["primitive_ids"].numpy().astype(np.int64)
-    ids[ids == np.iinfo(np.uint32).max] = -1
+    # uint32 "no hit" (0xFFFFFFFF) reads as -1 in int32.
+    ids = r["primitive_ids"].numpy().view(np.int32)
     return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
 
 
@@ -172,3 +209,33 @@ def box_filter(img: np.ndarray, k: int) -> np.ndarray:
         return img.astype(np.float64)
     HK, WK = img.shape[:2]
     return img.reshape(HK // k, k, WK // k, k, *img.shape[2:]).mean(axis=(1, 3))
+
+
+# --- entry points the pipeline imports from here (implemented in strokekit.bands) ------------------
+
+def raster_file_suffixes(options) -> list[str]:
+    """File suffixes (frame_0001_<suffix>.png) that `raster_outputs` writes for RasterOptions."""
+    out = ["bands"]
+    if options.shade:
+        out.append("shade")
+    if options.masks:
+        out += [f"mask_{b}" for b in range(1, int(options.bands) + 1)]
+    out += [name for name in ("objectid", "depth", "fill") if getattr(options, name)]
+    return out
+
+
+def raster_outputs(scene, camera: Camera, occluder: Occluder, options) -> dict[str, bytes]:
+    """{file suffix: PNG bytes} of one frame for RasterOptions (see strokekit.bands)."""
+    from .bands import render_raster
+
+    return render_raster(scene, camera, occluder, options).png_outputs()
+
+
+def raster_outputs_with_bands_layer(scene, camera: Camera, occluder: Occluder, options) -> tuple[dict[str, bytes], list]:
+    """(PNG outputs, svgwrite elements of the 'bands' layer, [] when options.band_polygons is
+    off). The elements pickle; pass them as svg_document(..., underlays=...) so the bands sit
+    under the line layers."""
+    from .bands import band_polygons_svg, render_raster
+
+    frame = render_raster(scene, camera, occluder, options)
+    return frame.png_outputs(), (band_polygons_svg(frame) if options.band_polygons else [])

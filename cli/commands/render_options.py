@@ -31,8 +31,33 @@ _TRACKING = [
 ]
 
 
+_RASTER = [
+    click.option("--bands", type=click.IntRange(min=1, max=254), default=None,
+                 help="Toon bands: write frame_NNNN_bands.png (labels) and _shade.png with N bands (seed 002)."),
+    click.option("--band-thresholds", default=None, help="Explicit n.l thresholds a,b,.. instead of N equal bands."),
+    click.option("--shading", type=click.Choice(["flat", "smooth"]), default="flat", show_default=True),
+    click.option("--light", default="-0.4,0.6,0.7", show_default=True, help="Direction toward the light x,y,z."),
+    click.option("--light-space", type=click.Choice(["camera", "world"]), default="camera", show_default=True),
+    click.option("--supersample", type=click.Choice(["1", "2", "4"]), default=None,
+                 help="Rays per pixel side for the masks (default from --quality: 1 draft, 2 default, 4 exact)."),
+    click.option("--edge-supersample", type=click.IntRange(min=0, max=8), default=None,
+                 help="Resample only band edge pixels R x R (default from --quality: 0 draft, 4 default, 0 exact)."),
+    click.option("--masks", is_flag=True, help="Also one anti-aliased mask PNG per band."),
+    click.option("--no-shade", is_flag=True, help="No _shade.png (the ramp colours)."),
+    click.option("--objectid", is_flag=True, help="Also _objectid.png (8-bit object ids, 0 background)."),
+    click.option("--depth", is_flag=True, help="Also _depth.png (16-bit linear depth)."),
+    click.option("--fill", is_flag=True, help="Also _fill.png: self-similar volumetric texture (seed 003)."),
+    click.option("--fill-pattern", type=click.Choice(["hatch", "dots", "noise"]), default="hatch", show_default=True),
+    click.option("--fill-period", type=float, default=16.0, show_default=True, help="Fill texture period in px."),
+    click.option("--gooch", is_flag=True, help="Gooch warm/cool ramp instead of darker shades."),
+    click.option("--band-polygons", is_flag=True, help="Also the bands as vector polygons in an SVG layer under the lines."),
+]
+
+_RASTER_DEFAULTS = {"draft": (1, 0), "default": (2, 4), "exact": (4, 0)}
+
+
 def render_extra_options(f):
-    for deco in reversed(_TRACKING + _GLTF):
+    for deco in reversed(_TRACKING + _GLTF + _RASTER):
         f = deco(f)
     return f
 
@@ -65,5 +90,32 @@ def gltf_options_from(extra: dict, lines, fps: float = 24.0):
     return opts
 
 
+def _floats(text: str, what: str, n: int | None = None) -> tuple[float, ...]:
+    try:
+        vals = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise UsageError(f"bad {what} {text!r}: give numbers separated by commas") from None
+    if n is not None and len(vals) != n:
+        raise UsageError(f"bad {what} {text!r}: give {n} numbers")
+    return vals
+
+
 def raster_options_from(extra: dict, quality: str):
-    return None
+    """RasterOptions when any raster output is asked for (--bands, --masks, --fill, --objectid,
+    --depth, --band-polygons), else None: lines-only runs do no raster pass at all."""
+    wanted = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
+    if not wanted:
+        return None
+    from strokekit.bands import RasterOptions
+
+    k_default, r_default = _RASTER_DEFAULTS[quality]
+    thresholds = _floats(extra["band_thresholds"], "--band-thresholds") if extra.get("band_thresholds") else ()
+    bands = extra.get("bands") or (len(thresholds) + 1 if thresholds else 3)
+    return RasterOptions(bands=bands, thresholds=thresholds, shading=extra["shading"],
+                         light=_floats(extra["light"], "--light", 3), light_space=extra["light_space"],
+                         supersample=int(extra["supersample"] or k_default),
+                         edge_supersample=r_default if extra.get("edge_supersample") is None else extra["edge_supersample"],
+                         masks=extra["masks"], shade=not extra["no_shade"], objectid=extra["objectid"],
+                         depth=extra["depth"], fill=extra["fill"], fill_pattern=extra["fill_pattern"],
+                         fill_period_px=extra["fill_period"], gooch=extra["gooch"],
+                         band_polygons=extra["band_polygons"])
