@@ -29,9 +29,11 @@ def length_samples(strokes: Strokes, step_px: float = 0.1) -> tuple[np.ndarray, 
         return np.zeros((0, 2)), np.zeros(0)
     seg = strokes.segment_lengths  # length of the segment ending at each point
     seg_idx = np.flatnonzero(seg > 0)
+    if len(seg_idx) == 0:  # only zero-length strokes: nothing drawn
+        return np.zeros((0, 2)), np.zeros(0)
     n = np.ceil(seg[seg_idx] / step_px).astype(np.int64)
     rep = np.repeat(seg_idx, n)
-    k = np.arange(n.sum()) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+    k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
     t = ((k + 0.5) / np.repeat(n, n))[:, None]
     mid = strokes.points[rep - 1] * (1 - t) + strokes.points[rep] * t
     return mid, np.repeat(seg[seg_idx] / n, n)

@@ -9,13 +9,16 @@ exact preset's strokes of the same cameras (strokekit.accuracy).
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from .accuracy import DEFAULT_TOLS, Accuracy, accuracy
 from .camera import Camera, orbit_path
+from .features import static_feature_mask
 from .lines import LineRenderer
 from .model import Strokes
 from .options import QUALITY_PRESETS, LineOptions
@@ -38,14 +41,16 @@ class BenchRow:
     options: LineOptions
     ms_per_frame: float = float("nan")
     ms_repeats: list[float] = field(default_factory=list)
+    cpu_ms_per_frame: float = float("nan")
     strokes_per_frame: float = 0.0
     accuracy: Accuracy | None = None
 
     def to_json(self) -> dict:
         return {"curve": self.curve, "label": self.label, "ms_per_frame": self.ms_per_frame,
+                "cpu_ms_per_frame": self.cpu_ms_per_frame,
                 "ms_repeats": self.ms_repeats, "strokes_per_frame": self.strokes_per_frame,
                 "accuracy": self.accuracy.to_json() if self.accuracy else None,
-                "knobs": {k: getattr(self.options, k) for k in QUALITY_PRESETS["default"]}}
+                "knobs": {k: getattr(self.options, k) for k in QUALITY_PRESETS["default"] if hasattr(self.options, k)}}
 
 
 def frame_bytes(strokes: Strokes, camera: Camera, frame: int, kinds: tuple[str, ...]) -> tuple[bytes, bytes]:
@@ -57,20 +62,27 @@ def frame_bytes(strokes: Strokes, camera: Camera, frame: int, kinds: tuple[str, 
     return svg, strokes_json(strokes, camera.width, camera.height, frame)
 
 
-def time_lines(renderer: LineRenderer, cameras: list[Camera], repeats: int = 3) -> tuple[list[float], list[Strokes]]:
-    """Render every camera `repeats` times (plus one untimed warm-up pass that also gives the
-    strokes). Returns the mean ms per frame of each repeat, and the strokes of each frame."""
+def time_lines(renderer: LineRenderer, cameras: list[Camera], repeats: int = 3,
+               cpu_out: list | None = None, warm: bool = True) -> tuple[list[float], list[Strokes]]:
+    """Render every camera `repeats` times, after one untimed warm-up pass that also gives the
+    strokes (skipped when `warm` is False: then no strokes are returned). Returns the mean
+    wall-clock ms per frame of each repeat and the strokes of each frame; `cpu_out`, if given,
+    receives the process CPU ms per frame of each repeat (steadier than wall clock on a shared
+    machine; counts every thread Embree uses)."""
     out = []
-    for k, cam in enumerate(cameras):
+    for k, cam in enumerate(cameras if warm else ()):
         s = renderer.render(cam, k + 1)
         frame_bytes(s, cam, k + 1, renderer.options.kinds)
         out.append(s)
-    ms = []
+    ms, cpu = [], []
     for _ in range(repeats):  # 0: strokes only, no timing
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         for k, cam in enumerate(cameras):
             frame_bytes(renderer.render(cam, k + 1), cam, k + 1, renderer.options.kinds)
         ms.append(1000.0 * (time.perf_counter() - t0) / len(cameras))
+        cpu.append(1000.0 * (time.process_time() - c0) / len(cameras))
+    if cpu_out is not None:
+        cpu_out.extend(cpu)
     return ms, out
 
 
@@ -81,11 +93,21 @@ def bench_configs(sweep: tuple[float, ...] = DEFAULT_SWEEP, presets=tuple(QUALIT
     return rows
 
 
+def _renderer_with(base: LineRenderer, options: LineOptions) -> LineRenderer:
+    """A renderer for `options` sharing `base`'s occluder (one BVH for every bench row: the rows
+    differ only in accuracy knobs, never in the scene)."""
+    r = copy.copy(base)
+    r.options = options
+    r.static = static_feature_mask(base.scene, options)
+    return r
+
+
 def run_bench(scene: Scene, cameras: list[Camera], *, repeats: int = 3, tols=DEFAULT_TOLS,
               sweep: tuple[float, ...] = DEFAULT_SWEEP, presets=tuple(QUALITY_PRESETS),
-              log=None) -> dict:
-    """Measure every row of `bench_configs` on the scene and cameras. Returns
-    {'scene', 'frames', 'width', 'height', 'repeats', 'rows': [BenchRow], 'raster': [...]}.
+              raster_frames: int = 2, log=None) -> dict:
+    """Measure every row of `bench_configs` on the scene and cameras, and the raster pass on the
+    first `raster_frames` cameras (0: skip; supersample 4 costs seconds per frame). Returns
+    {'scene', 'frames', 'width', 'height', 'repeats', 'rows': [BenchRow], 'raster': [dict]}.
     `log(str)` receives progress lines."""
     if not cameras:
         raise ValueError("bench needs at least one camera")
@@ -93,33 +115,80 @@ def run_bench(scene: Scene, cameras: list[Camera], *, repeats: int = 3, tols=DEF
     check = LineRenderer(scene, LineOptions.preset(REFERENCE))
     for k, cam in enumerate(cameras):
         check.check_camera(cam, k + 1)  # eye inside the mesh: one clear error before any timing
-    # The reference first: every other row is measured against its strokes.
+    # Warm-up pass per row (gives the strokes), reference first: every row is measured against it.
     is_ref = [r.curve == "quality" and r.label == REFERENCE for r in rows]
     ref_strokes = None
     if not any(is_ref):
         _, ref_strokes = time_lines(check, cameras, 0)
+    renderers = [_renderer_with(check, r.options) for r in rows]
     for i in sorted(range(len(rows)), key=lambda i: not is_ref[i]):
-        row = rows[i]
-        row.ms_repeats, strokes = time_lines(LineRenderer(scene, row.options), cameras, repeats)
-        row.ms_per_frame = float(np.median(row.ms_repeats))
-        row.strokes_per_frame = float(np.mean([len(s) for s in strokes]))
+        _, strokes = time_lines(renderers[i], cameras, 0)
         if is_ref[i]:
             ref_strokes = strokes
-        row.accuracy = accuracy(strokes, ref_strokes, tols)
+        rows[i].strokes_per_frame = float(np.mean([len(s) for s in strokes]))
+        rows[i].accuracy = accuracy(strokes, ref_strokes, tols)
+    # Timed passes round-robin over the rows, so that the load of a shared machine falls on every
+    # row alike instead of on whichever row ran during a busy minute.
+    cpu: list[list[float]] = [[] for _ in rows]
+    for _ in range(repeats):
+        for i, row in enumerate(rows):
+            ms, _ = time_lines(renderers[i], cameras, 1, cpu[i], warm=False)
+            row.ms_repeats += ms
+    for i, row in enumerate(rows):
+        row.ms_per_frame = float(np.median(row.ms_repeats)) if row.ms_repeats else float("nan")
+        row.cpu_ms_per_frame = float(np.median(cpu[i])) if cpu[i] else float("nan")
         if log:
             log(f"{row.curve} {row.label}: {row.ms_per_frame:.1f} ms/frame")
     cam0 = cameras[0]
     return {"scene": scene.source, "faces": int(len(scene.faces)), "frames": len(cameras), "width": cam0.width,
             "height": cam0.height, "repeats": repeats, "tols": tuple(tols), "rows": rows,
-            "raster": raster_rows(scene, cameras)}
+            "raster": raster_rows(scene, cameras[:raster_frames], occluder=check.occluder, repeats=1, log=log)
+            if raster_frames > 0 else []}
 
 
-def raster_rows(scene: Scene, cameras: list[Camera]) -> list[dict]:
-    """RASTER SECTION (issue 6): IoU of the raster pass at supersample K = 1, 2, 4 against K = 4,
-    with ms per frame. The raster pass has not landed yet; when it does, return one dict per K
-    here: {'supersample': K, 'ms_per_frame': ..., 'iou': ...}. format_table and plot_bench
-    already print and draw whatever this returns."""
-    return []
+def raster_rows(scene: Scene, cameras: list[Camera], *, occluder=None, repeats: int = 1,
+                supersamples: tuple[int, ...] = (1, 2, 4), reference: int = 4, log=None) -> list[dict]:
+    """RASTER SECTION (issue 6): the raster pass (strokekit.bands.render_raster with default
+    RasterOptions, plus its PNG bytes) at supersample K = 1, 2, 4: ms per frame (median over
+    repeats of the mean per frame) and IoU of the band coverages against K = `reference`.
+
+    IoU is the soft IoU pooled over the bands (background excluded): sum of min(coverage_K,
+    coverage_ref) over sum of max, per output pixel and band. Returns [] when the raster pass is
+    not importable. Cost grows with K^2: pass few cameras."""
+    try:
+        from .bands import RasterOptions, render_raster
+    except ImportError:
+        return []
+    if not cameras:
+        return []
+    if occluder is None:
+        from .visibility import Occluder
+
+        occluder = Occluder(scene)
+    ref_cov = []
+    for cam in cameras:
+        ref_cov.append(render_raster(scene, cam, occluder, RasterOptions(supersample=reference)).coverage[..., 1:])
+    rows = []
+    for K in supersamples:
+        opts = RasterOptions(supersample=K)
+        inter = union = 0.0
+        ms = []
+        for rep in range(max(1, repeats)):
+            t0 = time.perf_counter()
+            for cam, ref in zip(cameras, ref_cov):
+                frame = render_raster(scene, cam, occluder, opts)
+                frame.png_outputs()
+                if rep == 0:
+                    cov = frame.coverage[..., 1:]
+                    inter += float(np.minimum(cov, ref).sum())
+                    union += float(np.maximum(cov, ref).sum())
+            ms.append(1000.0 * (time.perf_counter() - t0) / len(cameras))
+        row = {"supersample": K, "ms_per_frame": float(np.median(ms)), "ms_repeats": ms,
+               "iou": inter / union if union > 0 else 1.0, "reference": reference, "frames": len(cameras)}
+        rows.append(row)
+        if log:
+            log(f"raster K={K}: {row['ms_per_frame']:.1f} ms/frame, IoU {row['iou']:.5f}")
+    return rows
 
 
 def default_cameras(scene: Scene, frames: int = 8, width: int = 1024, height: int = 1024) -> list[Camera]:
@@ -130,18 +199,22 @@ def default_cameras(scene: Scene, frames: int = 8, width: int = 1024, height: in
 def format_table(result: dict) -> str:
     """The bench table as text: one line per row."""
     tols = result["tols"]
-    head = f"{'knob':<18} {'value':>7} {'ms/frame':>9} {'strokes':>8} " + " ".join(
+    head = f"{'knob':<18} {'value':>7} {'ms/frame':>9} {'cpu ms':>7} {'strokes':>8} " + " ".join(
         f"{'P@' + format(t, 'g'):>8} {'R@' + format(t, 'g'):>8}" for t in tols)
     lines = [f"scene {result['scene']} ({result['faces']} faces), {result['frames']} frames at "
-             f"{result['width']}x{result['height']}, median of {result['repeats']} repeats, accuracy against "
-             f"'{REFERENCE}'", head, "-" * len(head)]
+             f"{result['width']}x{result['height']}, median of {result['repeats']} repeats (ms/frame: wall clock, "
+             f"lines + SVG + JSON; cpu ms: process CPU time), accuracy against '{REFERENCE}'", head, "-" * len(head)]
     for r in result["rows"]:
         acc = r.accuracy
         cells = " ".join(f"{acc.precision[t]:>8.5f} {acc.recall[t]:>8.5f}" for t in tols) if acc else ""
-        lines.append(f"{r.curve:<18} {r.label:>7} {r.ms_per_frame:>9.1f} {r.strokes_per_frame:>8.1f} {cells}")
+        lines.append(f"{r.curve:<18} {r.label:>7} {r.ms_per_frame:>9.1f} {r.cpu_ms_per_frame:>7.1f} "
+                     f"{r.strokes_per_frame:>8.1f} {cells}")
     if result.get("raster"):
+        r0 = result["raster"][0]
         lines.append("")
-        lines.append(f"{'raster supersample':<18} {'ms/frame':>9} {'IoU vs 4':>9}")
+        lines.append(f"raster pass (bands + PNG), {r0['frames']} frame(s), IoU of band coverage against "
+                     f"supersample {r0['reference']}")
+        lines.append(f"{'supersample':<18} {'ms/frame':>9} {'IoU':>9}")
         for r in result["raster"]:
             lines.append(f"{r['supersample']:<18} {r['ms_per_frame']:>9.1f} {r['iou']:>9.5f}")
     return "\n".join(lines)
@@ -155,8 +228,8 @@ def result_json(result: dict) -> dict:
 
 
 def plot_bench(result: dict, path, tol: float = 1.0) -> None:
-    """Accuracy against time, one curve per knob: min(precision, recall) at `tol` px (left) and
-    at the smallest tol (right) against ms per frame (log scale)."""
+    """Accuracy against time, one curve per knob: the error 1 - min(precision, recall) at `tol`
+    px (left) and at the next tol (right), log scale, against ms per frame (log scale)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -167,24 +240,45 @@ def plot_bench(result: dict, path, tol: float = 1.0) -> None:
 
     tols = result["tols"]
     panels = [tol] + [t for t in tols if t != tol][:1]
-    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.5), squeeze=False)
+    raster = result.get("raster") or []
+    fig, axes = plt.subplots(1, len(panels) + bool(raster), figsize=(6 * (len(panels) + bool(raster)), 4.5),
+                             squeeze=False)
     curves: dict[str, list[BenchRow]] = {}
     for r in result["rows"]:
         curves.setdefault(r.curve, []).append(r)
+    floor = 1e-6  # log axis: perfect rows are drawn at this error
     for ax, t in zip(axes[0], panels):
         for name, rows in curves.items():
-            rows = sorted(rows, key=lambda r: r.ms_per_frame)
+            # Along the knob: presets in their order, sweeps by value.
+            if name != "quality":
+                rows = sorted(rows, key=lambda r: float(r.label))
             x = [r.ms_per_frame for r in rows]
-            y = [min(r.accuracy.precision[t], r.accuracy.recall[t]) for r in rows]
-            ax.plot(x, y, "o-", label=name)
+            y = [max(floor, 1.0 - min(r.accuracy.precision[t], r.accuracy.recall[t])) for r in rows]
+            ax.plot(x, y, "o-", label=name if name == "quality" else f"{name} (default preset otherwise)")
             for xi, yi, r in zip(x, y, rows):
                 ax.annotate(r.label, (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
-        for r in result.get("raster") or []:
-            ax.plot([r["ms_per_frame"]], [r["iou"]], "s", label=f"raster K={r['supersample']} (IoU)")
+        ax.axhline(1e-3, color="grey", ls="--", lw=1, label="bar: 0.999")
         ax.set_xscale("log")
-        ax.set_xlabel("ms per frame (lines + SVG + JSON)")
-        ax.set_ylabel(f"min(precision, recall) at {t:g} px vs {REFERENCE}")
-        ax.set_title(f"{result['scene'].split('/')[-1]}: accuracy at {t:g} px against time")
+        ax.set_yscale("log")
+        ax.set_ylim(floor * 0.5, 1.0)
+        ax.set_xlabel("ms per frame (lines + SVG + JSON, median)")
+        ax.set_ylabel(f"1 - min(precision, recall) at {t:g} px vs {REFERENCE}  (lower is better)")
+        ax.set_title(f"{Path(result['scene']).name}: error at {t:g} px against time")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    if raster:
+        ax = axes[0][-1]
+        x = [r["ms_per_frame"] for r in raster]
+        y = [max(floor, 1.0 - r["iou"]) for r in raster]
+        ax.plot(x, y, "s-", color="C2", label="raster supersample")
+        for xi, yi, r in zip(x, y, raster):
+            ax.annotate(f"K={r['supersample']}", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_ylim(floor * 0.5, 1.0)
+        ax.set_xlabel("ms per frame (raster pass + PNG, median)")
+        ax.set_ylabel(f"1 - IoU of band coverage vs K={raster[0]['reference']}  (lower is better)")
+        ax.set_title("raster pass: error against time")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()

@@ -11,7 +11,7 @@ from .camera import Camera
 from .chaining import chain_runs
 from .errors import InputError
 from .features import feature_edges, front_facing, static_feature_mask
-from .model import FeatureEdges, Strokes
+from .model import KIND_INDEX, FeatureEdges, Strokes
 from .options import LineOptions
 from .scene import Scene
 from .strokeops import drop_retraced, drop_short, simplify, split_max_length
@@ -95,9 +95,17 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     m = np.where(any_front[:, None], m, -m)
     ln = np.linalg.norm(m, axis=1)
     ok = found & (ln > 1e-6)
+    # The size that matters is local: a small object beside a huge floor must not be lifted by a
+    # fraction of the floor's size (its own silhouette would float past nearby occluders).
+    a, b = fe.a[mesh], fe.b[mesh]
+    local = np.maximum(np.linalg.norm(0.5 * (a + b) - scene.center, axis=1), np.linalg.norm(b - a, axis=1))
+    size = fraction * np.minimum(scene.radius, local)
     out = np.zeros((len(q), 3))
-    out[ok] = m[ok] / ln[ok, None] * (fraction * scene.radius)
+    out[ok] = m[ok] / ln[ok, None] * size[ok, None]
     lift[mesh] = out
+    # A non-manifold edge has no "first two faces" independent of face order: no lift, so that
+    # renumbering faces cannot change the drawing.
+    lift[fe.kind == KIND_INDEX["nonmanifold"]] = 0.0
     return lift
 
 

@@ -54,7 +54,7 @@ def resample(strokes: Strokes, step_px: float) -> tuple[np.ndarray, np.ndarray]:
     seg_idx = np.flatnonzero(seg > 0)
     n = np.ceil(seg[seg_idx] / step_px).astype(np.int64)
     rep = np.repeat(seg_idx, n)
-    k = np.arange(n.sum()) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+    k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)  # (cumsum - n: safe when no segment has length)
     t = (k / np.repeat(n, n))[:, None]
     pts = strokes.points[rep - 1] * (1 - t) + strokes.points[rep] * t
     last = strokes.offsets[1:] - 1
@@ -70,7 +70,7 @@ def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
     from scipy.spatial import cKDTree
 
     pts, owner = resample(strokes, tol_px)
-    tree = cKDTree(pts)
+    tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)  # built every frame: cheap build wins
     lengths = strokes.lengths
     # Rank strokes: longer first, then earlier first. A stroke is covered if each of its samples
     # has a sample of a higher-ranked stroke of the same kind within tol.
@@ -111,13 +111,16 @@ def simplify(strokes: Strokes, tol_px: float) -> Strokes:
     # meet, so a nearest-point match could keep another stroke's point and drop this one's.
     coords, idx = shapely.get_coordinates(simp, return_index=True)
     n = len(strokes.points)
-    rows = np.concatenate([np.c_[strokes.stroke_of_point, strokes.points], np.c_[idx, coords]])
-    _, inv = np.unique(rows, axis=0, return_inverse=True)
-    inv = inv.ravel()
-    first = np.full(inv.max() + 1, -1, np.int64)
-    first[inv[:n][::-1]] = np.arange(n)[::-1]  # first original point of each (stroke, x, y)
-    matched = first[inv[n:]]
-    keep[matched[matched >= 0]] = True
+    st = np.r_[strokes.stroke_of_point, idx]
+    x, y = np.r_[strokes.points[:, 0], coords[:, 0]], np.r_[strokes.points[:, 1], coords[:, 1]]
+    is_out = np.r_[np.zeros(n, bool), np.ones(len(idx), bool)]
+    # Sort by (stroke, x, y), originals before outputs (stable: the first original of a group
+    # comes first); each output then takes the original point at the head of its group.
+    order = np.lexsort((is_out, y, x, st))
+    new_group = np.r_[True, (np.diff(st[order]) != 0) | (np.diff(x[order]) != 0) | (np.diff(y[order]) != 0)]
+    head = order[np.flatnonzero(new_group)[np.cumsum(new_group) - 1]]
+    matched = head[is_out[order]]
+    keep[matched[matched < n]] = True
     counts = np.bincount(strokes.stroke_of_point[keep], minlength=len(strokes))
     out = replace(strokes, points=strokes.points[keep], surface=strokes.surface[keep], face=strokes.face[keep],
                   u=strokes.u[keep], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))

@@ -80,25 +80,50 @@ class Occluder:
         return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
 
     def visible(self, points: np.ndarray, camera: Camera, offset: float = 1e-5,
-                lift: np.ndarray | None = None) -> np.ndarray:
+                lift: np.ndarray | None = None, scale: np.ndarray | None = None) -> np.ndarray:
         """(N,) True where world points (N, 3) are seen from the camera. `lift` (N, 3), if given,
-        moves each ray origin off the surface (world units) before the test."""
-        eps = offset * self.radius
-        if lift is not None:
-            points = points + lift
+        moves each ray origin off the surface (world units) before the test.
+
+        The ray starts `offset` x a length toward the eye: the scene radius, or, when `scale` (N,)
+        (the local size of the geometry at each point, world units, e.g. its edge length) is
+        given, max(|point - scene centre|, scale). float32 errors grow with the coordinates'
+        magnitude in the centred frame, so that is the size the offset must beat; a global radius
+        would let a huge floor make the offset jump over small nearby occluders.
+
+        With a lift, a point is visible when either the lifted or the plain ray reaches the eye:
+        the plain ray can graze the point's own 1-ring (false hits within float32 rounding), the
+        lifted one can start inside an object the surface rests on (a box on the floor); each
+        failure only ever hides, and a real occluder stops both rays."""
+        if scale is None:
+            eps = np.full(len(points), offset * self.radius)
+        else:
+            c = points - self.origin
+            eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
+        if lift is None:
+            return self._visible_from(points, camera, eps, offset)
+        vis = self._visible_from(points + lift, camera, eps, offset)
+        hidden = np.flatnonzero(~vis)
+        if len(hidden):
+            vis[hidden] = self._visible_from(points[hidden], camera, eps[hidden], offset)
+        return vis
+
+    def _visible_from(self, points: np.ndarray, camera: Camera, eps: np.ndarray, offset: float) -> np.ndarray:
         if camera.is_ortho:
             _, _, fwd = camera.basis
             toward = np.broadcast_to(-fwd, points.shape)
-            origins = points + eps * toward
+            origins = points + eps[:, None] * toward
             far = 4.0 * self.radius + float(np.abs((points - self.origin) @ fwd).max(initial=0.0))
             targets = origins + far * toward
         else:
             eye = np.asarray(camera.eye, float)
             d = eye - points
-            dist = np.linalg.norm(d, axis=1)
+            dist = np.sqrt(np.einsum("ij,ij->i", d, d))
             toward = d / np.where(dist > 0, dist, 1.0)[:, None]
             origins = points + np.minimum(eps, 0.5 * dist)[:, None] * toward
-            targets = np.broadcast_to(eye, points.shape)
+            # The segment is open at the eye too: an eye standing on a surface must not see that
+            # surface as an occluder of everything. Stop short by the float32 rounding scale there.
+            tail = np.minimum(np.maximum(eps, offset * np.linalg.norm(eye - self.origin)), 0.25 * dist)
+            targets = eye - tail[:, None] * toward
         return ~self.occluded_segments(origins, targets)
 
     def eye_enclosed(self, camera: Camera, n: int = 64) -> bool:
@@ -201,8 +226,10 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         return A[seg_i] + lam[:, None] * (B[seg_i] - A[seg_i])
 
     lift = None if features.lift is None else features.lift[idx]
+    # Local size for the ray offset: the segment's world length (see Occluder.visible).
+    size = np.linalg.norm(b[idx] - a[idx], axis=1)
     vis = occluder.visible(world_at(seg, s), camera, options.occlusion_offset,
-                           None if lift is None else lift[seg])
+                           None if lift is None else lift[seg], size[seg])
     # Changes of visibility between consecutive samples of one segment.
     same = seg[1:] == seg[:-1]
     change = np.flatnonzero(same & (vis[1:] != vis[:-1]))
@@ -215,7 +242,7 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         for _ in range(max(iters, 0)):
             mid = 0.5 * (lo + hi)
             vm = occluder.visible(world_at(cs, mid), camera, options.occlusion_offset,
-                                  None if lift is None else lift[cs])
+                                  None if lift is None else lift[cs], size[cs])
             go_hi = vm == vis_lo  # the change lies in [mid, hi]
             lo = np.where(go_hi, mid, lo)
             hi = np.where(go_hi, hi, mid)

@@ -63,7 +63,8 @@ def test_aggregate_weights_frames_by_length_and_handles_empty_frames():
     assert empty_vs_line.recall[1.0] == 0.0 and empty_vs_line.precision[1.0] == 0.0
 
 
-@pytest.mark.parametrize("name", ["suzanne.obj", "spot.obj", "fandisk.obj"])
+@pytest.mark.parametrize("name", ["suzanne.obj", "spot.obj", "fandisk.obj", "teapot.obj", "beetle.obj",
+                                  "CesiumMilkTruck.glb"])
 def test_default_preset_matches_exact_at_1px(name):
     path = MODELS / name
     if not path.exists():
@@ -78,3 +79,66 @@ def test_default_preset_matches_exact_at_1px(name):
     assert a.ref_length > 1000.0  # the orbit really draws lines
     assert a.precision[1.0] >= 0.999, a.to_json()
     assert a.recall[1.0] >= 0.999, a.to_json()
+
+
+def _small_scene():
+    import trimesh
+
+    from strokekit import build_scene
+
+    m = trimesh.creation.torus(1.0, 0.35, major_sections=32, minor_sections=16)
+    return build_scene(m.vertices, m.faces)
+
+
+def test_bench_rows_table_json_and_plot(tmp_path):
+    import json
+
+    from strokekit.bench import default_cameras, format_table, plot_bench, result_json, run_bench
+
+    sc = _small_scene()
+    cams = default_cameras(sc, 2, 256, 256)
+    res = run_bench(sc, cams, repeats=1, sweep=(1.0, 8.0), raster_frames=1)
+    labels = [(r.curve, r.label) for r in res["rows"]]
+    assert labels == [("quality", "draft"), ("quality", "default"), ("quality", "exact"),
+                      ("sample_spacing_px", "1"), ("sample_spacing_px", "8")]
+    exact = res["rows"][2]
+    # The reference measured against itself is perfect; every row drew strokes and took time.
+    assert exact.accuracy.precision[1.0] == 1.0 and exact.accuracy.recall[1.0] == 1.0
+    assert all(r.strokes_per_frame > 0 and r.ms_per_frame > 0 for r in res["rows"])
+    assert res["rows"][3].options.sample_spacing_px == 1.0
+    table = format_table(res)
+    assert "exact" in table and "P@0.5" in table and len(table.splitlines()) == 3 + len(res["rows"]) + 3 + 3
+    doc = json.loads(json.dumps(result_json(res)))
+    assert doc["rows"][1]["knobs"]["sample_spacing_px"] == 2.0
+    # Raster section: supersample 1, 2, 4 against 4; the reference against itself is exact and a
+    # coarser raster is close to it but not equal on a curved object.
+    iou = {r["supersample"]: r["iou"] for r in doc["raster"]}
+    assert set(iou) == {1, 2, 4} and iou[4] == 1.0
+    assert 0.8 < iou[1] < 1.0 and 0.8 < iou[2] < 1.0
+    assert "raster pass" in table
+    png = tmp_path / "bench.png"
+    plot_bench(res, png)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
+
+
+def test_bench_cli_json(tmp_path, capsys):
+    import json
+
+    from cli.main import main
+
+    sc = _small_scene()
+    obj = tmp_path / "torus.obj"
+    obj.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in sc.vertices)
+                   + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in sc.faces))
+    cam = tmp_path / "cam.json"
+    cam.write_text(json.dumps({"width": 200, "height": 150, "frames": [
+        {"eye": [0, 1, 4], "target": [0, 0, 0]}, {"eye": [4, 1, 0], "target": [0, 0, 0]}]}))
+    try:
+        main(["bench", str(obj), "--camera", str(cam), "--frames", "1", "--repeats", "1", "--sweep", "4",
+              "--raster-frames", "0", "--json"])
+    except SystemExit as e:
+        assert e.code in (0, None)
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["frames"] == 1 and doc["width"] == 200 and doc["height"] == 150
+    assert [r["label"] for r in doc["rows"]] == ["draft", "default", "exact", "4"]
+    assert doc["rows"][2]["accuracy"]["precision"]["1"] == 1.0 and doc["raster"] == []

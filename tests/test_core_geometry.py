@@ -168,3 +168,28 @@ def test_box_resting_on_ground_keeps_its_bottom_silhouette():
     pts, _ = resample(st, 0.05)
     dist, _ = cKDTree(pts).query(probe)
     assert dist.max() < 0.05  # the whole front bottom edge is drawn
+
+
+def test_open_rim_resting_on_ground_is_visible():
+    """An open cone wider at the top (faces tilted down-outward) stands on a slab: the front half
+    of its bottom rim (a border) touches the slab and is visible from above."""
+    cone = trimesh.creation.revolve(np.array([[0.3, 0.0], [0.6, 1.0]]), sections=64)
+    cone.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))  # axis z -> y
+    vg, fg = box_mesh([-3, -0.2, -3], [3, 0.0, 3])
+    scene = build_scene(np.r_[cone.vertices, vg], np.r_[cone.faces, fg + len(cone.vertices)],
+                        np.r_[np.zeros(len(cone.faces)), np.ones(12)])
+    cam = Camera(eye=(0.0, 0.8, 6.0), target=(0.0, 0.3, 0.0), fov_y=40.0, width=800, height=600)
+    st = LineRenderer(scene, LineOptions()).render(cam)
+    border = kind_strokes(st, "border")
+    # Front half of the bottom rim: points at angle 20..160 degrees toward the camera (+z).
+    ang = np.radians(np.linspace(20, 160, 57))
+    rim = np.stack([0.3 * np.cos(ang), np.zeros_like(ang), 0.3 * np.sin(ang)], axis=1)
+    probe, _ = cam.project(rim)
+    from scipy.spatial import cKDTree
+
+    from strokekit.strokeops import resample
+
+    pts, _ = resample(border, 0.05)
+    dist, _ = cKDTree(pts).query(probe)
+    # The rim is a 64-gon: its chords lie within the sagitta of the circle.
+    assert dist.max() < 0.3 * (1 - np.cos(np.pi / 64)) * cam.focal_px / 6.0 + 0.1

@@ -18,12 +18,15 @@ from strokekit.errors import UsageError
 @click.option("--repeats", type=int, default=3, show_default=True, help="Timed passes; the median is reported.")
 @click.option("--sweep", default=None,
               help="Comma-separated values of sample_spacing_px to sweep (default 0.5,1,2,4,8,16).")
+@click.option("--raster-frames", type=int, default=2, show_default=True,
+              help="Frames for the raster section (IoU vs supersample 4); 0 skips it.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
               help="Write accuracy against time as a PNG (one curve per knob).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as JSON instead of a table.")
-def command(scene_path, camera_path, frames, repeats, sweep, plot_path, as_json):
+def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot_path, as_json):
     """Time every --quality preset and a sweep of the sample spacing on SCENE, with precision and
-    recall at 0.5/1/2 px against the `exact` preset."""
+    recall at 0.5/1/2 px against the `exact` preset, and the raster pass at supersample 1, 2, 4
+    with its IoU against supersample 4."""
     from strokekit.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
     from strokekit.camera import load_camera_path
     from strokekit.scene import load_scene
@@ -46,7 +49,9 @@ def command(scene_path, camera_path, frames, repeats, sweep, plot_path, as_json)
     else:
         cams = default_cameras(scene, frames)
     log = None if as_json else (lambda m: click.echo(m, err=True))
-    result = run_bench(scene, cams, repeats=repeats, sweep=values, log=log)
+    if raster_frames < 0:
+        raise UsageError(f"--raster-frames must be >= 0, got {raster_frames}")
+    result = run_bench(scene, cams, repeats=repeats, sweep=values, raster_frames=raster_frames, log=log)
     if plot_path:
         plot_bench(result, plot_path)
     if as_json:
