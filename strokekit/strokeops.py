@@ -64,32 +64,46 @@ def resample(strokes: Strokes, step_px: float) -> tuple[np.ndarray, np.ndarray]:
 def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
     """Drop strokes that lie entirely within `tol_px` of a longer (or equally long, earlier)
     stroke of the same kind: the back-and-forth spurs of mesh contours (seed 000 Fig 3.5/3.6) that
-    would otherwise draw the same line twice."""
+    would otherwise draw the same line twice.
+
+    Strokes are resampled every `tol_px`; a sample is covered when one of its nearest samples
+    (k-nearest query, within tol) belongs to a higher-ranked stroke of the same kind. Only strokes
+    whose first, middle and last samples are covered are checked in full: most strokes are
+    rejected by three queries."""
     if len(strokes) < 2:
         return strokes
     from scipy.spatial import cKDTree
 
     pts, owner = resample(strokes, tol_px)
+    order = np.argsort(owner, kind="stable")  # samples grouped by stroke, in order along it
+    pts, owner = pts[order], owner[order]
     tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)  # built every frame: cheap build wins
-    lengths = strokes.lengths
-    # Rank strokes: longer first, then earlier first. A stroke is covered if each of its samples
-    # has a sample of a higher-ranked stroke of the same kind within tol.
-    rank = np.empty(len(strokes), np.int64)
-    rank[np.lexsort((np.arange(len(strokes)), -lengths))] = np.arange(len(strokes))
-    pairs = tree.query_pairs(tol_px, output_type="ndarray")
-    if len(pairs) == 0:
+    n = len(strokes)
+    rank = np.empty(n, np.int64)
+    rank[np.lexsort((np.arange(n), -strokes.lengths))] = np.arange(n)
+    kind = strokes.kind
+
+    def covered(sample_idx: np.ndarray) -> np.ndarray:
+        k = min(12, len(pts))
+        _, nb = tree.query(pts[sample_idx], k=k, distance_upper_bound=tol_px * (1 + 1e-9))
+        nb = nb.reshape(len(sample_idx), k)
+        valid = nb < len(pts)
+        other = owner[np.where(valid, nb, 0)]
+        me = owner[sample_idx][:, None]
+        ok = valid & (other != me) & (kind[other] == kind[me]) & (rank[other] < rank[me])
+        return ok.any(axis=1)
+
+    starts = np.searchsorted(owner, np.arange(n), side="left")
+    ends = np.searchsorted(owner, np.arange(n), side="right") - 1
+    probe = np.stack([starts, (starts + ends) // 2, ends], axis=1)
+    candidate = covered(probe.ravel()).reshape(n, 3).all(axis=1)
+    if not candidate.any():
         return strokes
-    i, j = pairs[:, 0], pairs[:, 1]
-    si, sj = owner[i], owner[j]
-    same_kind = strokes.kind[si] == strokes.kind[sj]
-    diff = (si != sj) & same_kind
-    i, j, si, sj = i[diff], j[diff], si[diff], sj[diff]
-    covered = np.zeros(len(pts), bool)
-    covered[i[rank[sj] < rank[si]]] = True
-    covered[j[rank[si] < rank[sj]]] = True
-    n_cov = np.bincount(owner, weights=covered, minlength=len(strokes))
-    n_all = np.bincount(owner, minlength=len(strokes))
-    redundant = n_cov == n_all
+    sample_idx = np.flatnonzero(candidate[owner])
+    cov = covered(sample_idx)
+    n_cov = np.bincount(owner[sample_idx], weights=cov, minlength=n)
+    n_all = np.bincount(owner, minlength=n)
+    redundant = candidate & (n_cov == n_all)
     if not redundant.any():
         return strokes
     return strokes.select(~redundant)

@@ -101,10 +101,24 @@ class Occluder:
             eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
         if lift is None:
             return self._visible_from(points, camera, eps, offset)
-        vis = self._visible_from(points + lift, camera, eps, offset)
+        lifted = points + lift
+        vis = self._visible_from(lifted, camera, eps, offset)
         hidden = np.flatnonzero(~vis)
         if len(hidden):
-            vis[hidden] = self._visible_from(points[hidden], camera, eps[hidden], offset)
+            # Only a lifted ray blocked right at its start can be the contact case; most hidden
+            # samples are hidden by something far away and need no second full ray.
+            o = lifted[hidden]
+            if camera.is_ortho:
+                toward = np.broadcast_to(-camera.basis[2], o.shape)
+            else:
+                d = np.asarray(camera.eye, float) - o
+                toward = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+            reach = 100.0 * np.linalg.norm(lift[hidden], axis=1) + eps[hidden]
+            start = o + eps[hidden, None] * toward
+            near = self.occluded_segments(start, start + reach[:, None] * toward)
+            again = hidden[near]
+            if len(again):
+                vis[again] = self._visible_from(points[again], camera, eps[again], offset)
         return vis
 
     def _visible_from(self, points: np.ndarray, camera: Camera, eps: np.ndarray, offset: float) -> np.ndarray:
