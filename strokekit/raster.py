@@ -130,13 +130,17 @@ def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndar
     right, up, fwd = camera.basis
     eye = np.asarray(camera.eye, float)
     near = 0.0 if camera.is_ortho else camera.near_distance(occluder.radius)
-    # Rays in the occluder's centred float32 frame, one component at a time: no (N, 3) float64
-    # temporaries (they cost as much as the BVH traversal at 1024 x 1024).
+    # Rays in the occluder's centred, unit-radius float32 frame, one component at a time: no
+    # (N, 3) float64 temporaries (they cost as much as the BVH traversal at 1024 x 1024). Origin
+    # and direction are both scaled, so t_hit keeps its units (view depth for perspective).
     rays = np.empty((len(ax), 6), np.float32)
-    base = (eye - occluder.origin).astype(np.float32)
+    k = occluder.inv_scale
+    base = ((eye - occluder.origin) * k).astype(np.float32)
+    right, up, fwd = right * k, up * k, fwd * k
     axc, ayr = np.asarray(ax, np.float32), np.asarray(ay, np.float32)
     for c in range(3):
         if camera.is_ortho:
+            # Orthographic: ax, ay are world offsets; t_hit is in units of |fwd| = 1 world unit.
             rays[:, c] = base[c] + ayr * np.float32(up[c]) + axc * np.float32(right[c])
             rays[:, 3 + c] = fwd[c]
         else:
@@ -189,14 +193,14 @@ def _candidate_samples(camera: Camera, scene, K: int, near: float) -> np.ndarray
 
 
 def _cast(occluder: Occluder, rays_local: np.ndarray) -> dict:
-    """First hits of (N, 6) float32 rays given in the occluder's centred frame.
+    """First hits of (N, 6) float32 rays given in the occluder's centred, unit-radius frame.
 
     Occluder.first_hits takes world origins; passing them through it would cost two (N, 3)
     float64 temporaries per frame, so the centred rays go to the same RaycastingScene here."""
     rs = getattr(occluder, "_rs", None)
     if rs is None:
-        o = rays_local[:, :3].astype(np.float64) + occluder.origin
-        return occluder.first_hits(o, rays_local[:, 3:].astype(np.float64))
+        o = rays_local[:, :3].astype(np.float64) / occluder.inv_scale + occluder.origin
+        return occluder.first_hits(o, rays_local[:, 3:].astype(np.float64) / occluder.inv_scale)
     r = rs.cast_rays(occluder._o3c.Tensor.from_numpy(np.ascontiguousarray(rays_local)))
     # uint32 "no hit" (0xFFFFFFFF) reads as -1 in int32.
     ids = r["primitive_ids"].numpy().view(np.int32)

@@ -287,7 +287,8 @@ def load_scene(path: str | Path) -> Scene:
         if f is None or len(f) == 0:
             continue  # point clouds and paths have no faces
         v = np.asarray(geom.vertices, np.float64)
-        v = v @ np.asarray(transform, float)[:3, :3].T + np.asarray(transform, float)[:3, 3]
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite input is reported below
+            v = v @ np.asarray(transform, float)[:3, :3].T + np.asarray(transform, float)[:3, 3]
         mat = _material_of(geom)
         key = (mat.name, mat.base_color)
         if key not in mat_index:

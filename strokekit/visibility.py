@@ -3,8 +3,9 @@ and bisection of every visibility change.
 
 A point X is visible when the open segment from X to the eye meets no triangle. The ray starts a
 small offset (relative to the scene radius, never absolute) from X toward the eye. The Embree
-scene is built in coordinates centred on the scene so float32 keeps its precision far from the
-origin.
+scene is built in coordinates centred on the scene and scaled to unit radius: float32 keeps its
+precision far from the origin, and a scene scaled or moved as a whole gives Embree the same
+numbers, so the same occlusion answers (the strokes are invariant under similarity).
 """
 
 from __future__ import annotations
@@ -28,7 +29,10 @@ class Occluder:
         self.scene = scene
         self.origin = scene.center.copy()
         self.radius = scene.radius
-        local = (scene.vertices - self.origin).astype(np.float32)
+        #: world -> Embree frame: (X - origin) * inv_scale. Ray parameters (t in units of the
+        #: direction) are the same in both frames.
+        self.inv_scale = 1.0 / scene.radius if scene.radius > 0 else 1.0
+        local = ((scene.vertices - self.origin) * self.inv_scale).astype(np.float32)
         self.backend = backend
         if backend in (None, "open3d"):
             try:
@@ -53,8 +57,8 @@ class Occluder:
         Callers offset the origins; the target end is open."""
         if len(origins) == 0:
             return np.zeros(0, bool)
-        o = origins - self.origin
-        d = targets - origins
+        o = (origins - self.origin) * self.inv_scale
+        d = (targets - origins) * self.inv_scale
         if self.backend == "open3d":
             rays = np.concatenate([o, d], axis=1).astype(np.float32)
             hit = self._rs.test_occlusions(self._o3c.Tensor(rays), tnear=0.0, tfar=1.0)
@@ -73,7 +77,8 @@ class Occluder:
         direction), 'primitive_ids' (-1 none), 'primitive_uvs'. open3d only."""
         if self.backend != "open3d":
             raise RuntimeError("first_hits needs the open3d backend")
-        rays = np.concatenate([origins - self.origin, directions], axis=1).astype(np.float32)
+        rays = np.concatenate([(origins - self.origin) * self.inv_scale, directions * self.inv_scale],
+                              axis=1).astype(np.float32)
         r = self._rs.cast_rays(self._o3c.Tensor(rays))
         ids = r["primitive_ids"].numpy().astype(np.int64)
         ids[ids == np.iinfo(np.uint32).max] = -1
