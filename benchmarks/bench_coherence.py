@@ -1,14 +1,20 @@
-"""Coherence bars of issue 3, side by side for the three tracking methods.
+"""Coherence bars of issue 3, side by side for the tracking methods.
 
 For each model: a 120-frame orbit (3 degrees per frame) at 1024 x 1024 and a dolly from 1x to 8x
 the framing distance; frames rendered with LineRenderer(scene, LineOptions()) (independent per
-frame), then tracked in order with method none (`--no-coherence`), seed (seed 000 baseline) and
-kalnins (default). Prints M1, M2 (median per pair), M4 (median / p95 / max px), M5 (octaves, with
-self-similar levels; raw u in brackets) on the orbit, M5 on the dolly, and the tracking time per
+frame), then tracked in order with method none (`--no-coherence`), seed (seed 000 baseline),
+kalnins (default) and kalnins-raw (the default method on the lines exactly as drawn: no removal
+of doubled contour pieces, no bridges of up to join_tol_px where chains are joined; with those
+two, the other rows see the lines less their doubled contour parts). Prints M1, M2 (median
+per pair), M4 (median / p95 / max px), M5 (octaves, with self-similar levels; raw u in
+brackets) on the orbit, M5 on the dolly, and the tracking time per
 frame against the lines-only time per frame (process CPU time, medians over frames, best of
 `--repeat` runs: the machine is shared, CPU time is steadier than wall time).
 
     python benchmarks/bench_coherence.py [--frames 120] [--models spot,fandisk,bunny] [--json out.json]
+        [--methods none,seed,kalnins,kalnins-raw]
+
+`strokes` is the mean number of strokes per tracked frame (the input lines: `strokes_in` in the JSON).
 """
 
 from __future__ import annotations
@@ -31,6 +37,10 @@ MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
 FILES = {"spot": "spot.obj", "fandisk": "fandisk.obj", "bunny": "stanford-bunny.obj", "cow": "cow.obj",
          "torus": "torus.STL"}
 METHODS = ("none", "seed", "kalnins")
+#: Rows: label -> TrackingOptions. "kalnins-raw": the default method on the lines exactly as drawn
+#: (no removal of doubled contour pieces, no bridges at joins), to show what those two steps give.
+VARIANTS = {"none": dict(method="none"), "seed": dict(method="seed"), "kalnins": dict(method="kalnins"),
+            "kalnins-raw": dict(method="kalnins", doubled_px=0.0, join_tol_px=1e-6)}
 BARS = "bars: M1 >= 0.95, M2 median <= 0.02, M4 median <= 0.5 px and p95 <= 1.5 px, M5 (dolly) <= 0.35, track <= +30%"
 
 
@@ -46,7 +56,7 @@ def render(renderer: LineRenderer, path) -> tuple[list, np.ndarray]:
 def track(frames, method: str, repeat: int) -> tuple[list, np.ndarray]:
     best = None
     for _ in range(repeat):
-        tr = Tracker(TrackingOptions(method=method))
+        tr = Tracker(TrackingOptions(**VARIANTS[method]))
         out, times = [], []
         for f in frames:
             t = time.process_time()
@@ -65,11 +75,12 @@ def main() -> None:
     ap.add_argument("--models", default="spot,fandisk,bunny")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default=None, help="also write the rows as JSON here")
+    ap.add_argument("--methods", default=",".join(VARIANTS), help="rows: " + ", ".join(VARIANTS))
     a = ap.parse_args()
     rows = []
     print(BARS)
-    head = (f"{'model':8} {'method':8} {'M1':>6} {'M2 med':>7} {'M4 med':>7} {'M4 p95':>7} {'M4 max':>7} "
-            f"{'M5 orb':>13} {'M5 dolly':>14} {'M7 med':>7} {'lines ms':>9} {'track ms':>9} {'+%':>6}")
+    head = (f"{'model':8} {'method':11} {'M1':>6} {'M2 med':>7} {'M4 med':>7} {'M4 p95':>7} {'M4 max':>7} "
+            f"{'M5 orb':>13} {'M5 dolly':>14} {'M7 med':>7} {'strokes':>7} {'lines ms':>9} {'track ms':>9} {'+%':>6}")
     print(head)
     for name in a.models.split(","):
         sc = load_scene(MODELS / FILES[name])
@@ -82,7 +93,7 @@ def main() -> None:
             if np.median(t2) < np.median(t_lines):
                 t_lines = t2
         dframes, _ = render(r, dolly)
-        for method in METHODS:
+        for method in a.methods.split(","):
             out, t_track = track(frames, method, a.repeat)
             _, ov = sequence_metrics(out)
             dout, _ = track(dframes, method, 1)
@@ -90,11 +101,13 @@ def main() -> None:
             lm, tm = 1e3 * np.median(t_lines), 1e3 * np.median(t_track)
             row = {"model": name, "method": method, "frames": a.frames, **ov, "dolly_M5": dv["M5"],
                    "dolly_M5_raw": dv["M5_raw"], "dolly_M1": dv["M1"], "dolly_M4_median": dv["M4_median"],
-                   "lines_ms": lm, "track_ms": tm, "track_overhead": tm / lm}
+                   "lines_ms": lm, "track_ms": tm, "track_overhead": tm / lm,
+                   "strokes_in": float(np.mean([len(f) for f in frames])),
+                   "strokes_out": float(np.mean([len(f) for f in out]))}
             rows.append(row)
-            print(f"{name:8} {method:8} {ov['M1']:6.3f} {ov['M2_median']:7.4f} {ov['M4_median']:7.2f} "
+            print(f"{name:8} {method:11} {ov['M1']:6.3f} {ov['M2_median']:7.4f} {ov['M4_median']:7.2f} "
                   f"{ov['M4_p95']:7.2f} {ov['M4_max']:7.2f} {ov['M5']:6.3f} ({ov['M5_raw']:4.2f}) "
-                  f"{dv['M5']:6.3f} ({dv['M5_raw']:5.2f}) {ov['M7_median']:7.2f} {lm:9.1f} {tm:9.2f} "
+                  f"{dv['M5']:6.3f} ({dv['M5_raw']:5.2f}) {ov['M7_median']:7.2f} {row['strokes_out']:7.0f} {lm:9.1f} {tm:9.2f} "
                   f"{100 * tm / lm:5.0f}%", flush=True)
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))

@@ -93,9 +93,10 @@ def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarra
     return X[i] * (1 - a)[:, None] + X[j] * a[:, None]
 
 
-def resample_strokes(strokes: Strokes, step_px: float = 1.0) -> Samples:
+def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool = True) -> Samples:
     """Resample every stroke into pieces of at most `step_px` px; one sample at the middle of each
-    piece, with u, X and position interpolated linearly along the polyline (vectorized)."""
+    piece, with u, X and position interpolated linearly along the polyline (vectorized).
+    with_surface=False leaves X at zero (screen-only uses, cheaper)."""
     if len(strokes) == 0 or len(strokes.points) == 0:
         z = np.zeros(0)
         zi = np.zeros(0, np.int64)
@@ -125,7 +126,7 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0) -> Samples:
     a = np.clip(a, 0.0, 1.0)
     P, U = strokes.points, strokes.u
     p = P[i] * (1 - a)[:, None] + P[j] * a[:, None]
-    Xs = surface_between(strokes, i, j, a)
+    Xs = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
     u = U[i] * (1 - a) + U[j] * a
     t = P[j] - P[i]
     tn = np.linalg.norm(t, axis=1)

@@ -1,13 +1,26 @@
 """Smooth (interpolated) contours: the zero set of g = n . (P - eye) with n interpolated from
 vertex normals (Hertzmann & Zorin 2000; Benard & Hertzmann tutorial section 6.2).
 
+Normals are split at creases (`split_normals`, Blender's "auto smooth" rule): the corners of a
+vertex share one normal only across edges whose dihedral angle is below the crease threshold, so
+each face interpolates its own corner normals and a flat face (all corners = its plane normal)
+holds no zero crossing. Along the edges where the corner normals differ on the two sides (split
+edges) the contour falls back to the mesh silhouette test, with the interpolated g of each side
+(`sharp_edge_contours`): the part of the edge where one side faces the eye and the other does
+not. Between two flat faces that is exactly the mesh silhouette; where a smooth side's g crosses
+zero on the edge, the piece starts at that very crossing, so the smooth contour runs on into the
+sharp edge.
+
 g is evaluated at the vertices and interpolated linearly along each mesh edge, so every face
 where g changes sign holds exactly one straight segment whose endpoints lie on two of its edges.
 The endpoint on edge e gets the chaining key V + e: the two faces of e produce the same key, so
-`chaining.chain_runs` links the segments across faces into smooth curves. Where the contour's
-screen tangent reverses (a cusp) the key is -1 instead, so strokes split there.
+`chaining.chain_runs` links the segments across faces into smooth curves. On a split edge each
+side has its own crossing, keyed V + E + 3 f + k (face f, its edge k); the sharp-edge piece that
+starts there carries the same key, and sharp-edge pieces meet each other at mesh vertex keys
+(< V). Where the contour's screen tangent reverses (a cusp) the key is -1 instead, so strokes
+split there.
 
-The crossing points are moved from the chord onto the Phong surface of the vertex normals
+The crossing points are moved from the chord onto the Phong surface of the corner normals
 (`phong_points`), which puts them on a sphere's analytic circle to second order. Their occlusion
 rays get a lift (`contour_lift`) because they graze the facets around them.
 
@@ -19,7 +32,7 @@ suggestive.py and intersections.py keep theirs there too.
 from __future__ import annotations
 
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -52,30 +65,120 @@ def scene_cache(scene: Scene) -> dict:
     return d
 
 
+def _corner_weights(scene: Scene) -> np.ndarray:
+    """(F, 3, 3) each face corner's contribution to its vertex normal: the face normal x the
+    corner angle (Thurmer & Wuthrich), so the result does not depend on how a region is
+    triangulated."""
+    v, f = scene.vertices, scene.faces
+    P = v[f]  # (F, 3, 3)
+    e1 = P[:, [1, 2, 0]] - P  # corner k: towards the next vertex
+    e2 = P[:, [2, 0, 1]] - P  # corner k: towards the previous vertex
+    cosang = np.einsum("fki,fki->fk", e1, e2) / (np.linalg.norm(e1, axis=2) * np.linalg.norm(e2, axis=2))
+    ang = np.arccos(np.clip(cosang, -1.0, 1.0))  # (F, 3)
+    return ang[..., None] * scene.face_normals[:, None, :]
+
+
+def _accumulate_normals(scene: Scene, node: np.ndarray, n_nodes: int) -> np.ndarray:
+    """(n_nodes, 3) unit normals: the corner weights summed per node (`node` (3F,) the node of
+    each corner in face-major order). A node whose face normals cancel (a needle fold) falls
+    back to its first face's normal."""
+    w = _corner_weights(scene)
+    n = np.stack([np.bincount(node, w[..., i].ravel(), minlength=n_nodes) for i in range(3)], axis=1)
+    ln = np.linalg.norm(n, axis=1)
+    bad = ln < 1e-12
+    if bad.any():
+        first = np.full(n_nodes, -1, np.int64)
+        first[node[::-1]] = np.arange(len(node))[::-1] // 3
+        n[bad] = scene.face_normals[first[bad]]
+        ln[bad] = 1.0
+    return n / ln[:, None]
+
+
 def vertex_normals(scene: Scene) -> np.ndarray:
     """(V, 3) unit vertex normals: face normals weighted by the face's corner angle at the vertex
     (Thurmer & Wuthrich), so the result does not depend on how a region is triangulated. Cached."""
     c = scene_cache(scene)
     if "vertex_normals" not in c:
-        v, f = scene.vertices, scene.faces
-        P = v[f]  # (F, 3, 3)
-        e1 = P[:, [1, 2, 0]] - P  # corner k: towards the next vertex
-        e2 = P[:, [2, 0, 1]] - P  # corner k: towards the previous vertex
-        cosang = np.einsum("fki,fki->fk", e1, e2) / (np.linalg.norm(e1, axis=2) * np.linalg.norm(e2, axis=2))
-        ang = np.arccos(np.clip(cosang, -1.0, 1.0))  # (F, 3)
-        w = ang[..., None] * scene.face_normals[:, None, :]  # (F, 3, 3)
-        idx = f.ravel()
-        n = np.stack([np.bincount(idx, w[..., i].ravel(), minlength=len(v)) for i in range(3)], axis=1)
-        ln = np.linalg.norm(n, axis=1)
-        # A vertex whose face normals cancel (a needle fold) falls back to its first face's normal.
-        bad = ln < 1e-12
-        if bad.any():
-            first = np.full(len(v), -1, np.int64)
-            first[f[::-1].ravel()] = np.repeat(np.arange(len(f))[::-1], 3)
-            n[bad] = scene.face_normals[first[bad]]
-            ln[bad] = 1.0
-        c["vertex_normals"] = n / ln[:, None]
+        c["vertex_normals"] = _accumulate_normals(scene, scene.faces.ravel(), len(scene.vertices))
     return c["vertex_normals"]
+
+
+@dataclass(frozen=True, eq=False)
+class SplitNormals:
+    """Vertex normals split at creases. The corners of a vertex are grouped into nodes: corners
+    of two faces sharing an edge are in one node when the edge is manifold and its dihedral
+    angle is at most the crease threshold (transitively, around the vertex).
+
+    corner (F, 3) node of each face corner; vertex (N,) the mesh vertex of each node; normals
+    (N, 3) unit angle-weighted normal of each node; split (E,) mesh edges whose two sides use
+    different nodes at one of its ends (plus every non-manifold edge): there the interpolated
+    normal jumps, and so does g."""
+
+    corner: np.ndarray
+    vertex: np.ndarray
+    normals: np.ndarray
+    split: np.ndarray
+
+    def view_function(self, scene: Scene, camera: Camera) -> np.ndarray:
+        """(N,) g = n . (P - eye) of every node (see `view_function`), with the nodes' positions
+        relative to the scene centre kept from the first call (they do not change per frame)."""
+        if camera.is_ortho:
+            return view_function(scene, camera, self.normals)
+        rel = self.__dict__.get("_centred")
+        if rel is None:
+            rel = scene.vertices[self.vertex] - scene.center
+            object.__setattr__(self, "_centred", rel)
+        return np.einsum("ij,ij->i", self.normals, rel) - self.normals @ (np.asarray(camera.eye, float) - scene.center)
+
+
+def split_normals(scene: Scene, crease_angle_deg: float = 60.0) -> SplitNormals:
+    """Corner normals split at creases sharper than `crease_angle_deg` (degrees), the "auto
+    smooth" rule of Blender and the split normals Freestyle users get. On a mesh without such
+    edges the nodes are the vertices and the normals are exactly `vertex_normals`. Cached per
+    threshold."""
+    key = ("split_normals", float(crease_angle_deg))
+    c = scene_cache(scene)
+    if key in c:
+        return c[key]
+    f = scene.faces
+    F, V, E = len(f), len(scene.vertices), len(scene.edges)
+    count = scene.edge_face_count
+    gentle = scene.is_manifold & ~scene.crease_mask(crease_angle_deg)
+    if not ((count >= 2) & ~gentle).any():
+        out = SplitNormals(corner=f, vertex=np.arange(V), normals=vertex_normals(scene), split=np.zeros(E, bool))
+        c[key] = out
+        return out
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    # Link the two corners of each end of every gentle edge; nodes are the connected groups.
+    sel = np.flatnonzero(gentle)
+    ev, ef = scene.edges[sel], scene.edge_faces[sel]
+    rows, cols = [], []
+    for end in (0, 1):
+        v = ev[:, end][:, None]
+        rows.append(3 * ef[:, 0] + np.argmax(f[ef[:, 0]] == v, axis=1))
+        cols.append(3 * ef[:, 1] + np.argmax(f[ef[:, 1]] == v, axis=1))
+    r, cc = np.concatenate(rows), np.concatenate(cols)
+    g = coo_matrix((np.ones(len(r)), (r, cc)), shape=(3 * F, 3 * F))
+    n_nodes, node = connected_components(g, directed=False)
+    node = node.astype(np.int64)
+    vertex = np.empty(n_nodes, np.int64)
+    vertex[node] = f.ravel()
+    corner = node.reshape(F, 3)
+    # Split edges: the two faces use different nodes at one end (non-manifold: always).
+    split = count > 2
+    m = np.flatnonzero(count == 2)
+    em, efm = scene.edges[m], scene.edge_faces[m]
+    for end in (0, 1):
+        v = em[:, end][:, None]
+        n0 = corner[efm[:, 0], np.argmax(f[efm[:, 0]] == v, axis=1)]
+        n1 = corner[efm[:, 1], np.argmax(f[efm[:, 1]] == v, axis=1)]
+        split[m] |= n0 != n1
+    out = SplitNormals(corner=corner, vertex=vertex, normals=_accumulate_normals(scene, node, n_nodes),
+                       split=split)
+    c[key] = out
+    return out
 
 
 def face_edges(scene: Scene) -> np.ndarray:
@@ -92,66 +195,94 @@ def face_edges(scene: Scene) -> np.ndarray:
     return c["face_edges"]
 
 
-def face_scale(scene: Scene) -> np.ndarray:
-    """(F,) a face's chord error scale in world units: longest edge x spread of its vertex normals
-    (|n_i - n_j| max, about the angle they span). A straight chord between two surface points a
-    distance L apart whose normals turn by theta departs from the smooth surface by about
+def face_scale(scene: Scene, crease_angle_deg: float | None = None) -> np.ndarray:
+    """(F,) a face's chord error scale in world units: longest edge x spread of its corner normals
+    (|n_i - n_j| max, about the angle they span; the vertex normals, or with `crease_angle_deg`
+    the normals split at creases, `split_normals`). A straight chord between two surface points
+    a distance L apart whose normals turn by theta departs from the smooth surface by about
     L theta / 8. Cached."""
     c = scene_cache(scene)
-    if "face_scale" not in c:
+    key = "face_scale" if crease_angle_deg is None else ("face_scale", float(crease_angle_deg))
+    if key not in c:
         v, f = scene.vertices, scene.faces
-        nv = vertex_normals(scene)
+        if crease_angle_deg is None:
+            N = vertex_normals(scene)[f]
+        else:
+            sn = split_normals(scene, crease_angle_deg)
+            N = sn.normals[sn.corner]
         L = np.max(np.stack([np.linalg.norm(v[f[:, i]] - v[f[:, (i + 1) % 3]], axis=1) for i in range(3)]), axis=0)
-        spread = np.max(np.stack([np.linalg.norm(nv[f[:, i]] - nv[f[:, (i + 1) % 3]], axis=1) for i in range(3)]),
-                        axis=0)
-        c["face_scale"] = L * spread
-    return c["face_scale"]
+        spread = np.max(np.stack([np.linalg.norm(N[:, i] - N[:, (i + 1) % 3], axis=1) for i in range(3)]), axis=0)
+        c[key] = L * spread
+    return c[key]
 
 
-def view_function(scene: Scene, camera: Camera, normals: np.ndarray | None = None) -> np.ndarray:
-    """(V,) g = n . (P - eye) (perspective) or n . fwd (orthographic) at every vertex: > 0 where
-    the vertex normal faces away from the eye."""
+def flat_faces(scene: Scene, crease_angle_deg: float = 60.0) -> np.ndarray:
+    """(F,) faces whose corner normals, split at `crease_angle_deg`, are all their plane normal
+    (within 1e-6 of the face size): a box's faces, a cylinder's caps. Cached."""
+    c = scene_cache(scene)
+    key = ("flat_faces", float(crease_angle_deg))
+    if key not in c:
+        c[key] = face_scale(scene, crease_angle_deg) <= 1e-6 * face_size(scene)
+    return c[key]
+
+
+def view_function(scene: Scene, camera: Camera, normals: np.ndarray | None = None,
+                  vertex: np.ndarray | None = None) -> np.ndarray:
+    """(N,) g = n . (P - eye) (perspective) or n . fwd (orthographic) per node: > 0 where the
+    normal faces away from the eye. Nodes are the vertices (normals (V, 3), default the vertex
+    normals) or, with `vertex` (N,) the mesh vertex of each node, split-normal nodes."""
     n = vertex_normals(scene) if normals is None else normals
     if camera.is_ortho:
         _, _, fwd = camera.basis
         return n @ fwd
     # Relative to the scene centre for precision far from the origin.
     c = scene.center
-    return np.einsum("ij,ij->i", n, scene.vertices - c) - n @ (np.asarray(camera.eye, float) - c)
+    rel = scene.vertices - c if vertex is None else scene.vertices[vertex] - c
+    return np.einsum("ij,ij->i", n, rel) - n @ (np.asarray(camera.eye, float) - c)
 
 
 @dataclass(frozen=True, eq=False)
 class ZeroSet:
-    """The zero set of a per-vertex function, one straight segment per face where it changes sign.
+    """The zero set of a per-node function, one straight segment per face where it changes sign.
 
-    faces (S,) the faces holding a segment; edges (C,) the mesh edges the set crosses (each once),
-    t (C,) the crossing parameter on edge e = (i, j), i < j: P_i + t (P_j - P_i); ia, ib (S,) the
-    segment's start and end as indices into `edges`, oriented so that the side g > 0 is on the
-    right when the face is seen from its front (one consistent orientation along every curve)."""
+    faces (S,) the faces holding a segment; edges (C,) the mesh edge of each crossing point;
+    t (C,) the crossing parameter on edge e = (i, j), i < j: P_i + t (P_j - P_i); ends (C, 2) the
+    nodes at i and j (the vertices themselves unless normals are split); keys (C,) chaining keys:
+    V + e, or V + E + 3 f + k on a split edge (each side, face f with edge k, has its own
+    crossing); ia, ib (S,) the segment's start and end as indices into the crossings, oriented
+    so that the side g > 0 is on the right when the face is seen from its front (one consistent
+    orientation along every curve)."""
 
     faces: np.ndarray
     edges: np.ndarray
     t: np.ndarray
     ia: np.ndarray
     ib: np.ndarray
+    ends: np.ndarray
+    keys: np.ndarray
 
     def __len__(self) -> int:
         return len(self.faces)
 
     def interpolate(self, scene: Scene, values: np.ndarray) -> np.ndarray:
-        """(C, k) per-vertex `values` (V, k) linearly interpolated at the crossing points."""
-        e = scene.edges[self.edges]
+        """(C, k) per-node `values` (N, k) linearly interpolated at the crossing points (nodes
+        are vertices unless the set was built on split normals)."""
         t = self.t[:, None]
-        return values[e[:, 0]] * (1 - t) + values[e[:, 1]] * t
+        return values[self.ends[:, 0]] * (1 - t) + values[self.ends[:, 1]] * t
 
 
-def zero_set_segments(scene: Scene, g: np.ndarray, face_mask: np.ndarray | None = None) -> ZeroSet:
-    """The zero set of the vertex function g (V,), interpolated linearly along edges, on the faces
-    where g changes sign (restricted to `face_mask` (F,) if given). g == 0 counts as negative, so
-    every face has 0 or 2 crossing edges and neighbours agree on the crossing of a shared edge."""
+def zero_set_segments(scene: Scene, g: np.ndarray, face_mask: np.ndarray | None = None,
+                      corner: np.ndarray | None = None, split: np.ndarray | None = None) -> ZeroSet:
+    """The zero set of the node function g (N,), interpolated linearly along edges, on the faces
+    where g changes sign (restricted to `face_mask` (F,) if given). Nodes are the vertices, or
+    with `corner` (F, 3) the node of each face corner (split normals) and `split` (E,) the edges
+    whose sides use different nodes. g == 0 counts as negative, so every face has 0 or 2 crossing
+    edges and neighbours agree on the crossing of a shared unsplit edge."""
     f = scene.faces
+    cn = f if corner is None else corner
+    V, E = len(scene.vertices), len(scene.edges)
     pos = g > 0
-    fpos = pos[f]  # (F, 3)
+    fpos = pos[cn]  # (F, 3)
     npos = fpos.sum(axis=1, dtype=np.int8)
     has = (npos == 1) | (npos == 2)
     if face_mask is not None:
@@ -161,38 +292,48 @@ def zero_set_segments(scene: Scene, g: np.ndarray, face_mask: np.ndarray | None 
     lone_pos = npos[faces] == 1
     # The lone vertex L has the sign the other two do not have.
     L = np.where(lone_pos, np.argmax(fp, axis=1), np.argmin(fp, axis=1))
-    fe = face_edges(scene)
-    ea = fe[faces, (L + 2) % 3]  # edge (v_{L-1}, v_L)
-    eb = fe[faces, L]  # edge (v_L, v_{L+1})
-    # From the crossing on ea to the one on eb the lone vertex lies on the right.
-    a_edge = np.where(lone_pos, ea, eb)
-    b_edge = np.where(lone_pos, eb, ea)
-    edges, inv = np.unique(np.concatenate([a_edge, b_edge]), return_inverse=True)
-    n = len(faces)
-    ev = scene.edges[edges]
-    g0, g1 = g[ev[:, 0]], g[ev[:, 1]]
+    ka = (L + 2) % 3  # face edge (v_{L-1}, v_L)
+    kb = L  # face edge (v_L, v_{L+1})
+    # From the crossing on ka to the one on kb the lone vertex lies on the right.
+    k = np.concatenate([np.where(lone_pos, ka, kb), np.where(lone_pos, kb, ka)])
+    ff = np.concatenate([faces, faces])
+    e = face_edges(scene)[ff, k]
+    key = V + e.astype(np.int64)
+    if split is not None:
+        key = np.where(split[e], V + E + 3 * ff.astype(np.int64) + k, key)
+    keys, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    cf, ck = ff[first], k[first]
+    a, na, nb = f[cf, ck], cn[cf, ck], cn[cf, (ck + 1) % 3]
+    lo_first = a < f[cf, (ck + 1) % 3]
+    ends = np.stack([np.where(lo_first, na, nb), np.where(lo_first, nb, na)], axis=1)
+    g0, g1 = g[ends[:, 0]], g[ends[:, 1]]
     t = g0 / (g0 - g1)  # g0 and g1 have opposite signs (or one is 0): no division by zero
-    return ZeroSet(faces=faces, edges=edges, t=t, ia=inv[:n], ib=inv[n:])
+    n = len(faces)
+    inv = inv.ravel()
+    return ZeroSet(faces=faces, edges=e[first], t=t, ia=inv[:n], ib=inv[n:], ends=ends, keys=keys)
+
+
+def _phong(vi, vj, ni, nj, t, alpha=0.5):
+    p = vi + t * (vj - vi)
+    di = np.einsum("ij,ij->i", vi - p, ni)[:, None] * ni
+    dj = np.einsum("ij,ij->i", vj - p, nj)[:, None] * nj
+    return p + alpha * ((1 - t) * di + t * dj)
 
 
 def phong_points(scene: Scene, zs: ZeroSet, normals: np.ndarray, alpha: float = 0.5) -> np.ndarray:
     """(C, 3) the crossing points of `zs`, lifted from the chord onto the smooth surface that
-    the vertex normals describe (Phong tessellation, Boubekeur & Alexa 2008, on the edge).
+    the node normals (N, 3) describe (Phong tessellation, Boubekeur & Alexa 2008, on the edge).
 
     p = linear point; each end vertex i contributes its tangent-plane projection
     pi_i(p) = p + ((v_i - p) . n_i) n_i; P = p + alpha ((1-t) (pi_i - p) + t (pi_j - p)).
     alpha = 1/2 is the quadratic whose end tangents lie in the vertex tangent planes: it puts a
     chord of a circle back on the circle to second order (the chord's sagitta is L^2 k / 8, the
     correction is alpha L^2 k / 4), so contour points land on the smooth surface, not on its
-    polyhedral approximation."""
+    polyhedral approximation. Where both end normals are the plane normal of a flat face the
+    point stays on the edge."""
     e = scene.edges[zs.edges]
-    vi, vj = scene.vertices[e[:, 0]], scene.vertices[e[:, 1]]
-    t = zs.t[:, None]
-    p = vi + t * (vj - vi)
-    ni, nj = normals[e[:, 0]], normals[e[:, 1]]
-    di = np.einsum("ij,ij->i", vi - p, ni)[:, None] * ni
-    dj = np.einsum("ij,ij->i", vj - p, nj)[:, None] * nj
-    return p + alpha * ((1 - t) * di + t * dj)
+    return _phong(scene.vertices[e[:, 0]], scene.vertices[e[:, 1]], normals[zs.ends[:, 0]],
+                  normals[zs.ends[:, 1]], zs.t[:, None], alpha)
 
 
 def screen_side(camera: Camera, points: np.ndarray, tangents: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -216,31 +357,201 @@ def screen_side(camera: Camera, points: np.ndarray, tangents: np.ndarray, normal
 
 
 def smooth_contour_edges(scene: Scene, camera: Camera, lift_gain: float = LIFT_GAIN,
-                         split_cusps: bool = True) -> FeatureEdges:
-    """Smooth contour segments of one frame as FeatureEdges of kind "smooth_contour".
+                         split_cusps: bool = True, crease_angle_deg: float = 60.0,
+                         occlusion_offset: float = 1e-5) -> FeatureEdges:
+    """Smooth contour segments of one frame as FeatureEdges of kind "smooth_contour" (the first
+    element of `smooth_contours`)."""
+    return smooth_contours(scene, camera, lift_gain, split_cusps, crease_angle_deg, occlusion_offset)[0]
 
-    a, b (S, 3) world endpoints: the crossing points on two mesh edges of the face, moved onto the
-    Phong surface (`phong_points`), oriented consistently along each curve; va, vb = V + edge
-    index (chaining keys), or -1 at a cusp so that strokes split there; face (S,) the face holding
-    the segment; lift (S, 3) from `contour_lift`."""
-    V = len(scene.vertices)
-    nv = vertex_normals(scene)
-    g = view_function(scene, camera, nv)
-    zs = zero_set_segments(scene, g)
-    if len(zs) == 0:
-        return FeatureEdges.empty()
-    pts = phong_points(scene, zs, nv)
-    nrm = zs.interpolate(scene, nv)
-    a, b = pts[zs.ia], pts[zs.ib]
-    nm = nrm[zs.ia] + nrm[zs.ib]
-    nm /= np.maximum(np.linalg.norm(nm, axis=1), 1e-300)[:, None]
-    lift = contour_lift(scene, camera, zs.faces, 0.5 * (a + b), nm, lift_gain)
-    key = V + zs.edges.astype(np.int64)
-    if split_cusps:
-        key = np.where(cusp_mask(camera, zs, a, b, nm), -1, key)
-    kind = np.full(len(zs), KIND_INDEX["smooth_contour"], np.int8)
-    return FeatureEdges(a=a, b=b, kind=kind, va=key[zs.ia], vb=key[zs.ib], face=zs.faces.astype(np.int64),
-                        lift=lift)
+
+def smooth_contours(scene: Scene, camera: Camera, lift_gain: float = LIFT_GAIN, split_cusps: bool = True,
+                    crease_angle_deg: float = 60.0, occlusion_offset: float = 1e-5
+                    ) -> tuple[FeatureEdges, np.ndarray]:
+    """Smooth contours of one frame with normals split at creases sharper than `crease_angle_deg`.
+
+    Returns (FeatureEdges of kind "smooth_contour", (K,) indices of the mesh edges that a
+    sharp-edge piece covers whole; feature_edges gives those no other kind, as a mesh silhouette
+    overrides crease / material / border).
+
+    Segments inside faces: a, b (S, 3) world endpoints, the crossing points on two mesh edges of
+    the face moved onto the Phong surface of the corner normals (`phong_points`), oriented
+    consistently along each curve; va, vb the crossings' chaining keys (`ZeroSet.keys`), or -1 at
+    a cusp so that strokes split there; face (S,) the face holding the segment; lift (S, 3) from
+    `contour_lift`. Flat faces (`flat_faces`) hold none. Then the pieces of `sharp_edge_contours`
+    along split edges (their lift is described there; `occlusion_offset` as LineOptions'), with
+    key -1 where the screen tangent reverses at a junction with a piece (`_split_reversals`)."""
+    sn = split_normals(scene, crease_angle_deg)
+    g = sn.view_function(scene, camera)
+    flat = flat_faces(scene, crease_angle_deg)
+    # g is constant on a flat face: no crossing there, whatever the rounding when it is edge-on.
+    zs = zero_set_segments(scene, g, face_mask=~flat if flat.any() else None, corner=sn.corner, split=sn.split)
+    parts = []
+    if len(zs):
+        pts = phong_points(scene, zs, sn.normals)
+        nrm = zs.interpolate(scene, sn.normals)
+        a, b = pts[zs.ia], pts[zs.ib]
+        nm = nrm[zs.ia] + nrm[zs.ib]
+        nm /= np.maximum(np.linalg.norm(nm, axis=1), 1e-300)[:, None]
+        lift = contour_lift(scene, camera, zs.faces, 0.5 * (a + b), nm, lift_gain,
+                            scale=face_scale(scene, crease_angle_deg))
+        key = zs.keys
+        if split_cusps:
+            key = np.where(cusp_mask(camera, zs, a, b, nm), -1, key)
+        kind = np.full(len(zs), KIND_INDEX["smooth_contour"], np.int8)
+        parts.append(FeatureEdges(a=a, b=b, kind=kind, va=key[zs.ia], vb=key[zs.ib],
+                                  face=zs.faces.astype(np.int64), lift=lift))
+    sharp, full = sharp_edge_contours(scene, camera, sn, g, occlusion_offset, lift_gain,
+                                      face_scale(scene, crease_angle_deg), flat)
+    parts.append(sharp)
+    fe = FeatureEdges.concat(parts)
+    if split_cusps and len(sharp):
+        fe = _split_reversals(camera, fe, len(fe) - len(sharp))
+    return fe, full
+
+
+def _split_reversals(camera: Camera, fe: FeatureEdges, first_piece: int) -> FeatureEdges:
+    """`fe` with key -1 at every junction of two segments where the screen tangent reverses
+    (both leave the shared key on the same side) and one of them is a sharp-edge piece (index
+    >= `first_piece`): the cusps of the contour along sharp edges (smooth-smooth junctions had
+    theirs from `cusp_mask`, with the same test)."""
+    S = len(fe)
+    pa, _ = camera.project(fe.a)
+    pb, _ = camera.project(fe.b)
+    key = np.concatenate([fe.va, fe.vb])
+    away = np.concatenate([pb - pa, pa - pb])  # screen direction from each end into its segment
+    is_piece = np.tile(np.arange(S) >= first_piece, 2)
+    ends = np.flatnonzero(key >= 0)
+    order = ends[np.argsort(key[ends], kind="stable")]
+    ks = key[order]
+    start = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    count = np.diff(np.r_[start, len(ks)])
+    p0, p1 = order[start[count == 2]], order[start[count == 2] + 1]
+    cusp = (np.einsum("ij,ij->i", away[p0], away[p1]) > 0) & (is_piece[p0] | is_piece[p1])
+    key = key.copy()
+    key[p0[cusp]] = -1
+    key[p1[cusp]] = -1
+    return replace(fe, va=key[:S], vb=key[S:])
+
+
+def sharp_edge_contours(scene: Scene, camera: Camera, sn: SplitNormals, g: np.ndarray,
+                        occlusion_offset: float = 1e-5, lift_gain: float = LIFT_GAIN,
+                        scale: np.ndarray | None = None, flat: np.ndarray | None = None
+                        ) -> tuple[FeatureEdges, np.ndarray]:
+    """Contour pieces along the split manifold edges (kind "smooth_contour"), and (K,) the edges
+    they cover whole.
+
+    Each side s of a split edge (i, j) has its own g_s, linear along the edge from its corner
+    nodes; the contour is where the two sides disagree, (g_0 > 0) != (g_1 > 0): one side faces
+    the eye and the other does not. Two flat sides have constant g, so this is the mesh
+    silhouette test and the piece is the whole edge (endpoints the vertices exactly). Where a
+    side's g crosses zero on the edge (a smooth side) the piece ends at that crossing, at the same
+    point and with the same key (V + E + 3 f + k) as the smooth segment of that face, so chaining
+    goes on from one to the other; whole-edge ends carry the vertex ids, as mesh silhouettes.
+    face: the side facing the eye along the piece. `g` (N,) the view function of the nodes of
+    `sn`; `scale` (F,) the chord error scales for `contour_lift`; `flat` (F,) faces whose side
+    takes its facing from features.front_facing (the mesh silhouette's own test, so that an
+    edge-on face is decided as in mesh mode; default `flat_faces`).
+
+    Occlusion lift: where one side is flat (its corner normals are its plane normal and it has
+    an unsplit edge: a box, a cylinder's cap) that of a mesh silhouette (lines.surface_lift, `occlusion_offset` x scene
+    radius), so flat geometry is drawn exactly as in mesh mode. Between two curved sides (noisy
+    scans: the bunny has 110 edges sharper than 60 degrees) the ray grazes the 1-ring like a
+    smooth contour's and gets `contour_lift` (measured on the bunny: with the mesh lift 0.3 % of
+    the smooth contour is wrongly hidden, nearly all on such pieces, hit by adjacent faces a few
+    hundredths of a face size away)."""
+    E_s = np.flatnonzero(sn.split & scene.is_manifold)
+    if len(E_s) == 0:
+        return FeatureEdges.empty(), np.zeros(0, np.int64)
+    f = scene.faces
+    V, E = len(scene.vertices), len(scene.edges)
+    ev, ef = scene.edges[E_s], scene.edge_faces[E_s]
+    fe = face_edges(scene)
+    P = scene.vertices
+    vi, vj = P[ev[:, 0]], P[ev[:, 1]]
+    from .features import front_facing
+
+    flat = flat_faces(scene, 60.0) if flat is None else flat
+    front = front_facing(scene, camera)
+    cuts, keys, gs, pts, nodes, crosses = [], [], [], [], [], []
+    for side in (0, 1):
+        fs = ef[:, side]
+        k = np.argmax(fe[fs] == E_s[:, None], axis=1)  # the face's local edge index of e
+        na, nb = sn.corner[fs, k], sn.corner[fs, (k + 1) % 3]
+        lo_first = f[fs, k] == ev[:, 0]
+        nlo, nhi = np.where(lo_first, na, nb), np.where(lo_first, nb, na)
+        g0, g1 = g[nlo], g[nhi]
+        # A flat side: g is constant along the edge, its sign that of the mesh facing test.
+        fl = flat[fs]
+        if fl.any():
+            const = np.where(front[fs[fl]], -1.0, 1.0)
+            g0, g1 = g0.copy(), g1.copy()
+            g0[fl], g1[fl] = const, const
+        cross = (g0 > 0) != (g1 > 0)
+        # Same formula and operands as zero_set_segments: bit-identical t and point.
+        t = np.where(cross, g0 / np.where(cross, g0 - g1, 1.0), 1.0)
+        cuts.append(t)
+        keys.append(V + E + 3 * fs.astype(np.int64) + k)
+        gs.append((g0, g1))
+        nodes.append((nlo, nhi))
+        crosses.append(cross)
+        pts.append(_phong(vi, vj, sn.normals[nlo], sn.normals[nhi], t[:, None]))
+    S = len(E_s)
+    # Breakpoints along each edge: lo vertex, side 0 crossing, side 1 crossing, hi vertex.
+    bs = np.stack([np.zeros(S), cuts[0], cuts[1], np.ones(S)], axis=1)
+    bkey = np.stack([ev[:, 0].astype(np.int64), keys[0], keys[1], ev[:, 1].astype(np.int64)], axis=1)
+    bpt = np.stack([vi, pts[0], pts[1], vj], axis=1)  # (S, 4, 3)
+    # Ties broken by type; a side without a crossing has a placeholder at s = 1 that sorts after
+    # the hi vertex, so that no kept interval ends on it.
+    typ = np.broadcast_to(np.arange(4), bs.shape)
+    placeholder = np.stack([np.zeros(S, bool), ~crosses[0], ~crosses[1], np.zeros(S, bool)], axis=1)
+    order = np.lexsort((typ, placeholder, bs), axis=-1)
+    rows = np.arange(S)[:, None]
+    bs, bkey, bpt = bs[rows, order], bkey[rows, order], bpt[rows, order]
+    sa, sb = bs[:, :-1], bs[:, 1:]  # (S, 3) intervals
+    m = 0.5 * (sa + sb)
+    pos0 = (gs[0][0][:, None] + m * (gs[0][1] - gs[0][0])[:, None]) > 0
+    pos1 = (gs[1][0][:, None] + m * (gs[1][1] - gs[1][0])[:, None]) > 0
+    keep = (sb > sa) & (pos0 != pos1)
+    r, c = np.nonzero(keep)
+    if len(r) == 0:
+        return FeatureEdges.empty(), np.zeros(0, np.int64)
+    face = np.where(pos0[r, c], ef[r, 1], ef[r, 0]).astype(np.int64)
+    a, b = bpt[r, c], bpt[r, c + 1]
+    out = FeatureEdges(a=a, b=b, kind=np.full(len(r), KIND_INDEX["smooth_contour"], np.int8),
+                       va=bkey[r, c], vb=bkey[r, c + 1], face=face)
+    # The occlusion lift of a mesh silhouette (along the eye-facing face normals), looked up by
+    # the edge's vertex ids.
+    from .lines import surface_lift
+
+    probe = FeatureEdges(a=a, b=b, kind=out.kind, va=ev[r, 0].astype(np.int64), vb=ev[r, 1].astype(np.int64),
+                         face=face)
+    lift = surface_lift(scene, probe, camera, occlusion_offset)
+    scale = face_scale(scene) if scale is None else scale
+    fsize = face_size(scene)
+
+    def curved(faces):
+        # Flat: corner normals all the plane normal, and part of a region (one of its edges
+        # unsplit; a scan's spike triangle cut off by sharp edges all round has its own normal).
+        return (scale[faces] > 1e-6 * fsize[faces]) | sn.split[fe[faces]].all(axis=1)
+
+    # A piece that ends on a smooth crossing grazes the smooth side there as the smooth contour
+    # does (the polygon's own silhouette vertex is up to half an edge away): same lift.
+    at_crossing = (bkey[r, c] >= V) | (bkey[r, c + 1] >= V)
+    fold = (curved(ef[r, 0]) & curved(ef[r, 1])) | at_crossing
+    if fold.any():
+        # The interpolated normal of the side that faces the eye (the mean of both sides cancels
+        # at the needle folds of scans and would put the origin inside the surface).
+        mid = m[r, c][:, None]
+        front1 = pos0[r, c]
+        lo = np.where(front1, nodes[1][0][r], nodes[0][0][r])
+        hi = np.where(front1, nodes[1][1][r], nodes[0][1][r])
+        nrm = sn.normals[lo] * (1 - mid) + sn.normals[hi] * mid
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=1), 1e-300)[:, None]
+        big = np.where(fsize[ef[r, 0]] >= fsize[ef[r, 1]], ef[r, 0], ef[r, 1])
+        lift[fold] = contour_lift(scene, camera, big[fold], 0.5 * (a[fold] + b[fold]), nrm[fold], lift_gain,
+                                  scale=scale)
+    full = E_s[np.unique(r[(sa[r, c] == 0.0) & (sb[r, c] == 1.0)])]
+    return replace(out, lift=lift), full
 
 
 def face_size(scene: Scene) -> np.ndarray:
@@ -254,7 +565,8 @@ def face_size(scene: Scene) -> np.ndarray:
 
 
 def contour_lift(scene: Scene, camera: Camera, faces: np.ndarray, mid: np.ndarray, normal: np.ndarray,
-                 gain: float = LIFT_GAIN, view_gain: float | None = None) -> np.ndarray:
+                 gain: float = LIFT_GAIN, view_gain: float | None = None,
+                 scale: np.ndarray | None = None) -> np.ndarray:
     """(S, 3) occlusion-ray lift of segments that lie on `faces` near world points `mid` where the
     surface normal is `normal` (unit): `gain` x (chord error scale along the normal + face size
     toward the eye), plus 1e-6 scene radii along the normal.
@@ -263,15 +575,20 @@ def contour_lift(scene: Scene, camera: Camera, faces: np.ndarray, mid: np.ndarra
     from that surface by up to about a chord error (`face_scale` / 8), so (1) the origin must rise
     above the facets by a few chord errors, and (2) a grazing ray stays within that band for about
     a face length, so hits closer than that along the ray are the point's own neighbourhood, not
-    an occluder. Moving along the line of sight does not move the point's projection."""
+    an occluder. Moving along the line of sight does not move the point's projection.
+    `scale` (F,): the chord error scales to use (default `face_scale(scene)`, vertex normals)."""
+    view = (VIEW_LIFT_GAIN if view_gain is None else view_gain) * face_size(scene)[faces]
     if camera.is_ortho:
         _, _, fwd = camera.basis
         toward = np.broadcast_to(-fwd, mid.shape)
     else:
         toward = np.asarray(camera.eye, float) - mid
-        toward = toward / np.maximum(np.linalg.norm(toward, axis=1), 1e-300)[:, None]
-    return (normal * (gain * face_scale(scene)[faces] + 1e-6 * scene.radius)[:, None]
-            + toward * ((VIEW_LIFT_GAIN if view_gain is None else view_gain) * face_size(scene)[faces])[:, None])
+        dist = np.linalg.norm(toward, axis=1)
+        toward = toward / np.maximum(dist, 1e-300)[:, None]
+        # Long faces (a cylinder's sides span its height) must not carry the origin past the eye.
+        view = np.minimum(view, 0.5 * dist)
+    scale = face_scale(scene) if scale is None else scale
+    return normal * (gain * scale[faces] + 1e-6 * scene.radius)[:, None] + toward * view[:, None]
 
 
 def cusp_mask(camera: Camera, zs: ZeroSet, a: np.ndarray, b: np.ndarray, normal: np.ndarray) -> np.ndarray:

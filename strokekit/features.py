@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from .camera import Camera
-from .contours import face_edges, face_scale, face_size, smooth_contour_edges
+from .contours import face_edges, face_scale, face_size, smooth_contours, split_normals
 from .intersections import intersection_edges
 from .model import KIND_INDEX, FeatureEdges
 from .options import LineOptions
@@ -42,10 +42,13 @@ def static_feature_mask(scene: Scene, options: LineOptions) -> dict[str, np.ndar
     if "material" in options.kinds and len(scene.materials) > 1:
         out["material"] = scene.is_material_boundary
     # Warm the per-scene caches of the lines inside faces now, so no frame pays for them: vertex
-    # normals and the face -> edge table (smooth contours), curvature tensors (suggestive), the
-    # intersection segments (BVH + narrow phase). They live in contours.scene_cache(scene).
+    # normals, normals split at creases and the face -> edge table (smooth contours), curvature
+    # tensors (suggestive), the intersection segments (BVH + narrow phase). They live in
+    # contours.scene_cache(scene).
     if wants_smooth_contours(options) or "suggestive" in options.kinds:
         face_edges(scene), face_scale(scene), face_size(scene)
+    if wants_smooth_contours(options):
+        split_normals(scene, options.crease_angle_deg), face_scale(scene, options.crease_angle_deg)
     if "suggestive" in options.kinds:
         curvature_tensors(scene, SMOOTH_PASSES)
     if "intersection" in options.kinds:
@@ -69,7 +72,10 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     silhouette > border > nonmanifold > crease > material; then the lines inside faces, each with
     its own occlusion-ray lift: smooth contours (`wants_smooth_contours`; they replace the mesh
     silhouettes when contours == "smooth"), suggestive contours and intersection lines, when
-    their kinds are selected. Their va/vb chaining keys are >= V (or -1 where a stroke must end)."""
+    their kinds are selected. Their va/vb chaining keys are >= V (or -1 where a stroke must end),
+    except the smooth contour's pieces along sharp edges (contours.sharp_edge_contours), which
+    meet each other at mesh vertex ids; a mesh edge such a piece covers whole gets no other kind,
+    as a mesh silhouette edge gets none."""
     static = static_feature_mask(scene, options) if static is None else static
     E = len(scene.edges)
     kind = np.full(E, -1, np.int8)
@@ -79,6 +85,13 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
             kind[static[name]] = KIND_INDEX[name]
     if "silhouette" in options.kinds and options.contours == "mesh":
         kind[silhouette_mask(scene, camera)] = KIND_INDEX["silhouette"]
+    smooth = None
+    if wants_smooth_contours(options):
+        smooth, whole = smooth_contours(scene, camera, crease_angle_deg=options.crease_angle_deg,
+                                        occlusion_offset=options.occlusion_offset)
+        # The contour takes the whole edge from the lower kinds (as a mesh silhouette does; a mesh
+        # silhouette drawn beside smooth contours keeps its edge).
+        kind[whole] = np.where(kind[whole] == KIND_INDEX["silhouette"], kind[whole], -1)
     sel = np.flatnonzero(kind >= 0)
     e = scene.edges[sel]
     # The face on the front side carries the surface point of a silhouette; the first face otherwise.
@@ -93,8 +106,8 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     mesh = FeatureEdges(a=v[e[:, 0]], b=v[e[:, 1]], kind=kind[sel], va=e[:, 0].astype(np.int64),
                         vb=e[:, 1].astype(np.int64), face=face)
     parts = [mesh]
-    if wants_smooth_contours(options):
-        parts.append(smooth_contour_edges(scene, camera))
+    if smooth is not None:
+        parts.append(smooth)
     if "suggestive" in options.kinds:
         parts.append(suggestive_contour_edges(scene, camera, options))
     if "intersection" in options.kinds:

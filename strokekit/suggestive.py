@@ -168,7 +168,7 @@ def suggestive_contour_edges(scene: Scene, camera: Camera, options: LineOptions 
         out = FeatureEdges.empty()
         return (out, test) if return_tests else out
     pts = zs.interpolate(scene, scene.vertices)
-    key = len(scene.vertices) + zs.edges.astype(np.int64)
+    key = zs.keys  # V + edge index
     # Lines on front faces: a ray to the eye leaves the face on its open side; a small lift
     # along the face normal keeps float32 rounding in the neighbouring faces from catching it.
     lift = scene.face_normals[faces] * (0.25 * face_scale(scene)[faces] + 1e-6 * R)[:, None]

@@ -10,11 +10,17 @@ self-similar `level` / `level_weight`. Three methods:
   strokes are sampled every `vote_spacing_px`; each sample carries its surface point X, its u and
   its stroke id. X is projected with the new camera and votes on the nearest new sample within
   `search_radius_px` whose tangent agrees (the same correspondence the metrics of BRIEF 3 use);
-  with `reverse_votes` every new sample also looks back for the nearest old sample. Each new
-  chain is cut into segments where the id its votes carry changes (Kalnins' brush path
-  segments; runs shorter than `min_segment_px` are absorbed); closed loops are turned to start at
-  the old loop's seam; two segments carrying the same id whose chains now end at the same point
-  are healed into one stroke; each segment is oriented so that u increases along it. Per stroke,
+  with `reverse_votes` every new sample also looks back for the nearest old sample. First,
+  chains of one kind whose ends meet within `join_tol_px` are joined into one path
+  (`chain_touching`): where the chaining stops changes from frame to frame. Each path is then
+  cut into segments where the id its votes carry changes (Kalnins' brush path segments; runs
+  shorter than `min_segment_px` are absorbed), so ids, not this frame's chain ends, decide where
+  strokes begin and end. A cut between two ids goes where the previous frame's stroke end
+  projects (`snap_boundaries`: the boundary between two ids does not wander with the sample
+  spacing from frame to frame). Closed loops are turned to start at the old loop's seam; each
+  segment is oriented so that u increases along it (with `chain_touching` off, segments with
+  the same id whose chains end within `join_tol_px` are healed into one stroke afterwards, a
+  short chain that no vote landed on carrying the id of the chain it continues). Per stroke,
   votes of other ids are shifted by whole periods (the texture is periodic) to meet the largest
   group, which heals strokes that merged. u is then fitted by least squares as a piecewise-linear
   function of arc length (knots every `knot_spacing_px`, inserted as points so that downstream
@@ -42,7 +48,9 @@ level_weight = 1 - frac(c): when a stroke shrinks 8 times under a dolly its mark
 unstretched case is level 0, weight 1. Brush head and tail keep their size in the ribbon writer,
 which only needs u and the stroke length.
 
-Split criteria (angle, maximum length) are LineOptions of the chaining stage.
+Split criteria (angle, maximum length) are LineOptions of the chaining stage. With the default
+`doubled_px` and `join_tol_px` the tracked frame draws the input lines less their doubled parts,
+with bridges of at most `join_tol_px` where strokes are healed (both 0: exactly the input lines).
 """
 
 from __future__ import annotations
@@ -53,9 +61,11 @@ import numpy as np
 
 from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
-from .model import Strokes
+from .model import KIND_INDEX, Strokes
 
 METHODS = ("kalnins", "seed", "none")
+#: Kinds whose strokes can double each other (see drop_doubled).
+CONTOUR_KINDS = ("silhouette", "smooth_contour")
 
 
 @dataclass(frozen=True)
@@ -76,9 +86,16 @@ class TrackingOptions:
     dense_spacing_px: spacing of the new strokes' samples that votes land on (positions along
     the stroke are refined below it by projecting on the sample's tangent).
     reverse_votes: new samples also look back for the nearest old sample (both ways, as BRIEF 3).
-    join_tol_px, join_angle_deg: two segments with the same carried id whose strokes end within
+    join_tol_px, join_angle_deg: segments with the same carried id whose strokes end within
     join_tol_px of each other, turning by at most join_angle_deg, are healed into one stroke
-    (0 disables).
+    (0 disables; above 1e-3 the joint bridges the gap, which adds at most join_tol_px of line).
+    snap_boundaries: cuts between two carried ids go where the previous stroke ends project.
+    chain_touching: join chains whose ends meet (join_tol_px, join_angle_deg) before cutting by
+    votes (see the module doc); healing after the cut is then not needed.
+    doubled_px: before tracking, parts of strokes that run beside a longer stroke within this
+    distance are dropped (`drop_doubled`: mesh contours come out as shingled pieces that overlap
+    side by side; each doubled part is a second stroke over the same line, which the
+    correspondence of BRIEF 3 cannot tell apart frame to frame). 0 keeps the lines as drawn.
     knot_spacing_px: u is piecewise linear with knots this far apart (0: one line per stroke);
     bend_weight: weight of even stretch between knots (kalnins).
     max_growth_px, min_carry_px, seed_search_px, seed_angle_penalty_px: seed 000 strategies 3, 5,
@@ -96,13 +113,16 @@ class TrackingOptions:
     min_carry_px: float = 10.0
     seed_search_px: float = 12.0
     seed_angle_penalty_px: float = 10.0
-    min_segment_px: float = 10.0
+    min_segment_px: float = 6.0
     knot_spacing_px: float = 24.0
-    join_tol_px: float = 1e-6
+    join_tol_px: float = 2.0
     join_angle_deg: float = 90.0
     dense_spacing_px: float = 3.0
     reverse_votes: bool = True
     bend_weight: float = 0.01
+    snap_boundaries: bool = True
+    doubled_px: float = 2.0
+    chain_touching: bool = True
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -111,11 +131,25 @@ class TrackingOptions:
             if not getattr(self, name) > 0:
                 raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
         for name in ("stretch_weight", "outlier_px", "min_id_px", "max_growth_px", "min_carry_px",
-                     "seed_angle_penalty_px"):
+                     "seed_angle_penalty_px", "doubled_px", "join_tol_px"):
             if not getattr(self, name) >= 0:
                 raise UsageError(f"{name.replace('_', '-')} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.min_tangent_dot <= 1:
             raise UsageError(f"min tangent dot must be in [0, 1], got {self.min_tangent_dot}")
+
+
+def _cat(*parts) -> np.ndarray:
+    """np.r_ for scalars and arrays along the first axis (np.r_ costs ~10 us a call; the tracker
+    makes dozens of these per frame on small arrays)."""
+    return np.concatenate([np.atleast_1d(p) for p in parts])
+
+
+def _tree(points: np.ndarray):
+    """A k-d tree built for one query pass: unbalanced, not compacted (builds ~2x faster on a
+    frame's samples; queries are exact either way)."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(points, balanced_tree=False, compact_nodes=False)
 
 
 # --- stroke surgery --------------------------------------------------------------------------
@@ -132,7 +166,7 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
         return Strokes.empty(strokes.camera, strokes.frame, strokes.period_px)
     rev = np.zeros(K, bool) if reverse is None else np.asarray(reverse, bool)
     L = strokes.lengths
-    base = np.r_[0.0, np.cumsum(L[:-1] + 1.0)]
+    base = _cat(0.0, np.cumsum(L[:-1] + 1.0))
     G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
     g0 = base[stroke] + np.asarray(s0, float)
     g1 = base[stroke] + np.asarray(s1, float)
@@ -157,7 +191,7 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     pa, Xa, fa = at(g0)
     pb, Xb, fb = at(g1)
     counts = n_in + 2
-    offsets = np.r_[0, np.cumsum(counts)].astype(np.int64)
+    offsets = _cat(0, np.cumsum(counts)).astype(np.int64)
     N = int(offsets[-1])
     piece = np.repeat(np.arange(K), counts)
     pos = np.arange(N) - offsets[:-1][piece]  # position within the piece, 0..count-1
@@ -189,7 +223,7 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     if len(stroke) == 0:
         return strokes
     L = strokes.lengths
-    base = np.r_[0.0, np.cumsum(L[:-1] + 1.0)]
+    base = _cat(0.0, np.cumsum(L[:-1] + 1.0))
     G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
     g = base[stroke] + np.asarray(s, float)
     first = strokes.offsets[:-1][stroke]
@@ -208,12 +242,12 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     F = np.concatenate([strokes.face, np.where(a[:, 0] < 0.5, strokes.face[i], strokes.face[j])])
     U = np.concatenate([strokes.u, strokes.u[i] * (1 - a[:, 0]) + strokes.u[j] * a[:, 0]])
     # Sort by (stroke, arc); an old point precedes a new point at the same place.
-    allg = np.r_[G, g]
-    owner = np.r_[strokes.stroke_of_point, stroke]
-    order = np.lexsort((np.r_[np.zeros(len(G)), np.ones(len(g))], allg, owner))
+    allg = _cat(G, g)
+    owner = _cat(strokes.stroke_of_point, stroke)
+    order = np.lexsort((_cat(np.zeros(len(G)), np.ones(len(g))), allg, owner))
     counts = np.bincount(owner, minlength=len(strokes))
     return replace(strokes, points=P[order], surface=X[order], face=F[order], u=U[order],
-                   offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+                   offsets=_cat(0, np.cumsum(counts)).astype(np.int64))
 
 
 def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> Strokes:
@@ -225,10 +259,10 @@ def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> S
     start = np.zeros(S)
     start[which] = s_start
     nr = int(rot.sum())
-    pst = np.r_[np.arange(S), np.flatnonzero(rot)]
-    second = np.r_[np.zeros(S, bool), np.ones(nr, bool)]
-    s0 = np.r_[start, np.zeros(nr)]
-    s1 = np.r_[L, start[rot]]
+    pst = _cat(np.arange(S), np.flatnonzero(rot))
+    second = _cat(np.zeros(S, bool), np.ones(nr, bool))
+    s0 = _cat(start, np.zeros(nr))
+    s1 = _cat(L, start[rot])
     order = np.lexsort((second, pst))
     pieces = cut_pieces(strokes, pst[order], s0[order], s1[order])
     keep = np.ones(len(pieces.points), bool)
@@ -236,7 +270,7 @@ def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> S
     owner = pst[order][pieces.stroke_of_point][keep]
     counts = np.bincount(owner, minlength=S)
     out = replace(strokes, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
-                  u=np.zeros(int(keep.sum())), offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+                  u=np.zeros(int(keep.sum())), offsets=_cat(0, np.cumsum(counts)).astype(np.int64))
     return replace(out, u=out.arc_length / out.period_px)
 
 
@@ -264,7 +298,7 @@ def _turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.nda
     k = np.flatnonzero(ok)
     # Largest jump per stroke.
     k = k[np.lexsort((-jump[k], stq[k]))]
-    k = k[np.r_[True, stq[k][1:] != stq[k][:-1]]]
+    k = k[_cat(True, stq[k][1:] != stq[k][:-1])]
     which = stq[k]
     seam = 0.5 * (sq[k] + sq[k + 1])
     cur = rotate_closed(cur, which, seam)
@@ -288,14 +322,14 @@ class PiecewiseU:
         self.L = np.asarray(lengths, float)
         self.n = np.maximum(1, np.ceil(self.L / knot_px - 1e-9)).astype(np.int64)
         self.h = self.L / self.n
-        self.base = np.r_[0, np.cumsum(self.n + 1)].astype(np.int64)  # first knot of each stroke
+        self.base = _cat(0, np.cumsum(self.n + 1)).astype(np.int64)  # first knot of each stroke
 
     def inner_knot_stroke(self) -> np.ndarray:
         return np.repeat(np.arange(len(self.L)), self.n - 1)
 
     def inner_knot_s(self) -> np.ndarray:
         st = self.inner_knot_stroke()
-        j = np.arange(len(st)) - np.repeat(np.r_[0, np.cumsum(self.n - 1)[:-1]], self.n - 1) + 1
+        j = np.arange(len(st)) - np.repeat(_cat(0, np.cumsum(self.n - 1)[:-1]), self.n - 1) + 1
         return j * self.h[st]
 
     def _interval(self, st, s):
@@ -337,7 +371,7 @@ class PiecewiseU:
         add([k, k + 1], [sw * (1 - a), sw * a], sw * u)
         # stretch, per interval
         js = np.repeat(np.arange(S), self.n)
-        kk = self.base[js] + (np.arange(self.n.sum()) - np.repeat(np.r_[0, np.cumsum(self.n)[:-1]], self.n))
+        kk = self.base[js] + (np.arange(self.n.sum()) - np.repeat(_cat(0, np.cumsum(self.n)[:-1]), self.n))
         hh = np.maximum(self.h[js], 1.0)
         ws = np.sqrt(stretch_weight / hh)
         add([kk, kk + 1], [-ws, ws], ws * self.h[js] * b0)
@@ -363,37 +397,39 @@ def _local_slope(smp: Samples) -> np.ndarray:
     n = len(smp)
     if n < 2:
         return np.zeros(n)
-    nxt = np.r_[np.arange(1, n), n - 1]
-    prv = np.r_[0, np.arange(n - 1)]
+    nxt = _cat(np.arange(1, n), n - 1)
+    prv = _cat(0, np.arange(n - 1))
     nxt = np.where(smp.stroke[nxt] == smp.stroke, nxt, np.arange(n))
     prv = np.where(smp.stroke[prv] == smp.stroke, prv, np.arange(n))
     ds = smp.s[nxt] - smp.s[prv]
     return np.where(ds > 0, (smp.u[nxt] - smp.u[prv]) / np.where(ds > 0, ds, 1.0), 0.0)
 
 
-def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: float, angle_deg: float):
-    """Pairs of segments (runs) of different open strokes that carry the same id and end at the
-    same point (within tol_px, turn <= angle_deg) are put in one group. Returns group (R,) (a
-    group id per run; groups are numbered by their first run) and rev (R,): whether each run is
-    traversed backwards so that a pair meets end to start and u increases along the votes, and
-    second (R,): the run comes second in its pair."""
+def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: float, angle_deg: float,
+                   straightest_first: bool = False):
+    """Healing at junctions: segments (runs) of different open strokes of the same kind that carry
+    the same id and end at the same point (within tol_px, turning by at most angle_deg) are
+    drawn as one stroke. Links are made end to end, each end of a run in one link at most, so a
+    short chain between two others joins both (paths of any length; a ring of links is opened at
+    its lowest run). Returns group (R,) (a group id per run: the lowest run of the group), rev
+    (R,): whether each run is traversed backwards, so that the runs of a group meet end to start
+    and u increases along the votes, and pos (R,): the place of each run in its group."""
     R = len(r_stroke)
     group = np.arange(R)
     rev = r_sign < 0
-    second = np.zeros(R, bool)
+    pos = np.zeros(R, np.int64)
     if R < 2 or tol_px <= 0:
-        return group, rev, second
+        return group, rev, pos
     L = cur.lengths
     first, last = cur.offsets[:-1], cur.offsets[1:] - 1
     closed = np.linalg.norm(cur.points[first] - cur.points[last], axis=1) < 1e-6
     at_start = (r_s0 <= 1e-9) & ~closed[r_stroke]
     at_end = (r_s1 >= L[r_stroke] - 1e-9) & ~closed[r_stroke]
     # Ends of strokes that a labelled segment reaches: (run, 0 = stroke start | 1 = stroke end).
-    e_run = np.r_[np.flatnonzero(at_start & (r_label >= 0)), np.flatnonzero(at_end & (r_label >= 0))]
-    e_end = np.r_[np.zeros(int((at_start & (r_label >= 0)).sum()), np.int64),
-                  np.ones(int((at_end & (r_label >= 0)).sum()), np.int64)]
+    e_run = _cat(np.flatnonzero(at_start), np.flatnonzero(at_end))
+    e_end = _cat(np.zeros(int(at_start.sum()), np.int64), np.ones(int(at_end.sum()), np.int64))
     if len(e_run) < 2:
-        return group, rev, second
+        return group, rev, pos
     sk = r_stroke[e_run]
     pt = np.where(e_end[:, None] == 0, cur.points[first[sk]], cur.points[last[sk]])
     nb = np.where(e_end == 0, np.minimum(first[sk] + 1, last[sk]), np.maximum(last[sk] - 1, first[sk]))
@@ -410,34 +446,106 @@ def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: 
 
         pairs = cKDTree(pt).query_pairs(tol_px, output_type="ndarray")
     if len(pairs) == 0:
-        return group, rev, second
+        return group, rev, pos
     a, b = pairs[:, 0], pairs[:, 1]
-    ok = (r_label[e_run[a]] == r_label[e_run[b]]) & (sk[a] != sk[b])
-    ok &= -np.einsum("ij,ij->i", d[a], d[b]) >= np.cos(np.radians(angle_deg))
-    a, b = a[ok], b[ok]
+    ok = (sk[a] != sk[b]) & (cur.kind[sk[a]] == cur.kind[sk[b]])
+    straight = -np.einsum("ij,ij->i", d[a], d[b])  # cosine of the turn at the joint
+    ok &= straight >= np.cos(np.radians(angle_deg))
+    a, b, straight = a[ok], b[ok], straight[ok]
+    # A piece of chain without votes (a few px between two chains: no carried sample landed on
+    # it) continues the id of a chain it touches, so that the id is carried across it.
+    lab = r_label.copy()
+    for _ in range(2):
+        la, lb = lab[e_run[a]], lab[e_run[b]]
+        fa = (la < 0) & (lb >= 0)
+        fb = (lb < 0) & (la >= 0)
+        if not (fa.any() or fb.any()):
+            break
+        # Deterministic: the lowest-numbered labelled partner wins (last write wins, so sort down).
+        for f_, tgt, src in ((fa, a, b), (fb, b, a)):
+            k = np.flatnonzero(f_)
+            k = k[np.argsort(-e_run[src[k]], kind="stable")]
+            lab[e_run[tgt[k]]] = lab[e_run[src[k]]]
+    ok = (lab[e_run[a]] == lab[e_run[b]]) & (lab[e_run[a]] >= 0)
+    a, b, straight = a[ok], b[ok], straight[ok]
     if len(a) == 0:
-        return group, rev, second
-    # Deterministic, each run in one pair at most.
-    o = np.lexsort((e_run[b], e_run[a]))
-    used = set()
-    for k in o.tolist():  # a few pairs per frame
-        i, j = int(e_run[a[k]]), int(e_run[b[k]])
-        if i in used or j in used:
+        return group, rev, pos
+    # Deterministic links, each run end in one link at most: link[run, end] = (other run, its end).
+    link = {}
+    # Where three ends meet, the straightest continuation is linked first (straightest_first).
+    keys = (e_run[b], e_run[a], -np.round(straight, 9)) if straightest_first else (e_run[b], e_run[a])
+    for k in np.lexsort(keys).tolist():  # a few links per frame
+        ka, kb = (int(e_run[a[k]]), int(e_end[a[k]])), (int(e_run[b[k]]), int(e_end[b[k]]))
+        if ka in link or kb in link or ka[0] == kb[0]:
             continue
-        used.update((i, j))
-        # i is traversed so that its joined end comes last, j so that its joined end comes first.
-        rev[i] = e_end[a[k]] == 0
-        rev[j] = e_end[b[k]] == 1
-        # Whole pair backwards if the votes say so (i then comes second).
-        s_pair = (r_sign[i] * (-1 if rev[i] else 1)) + (r_sign[j] * (-1 if rev[j] else 1))
-        group[i] = group[j] = min(i, j)
-        if s_pair < 0:
-            rev[i], rev[j] = not rev[i], not rev[j]
-            second[i] = True
-        else:
-            second[j] = True
-    return group, rev, second
+        link[ka], link[kb] = kb, ka
+    runs = sorted({k[0] for k in link})
+    seen = set()
+    sign, g_l, rev_l, pos_l = r_sign.tolist(), group.tolist(), rev.tolist(), pos.tolist()
+    # Path starts: runs with one linked end; then rings (every run of them linked at both ends).
+    starts = [r for r in runs if ((r, 0) in link) != ((r, 1) in link)] + runs
+    for r0 in starts:
+        if r0 in seen:
+            continue
+        # Enter r0 through its free end (a ring: through its start), leave through the other.
+        enter = 1 if (r0, 0) in link and (r0, 1) not in link else 0
+        path = []  # (run, entered at end)
+        r, e = r0, enter
+        while r not in seen:
+            seen.add(r)
+            path.append((r, e))
+            nxt = link.get((r, 1 - e))
+            if nxt is None:
+                break
+            r, e = nxt
+        members = [p[0] for p in path]
+        backwards = [p[1] == 1 for p in path]  # entered at the stroke end: traversed reversed
+        # Whole path backwards if the votes say so (plain Python: paths are short and few).
+        if sum(-sign[m] if bk else sign[m] for m, bk in zip(members, backwards)) < 0:
+            members, backwards = members[::-1], [not bk for bk in backwards[::-1]]
+        g = min(members)
+        for k, (m, bk) in enumerate(zip(members, backwards)):
+            g_l[m], rev_l[m], pos_l[m] = g, bk, k
+    group, rev, pos = np.array(g_l, np.int64), np.array(rev_l, bool), np.array(pos_l, np.int64)
+    return group, rev, pos
 
+
+def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes:
+    """Strokes of the same kind whose ends meet (within tol_px, turning by at most angle_deg)
+    concatenated into one path (straightest continuation first where three ends meet), so that
+    the cuts between carried ids can go where the previous frame had them, wherever the chaining
+    happened to stop this frame (hysteresis of id boundaries). Same lines; ids renumbered."""
+    S = len(strokes)
+    if S < 2 or tol_px <= 0:
+        return strokes
+    L = strokes.lengths
+    group, rev, pos = _join_segments(strokes, np.arange(S), np.zeros(S), L, np.zeros(S, np.int64),
+                                     np.ones(S), tol_px, angle_deg, straightest_first=True)
+    if np.array_equal(group, np.arange(S)):
+        return strokes
+    # Gather the points of each path in order (reversed strokes backwards); a joint point that
+    # repeats the previous one is dropped (a bridge, when the ends were apart, is kept).
+    order = np.lexsort((pos, group))
+    counts = np.diff(strokes.offsets)[order]
+    csum = np.cumsum(counts)
+    within = np.arange(int(csum[-1])) - np.repeat(csum - counts, counts)
+    src = np.repeat(strokes.offsets[:-1][order], counts) + np.where(
+        np.repeat(rev[order], counts), np.repeat(counts, counts) - 1 - within, within)
+    g = group[order]
+    new_g = _cat(True, g[1:] != g[:-1])
+    joint = (csum - counts)[~new_g]
+    keep = np.ones(len(src), bool)
+    P = strokes.points
+    keep[joint[np.linalg.norm(P[src[joint]] - P[src[joint - 1]], axis=1) < 1e-9]] = False
+    src = src[keep]
+    owner = np.repeat(np.cumsum(new_g) - 1, counts)[keep]
+    first = order[new_g]
+    out = Strokes(points=P[src], surface=strokes.surface[src], face=strokes.face[src],
+                  offsets=_cat(0, np.cumsum(np.bincount(owner, minlength=len(first)))).astype(np.int64),
+                  kind=strokes.kind[first], ids=np.arange(len(first), dtype=np.int64), u=np.zeros(len(src)),
+                  level=strokes.level[first], level_weight=strokes.level_weight[first], camera=strokes.camera,
+                  frame=strokes.frame, period_px=strokes.period_px)
+    return replace(out, u=out.arc_length / out.period_px)
 
 
 def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
@@ -446,7 +554,7 @@ def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
     K = len(pieces)
     if K == 0:
         return pieces
-    new_g = np.r_[True, g_sorted[1:] != g_sorted[:-1]]
+    new_g = _cat(True, g_sorted[1:] != g_sorted[:-1])
     if new_g.all():
         return pieces
     keep = np.ones(len(pieces.points), bool)
@@ -458,7 +566,7 @@ def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
     counts = np.bincount(owner, minlength=int(new_g.sum()))
     sel = np.flatnonzero(new_g)
     out = replace(pieces, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
-                  u=np.zeros(int(keep.sum())), offsets=np.r_[0, np.cumsum(counts)].astype(np.int64),
+                  u=np.zeros(int(keep.sum())), offsets=_cat(0, np.cumsum(counts)).astype(np.int64),
                   kind=pieces.kind[sel], ids=np.arange(len(sel), dtype=np.int64), level=pieces.level[sel],
                   level_weight=pieces.level_weight[sel])
     return replace(out, u=out.arc_length / out.period_px)
@@ -506,6 +614,61 @@ def levels_from_slope(slope_periods_per_px: np.ndarray, period_px: float) -> tup
     return level, 1.0 - (c - level)
 
 
+def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1, r_label, radius_px: float,
+                    min_tangent_dot: float, tol_px: float, dense_tree=None):
+    """Move every cut between two runs of one stroke (labels A | B) to where an end of the previous
+    frame's stroke A or B projects on the new stroke (both ends found: their mean), when that is
+    within `tol_px` of the cut. The end points are matched like the votes (projected with
+    `camera`, nearest dense sample within `radius_px` with agreeing tangent, refined along its
+    tangent). Returns new (s0, s1) per run; runs keep at least 1e-3 px."""
+    inner = np.flatnonzero((r_stroke[1:] == r_stroke[:-1]) & (r_label[1:] >= 0) & (r_label[:-1] >= 0))
+    if len(inner) == 0 or len(prev) == 0 or len(dense) == 0:
+        return r_s0, r_s1
+    first, last = prev.offsets[:-1], prev.offsets[1:] - 1
+    P, X = prev.points, prev.surface
+    e_pt = _cat(first, last)
+    e_nb = _cat(np.minimum(first + 1, last), np.maximum(last - 1, first))
+    t = P[e_nb] - P[e_pt]
+    t = t / np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
+    n = len(e_pt)
+    ends = Samples(p=P[e_pt], X=X[e_pt], u=np.zeros(n), t=t, ids=_cat(prev.ids, prev.ids),
+                   stroke=np.zeros(n, np.int64), s=np.zeros(n), w=np.ones(n))
+    m, q = match_samples(ends, camera, dense, dense_tree, radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=4,
+                         return_projected=True)
+    hit = np.flatnonzero(m >= 0)
+    if len(hit) == 0:
+        return r_s0, r_s1
+    mh = m[hit]
+    es = dense.s[mh] + np.clip(np.einsum("ij,ij->i", q[hit] - dense.p[mh], dense.t[mh]),
+                               -0.5 * dense.w[mh], 0.5 * dense.w[mh])
+    est, eid = dense.stroke[mh], ends.ids[hit]
+    M = int(max(eid.max(), r_label.max())) + 1
+    ekey = est.astype(np.int64) * M + eid
+    o = np.argsort(ekey, kind="stable")
+    ekey, es = ekey[o], es[o]
+    cut = r_s1[inner]
+    acc, cnt = np.zeros(len(inner)), np.zeros(len(inner))
+    for lab in (r_label[inner], r_label[inner + 1]):
+        key = r_stroke[inner].astype(np.int64) * M + lab
+        lo = np.searchsorted(ekey, key, "left")
+        hi = np.searchsorted(ekey, key, "right")
+        for k in range(2):  # an old stroke has two ends: at most two candidates per key
+            j = lo + k
+            ok = j < hi
+            jj = np.minimum(j, len(es) - 1)
+            ok &= np.abs(es[jj] - cut) <= tol_px
+            acc += np.where(ok, es[jj], 0.0)
+            cnt += ok
+    new = np.where(cnt > 0, acc / np.maximum(cnt, 1), cut)
+    # Keep both runs non-empty.
+    new = np.clip(new, r_s0[inner] + 1e-3, r_s1[inner + 1] - 1e-3)
+    new = np.where(r_s0[inner] + 1e-3 < r_s1[inner + 1] - 1e-3, new, cut)
+    s0, s1 = r_s0.copy(), r_s1.copy()
+    s1[inner] = new
+    s0[inner + 1] = new
+    return s0, s1
+
+
 def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: np.ndarray, w: np.ndarray,
                      min_segment_px: float):
     """Cut the strokes sampled by `dense` (1 px samples, in stroke order; lengths (S,) px) into runs of the same
@@ -535,7 +698,7 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         return np.where(fok | bok, out, -1)
 
     def runs(lab):
-        start = np.r_[True, (lab[1:] != lab[:-1]) | (stroke[1:] != stroke[:-1])] if D else np.zeros(0, bool)
+        start = _cat(True, (lab[1:] != lab[:-1]) | (stroke[1:] != stroke[:-1])) if D else np.zeros(0, bool)
         r = np.cumsum(start) - 1
         return r, np.bincount(r, weights=dense.w) if D else np.zeros(0)
 
@@ -544,24 +707,74 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         r, rl = runs(lab)
         if len(rl) == 0:
             break
-        rs = stroke[np.flatnonzero(np.r_[True, r[1:] != r[:-1]])]
+        rs = stroke[np.flatnonzero(_cat(True, r[1:] != r[:-1]))]
         longest = np.zeros(len(rl), bool)
         o = np.lexsort((-rl, rs))
-        longest[o[np.r_[True, rs[o][1:] != rs[o][:-1]]]] = True
-        short = (rl < min_segment_px) & ~longest & (lab[np.flatnonzero(np.r_[True, r[1:] != r[:-1]])] >= 0)
+        longest[o[_cat(True, rs[o][1:] != rs[o][:-1])]] = True
+        short = (rl < min_segment_px) & ~longest & (lab[np.flatnonzero(_cat(True, r[1:] != r[:-1]))] >= 0)
         if not short.any():
             break
         lab = fill(np.where(short[r], -1, lab))
     r, rl = runs(lab)
-    first = np.flatnonzero(np.r_[True, r[1:] != r[:-1]]) if D else np.zeros(0, np.int64)
-    last = np.r_[first[1:] - 1, D - 1] if D else np.zeros(0, np.int64)
+    first = np.flatnonzero(_cat(True, r[1:] != r[:-1])) if D else np.zeros(0, np.int64)
+    last = _cat(first[1:] - 1, D - 1) if D else np.zeros(0, np.int64)
     rs = stroke[first]
-    head = np.r_[True, rs[1:] != rs[:-1]] if D else np.zeros(0, bool)
-    tail = np.r_[rs[1:] != rs[:-1], True] if D else np.zeros(0, bool)
+    head = _cat(True, rs[1:] != rs[:-1]) if D else np.zeros(0, bool)
+    tail = _cat(rs[1:] != rs[:-1], True) if D else np.zeros(0, bool)
     # Runs meet halfway between their samples; strokes are covered from 0 to their length.
     s0 = np.where(head, 0.0, 0.5 * (s[first] + s[np.maximum(first - 1, 0)]))
     s1 = np.where(tail, lengths[rs], 0.5 * (s[last] + s[np.minimum(last + 1, D - 1)]))
     return r, rs, s0, s1, lab[first]
+
+
+def drop_doubled(strokes: Strokes, radius_px: float, min_piece_px: float = 1.0, step_px: float = 1.0,
+                 kinds: tuple[str, ...] = CONTOUR_KINDS) -> Strokes:
+    """The strokes without the parts that double a longer stroke: a part of a stroke is dropped
+    where a longer stroke (ties: lower index) runs beside it, within `radius_px` px across, tangents
+    agreeing (|t.t'| >= 0.65), level along it (the neighbour sample is within 0.75 px of it along
+    the tangent, so a stroke that merely continues another one at a shared end keeps its ends).
+    Mesh contours of fine meshes come out shingled: short pieces that overlap their neighbours
+    side by side for a pixel or two. Only strokes of one of `kinds` (contours: they slide over
+    the surface and are extracted piecewise) are compared, each with strokes of its own kind:
+    creases and borders are mesh edges, never shingled, and two of them close together are two
+    lines. Pieces shorter than `min_piece_px` left over are dropped.
+    Works on samples every `step_px` (cuts within half of it; coarser costs M1: the healing of
+    the pieces left needs precise ends), vectorized; ids are renumbered, u = arc length / P."""
+    if len(strokes) < 2 or radius_px <= 0:
+        return strokes
+    smp = resample_strokes(strokes, step_px, with_surface=False)
+    L = strokes.lengths
+    rank = np.empty(len(L), np.int64)
+    rank[np.lexsort((np.arange(len(L)), -L))] = np.arange(len(L))  # 0: the longest
+    # All sample pairs closer than radius_px; only pairs of two strokes matter (few).
+    pr = _tree(smp.p).query_pairs(radius_px, output_type="ndarray")
+    sk = strokes.kind[smp.stroke]
+    pr = pr[(smp.stroke[pr[:, 0]] != smp.stroke[pr[:, 1]]) & (sk[pr[:, 0]] == sk[pr[:, 1]])]
+    pr = pr[np.isin(sk[pr[:, 0]], [KIND_INDEX[k] for k in kinds])]
+    # Orient each pair (sample, covering sample of the longer stroke).
+    a, b = pr[:, 0], pr[:, 1]
+    swap = rank[smp.stroke[a]] < rank[smp.stroke[b]]
+    a, b = np.where(swap, b, a), np.where(swap, a, b)
+    along = np.abs(np.einsum("ij,ij->i", smp.p[b] - smp.p[a], smp.t[a]))
+    ok = along <= 0.5 * (smp.w[a] + smp.w[b]) - 0.25  # beside, not one stroke continuing the other
+    ok &= np.abs(np.einsum("ij,ij->i", smp.t[b], smp.t[a])) >= 0.65
+    covered = np.zeros(len(smp), bool)
+    covered[a[ok]] = True
+    if not covered.any():
+        return strokes
+    keep = ~covered
+    D = len(smp)
+    start = _cat(True, (keep[1:] != keep[:-1]) | (smp.stroke[1:] != smp.stroke[:-1]))
+    first = np.flatnonzero(start)
+    last = _cat(first[1:] - 1, D - 1)
+    st = smp.stroke[first]
+    head = _cat(True, st[1:] != st[:-1])
+    tail = _cat(st[1:] != st[:-1], True)
+    s0 = np.where(head, 0.0, smp.s[first] - 0.5 * smp.w[first])
+    s1 = np.where(tail, L[st], smp.s[last] + 0.5 * smp.w[last])
+    # Leftovers under min_piece_px go; a whole stroke (nothing of it doubled) always stays.
+    sel = keep[first] & ((s1 - s0 >= min_piece_px) | (head & tail))
+    return cut_pieces(strokes, st[sel], s0[sel], s1[sel])
 
 
 # --- the tracker -----------------------------------------------------------------------------
@@ -578,11 +791,13 @@ class Tracker:
         self.prev, self.next_id = None, 0
 
     def step(self, strokes: Strokes) -> Strokes:
-        """The tracked version of one frame's strokes (same lines; ids, u, level set; strokes may
-        be reversed, and re-cut by the "seed" method). The camera of `strokes` is required for
+        """The tracked version of one frame's strokes (same lines, less doubled parts: see the
+        module doc; ids, u, level set; strokes may be re-cut, healed and reversed). The camera of `strokes` is required for
         carrying samples from the previous frame."""
         o = self.options
         strokes = replace(strokes, period_px=o.period_px)
+        if o.doubled_px > 0:
+            strokes = drop_doubled(strokes, o.doubled_px)
         if o.method == "none":
             out = self._fresh(strokes, renumber=True)
         elif self.prev is None or len(self.prev) == 0 or strokes.camera is None or self.prev.camera is None \
@@ -611,9 +826,12 @@ class Tracker:
         o = self.options
         P = o.period_px
         prev = self.prev
+        if o.chain_touching:
+            cur = chain_touching(cur, o.join_tol_px, o.join_angle_deg)
         votes = resample_strokes(prev, o.vote_spacing_px)
         dense = resample_strokes(cur, o.dense_spacing_px)
-        m, q = match_samples(votes, cur.camera, dense, radius_px=o.search_radius_px,
+        dense_tree = _tree(dense.p) if len(dense) else None  # shared by the vote and end matches
+        m, q = match_samples(votes, cur.camera, dense, dense_tree, radius_px=o.search_radius_px,
                              min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
         hit = m >= 0
         vm = m[hit]
@@ -628,44 +846,58 @@ class Tracker:
         if o.reverse_votes and len(votes) and len(dense):
             # The other way too (as the metrics do): every new sample looks back for the nearest
             # old sample of the previous frame and takes its u (refined along the old tangent).
-            rm, rq = match_samples(dense, prev.camera, votes, radius_px=o.search_radius_px,
+            rm, rq = match_samples(dense, prev.camera, votes, _tree(votes.p), radius_px=o.search_radius_px,
                                    min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
             rh = np.flatnonzero(rm >= 0)
             src = rm[rh]
             slope = _local_slope(votes)
             off = np.clip(np.einsum("ij,ij->i", rq[rh] - votes.p[src], votes.t[src]),
                           -0.5 * votes.w[src], 0.5 * votes.w[src])
-            vm = np.r_[vm, rh]
-            ds = np.r_[ds, np.zeros(len(rh))]
-            u = np.r_[u, votes.u[src] + off * slope[src]]
-            vid = np.r_[vid, votes.ids[src]]
-            w = np.r_[w, dense.w[rh]]
-            sign = np.r_[sign, np.sign(np.einsum("ij,ij->i", votes.t[src], dense.t[rh]))]
+            vm = _cat(vm, rh)
+            ds = _cat(ds, np.zeros(len(rh)))
+            u = _cat(u, votes.u[src] + off * slope[src])
+            vid = _cat(vid, votes.ids[src])
+            w = _cat(w, dense.w[rh])
+            sign = _cat(sign, np.sign(np.einsum("ij,ij->i", votes.t[src], dense.t[rh])))
         # Closed strokes (contour loops) start anywhere the chaining happened to start: turn them
         # so that they start at the old seam, where the carried u jumps by a whole loop.
+        dense0 = dense
         cur, dense, vm = _turn_loops_to_seams(cur, dense, vm, u, vid, P)
+        if dense is not dense0:  # samples reordered: the tree's indices no longer apply
+            dense_tree = None
         # Segments (Kalnins' brush path segments): each new chain is cut where the id its votes
         # carry changes, so a chain that now runs through two old strokes keeps both ids.
         run, r_stroke, r_s0, r_s1, r_label = segment_by_votes(dense, cur.lengths, vm, vid, w, o.min_segment_px)
         R = len(r_stroke)
+        if o.snap_boundaries and R > 1:
+            # Hysteresis of id boundaries: a cut between two carried ids goes where the previous
+            # frame's end of either stroke projects, not halfway between dense samples.
+            r_s0, r_s1 = snap_boundaries(prev, cur.camera, dense, r_stroke, r_s0, r_s1, r_label,
+                                         o.search_radius_px, o.min_tangent_dot, 1.5 * o.dense_spacing_px,
+                                         dense_tree)
         rv = run[vm]
-        s_rel = dense.s[vm] + ds - r_s0[rv]
         r_len = r_s1 - r_s0
+        s_rel = np.clip(dense.s[vm] + ds - r_s0[rv], 0.0, r_len[rv])
         # Direction: previous strokes have u increasing along them; a segment whose samples run
         # against the voters' tangents is reversed (seed 000 strategy 2, in vote form).
         r_sign = np.bincount(rv, weights=w * sign, minlength=R)
-        # Healing: two segments carrying the same id that now end at the same point (the chaining
-        # stopped at a junction it went through in the previous frame) are drawn as one stroke.
-        group, rev, second = _join_segments(cur, r_stroke, r_s0, r_s1, r_label, r_sign, o.join_tol_px,
+        # Healing (chain_touching off): segments carrying the same id that now end at the same
+        # point (the chaining stopped at a junction it went through in the previous frame) are
+        # drawn as one stroke.
+        if o.chain_touching:
+            # Chains that meet were joined before the cut: nothing is left to heal (measured).
+            group, rev, pos = np.arange(R), r_sign < 0, np.zeros(R, np.int64)
+        else:
+            group, rev, pos = _join_segments(cur, r_stroke, r_s0, r_s1, r_label, r_sign, o.join_tol_px,
                                             o.join_angle_deg)
-        order = np.lexsort((second, group))
+        order = np.lexsort((pos, group))
         pieces = cut_pieces(cur, r_stroke[order], r_s0[order], r_s1[order], rev[order])
         g_sorted = group[order]
         cur = _concat_groups(pieces, g_sorted)
         S = len(cur)
         # Offset of every run inside its output stroke.
         off_sorted = np.cumsum(r_len[order]) - r_len[order]
-        g_start = np.r_[True, g_sorted[1:] != g_sorted[:-1]] if R else np.zeros(0, bool)
+        g_start = _cat(True, g_sorted[1:] != g_sorted[:-1]) if R else np.zeros(0, bool)
         base = np.maximum.accumulate(np.where(g_start, off_sorted, 0.0)) if R else np.zeros(0)
         offset = np.zeros(R)
         offset[order] = off_sorted - base
@@ -687,7 +919,7 @@ class Tracker:
         primary = np.zeros(len(gw), bool)
         if len(order):
             gs = gkeys[order, 0]
-            primary[order[np.r_[True, gs[1:] != gs[:-1]]]] = True
+            primary[order[_cat(True, gs[1:] != gs[:-1])]] = True
         b0 = 1.0 / P
         lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
 

@@ -424,3 +424,145 @@ def test_feature_edges_select_new_kinds(boxes):
     new = {KIND_INDEX[k] for k in ("smooth_contour", "suggestive", "intersection")}
     assert not new & set(default.kind.tolist())
     assert KINDS[int(default.kind[0])] in LineOptions().kinds
+
+
+# --- smooth contours with normals split at creases ---------------------------------------------
+
+
+def _canonical_matches(p, q, tol):
+    """True if polylines p, q (n, 2) are the same within `tol` px, up to direction and, for closed
+    ones, the starting point."""
+    if len(p) != len(q):
+        return False
+    closed = np.allclose(p[0], p[-1], atol=tol) and np.allclose(q[0], q[-1], atol=tol)
+    cands = [q, q[::-1]]
+    if closed:
+        ring = q[:-1]
+        cands = [np.vstack([np.roll(r, -k, axis=0), np.roll(r, -k, axis=0)[:1]])
+                 for r in (ring, ring[::-1]) for k in range(len(ring))]
+    return any(np.abs(p - c).max() < tol for c in cands)
+
+
+def strokes_by_kind(st):
+    out = {}
+    for i in range(len(st)):
+        out.setdefault(KINDS[int(st.kind[i])], []).append(st.points[st.stroke(i)])
+    return out
+
+
+def box_on_slab():
+    """A box standing on a thin ground slab (two objects, every crease 90 degrees)."""
+    return two_meshes(box((1.0, 0.8, 1.2), (0.0, 0.4, 0.0)), box((4.0, 0.2, 3.0), (0.0, -0.1, 0.0)))
+
+
+@pytest.mark.parametrize("cam", [
+    Camera(eye=(2.5, 2.0, 3.5), target=(0.0, 0.3, 0.0), fov_y=40, width=1024, height=1024),
+    Camera(eye=(-3.0, 1.2, 1.0), target=(0.0, 0.3, 0.0), fov_y=40, width=1024, height=1024),
+    Camera(eye=(0.7, 3.0, 2.0), target=(0.0, 0.0, 0.0), projection="orthographic", ortho_height=5.0,
+           width=1024, height=1024),
+    # The eye in the plane of the box's +x face: that face is edge-on, decided as in mesh mode.
+    Camera(eye=(0.5, 4.0, -2.0), target=(0.0, 0.3, 0.0), fov_y=40, width=1024, height=1024),
+])
+def test_box_smooth_contours_are_the_mesh_silhouettes(cam):
+    """Flat faces with normals split at their 90 degree creases hold no smooth contour: with
+    contours="smooth" a box on a slab is drawn exactly as with mesh contours (the silhouette
+    strokes become smooth_contour strokes, point for point within 1e-6 px, partly hidden ones
+    included; the creases are the same strokes)."""
+    sc = box_on_slab()
+    mesh = strokes_by_kind(LineRenderer(sc, LineOptions(contours="mesh")).render(cam))
+    smooth = strokes_by_kind(LineRenderer(sc, LineOptions(contours="smooth")).render(cam))
+    mesh["smooth_contour"] = mesh.pop("silhouette")
+    assert sorted(mesh) == sorted(smooth)
+    for kind, strokes in mesh.items():
+        assert len(strokes) == len(smooth[kind]), kind
+        left = list(smooth[kind])
+        for p in strokes:
+            k = next(i for i, q in enumerate(left) if _canonical_matches(p, q, 1e-6))
+            left.pop(k)
+    # No zero crossing inside the flat faces: every smooth contour segment lies on a mesh edge.
+    fe = smooth_contour_edges(sc, cam)
+    assert np.all((fe.va < len(sc.vertices)) & (fe.vb < len(sc.vertices)))
+
+
+def cylinder_scene(R=0.5, H=2.0, sections=128):
+    m = trimesh.creation.cylinder(radius=R, height=H, sections=sections)
+    return build_scene(np.asarray(m.vertices), np.asarray(m.faces))
+
+
+@pytest.mark.parametrize("eye", [(3.0, 1.5, 3.0), (-2.5, 2.0, -2.0), (2.0, -3.0, -1.5)])
+def test_cylinder_smooth_sides_and_sharp_rims(eye):
+    """A cylinder (axis z, flat caps, 90 degree rims): the smooth contour on the sides is the pair
+    of analytic tangent lines (within 0.05 px at 1024 x 1024), the caps' rims come from the
+    sharp-edge fallback (pieces on the rim polygon, the far half of one rim and the near half of
+    the other), and all of it chains into one closed stroke that draws every segment."""
+    R, H = 0.5, 2.0
+    sc = cylinder_scene(R, H)
+    V = len(sc.vertices)
+    eye = np.array(eye)
+    cam = Camera(eye=tuple(eye), target=(0, 0, 0), up=(0, 0, 1), fov_y=40, width=1024, height=1024)
+    fe = smooth_contour_edges(sc, cam)
+    on_rim = (np.abs(np.abs(fe.a[:, 2]) - H / 2) < 1e-12) & (np.abs(np.abs(fe.b[:, 2]) - H / 2) < 1e-12)
+    side = ~on_rim
+    # Tangent lines: phi = atan2(e_y, e_x) +- acos(R / rho_e), for every height.
+    base, half = np.arctan2(eye[1], eye[0]), np.arccos(R / np.hypot(eye[0], eye[1]))
+    lines = []
+    for ph in (base + half, base - half):
+        a = np.array([[R * np.cos(ph), R * np.sin(ph), -H / 2], [R * np.cos(ph), R * np.sin(ph), H / 2]])
+        lines.append(cam.project(a)[0])
+    ends = np.vstack([cam.project(fe.a[side])[0], cam.project(fe.b[side])[0]])
+    assert side.sum() >= 4  # each line crosses at least the two triangles of one side quad
+    err = np.min([point_segment_distance(ends, ln[:1], ln[1:]) for ln in lines], axis=0)
+    assert err.max() < 0.05
+    # Both lines are present, from rim to rim.
+    for ln in lines:
+        d = point_segment_distance(sample_segments(ln[:1], ln[1:], 33), cam.project(fe.a[side])[0],
+                                   cam.project(fe.b[side])[0])
+        assert d.max() < 0.05
+    # Rim pieces: on the rim edges, where the cap and the side (interpolated) face opposite ways.
+    rim_len = np.linalg.norm(fe.b[on_rim] - fe.a[on_rim], axis=1).sum()
+    assert abs(rim_len / (2 * np.pi * R) - 1) < 0.02  # half of each rim
+    assert np.all(np.abs(np.hypot(fe.a[on_rim, 0], fe.a[on_rim, 1]) - R) < 1e-3)
+    # Chained without gaps: one closed stroke as long as all segments together.
+    st = LineRenderer(sc, LineOptions(contours="smooth", kinds=("silhouette",))).render(cam)
+    assert len(st) == 1 and set(st.kind.tolist()) == {KIND_INDEX["smooth_contour"]}
+    assert np.allclose(st.points[0], st.points[-1], atol=1e-9)
+    seg_px = np.linalg.norm(cam.project(fe.b)[0] - cam.project(fe.a)[0], axis=1).sum()
+    assert abs(st.lengths.sum() / seg_px - 1) < 1e-6
+    # The side segments reach the rims on split-edge keys that rim pieces share.
+    keys = np.r_[fe.va, fe.vb]
+    split_keys = keys[keys >= V + len(sc.edges)]
+    assert len(split_keys) == 8 and np.all(np.unique(split_keys, return_counts=True)[1] == 2)
+
+
+def test_sphere_smooth_contour_unchanged_by_split_normals(sphere):
+    """A sphere has no crease: split normals are the vertex normals, and the smooth contour is
+    bit for bit the zero set of the vertex normal view function (no sharp-edge pieces)."""
+    from strokekit.contours import phong_points, split_normals, view_function, zero_set_segments
+
+    sn = split_normals(sphere, 60.0)
+    assert not sn.split.any() and np.array_equal(sn.corner, sphere.faces)
+    assert np.array_equal(sn.normals, vertex_normals(sphere))
+    cam = Camera(eye=tuple(SPHERE_EYE), target=(0, 0, 0))
+    fe = smooth_contour_edges(sphere, cam)
+    zs = zero_set_segments(sphere, view_function(sphere, cam))
+    pts = phong_points(sphere, zs, vertex_normals(sphere))
+    assert np.array_equal(fe.a, pts[zs.ia]) and np.array_equal(fe.b, pts[zs.ib])
+    V = len(sphere.vertices)
+    assert np.array_equal(fe.va, V + zs.edges[zs.ia]) and np.array_equal(fe.vb, V + zs.edges[zs.ib])
+
+
+def test_crease_threshold_splits_normals():
+    """Corners share a normal only across edges gentler than the crease threshold: a 64-sided
+    cylinder's side edges turn by 5.6 degrees, so a threshold of 5 degrees splits every side
+    edge too (the sides become flat facets: no smooth contour inside a face), 60 only the rims."""
+    sc = cylinder_scene(sections=64)
+    from strokekit.contours import split_normals
+
+    assert split_normals(sc, 60.0).split.sum() == 128
+    assert split_normals(sc, 5.0).split.sum() == 128 + 64  # the rims and the vertical side edges
+    cam = Camera(eye=(3.0, 1.5, 3.0), target=(0, 0, 0), up=(0, 0, 1))
+    fe = smooth_contour_edges(sc, cam, crease_angle_deg=5.0)
+    V = len(sc.vertices)
+    assert np.all((fe.va < V) & (fe.vb < V))
+    np.testing.assert_array_equal(np.sort(np.sort(np.c_[fe.va, fe.vb], axis=1), axis=0),
+                                  np.sort(sc.edges[silhouette_mask(sc, cam)], axis=0))
