@@ -30,15 +30,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from strokekit import contours as C  # noqa: E402
+from strokekit.accuracy import screen_reversals, smooth_contour_wrongly_hidden  # noqa: E402
 from strokekit.camera import Camera, orbit_path  # noqa: E402
-from strokekit.contours import face_size, smooth_contour_edges  # noqa: E402
+from strokekit.contours import smooth_contour_edges  # noqa: E402
 from strokekit.features import silhouette_mask  # noqa: E402
 from strokekit.intersections import intersection_edges  # noqa: E402
 from strokekit.lines import LineRenderer  # noqa: E402
 from strokekit.model import KINDS  # noqa: E402
 from strokekit.options import DEFAULT_KINDS, LineOptions  # noqa: E402
 from strokekit.scene import build_scene, load_scene  # noqa: E402
-from strokekit.visibility import Occluder  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
 
@@ -108,62 +108,14 @@ def sphere_errors(sub, eye=np.array([0.3, 0.5, 4.0])):
     return len(sc.faces), e_s.max(), e_s.mean(), e_m.max(), e_m.mean()
 
 
-def mesh_contour_samples(scene, cam, n=16):
-    """Samples (M, 3) of the mesh contour edges and their occlusion-ray lifts (lines.surface_lift,
-    as the pipeline tests them): the exact visible mesh contour is the truth of BRIEF 2."""
-    from strokekit.lines import surface_lift
-    from strokekit.model import FeatureEdges
-
-    E = scene.edges[silhouette_mask(scene, cam)]
-    a, b = scene.vertices[E[:, 0]], scene.vertices[E[:, 1]]
-    fe = FeatureEdges(a=a, b=b, kind=np.zeros(len(E), np.int8), va=E[:, 0], vb=E[:, 1], face=np.zeros(len(E), np.int64))
-    lift = surface_lift(scene, fe, cam, 1e-5)
-    t = (np.arange(n) + 0.5) / n
-    Q = (a[:, None] * (1 - t)[None, :, None] + b[:, None] * t[None, :, None]).reshape(-1, 3)
-    return Q, np.repeat(lift, n, axis=0)
-
-
-def wrongly_hidden(scene, cams, analytic_all_visible=False, lift=True, tol_px=1.0, ns=8):
+def wrongly_hidden(scene, cams, analytic_all_visible=False, lift=True):
     """(wrongly hidden share, visible share farther than 2 px from any visible mesh contour)."""
-    from scipy.spatial import cKDTree
-
-    occ = Occluder(scene)
-    wrong = total = far = total_vis = 0.0
-    for cam in cams:
-        fe = smooth_contour_edges(scene, cam)
-        s = (np.arange(ns) + 0.5) / ns
-        P = (fe.a[:, None] * (1 - s)[None, :, None] + fe.b[:, None] * s[None, :, None]).reshape(-1, 3)
-        seg = np.repeat(np.arange(len(fe)), ns)
-        pp, _ = cam.project(P)
-        w = np.repeat(np.linalg.norm(cam.project(fe.b)[0] - cam.project(fe.a)[0], axis=1) / ns, ns)
-        vis = occ.visible(P, cam, 1e-5, fe.lift[seg] if lift else None)
-        Q, q_lift = mesh_contour_samples(scene, cam)
-        Qv = Q[occ.visible(Q, cam, 1e-5, q_lift)]
-        tree = cKDTree(cam.project(Qv)[0])
-        if analytic_all_visible:
-            truth = np.ones(len(P), bool)
-        else:
-            dist, i = tree.query(pp, distance_upper_bound=tol_px)
-            near = np.isfinite(dist)
-            truth = np.zeros(len(P), bool)
-            truth[near] = np.linalg.norm(Qv[i[near]] - P[near], axis=1) < 2 * face_size(scene)[fe.face[seg[near]]]
-        wrong += w[truth & ~vis].sum()
-        total += w[truth].sum()
-        d2, _ = tree.query(pp, distance_upper_bound=2.0)
-        far += w[vis & ~np.isfinite(d2)].sum()
-        total_vis += w[vis].sum()
-    return wrong / total, far / max(total_vis, 1e-300)
+    return smooth_contour_wrongly_hidden(scene, cams, lift=lift, all_visible=analytic_all_visible)
 
 
 def reversals(scene, cam, split):
     fe = smooth_contour_edges(scene, cam, split_cusps=split)
-    d = cam.project(fe.b)[0] - cam.project(fe.a)[0]
-    order = np.argsort(fe.vb)
-    ok = np.flatnonzero(fe.va >= 0)
-    pos = np.minimum(np.searchsorted(fe.vb[order], fe.va[ok]), len(order) - 1)
-    hit = fe.vb[order][pos] == fe.va[ok]
-    i, j = order[pos[hit]], ok[hit]
-    return int((np.einsum("ij,ij->i", d[i], d[j]) < 0).sum()), int((fe.va < 0).sum())
+    return screen_reversals(fe, cam), int((fe.va < 0).sum())
 
 
 def gallery(path, thresholds=(0.05, 50.0, 500.0), size=512):

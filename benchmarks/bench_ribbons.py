@@ -86,7 +86,7 @@ def main() -> None:
 
 _BLENDER_SCRIPT = r"""
 import math, sys
-import numpy
+import numpy  # Debian's blender needs python3-numpy for its glTF importer (apt-get install python3-numpy)
 if not hasattr(numpy, "bool"):  # Debian's Blender 3.4.1 importer still uses np.bool (gone in numpy 1.24)
     numpy.bool = bool
 import bpy
@@ -110,7 +110,8 @@ w.node_tree.nodes["Background"].inputs[0].default_value = (1, 1, 1, 1)
 sc.view_settings.view_transform = "Standard"
 for f in frames:
     sc.frame_set(f)
-    print("BLENDER frame", f, "visible", [m.name for m in meshes if m.matrix_world.to_scale()[0] > 0.5])
+    print("BLENDER frame", f, "visible", [m.name for m in meshes if m.matrix_world.to_scale()[0] > 0.5],
+          "camera", tuple(round(x, 4) for x in cam.matrix_world.translation))
     sc.render.filepath = out + "_%d.png" % f
     bpy.ops.render.render(write_still=True)
 """
@@ -132,9 +133,11 @@ def blender_check(out: Path, frames: list, opts: GltfOptions, seq: bytes) -> Non
     env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
                                   if ".pyenv" not in p and "venv" not in p)
     for name, fr in (("frame_0001.glb", str(int(frames[0].frame))), ("sequence.glb", nums)):
-        r = subprocess.run([exe, "-b", "--python", str(script), "--", str(out / f"blender_{Path(name).stem}"),
+        r = subprocess.run([exe, "-b", "--python-exit-code", "1", "--python", str(script), "--", str(out / f"blender_{Path(name).stem}"),
                             str(out / name), fr], capture_output=True, text=True, timeout=600, env=env)
-        lines = [ln for ln in r.stdout.splitlines() if ln.startswith(("BLENDER", "Saved"))]
+        # Our lines, and whatever the importer warns or fails about.
+        lines = [ln for ln in (r.stdout + r.stderr).splitlines()
+                 if ln.startswith(("BLENDER", "Saved")) or any(w in ln for w in ("Warning", "WARNING", "Error", "ERROR"))]
         print(f"--- Blender import of {name} (exit {r.returncode})")
         print("\n".join(lines) if lines else r.stdout[-2000:] + r.stderr[-2000:])
 

@@ -124,3 +124,77 @@ def accuracy(drawn: list[Strokes], reference: list[Strokes], tols=DEFAULT_TOLS, 
     if len(drawn) != len(reference):
         raise ValueError(f"{len(drawn)} drawn frames but {len(reference)} reference frames")
     return aggregate([frame_accuracy(d, r, tols, step_px) for d, r in zip(drawn, reference)])
+
+
+# --- smooth contours: visibility and cusps (issue 8 measurements, shared by tests and benchmarks) ---
+
+def mesh_contour_samples(scene, camera, n: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """Samples (M, 3) world of the mesh contour edges (BRIEF 2 silhouettes), n per edge, and their
+    occlusion-ray lifts (M, 3) as the line pass tests them (lines.surface_lift)."""
+    from .features import silhouette_mask
+    from .lines import surface_lift
+    from .model import FeatureEdges
+
+    E = scene.edges[silhouette_mask(scene, camera)]
+    a, b = scene.vertices[E[:, 0]], scene.vertices[E[:, 1]]
+    fe = FeatureEdges(a=a, b=b, kind=np.zeros(len(E), np.int8), va=E[:, 0], vb=E[:, 1],
+                      face=np.zeros(len(E), np.int64))
+    lift = surface_lift(scene, fe, camera, 1e-5)
+    t = (np.arange(n) + 0.5) / n
+    Q = (a[:, None] * (1 - t)[None, :, None] + b[:, None] * t[None, :, None]).reshape(-1, 3)
+    return Q, np.repeat(lift, n, axis=0)
+
+
+def smooth_contour_wrongly_hidden(scene, cameras, tol_px: float = 1.0, samples_per_segment: int = 8,
+                                  lift: bool = True, all_visible: bool = False) -> tuple[float, float]:
+    """How much of the smooth contour the occlusion test hides wrongly, over `cameras`.
+
+    Truth: a smooth contour sample is visible where a visible exact mesh contour (BRIEF 2) runs
+    within `tol_px` on screen and two face sizes in space (`all_visible`: every sample is, e.g.
+    a lone sphere). Returns (wrongly hidden length / truly visible length, length reported
+    visible farther than 2 px from any visible mesh contour / length reported visible), both by
+    screen length. `lift=False` tests the plain rays, to show what the lift buys."""
+    from .contours import face_size, smooth_contour_edges
+    from .visibility import Occluder
+
+    occ = Occluder(scene)
+    ns = samples_per_segment
+    s = (np.arange(ns) + 0.5) / ns
+    wrong = total = far = total_vis = 0.0
+    for cam in cameras:
+        fe = smooth_contour_edges(scene, cam)
+        P = (fe.a[:, None] * (1 - s)[None, :, None] + fe.b[:, None] * s[None, :, None]).reshape(-1, 3)
+        seg = np.repeat(np.arange(len(fe)), ns)
+        pp, _ = cam.project(P)
+        w = np.repeat(np.linalg.norm(cam.project(fe.b)[0] - cam.project(fe.a)[0], axis=1) / ns, ns)
+        vis = occ.visible(P, cam, 1e-5, fe.lift[seg] if lift else None)
+        Q, q_lift = mesh_contour_samples(scene, cam)
+        Qv = Q[occ.visible(Q, cam, 1e-5, q_lift)]
+        tree = cKDTree(cam.project(Qv)[0])
+        if all_visible:
+            truth = np.ones(len(P), bool)
+        else:
+            dist, i = tree.query(pp, distance_upper_bound=tol_px)
+            near = np.isfinite(dist)
+            truth = np.zeros(len(P), bool)
+            truth[near] = np.linalg.norm(Qv[i[near]] - P[near], axis=1) < 2 * face_size(scene)[fe.face[seg[near]]]
+        wrong += w[truth & ~vis].sum()
+        total += w[truth].sum()
+        d2, _ = tree.query(pp, distance_upper_bound=2.0)
+        far += w[vis & ~np.isfinite(d2)].sum()
+        total_vis += w[vis].sum()
+    return wrong / max(total, 1e-300), far / max(total_vis, 1e-300)
+
+
+def screen_reversals(fe, camera) -> int:
+    """Number of junctions between linked feature segments (segment i's end key vb equals
+    segment j's start key va) where the screen tangent turns back (negative dot product)."""
+    d = camera.project(fe.b)[0] - camera.project(fe.a)[0]
+    order = np.argsort(fe.vb)
+    ok = np.flatnonzero(fe.va >= 0)
+    if len(order) == 0 or len(ok) == 0:
+        return 0
+    pos = np.minimum(np.searchsorted(fe.vb[order], fe.va[ok]), len(order) - 1)
+    hit = fe.vb[order][pos] == fe.va[ok]
+    i, j = order[pos[hit]], ok[hit]  # segment i ends where segment j starts
+    return int((np.einsum("ij,ij->i", d[i], d[j]) < 0).sum())

@@ -13,6 +13,7 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
+from strokekit.accuracy import screen_reversals, smooth_contour_wrongly_hidden
 from strokekit.camera import Camera
 from strokekit.contours import smooth_contour_edges, vertex_normals
 from strokekit.features import feature_edges, silhouette_mask
@@ -22,7 +23,6 @@ from strokekit.model import KIND_INDEX, KINDS
 from strokekit.options import LineOptions
 from strokekit.scene import build_scene, load_scene
 from strokekit.suggestive import curvature_tensors, suggestive_contour_edges
-from strokekit.visibility import Occluder
 
 MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
 
@@ -147,47 +147,10 @@ def test_smooth_contour_scale_and_ortho(sphere, scale, shift):
     assert abs(st.lengths.sum() / (2 * np.pi * cam.focal_px * scale) - 1) < 1e-3
 
 
-def mesh_contour_samples(scene, cam, n=16):
-    """Samples (M, 3) of the mesh contour edges and their occlusion-ray lifts (lines.surface_lift,
-    as the pipeline tests them): the exact visible mesh contour is the truth of BRIEF 2."""
-    from strokekit.lines import surface_lift
-    from strokekit.model import FeatureEdges
-
-    E = scene.edges[silhouette_mask(scene, cam)]
-    a, b = scene.vertices[E[:, 0]], scene.vertices[E[:, 1]]
-    fe = FeatureEdges(a=a, b=b, kind=np.zeros(len(E), np.int8), va=E[:, 0], vb=E[:, 1], face=np.zeros(len(E), np.int64))
-    lift = surface_lift(scene, fe, cam, 1e-5)
-    t = (np.arange(n) + 0.5) / n
-    Q = (a[:, None] * (1 - t)[None, :, None] + b[:, None] * t[None, :, None]).reshape(-1, 3)
-    return Q, np.repeat(lift, n, axis=0)
-
-
-def contour_truth_wrongly_hidden(scene, cams, tol_px=1.0, ns=8):
+def contour_truth_wrongly_hidden(scene, cams):
     """Share of smooth contour length reported hidden although a visible exact mesh contour
-    (BRIEF 2) runs within `tol_px` on screen and two face sizes in space."""
-    from strokekit.contours import face_size
-
-    occ = Occluder(scene)
-    wrong = total = 0.0
-    for cam in cams:
-        fe = smooth_contour_edges(scene, cam)
-        s = (np.arange(ns) + 0.5) / ns
-        P = (fe.a[:, None] * (1 - s)[None, :, None] + fe.b[:, None] * s[None, :, None]).reshape(-1, 3)
-        seg = np.repeat(np.arange(len(fe)), ns)
-        pp, _ = cam.project(P)
-        pa, _ = cam.project(fe.a)
-        pb, _ = cam.project(fe.b)
-        w = np.repeat(np.linalg.norm(pb - pa, axis=1) / ns, ns)
-        vis = occ.visible(P, cam, 1e-5, fe.lift[seg])
-        Q, q_lift = mesh_contour_samples(scene, cam)
-        Qv = Q[occ.visible(Q, cam, 1e-5, q_lift)]
-        d, i = cKDTree(cam.project(Qv)[0]).query(pp, distance_upper_bound=tol_px)
-        near = np.isfinite(d)
-        truth = np.zeros(len(P), bool)
-        truth[near] = np.linalg.norm(Qv[i[near]] - P[near], axis=1) < 2 * face_size(scene)[fe.face[seg[near]]]
-        wrong += w[truth & ~vis].sum()
-        total += w[truth].sum()
-    return wrong / total
+    (BRIEF 2) runs within 1 px on screen and two face sizes in space."""
+    return smooth_contour_wrongly_hidden(scene, cams, tol_px=1.0)[0]
 
 
 def orbit_cams(scene, n=4, dist=3.0):
@@ -223,17 +186,7 @@ def test_bunny_smooth_contour_reverses_only_at_cusps():
     cam = orbit_cams(sc, 3)[1]
     counts = []
     for split in (False, True):
-        fe = smooth_contour_edges(sc, cam, split_cusps=split)
-        pa, _ = cam.project(fe.a)
-        pb, _ = cam.project(fe.b)
-        d = pb - pa
-        order = np.argsort(fe.vb)
-        ok = fe.va >= 0
-        pos = np.searchsorted(fe.vb[order], fe.va[ok])
-        pos = np.minimum(pos, len(order) - 1)
-        hit = fe.vb[order][pos] == fe.va[ok]
-        i, j = order[pos[hit]], np.flatnonzero(ok)[hit]  # segment i ends where j starts
-        counts.append(int((np.einsum("ij,ij->i", d[i], d[j]) < 0).sum()))
+        counts.append(screen_reversals(smooth_contour_edges(sc, cam, split_cusps=split), cam))
     assert counts[0] > 0  # the bunny's contour does have cusps
     assert counts[1] == 0
     st = LineRenderer(sc, LineOptions(contours="smooth", kinds=("silhouette",))).render(cam)
