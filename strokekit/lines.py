@@ -15,6 +15,7 @@ from .model import KIND_INDEX, FeatureEdges, Strokes
 from .options import LineOptions
 from .scene import Scene
 from .strokeops import drop_retraced, drop_short, simplify, split_max_length
+from .tracking import drop_doubled
 from .visibility import Occluder, visible_runs
 
 
@@ -53,6 +54,8 @@ class LineRenderer:
         strokes = strokes.select(strokes.lengths > 0.0)
         if opts.merge_overlaps:
             strokes = drop_retraced(strokes, opts.overlap_tol_px)
+        if opts.doubled_px > 0:
+            strokes = drop_doubled(strokes, opts.doubled_px)
         strokes = split_max_length(strokes, opts.max_length_px)
         strokes = drop_short(strokes, opts.min_length_px)
         strokes = simplify(strokes, opts.simplify_tol_px)

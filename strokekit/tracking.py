@@ -48,9 +48,10 @@ level_weight = 1 - frac(c): when a stroke shrinks 8 times under a dolly its mark
 unstretched case is level 0, weight 1. Brush head and tail keep their size in the ribbon writer,
 which only needs u and the stroke length.
 
-Split criteria (angle, maximum length) are LineOptions of the chaining stage. With the default
-`doubled_px` and `join_tol_px` the tracked frame draws the input lines less their doubled parts,
-with bridges of at most `join_tol_px` where strokes are healed (both 0: exactly the input lines).
+Split criteria (angle, maximum length) and the removal of doubled contour pieces
+(`drop_doubled`, LineOptions.doubled_px) belong to the per-frame line pass. With the default
+`join_tol_px` the tracked frame draws the input lines with bridges of at most `join_tol_px` where
+strokes are healed (0: exactly the input lines).
 """
 
 from __future__ import annotations
@@ -92,10 +93,6 @@ class TrackingOptions:
     snap_boundaries: cuts between two carried ids go where the previous stroke ends project.
     chain_touching: join chains whose ends meet (join_tol_px, join_angle_deg) before cutting by
     votes (see the module doc); healing after the cut is then not needed.
-    doubled_px: before tracking, parts of strokes that run beside a longer stroke within this
-    distance are dropped (`drop_doubled`: mesh contours come out as shingled pieces that overlap
-    side by side; each doubled part is a second stroke over the same line, which the
-    correspondence of BRIEF 3 cannot tell apart frame to frame). 0 keeps the lines as drawn.
     knot_spacing_px: u is piecewise linear with knots this far apart (0: one line per stroke);
     bend_weight: weight of even stretch between knots (kalnins).
     max_growth_px, min_carry_px, seed_search_px, seed_angle_penalty_px: seed 000 strategies 3, 5,
@@ -121,7 +118,6 @@ class TrackingOptions:
     reverse_votes: bool = True
     bend_weight: float = 0.01
     snap_boundaries: bool = True
-    doubled_px: float = 2.0
     chain_touching: bool = True
 
     def __post_init__(self):
@@ -131,7 +127,7 @@ class TrackingOptions:
             if not getattr(self, name) > 0:
                 raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
         for name in ("stretch_weight", "outlier_px", "min_id_px", "max_growth_px", "min_carry_px",
-                     "seed_angle_penalty_px", "doubled_px", "join_tol_px"):
+                     "seed_angle_penalty_px", "join_tol_px"):
             if not getattr(self, name) >= 0:
                 raise UsageError(f"{name.replace('_', '-')} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.min_tangent_dot <= 1:
@@ -791,13 +787,11 @@ class Tracker:
         self.prev, self.next_id = None, 0
 
     def step(self, strokes: Strokes) -> Strokes:
-        """The tracked version of one frame's strokes (same lines, less doubled parts: see the
-        module doc; ids, u, level set; strokes may be re-cut, healed and reversed). The camera of `strokes` is required for
+        """The tracked version of one frame's strokes (same lines, see the module doc; ids, u,
+        level set; strokes may be re-cut, healed and reversed). The camera of `strokes` is required for
         carrying samples from the previous frame."""
         o = self.options
         strokes = replace(strokes, period_px=o.period_px)
-        if o.doubled_px > 0:
-            strokes = drop_doubled(strokes, o.doubled_px)
         if o.method == "none":
             out = self._fresh(strokes, renumber=True)
         elif self.prev is None or len(self.prev) == 0 or strokes.camera is None or self.prev.camera is None \

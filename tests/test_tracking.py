@@ -129,18 +129,17 @@ def _total_length(frames):
 
 
 def _assert_draws_the_input(tracked, frames, o=TrackingOptions()):
-    """The tracked frames draw their input lines: every input point is drawn within the doubling
-    radius (only parts running beside a longer stroke are dropped); nothing is drawn farther than
-    the join tolerance from an input line (bridges where strokes are healed); the length is the
-    input's less its doubled parts, plus at most one bridge per stroke."""
+    """The tracked frames draw their input lines: every input point is drawn; nothing is drawn
+    farther than the join tolerance from an input line (bridges where strokes are healed); the
+    length is the input's plus at most one bridge per stroke."""
     for fi, fo in zip(frames, tracked):
         if len(fi) == 0:
             continue
         d, _ = cKDTree(resample_strokes(fo, 0.25).p).query(resample_strokes(fi, 0.5).p)
-        assert d.max() <= o.doubled_px + 0.3
+        assert d.max() <= 0.3
         d, _ = cKDTree(resample_strokes(fi, 0.25).p).query(resample_strokes(fo, 0.5).p)
         assert d.max() <= o.join_tol_px + 0.3
-        ref = drop_doubled(replace(fi, period_px=o.period_px), o.doubled_px).lengths.sum()
+        ref = fi.lengths.sum()
         assert ref - 1e-6 <= fo.lengths.sum() <= ref + o.join_tol_px * len(fi) + 1e-6
 
 
@@ -149,9 +148,9 @@ def test_cube_orbit_keeps_ids_and_does_not_slide(cube_frames):
     pairs, ov = sequence_metrics(tracked)
     assert ov["M1"] >= 0.95
     assert ov["M4_median"] <= 0.5 and ov["M4_p95"] <= 1.5
-    # Nothing is lost: the same lines (less what doubled a longer stroke, plus joins' bridges).
+    # Nothing is lost: the same lines (plus joins' bridges).
     _assert_draws_the_input(tracked, cube_frames)
-    exact = track_frames(cube_frames, TrackingOptions(doubled_px=0, join_tol_px=1e-6))
+    exact = track_frames(cube_frames, TrackingOptions(join_tol_px=1e-6))
     assert np.allclose(_total_length(exact), _total_length(cube_frames), rtol=1e-9)
     for f in tracked:
         assert len(np.unique(f.ids)) == len(f.ids)
@@ -183,10 +182,10 @@ def test_torus_split_merge_ids_deterministic_and_no_stroke_lost(torus_frames):
             assert np.array_equal(fa.ids, fb.ids) and np.array_equal(fa.points, fb.points)
             assert np.array_equal(fa.u, fb.u)
             assert len(np.unique(fa.ids)) == len(fa.ids)
-        # No stroke lost: every frame draws its input lines (less doubled parts, plus bridges).
+        # No stroke lost: every frame draws its input lines (plus bridges).
         _assert_draws_the_input(a, torus_frames)
-        # Without doubling removal and bridges: exactly the same length, every input point drawn.
-        exact = track_frames(torus_frames, TrackingOptions(method=method, doubled_px=0, join_tol_px=1e-6))
+        # Without bridges: exactly the same length, every input point drawn.
+        exact = track_frames(torus_frames, TrackingOptions(method=method, join_tol_px=1e-6))
         assert np.allclose(_total_length(exact), _total_length(torus_frames), rtol=1e-9)
         for fi, fo in zip(torus_frames, exact):
             d, _ = cKDTree(resample_strokes(fo, 0.5).p).query(fi.points)

@@ -45,6 +45,9 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--max-length", type=float, default=None, help="Split strokes longer than N px [no limit].")
 @click.option("--min-length", type=float, default=None, help="Drop strokes shorter than N px [0].")
 @click.option("--simplify", "simplify_tol", type=float, default=None, help="Simplify strokes within N px.")
+@click.option("--doubled", type=float, default=None,
+              help="Drop parts of contour strokes running beside a longer one within N px (mesh-contour "
+                   "shingles) [1]; 0 keeps every visible contour edge, 2 keeps ids steadier on scanned meshes.")
 @click.option("--period", type=float, default=None, help="Texture period P in px for the parametrization u [30].")
 @click.option("--suggestive-threshold", type=float, default=None,
               help="Suggestive contours: minimum derivative of radial curvature, scale-free [50].")
@@ -64,7 +67,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--explain", is_flag=True, help="List the stages that ran, why, and their time.")
 @render_extra_options
 def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out_dir, pattern, kinds, contours, quality,
-            crease_angle, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, period,
+            crease_angle, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, doubled, period,
             suggestive_threshold, suggestive_kr_threshold, svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
             explain, **extra):
     """Render the visible feature lines of SCENE for every frame of a camera path.
@@ -100,7 +103,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     lines = LineOptions.preset(quality, kinds=split_list(kinds), contours=contours, crease_angle_deg=crease_angle,
                                sample_spacing_px=sample_spacing, bisection_tol_px=bisection_tol,
                                split_angle_deg=split_angle, max_length_px=max_length, min_length_px=min_length,
-                               simplify_tol_px=simplify_tol, period_px=period,
+                               simplify_tol_px=simplify_tol, doubled_px=doubled, period_px=period,
                                suggestive_derivative_threshold=suggestive_threshold,
                                suggestive_kr_threshold=suggestive_kr_threshold)
     gltf_options = gltf_options_from(extra, lines, path.fps)
