@@ -1,7 +1,7 @@
 """The `strokekit` command: a click group whose commands live in cli/commands/*.py.
 
 The front end parses, calls the library and reports. Library errors become one line on stderr
-and an exit code (1 input, 2 usage, 3 partial failure); never a traceback unless
+and an exit code (1 input or unwritable output, 2 usage, 3 partial failure); never a traceback unless
 STROKEKIT_DEBUG=1."""
 
 from __future__ import annotations
@@ -55,6 +55,10 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         click.echo("strokekit: interrupted", err=True)
         sys.exit(130)
+    except OSError as e:  # an output that cannot be written: not a folder, no permission, disk full
+        where = f"{e.filename}: " if e.filename else ""
+        click.echo(f"strokekit: error: {where}cannot write: {e.strerror or e}", err=True)
+        sys.exit(1)
     except Exception as e:  # never a traceback for the user
         if os.environ.get("STROKEKIT_DEBUG"):
             raise

@@ -263,11 +263,14 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
         fps = float(data.get("fps", 24))
     except (TypeError, ValueError) as e:
         raise InputError(f"bad width/height/fps ({e})", source) from None
+    if width <= 0 or height <= 0:
+        raise InputError(f"image size must be positive, got {width} x {height}", source)
+    # Entries are named as output frames are, from 1 (BRIEF 1.2: entry k is output frame k+1).
     if "frames" in data:
         frames = data["frames"]
         if not isinstance(frames, list) or not frames:
             raise InputError("'frames' must be a non-empty list", source)
-        cams = [_camera_from_dict(f, width, height, f"frame {i}", source) for i, f in enumerate(frames)]
+        cams = [_camera_from_dict(f, width, height, f"frame {i + 1}", source) for i, f in enumerate(frames)]
     elif "keyframes" in data:
         keys = data["keyframes"]
         if not isinstance(keys, list) or not keys:
@@ -280,8 +283,8 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
         parsed = []
         for i, k in enumerate(keys):
             if not isinstance(k, dict) or "frame" not in k:
-                raise InputError(f"keyframe {i} has no 'frame'", source)
-            parsed.append((int(k["frame"]), _camera_from_dict(k, width, height, f"keyframe {i}", source)))
+                raise InputError(f"keyframe {i + 1} has no 'frame'", source)
+            parsed.append((int(k["frame"]), _camera_from_dict(k, width, height, f"keyframe {i + 1}", source)))
         count = int(data["frame_count"])
         if count <= 0:
             raise InputError("frame_count must be positive", source)
@@ -303,7 +306,7 @@ def load_camera_path(path: str | Path) -> CameraPath:
     except UnicodeDecodeError:
         raise InputError("camera file is not text", p) from None
     except json.JSONDecodeError as e:
-        raise InputError(f"camera file is not valid JSON ({e.msg} at line {e.lineno})", p) from None
+        raise InputError(f"camera file is not valid JSON ({e.msg}: line {e.lineno}, column {e.colno})", p) from None
     return camera_path_from_json(data, str(p))
 
 

@@ -301,6 +301,8 @@ def overall(pairs: list[PairMetrics]) -> dict:
 def frame_files(out_dir) -> list[Path]:
     """The frame_*.json files of a folder in frame order."""
     d = Path(out_dir)
+    if not d.exists():
+        raise InputError("folder not found", d)
     if not d.is_dir():
         raise InputError("not a folder", d)
     files = sorted(d.glob("frame_*.json"))

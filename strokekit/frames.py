@@ -20,8 +20,10 @@ def parse_frames(spec: str | None, count: int) -> list[int]:
                 lo = hi = int(part)
         except ValueError:
             raise UsageError(f"bad frame selection {spec!r} (use e.g. 1-24 or 1,3,5-9)") from None
-        if lo < 1 or hi < lo:
-            raise UsageError(f"bad frame range {part!r} in {spec!r}")
+        if lo < 1:
+            raise UsageError(f"bad frame selection {spec!r}: frames count from 1")
+        if hi < lo:
+            raise UsageError(f"bad frame range {part!r} in {spec!r}: the first frame must not exceed the last")
         if hi > count:
             raise UsageError(f"frame {hi} is beyond the camera path's {count} frames")
         out.update(range(lo, hi + 1))

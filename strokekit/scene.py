@@ -204,7 +204,8 @@ def build_scene(vertices: np.ndarray, faces: np.ndarray, face_object: np.ndarray
     used = np.unique(f)
     if not np.all(np.isfinite(v[used])):
         bad = int((~np.isfinite(v[used]).all(axis=1)).sum())
-        raise InputError(f"{bad} vertices have NaN or infinite coordinates", source or None)
+        raise InputError(f"{bad} {'vertex has' if bad == 1 else 'vertices have'} NaN or infinite coordinates",
+                         source or None)
     fo = np.zeros(len(f), np.int32) if face_object is None else np.asarray(face_object, np.int32)
     fm = np.zeros(len(f), np.int32) if face_material is None else np.asarray(face_material, np.int32)
     # Weld by exact position: seams duplicate vertices with identical coordinates.

@@ -187,3 +187,62 @@ def test_glb_camera_node_is_a_camera_source(tmp_path, capsys):
     assert code == 0, err
     d = json.loads((tmp_path / "o" / "frame_0001.json").read_text())
     assert len(d["strokes"]) > 0
+
+
+def test_camera_file_errors_name_frames_from_1_and_check_the_size(cube, tmp_path, capsys):
+    """Entries of a camera file are named as the output frames they become (frame_0002 is the
+    second entry); an impossible image size is the file's fault, not a frame's."""
+    ok = {"eye": [0, 0, 5], "target": [0, 0, 0]}
+    cam = write_camera(tmp_path / "c.json", [ok, {"eye": [0, 0, 5]}])
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+    assert code == 1 and "frame 2 has no 'target'" in err and len(err.strip().splitlines()) == 1
+    cam = write_camera(tmp_path / "w.json", [ok], width=-5)
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+    assert code == 1 and "image size must be positive" in err and "frame" not in err
+
+
+def test_outputs_are_readable_like_any_new_file(cube, tmp_path, capsys):
+    """Atomic writes go through mkstemp (mode 0600); the renamed files get 0666 less the umask,
+    so other users and web servers can read the results."""
+    import os
+
+    old = os.umask(0o022)
+    try:
+        code, _, err = run_cli(["render", cube, "--orbit", "1", "--out", tmp_path / "o", "--size", "64x64",
+                                "--report", tmp_path / "r.json"], capsys)
+    finally:
+        os.umask(old)
+    assert code == 0, err
+    for p in [*(tmp_path / "o").iterdir(), tmp_path / "r.json"]:
+        assert p.stat().st_mode & 0o777 == 0o644, p
+
+
+@pytest.mark.parametrize("pattern,needle", [("same", "must contain {frame}"), ("../up_{frame}", "without folders"),
+                                            ("sub/f_{frame}", "without folders")])
+def test_pattern_that_would_lose_or_misplace_frames_is_a_usage_error(cube, tmp_path, capsys, pattern, needle):
+    code, _, err = run_cli(["render", cube, "--orbit", "2", "--pattern", pattern, "--out", tmp_path / "o"], capsys)
+    assert code == 2 and needle in err
+    assert not (tmp_path / "o").exists() and not list(tmp_path.glob("up_*"))
+
+
+def test_unwritable_output_is_one_line_before_any_work(cube, tmp_path, capsys):
+    """--out or --report below a file: one line naming the path, exit 1, no traceback, nothing
+    rendered (the report is checked before the frames, not after them)."""
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("x")
+    # --out naming a file is refused by the option parser itself (usage, 2); the others are 1.
+    for args, expected in ((["--out", blocker / "sub"], 1), (["--out", blocker], 2),
+                           (["--out", tmp_path / "o", "--report", blocker / "r.json"], 1)):
+        code, _, err = run_cli(["render", cube, "--orbit", "2", *args], capsys)
+        assert code == expected, err
+        assert len(err.strip().splitlines()) == 1 and "internal error" not in err and "file.txt" in err
+        assert not (tmp_path / "o").exists()
+
+
+def test_a_frame_draws_the_same_lines_alone_and_in_a_sequence(tmp_path, capsys):
+    """Cleanup of doubled contour pieces is per frame: frame 5 rendered alone and inside a
+    sequence (no tracking) give the same bytes."""
+    base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--no-json", "-q"]
+    assert run_cli([*base, "--frames", "5", "--out", tmp_path / "a"], capsys)[0] == 0
+    assert run_cli([*base, "--frames", "3-6", "--no-coherence", "--out", tmp_path / "b"], capsys)[0] == 0
+    assert (tmp_path / "a" / "frame_0005.svg").read_bytes() == (tmp_path / "b" / "frame_0005.svg").read_bytes()

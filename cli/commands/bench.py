@@ -10,9 +10,9 @@ from strokekit.errors import UsageError
 
 
 @click.command("bench")
-@click.argument("scene_path", metavar="SCENE", type=click.Path(dir_okay=False))
+@click.argument("scene_path", metavar="SCENE", type=click.Path())
 @click.option("--camera", "camera_path", type=click.Path(dir_okay=False), default=None,
-              help="Camera path file (BRIEF 1.2); default: an orbit around the scene.")
+              help="Camera path JSON (format: README, camera path files); default: an orbit around the scene.")
 @click.option("--frames", type=int, default=8, show_default=True,
               help="Orbit frames, or the first N frames of --camera.")
 @click.option("--repeats", type=int, default=3, show_default=True, help="Timed passes; the median is reported.")

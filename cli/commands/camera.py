@@ -20,7 +20,7 @@ def _emit(path, out):
 
 
 _common = [
-    click.argument("scene", type=click.Path(dir_okay=False)),
+    click.argument("scene", type=click.Path()),
     click.option("--frames", type=click.IntRange(min=1), default=48, show_default=True, help="Number of frames."),
     click.option("--elevation", type=float, default=15.0, show_default=True, help="Degrees above the horizon."),
     click.option("--fov", type=click.FloatRange(0.1, 179.9), default=40.0, show_default=True, help="Vertical field of view, degrees."),
@@ -39,7 +39,7 @@ def _with_common(f):
 
 @click.group("camera")
 def command():
-    """Generate camera paths (JSON, BRIEF 1.2) so every run can be reproduced from a file."""
+    """Generate camera path files (JSON, see the README) so every run can be reproduced from a file."""
 
 
 @command.command("orbit")

@@ -10,7 +10,7 @@ from ..common import echo_json
 
 
 @click.command("info")
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scene", type=click.Path())
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--crease-angle", type=float, default=60.0, show_default=True, help="Crease threshold, degrees.")
 def command(scene: str, as_json: bool, crease_angle: float):

@@ -10,7 +10,7 @@ import click
 
 from strokekit.camera import load_camera_path, orbit_path
 from strokekit.errors import UsageError
-from strokekit.fileio import atomic_write_text
+from strokekit.fileio import atomic_write_text, check_output_folder
 from strokekit.frames import parse_frames
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
 from strokekit.pipeline import OutputOptions, RunSpec, run, run_report
@@ -23,7 +23,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.command("render")
 @click.argument("scene", type=click.Path())
 @click.option("--camera", "camera_file", type=click.Path(dir_okay=False), default=None,
-              help="Camera path JSON (BRIEF 1.2), or a glTF/GLB file with a camera node.")
+              help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node.")
 @click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")
 @click.option("--elevation", type=float, default=15.0, show_default=True, help="Orbit elevation, degrees.")
 @click.option("--fov", type=click.FloatRange(0.1, 179.9), default=40.0, show_default=True, help="Orbit field of view, degrees.")
@@ -70,24 +70,34 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             crease_angle, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, doubled, period,
             suggestive_threshold, suggestive_kr_threshold, svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
             explain, **extra):
-    """Render the visible feature lines of SCENE for every frame of a camera path.
+    """Render the visible feature lines of SCENE for every frame of a camera path (--camera, or
+    --orbit N; without either, a 48-frame orbit).
 
-    Writes OUT/frame_0001.svg and .json (and .glb, band PNGs when asked) per frame."""
+    Writes OUT/frame_0001.svg and .json (and .glb, band PNGs when asked) per frame. Exit codes: 0 done,
+    1 bad input or unwritable output, 2 usage error, 3 some frames failed (the others are written)."""
     if camera_file and orbit:
         raise UsageError("give either --camera or --orbit, not both")
     if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
         raise UsageError("nothing to write: every output is turned off")
     try:
-        pattern.format(frame=1)
+        names = {pattern.format(frame=1), pattern.format(frame=2)}
     except (KeyError, IndexError, ValueError):
         raise UsageError(f"bad --pattern {pattern!r}: use {{frame}} e.g. frame_{{frame:04d}}") from None
+    if len(names) < 2:
+        raise UsageError(f"bad --pattern {pattern!r}: it must contain {{frame}}, or every frame gets the same name")
+    if any(sep in pattern for sep in ("/", "\\")) or pattern.startswith("."):
+        raise UsageError(f"bad --pattern {pattern!r}: a file name inside --out, without folders")
     width = height = None
     if size:
         try:
             width, height = (int(x) for x in size.lower().split("x"))
-            assert width > 0 and height > 0
         except Exception:
             raise UsageError(f"bad --size {size!r}: use WxH, e.g. 1024x768") from None
+        if width <= 0 or height <= 0:
+            raise UsageError(f"bad --size {size!r}: width and height must be positive")
+    check_output_folder(out_dir)
+    if report_path:
+        check_output_folder(Path(report_path).parent)
     s = load_scene(scene)
     if camera_file:
         path = load_camera_path(camera_file)
@@ -129,7 +139,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         click.echo(f"strokekit: error: {msg}", err=True)
     if not quiet:
         n_ok = len(res.frames_ok)
-        msg = f"wrote {n_ok} frame(s) to {out_dir}/ in {res.wall_seconds:.2f} s"
+        msg = f"wrote {n_ok} frame(s) to {Path(out_dir)}/ in {res.wall_seconds:.2f} s"
         if res.frames_skipped:
             msg += f" ({len(res.frames_skipped)} already there, skipped)"
         if res.failures:

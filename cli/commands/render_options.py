@@ -22,18 +22,19 @@ _GLTF = [
 
 _TRACKING = [
     click.option("--coherence", "coherence_method", type=click.Choice(["kalnins", "seed", "none"]), default="kalnins",
-                 show_default=True, help="Frame-to-frame tracking: Kalnins-style votes, the seed-000 baseline, or none."),
+                 show_default=True, help="Frame-to-frame tracking: kalnins (samples carry ids and u to the next frame), seed (simple "
+                      "baseline: limited growth, short strokes not carried), or none."),
     click.option("--no-coherence", is_flag=True, help="Same as --coherence none: ids per frame, u = arc length / P."),
     click.option("--max-growth", type=float, default=20.0, show_default=True,
-                 help="Seed baseline: a stroke grows at most N px per frame (strategy 3)."),
+                 help="With --coherence seed: a stroke grows at most N px per frame."),
     click.option("--min-carry", type=float, default=10.0, show_default=True,
-                 help="Seed baseline: strokes shorter than N px are not carried to the next frame (strategy 5)."),
+                 help="With --coherence seed: strokes shorter than N px are not carried to the next frame."),
 ]
 
 
 _RASTER = [
     click.option("--bands", type=click.IntRange(min=1, max=254), default=None,
-                 help="Toon bands: write frame_NNNN_bands.png (labels) and _shade.png with N bands (seed 002)."),
+                 help="Toon bands: write frame_NNNN_bands.png (labels) and _shade.png with N bands of quantized n.l."),
     click.option("--band-thresholds", default=None, help="Explicit n.l thresholds a,b,.. instead of N equal bands."),
     click.option("--shading", type=click.Choice(["flat", "smooth"]), default="flat", show_default=True),
     click.option("--light", default="-0.4,0.6,0.7", show_default=True, help="Direction toward the light x,y,z."),
@@ -46,7 +47,7 @@ _RASTER = [
     click.option("--no-shade", is_flag=True, help="No _shade.png (the ramp colours)."),
     click.option("--objectid", is_flag=True, help="Also _objectid.png (8-bit object ids, 0 background)."),
     click.option("--depth", is_flag=True, help="Also _depth.png (16-bit linear depth)."),
-    click.option("--fill", is_flag=True, help="Also _fill.png: self-similar volumetric texture (seed 003)."),
+    click.option("--fill", is_flag=True, help="Also _fill.png: hatching that keeps its screen size at any zoom (self-similar 3D texture)."),
     click.option("--fill-pattern", type=click.Choice(["hatch", "dots", "noise"]), default="hatch", show_default=True),
     click.option("--fill-period", type=float, default=16.0, show_default=True, help="Fill texture period in px."),
     click.option("--gooch", is_flag=True, help="Gooch warm/cool ramp instead of darker shades."),
