@@ -38,7 +38,9 @@ class RasterOptions:
     """What the raster pass computes and writes. Only what is asked is computed.
 
     bands: N; thresholds: explicit n.l thresholds (increasing, in (0, 1)), which override N with
-    len(thresholds) + 1; shading 'flat' (face normals) or 'smooth' (interpolated vertex normals);
+    len(thresholds) + 1; shading 'flat' (face normals) or 'smooth' (corner normals interpolated
+    across each face, split at creases sharper than `crease_angle_deg` degrees like Blender's
+    auto smooth, `contours.split_normals`: a box's faces stay flat, a sphere shades smoothly);
     light: direction toward the light, in camera space (x right, y up, z toward the viewer) or
     world space; supersample K in {1, 2, 4}; masks: one anti-aliased PNG per band; shade: ramp
     colours (RGBA); objectid, depth: compositing passes; fill: seed 003 hatching/dots/noise of
@@ -63,6 +65,7 @@ class RasterOptions:
     gooch: bool = False
     band_polygons: bool = False
     edge_supersample: int = 0
+    crease_angle_deg: float = 60.0
 
     def __post_init__(self):
         th = tuple(float(t) for t in self.thresholds)
@@ -86,6 +89,8 @@ class RasterOptions:
                                            or int(self.edge_supersample) <= int(self.supersample)):
             raise UsageError(f"edge supersample must be 0 (off) or 2, 4, 8 above the supersample "
                              f"{self.supersample}, got {self.edge_supersample}")
+        if not 0 < self.crease_angle_deg < 180:
+            raise UsageError(f"crease angle must be in (0, 180) degrees, got {self.crease_angle_deg}")
         if self.fill_pattern not in FILL_PATTERNS:
             raise UsageError(f"fill pattern must be one of {', '.join(FILL_PATTERNS)}, got {self.fill_pattern!r}")
         if not self.fill_period_px > 0:
@@ -100,7 +105,8 @@ _VERTEX_NORMALS: "weakref.WeakKeyDictionary[Scene, np.ndarray]" = weakref.WeakKe
 def vertex_normals(scene: Scene) -> np.ndarray:
     """(V, 3) unit vertex normals: area-weighted sums of the face normals around each vertex
     (the unnormalized cross product is area-weighted already). Isolated directions fall back to
-    +z rather than NaN. Cached per scene (scenes are immutable)."""
+    +z rather than NaN. Cached per scene (scenes are immutable). Smooth shading no longer uses
+    them unless passed as `vnormals` (see `corner_shading`)."""
     cached = _VERTEX_NORMALS.get(scene)
     if cached is None:
         cached = _VERTEX_NORMALS[scene] = _vertex_normals(scene)
@@ -139,29 +145,55 @@ def _facing_sign(scene: Scene, camera: Camera, fi: np.ndarray, ax: np.ndarray, a
     return np.where(s > 0, -1.0, 1.0)
 
 
+def corner_shading(scene: Scene, crease_angle_deg: float = 60.0, vnormals: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(corner (F, 3) node of each face corner, normals (N, 3) unit node normals, gram (F, 3)
+    n_a.n_b, n_b.n_c, n_c.n_a of each face's corner normals) for smooth shading.
+
+    The nodes and normals are `contours.split_normals(scene, crease_angle_deg)`, the ones smooth
+    contours use (angle-weighted, Blender's auto smooth rule): corners share a normal only across
+    edges flatter than the crease angle, so a face next to a sharp edge keeps its own normal
+    there. Cached per scene and angle in `contours.scene_cache`. With `vnormals` (V, 3) those
+    vertex normals are interpolated instead, unsplit (not cached)."""
+    if vnormals is not None:
+        return _with_gram(scene.faces, np.asarray(vnormals, float))
+    from .contours import scene_cache, split_normals
+
+    key = ("raster_corner_shading", float(crease_angle_deg))
+    c = scene_cache(scene)
+    if key not in c:
+        sn = split_normals(scene, crease_angle_deg)
+        c[key] = _with_gram(sn.corner, sn.normals)
+    return c[key]
+
+
+def _with_gram(corner: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    N = normals[corner]  # (F, 3, 3)
+    gram = np.stack([np.einsum("ij,ij->i", N[:, k], N[:, (k + 1) % 3]) for k in range(3)], axis=1)
+    return corner, normals, gram
+
+
 def sample_n_dot_l(scene: Scene, camera: Camera, fi: np.ndarray, uv: np.ndarray, ax: np.ndarray, ay: np.ndarray,
-                   light: np.ndarray, shading: str = "flat", vnormals: np.ndarray | None = None) -> np.ndarray:
+                   light: np.ndarray, shading: str = "flat", vnormals: np.ndarray | None = None,
+                   crease_angle_deg: float = 60.0) -> np.ndarray:
     """(M,) two-sided n.l of M hit samples: faces fi (M,), barycentrics uv (M, 2), camera-plane
     offsets ax, ay (M,).
 
-    flat: face normals; smooth: barycentric interpolation of vertex normals, renormalized. The
-    smooth case works on per-face scalars (vertex n.l and pairwise normal dot products), so no
-    (M, 3) normal array is built."""
+    flat: face normals; smooth: barycentric interpolation of the face's corner normals split at
+    creases sharper than `crease_angle_deg` (`corner_shading`; `vnormals` (V, 3) to interpolate
+    given vertex normals instead), renormalized. The smooth case works on per-corner scalars
+    (node n.l and the cached pairwise normal dot products), so no (M, 3) normal array is built."""
     sign = _facing_sign(scene, camera, fi, ax, ay)
     if shading == "flat":
         d = (scene.face_normals @ light)[fi]
     else:
-        vn = vertex_normals(scene) if vnormals is None else vnormals
-        f = scene.faces
-        vl = vn @ light
-        la, lb, lc = (vl[f[:, k]][fi] for k in range(3))
+        corner, normals, gram = corner_shading(scene, crease_angle_deg, vnormals)
+        nl = normals @ light
+        la, lb, lc = (nl[corner[:, k]][fi] for k in range(3))
+        gab, gbc, gca = (gram[:, k][fi] for k in range(3))
         uv = np.asarray(uv, np.float64)
         wb, wc = uv[:, 0], uv[:, 1]
         wa = 1.0 - wb - wc
-        na, nb, nc = vn[f[:, 0]], vn[f[:, 1]], vn[f[:, 2]]
-        gab = np.einsum("ij,ij->i", na, nb)[fi]
-        gbc = np.einsum("ij,ij->i", nb, nc)[fi]
-        gca = np.einsum("ij,ij->i", nc, na)[fi]
         # |wa na + wb nb + wc nc|^2 from the pairwise dot products.
         norm2 = wa * wa + wb * wb + wc * wc + 2 * (wa * wb * gab + wb * wc * gbc + wc * wa * gca)
         d = (wa * la + wb * lb + wc * lc) / np.sqrt(np.maximum(norm2, 1e-24))
@@ -170,20 +202,20 @@ def sample_n_dot_l(scene: Scene, camera: Camera, fi: np.ndarray, uv: np.ndarray,
 
 
 def hit_n_dot_l(scene: Scene, hits: RasterHits, light: np.ndarray, shading: str = "flat",
-                vnormals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                vnormals: np.ndarray | None = None, crease_angle_deg: float = 60.0) -> tuple[np.ndarray, np.ndarray]:
     """(sel, ndl): flat indices of the hit samples (M,) and their two-sided n.l (M,) float64."""
     face = hits.face.ravel()
     sel = np.flatnonzero(face >= 0)
     rows, cols = np.divmod(sel, hits.shape[1])
     d = sample_n_dot_l(scene, hits.camera, face[sel], hits.bary.reshape(-1, 2)[sel], hits.ray_dir_x[cols],
-                       hits.ray_dir_y[rows], light, shading, vnormals)
+                       hits.ray_dir_y[rows], light, shading, vnormals, crease_angle_deg)
     return sel, d
 
 
 def n_dot_l(scene: Scene, hits: RasterHits, light: np.ndarray, shading: str = "flat",
-            vnormals: np.ndarray | None = None) -> np.ndarray:
+            vnormals: np.ndarray | None = None, crease_angle_deg: float = 60.0) -> np.ndarray:
     """(HK, WK) float32 two-sided n.l per sample, NaN on background (see hit_n_dot_l)."""
-    sel, d = hit_n_dot_l(scene, hits, light, shading, vnormals)
+    sel, d = hit_n_dot_l(scene, hits, light, shading, vnormals, crease_angle_deg)
     out = np.full(hits.face.size, np.nan, np.float32)
     out[sel] = d
     return out.reshape(hits.shape)
@@ -477,10 +509,11 @@ def band_polygons_svg(frame: RasterFrame, *, decimals: int = 2, tolerance_px: fl
 def render_raster(scene: Scene, camera: Camera, occluder: Occluder, options: RasterOptions,
                   vnormals: np.ndarray | None = None) -> RasterFrame:
     """Cast the rays and label the bands of one frame. Call only when a raster output is asked
-    for. `vnormals` (V, 3) may be passed to reuse vertex normals across frames (smooth shading)."""
+    for. Smooth shading uses the normals split at options.crease_angle_deg (cached per scene);
+    `vnormals` (V, 3) replaces them by given vertex normals, interpolated without splitting."""
     hits = cast_pixels(camera, occluder, options.supersample)
     light = light_direction(camera, options)
-    sel, ndl = hit_n_dot_l(scene, hits, light, options.shading, vnormals)
+    sel, ndl = hit_n_dot_l(scene, hits, light, options.shading, vnormals, options.crease_angle_deg)
     labels_ss = np.zeros(hits.face.size, np.uint8)
     labels_ss[sel] = quantize_bands(ndl, options.bands, options.thresholds)
     labels_ss = labels_ss.reshape(hits.shape)
@@ -525,7 +558,7 @@ def _edge_coverage(frame: RasterFrame, occluder: Occluder, R: int, vnormals: np.
     hit = np.flatnonzero(h["face"] >= 0)
     lab = np.zeros(len(x), np.uint8)
     ndl = sample_n_dot_l(frame.scene, cam, h["face"][hit], h["bary"][hit], ax[hit], ay[hit], frame.light,
-                         o.shading, vnormals)
+                         o.shading, vnormals, o.crease_angle_deg)
     lab[hit] = quantize_bands(ndl, o.bands, o.thresholds)
     counts = np.bincount(np.repeat(np.arange(len(mixed)), R * R) * n + lab, minlength=len(mixed) * n)
     return mixed, (counts.reshape(len(mixed), n) / (R * R)).astype(np.float32)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -115,7 +116,8 @@ def test_quantize_follows_seed_formula_and_thresholds():
 
 @pytest.mark.parametrize("bad", [dict(bands=0), dict(thresholds=(0.5, 0.3)), dict(shading="phong"),
                                  dict(supersample=3), dict(light=(0, 0, 0)), dict(light_space="screen"),
-                                 dict(fill_pattern="plaid"), dict(fill_period_px=0)])
+                                 dict(fill_pattern="plaid"), dict(fill_period_px=0), dict(crease_angle_deg=0),
+                                 dict(crease_angle_deg=180)])
 def test_bad_options_are_usage_errors(bad):
     with pytest.raises(UsageError):
         RasterOptions(**bad)
@@ -138,6 +140,70 @@ def test_band_labels_match_analytic_sphere_lighting(sphere, sphere_occ, shading)
     assert agree > (0.97 if shading == "flat" else 0.995)
     assert set(np.unique(fr.labels_ss[hit])) == {1, 2, 3, 4}
     assert (fr.labels_ss[~hit] == 0).all()
+
+
+#: Toward the light for the box tests: its +x, +y, +z faces get n.l 0.15, 0.50, 0.85, three
+#: bands far from the band thresholds 1/3 and 2/3.
+BOX_LIGHT = (0.15, 0.5, 0.85)
+
+
+@pytest.fixture(scope="module")
+def box():
+    m = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
+    return build_scene(np.asarray(m.vertices) + [1.0, 0.5, -2.0], np.asarray(m.faces))
+
+
+@pytest.mark.parametrize("K", [1, 2])
+def test_smooth_shading_keeps_box_faces_flat(box, K):
+    """Smooth shading splits normals at creases (--crease-angle, default 60 deg): each visible
+    face of a box is one band, and the band changes exactly where the hit moves to another face
+    (at the box's edges). With a crease angle above 90 deg the edges are smoothed over and the
+    faces get curved bands (what smooth shading did for every box before)."""
+    occ = Occluder(box)
+    cam = Camera(eye=(4.5, 3.5, 2.0), target=(1.0, 0.5, -2.0), fov_y=40, width=96, height=80)
+    opts = RasterOptions(bands=3, supersample=K, shading="smooth", light=BOX_LIGHT, light_space="world")
+    fr = render_raster(box, cam, occ, opts)
+    hit = fr.hits.hit
+    face = fr.hits.face[hit]
+    lab = fr.labels_ss[hit]
+    # The side of the box each sample hits, from its triangle's plane normal.
+    side = np.argmax(box.face_normals[face], axis=1) + 3 * (box.face_normals[face].min(axis=1) < -0.5)
+    assert sorted(np.unique(side)) == [0, 1, 2]  # the +x, +y, +z faces are seen
+    expected = quantize_bands((box.face_normals[face] @ (np.array(BOX_LIGHT) / np.linalg.norm(BOX_LIGHT))), 3)
+    assert np.array_equal(lab, expected)
+    for sd, band in zip((0, 1, 2), (1, 2, 3)):
+        assert set(np.unique(lab[side == sd])) == {band}
+    # Label changes between neighbouring samples happen exactly where the box side changes.
+    sides = np.full(fr.hits.shape, -1)
+    sides[hit] = side
+    for a, b in ((np.s_[:, 1:], np.s_[:, :-1]), (np.s_[1:, :], np.s_[:-1, :])):
+        both = hit[a] & hit[b]
+        assert np.array_equal((fr.labels_ss[a] != fr.labels_ss[b])[both], (sides[a] != sides[b])[both])
+    # Flat shading gives the same labels on a box; smoothing across 90 deg edges does not.
+    assert np.array_equal(render_raster(box, cam, occ, replace(opts, shading="flat")).labels_ss, fr.labels_ss)
+    rounded = render_raster(box, cam, occ, replace(opts, crease_angle_deg=120.0)).labels_ss[hit]
+    assert any(len(np.unique(rounded[side == sd])) > 1 for sd in (0, 1, 2))
+
+
+def test_crease_angle_reaches_the_raster_pass_from_the_command_line(box, tmp_path, capsys):
+    """`strokekit render --shading smooth` splits normals at --crease-angle: the default keeps a
+    cube's faces flat (same bands as --shading flat), --crease-angle 120 rounds them."""
+    from cli.main import main
+
+    p = tmp_path / "box.obj"
+    p.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in box.vertices)
+                 + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in box.faces))
+    out = {}
+    for name, extra in (("flat", ["--shading", "flat"]), ("smooth", ["--shading", "smooth"]),
+                        ("rounded", ["--shading", "smooth", "--crease-angle", "120"])):
+        with pytest.raises(SystemExit) as e:
+            main([str(a) for a in ["render", p, "--orbit", "1", "--elevation", "30", "--size", "64x64", "--bands", "3",
+                                   "--no-svg", "--no-json", "-q", "--out", tmp_path / name, *extra]])
+        assert e.value.code == 0, capsys.readouterr().err
+        out[name] = read_png((tmp_path / name / "frame_0001_bands.png").read_bytes())
+    assert (out["flat"] > 0).mean() > 0.1
+    assert np.array_equal(out["smooth"], out["flat"])
+    assert not np.array_equal(out["rounded"], out["flat"])
 
 
 def test_camera_space_light_follows_the_camera(sphere, sphere_occ):
@@ -460,8 +526,6 @@ def test_edge_supersample_matches_uniform_supersampling_at_edges(sphere, sphere_
     coverages then equal those of a uniform R x R supersampling, with far fewer rays."""
     cam = Camera(eye=(3.6, -1.2, 5.5), target=(3.0, -2.0, 1.0), fov_y=30, width=120, height=90)
     base = RasterOptions(bands=3, shading="smooth")
-    from dataclasses import replace
-
     uniform = render_raster(sphere, cam, sphere_occ, replace(base, supersample=4)).coverage
     plain = render_raster(sphere, cam, sphere_occ, replace(base, supersample=1)).coverage
     for K in (1, 2):

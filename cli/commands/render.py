@@ -120,7 +120,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     outputs = OutputOptions(out_dir=Path(out_dir), pattern=pattern, svg=svg, json=write_json,
                             decimals=decimals, stroke_width_px=stroke_width,
                             gltf=gltf_options is not None, gltf_sequence=bool(extra.get("gltf_sequence")),
-                            gltf_options=gltf_options, raster_options=raster_options_from(extra, quality))
+                            gltf_options=gltf_options, raster_options=raster_options_from(extra, quality, lines.crease_angle_deg))
     if workers is None:
         workers = (os.cpu_count() or 1) if len(frames) >= 8 else 1
     spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,

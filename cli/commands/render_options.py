@@ -36,7 +36,8 @@ _RASTER = [
     click.option("--bands", type=click.IntRange(min=1, max=254), default=None,
                  help="Toon bands: write frame_NNNN_bands.png (labels) and _shade.png with N bands of quantized n.l."),
     click.option("--band-thresholds", default=None, help="Explicit n.l thresholds a,b,.. instead of N equal bands."),
-    click.option("--shading", type=click.Choice(["flat", "smooth"]), default="flat", show_default=True),
+    click.option("--shading", type=click.Choice(["flat", "smooth"]), default="flat", show_default=True,
+                 help="Band normals: per face, or interpolated and split at edges sharper than --crease-angle."),
     click.option("--light", default="-0.4,0.6,0.7", show_default=True, help="Direction toward the light x,y,z."),
     click.option("--light-space", type=click.Choice(["camera", "world"]), default="camera", show_default=True),
     click.option("--supersample", type=click.Choice(["1", "2", "4"]), default=None,
@@ -101,9 +102,10 @@ def _floats(text: str, what: str, n: int | None = None) -> tuple[float, ...]:
     return vals
 
 
-def raster_options_from(extra: dict, quality: str):
+def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.0):
     """RasterOptions when any raster output is asked for (--bands, --masks, --fill, --objectid,
-    --depth, --band-polygons), else None: lines-only runs do no raster pass at all."""
+    --depth, --band-polygons), else None: lines-only runs do no raster pass at all.
+    `crease_angle_deg` (the line options' --crease-angle) is where smooth shading splits normals."""
     wanted = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
     if not wanted:
         return None
@@ -119,4 +121,4 @@ def raster_options_from(extra: dict, quality: str):
                          masks=extra["masks"], shade=not extra["no_shade"], objectid=extra["objectid"],
                          depth=extra["depth"], fill=extra["fill"], fill_pattern=extra["fill_pattern"],
                          fill_period_px=extra["fill_period"], gooch=extra["gooch"],
-                         band_polygons=extra["band_polygons"])
+                         band_polygons=extra["band_polygons"], crease_angle_deg=crease_angle_deg)
