@@ -51,7 +51,7 @@ class RasterOptions:
 
     bands: int = 3
     thresholds: tuple[float, ...] = ()
-    shading: str = "flat"
+    shading: str = "smooth"
     light: tuple[float, float, float] = (-0.4, 0.6, 0.7)
     light_space: str = "camera"
     supersample: int = 2

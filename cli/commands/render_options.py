@@ -36,7 +36,7 @@ _RASTER = [
     click.option("--bands", type=click.IntRange(min=1, max=254), default=None,
                  help="Toon bands: write frame_NNNN_bands.png (labels) and _shade.png with N bands of quantized n.l."),
     click.option("--band-thresholds", default=None, help="Explicit n.l thresholds a,b,.. instead of N equal bands."),
-    click.option("--shading", type=click.Choice(["flat", "smooth"]), default="flat", show_default=True,
+    click.option("--shading", type=click.Choice(["flat", "smooth"]), default="smooth", show_default=True,
                  help="Band normals: per face, or interpolated and split at edges sharper than --crease-angle."),
     click.option("--light", default="-0.4,0.6,0.7", show_default=True, help="Direction toward the light x,y,z."),
     click.option("--light-space", type=click.Choice(["camera", "world"]), default="camera", show_default=True),
