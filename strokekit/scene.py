@@ -9,6 +9,7 @@ from the scene and counted.
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -281,7 +282,7 @@ def load_scene(path: str | Path) -> Scene:
     materials: list[Material] = []
     mat_index: dict[tuple, int] = {}
     offset = 0
-    for node in sorted(loaded.graph.nodes_geometry):
+    for node in _nodes_in_stable_order(loaded):
         transform, geom_name = loaded.graph[node]
         geom = loaded.geometry[geom_name]
         f = getattr(geom, "faces", None)
@@ -299,9 +300,29 @@ def load_scene(path: str | Path) -> Scene:
         faces.append(np.asarray(f, np.int64) + offset)
         fobj.append(np.full(len(f), len(objects), np.int32))
         fmat.append(np.full(len(f), mat_index[key], np.int32))
-        objects.append(str(node))
+        objects.append(_object_name(str(node), str(geom_name)))
         offset += len(v)
     if not faces:
         raise InputError("no triangle faces in file (empty, or a point cloud)", p)
     return build_scene(np.concatenate(verts), np.concatenate(faces), np.concatenate(fobj), np.concatenate(fmat),
                        objects=objects, materials=materials, source=str(p))
+
+
+#: trimesh names a glTF node that has no name "<mesh index>_<6 random hex digits>": a new name on
+#: every load, so it must neither order the faces nor name the object.
+_GENERATED_NODE = re.compile(r"\d+_[0-9a-f]{6}")
+
+
+def _object_name(node: str, geometry: str) -> str:
+    return geometry if _GENERATED_NODE.fullmatch(node) else node
+
+
+def _nodes_in_stable_order(loaded) -> list:
+    """The geometry nodes of a trimesh scene in an order that is the same on every load: by
+    object name (the node's own name, or its mesh's where trimesh made one up), mesh name and
+    world transform. Face order, object ids and the scene hash follow from it."""
+    def key(node):
+        transform, geom_name = loaded.graph[node]
+        return (_object_name(str(node), str(geom_name)), str(geom_name),
+                np.asarray(transform, np.float64).tobytes())
+    return sorted(loaded.graph.nodes_geometry, key=key)

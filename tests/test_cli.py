@@ -246,3 +246,22 @@ def test_a_frame_draws_the_same_lines_alone_and_in_a_sequence(tmp_path, capsys):
     assert run_cli([*base, "--frames", "5", "--out", tmp_path / "a"], capsys)[0] == 0
     assert run_cli([*base, "--frames", "3-6", "--no-coherence", "--out", tmp_path / "b"], capsys)[0] == 0
     assert (tmp_path / "a" / "frame_0005.svg").read_bytes() == (tmp_path / "b" / "frame_0005.svg").read_bytes()
+
+
+def test_gltf_with_unnamed_nodes_loads_the_same_every_time(tmp_path, capsys):
+    """trimesh names unnamed glTF nodes at random on every load; the scene (face order, object
+    names, hash) must not depend on that, or two runs differ and workers refuse the scene as
+    changed."""
+    from strokekit.scene import load_scene
+
+    p = model_path("CesiumMilkTruck.glb")
+    a, b = load_scene(p), load_scene(p)
+    assert a.content_hash == b.content_hash and a.objects == b.objects
+    assert "Cesium_Milk_Truck" in a.objects
+    outs = []
+    for k in range(2):
+        code, _, err = run_cli(["render", p, "--orbit", "2", "--size", "128x128", "-q", "--out", tmp_path / f"o{k}"],
+                               capsys)
+        assert code == 0, err
+        outs.append((tmp_path / f"o{k}" / "frame_0002.svg").read_bytes())
+    assert outs[0] == outs[1]
