@@ -354,6 +354,16 @@ def dolly_path(center: np.ndarray, radius: float, frames: int, *, start: float =
     return CameraPath(cameras=tuple(cams), source="dolly")
 
 
+def gltf_camera_count(path) -> int:
+    """Number of cameras a glTF/GLB file defines (0 when it cannot be read)."""
+    import pygltflib
+
+    try:
+        return len(pygltflib.GLTF2().load(str(path)).cameras or [])
+    except Exception:  # info only: the scene loader reports broken files
+        return 0
+
+
 def gltf_camera_path(path: Path, width: int | None = None, height: int | None = None) -> CameraPath:
     """The first camera node of a glTF/GLB file, placed by its world transform.
 

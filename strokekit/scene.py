@@ -308,9 +308,9 @@ def load_scene(path: str | Path) -> Scene:
                        objects=objects, materials=materials, source=str(p))
 
 
-#: trimesh names a glTF node that has no name "<mesh index>_<6 random hex digits>": a new name on
-#: every load, so it must neither order the faces nor name the object.
-_GENERATED_NODE = re.compile(r"\d+_[0-9a-f]{6}")
+#: trimesh names a glTF node that has no name "<mesh index>_<6 random hex digits>" (a new name on
+#: every load, so it must neither order the faces nor name the object) or by its index.
+_GENERATED_NODE = re.compile(r"\d+(_[0-9a-f]{6})?")
 
 
 def _object_name(node: str, geometry: str) -> str:

@@ -173,6 +173,12 @@ def test_keyframe_path_interpolates_position_rotation_and_fov(tmp_path):
     assert np.allclose(mid.basis[2], -np.array([1, 0, 1]) / math.sqrt(2))
 
 
+def test_info_names_gltf_objects_by_their_meshes_and_reports_cameras(capsys):
+    code, out, err = run_cli(["info", model_path("Duck.glb")], capsys)
+    assert code == 0, err
+    assert "LOD3spShape" in out and "cameras     1" in out
+
+
 def test_info_reports_counts_and_kinds(capsys):
     code, out, _ = run_cli(["info", SAMPLES / "still_life.glb", "--json"], capsys)
     assert code == 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from strokekit.camera import gltf_camera_count
 from strokekit.scene import load_scene
 
 from ..common import echo_json
@@ -19,6 +20,9 @@ def command(scene: str, as_json: bool, crease_angle: float):
     d = s.summary()
     d["line_kinds"] = s.available_kinds(crease_angle)
     d["crease_edges"] = int(s.crease_mask(crease_angle).sum())
+    d.pop("crease_edges_60deg", None)  # the count at --crease-angle replaces it
+    if str(scene).lower().endswith((".glb", ".gltf")):
+        d["cameras"] = gltf_camera_count(scene)
     if as_json:
         echo_json(d)
         return
@@ -34,6 +38,8 @@ def command(scene: str, as_json: bool, crease_angle: float):
                   f"{d['crease_edges']} crease (> {crease_angle:g} deg), {d['material_boundary_edges']} material boundary"),
         ("line kinds", ", ".join(d["line_kinds"]) or "none"),
     ]
+    if d.get("cameras"):
+        rows.append(("cameras", f"{d['cameras']} (render with --camera {scene})"))
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         click.echo(f"{k:<{w}}  {v}")
