@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from .camera import Camera
-from .contours import face_edges, face_scale, face_size, smooth_contours, split_normals
+from .contours import scene_cache, face_edges, face_scale, face_size, smooth_contours, split_normals
 from .intersections import intersection_edges
 from .model import KIND_INDEX, FeatureEdges
 from .options import LineOptions
@@ -22,12 +22,35 @@ from .suggestive import SMOOTH_PASSES, curvature_tensors, suggestive_contour_edg
 
 
 def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
-    """(F,) True where the face's front side faces the eye (perspective) or the view (ortho)."""
+    """(F,) True where the face's front side faces the eye (perspective) or the view (ortho).
+    Read-only; the last camera's answer is kept per scene (a frame asks for it several times)."""
+    c = scene_cache(scene)
+    last = c.get("front_facing")
+    if last is not None and last[0] is camera:
+        return last[1]
     n = scene.face_normals
     if camera.is_ortho:
         _, _, fwd = camera.basis
-        return (n @ -fwd) > 0.0
-    return (n @ np.asarray(camera.eye, float) - scene.face_offsets) > 0.0
+        ff = (n @ -fwd) > 0.0
+    else:
+        ff = (n @ np.asarray(camera.eye, float) - scene.face_offsets) > 0.0
+    ff.setflags(write=False)
+    c["front_facing"] = (camera, ff)  # holds the camera: its id cannot be reused while cached
+    return ff
+
+
+def _manifold_face_pairs(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """(E,) int32 first and second face of each manifold edge, F (one past the last face) elsewhere:
+    index a facing array padded with one False to compare the two faces of every edge at once."""
+    c = scene_cache(scene)
+    pairs = c.get("manifold_face_pairs")
+    if pairs is None:
+        F = len(scene.faces)
+        m = scene.is_manifold
+        ef = scene.edge_faces
+        pairs = (np.where(m, ef[:, 0], F).astype(np.intp), np.where(m, ef[:, 1], F).astype(np.intp))
+        c["manifold_face_pairs"] = pairs
+    return pairs
 
 
 def static_feature_mask(scene: Scene, options: LineOptions) -> dict[str, np.ndarray]:
@@ -58,16 +81,13 @@ def static_feature_mask(scene: Scene, options: LineOptions) -> dict[str, np.ndar
 
 def silhouette_mask(scene: Scene, camera: Camera) -> np.ndarray:
     """(E,) manifold edges whose two faces face opposite ways."""
-    ff = front_facing(scene, camera)
-    ef = scene.edge_faces
-    m = scene.is_manifold
-    out = np.zeros(len(ef), bool)
-    out[m] = ff[ef[m, 0]] != ff[ef[m, 1]]
-    return out
+    ff = np.append(front_facing(scene, camera), False)
+    f0, f1 = _manifold_face_pairs(scene)
+    return ff[f0] != ff[f1]
 
 
 def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
-                  static: dict[str, np.ndarray] | None = None) -> FeatureEdges:
+                  static: dict[str, np.ndarray] | None = None, with_lift: bool = False) -> FeatureEdges:
     """Candidate feature edges for this camera. Each mesh edge gets one kind, in priority order
     silhouette > border > nonmanifold > crease > material; then the lines inside faces, each with
     its own occlusion-ray lift: smooth contours (`wants_smooth_contours`; they replace the mesh
@@ -75,7 +95,8 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     their kinds are selected. Their va/vb chaining keys are >= V (or -1 where a stroke must end),
     except the smooth contour's pieces along sharp edges (contours.sharp_edge_contours), which
     meet each other at mesh vertex ids; a mesh edge such a piece covers whole gets no other kind,
-    as a mesh silhouette edge gets none."""
+    as a mesh silhouette edge gets none. `with_lift`: also give the mesh edges their occlusion-ray
+    lift (lines.surface_lift) when no other part brings one."""
     static = static_feature_mask(scene, options) if static is None else static
     E = len(scene.edges)
     kind = np.full(E, -1, np.int8)
@@ -112,14 +133,16 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
         parts.append(suggestive_contour_edges(scene, camera, options))
     if "intersection" in options.kinds:
         parts.append(intersection_edges(scene))
-    if len(parts) == 1:
+    if len(parts) == 1 and not with_lift:
         return mesh
-    if len(mesh):
+    if len(mesh) or len(parts) == 1:
         # Lines inside faces bring their own lift, so the concatenation has one and lines.py
         # would not add the mesh edges' lift (it only fills a missing one): add it here.
         from .lines import surface_lift
 
-        parts[0] = replace(mesh, lift=surface_lift(scene, mesh, camera, options.occlusion_offset))
+        parts[0] = replace(mesh, lift=surface_lift(scene, mesh, camera, options.occlusion_offset, edge_index=sel))
+    if len(parts) == 1:
+        return parts[0]
     return FeatureEdges.concat(parts)
 
 

@@ -42,7 +42,7 @@ class LineRenderer:
         `timings`, if given, accumulates seconds per stage ('feature edges', 'visibility', 'chaining')."""
         opts = self.options
         clock = _Clock(timings)
-        fe = feature_edges(self.scene, camera, opts, self.static)
+        fe = feature_edges(self.scene, camera, opts, self.static, with_lift=True)
         if fe.lift is None:
             fe = replace(fe, lift=surface_lift(self.scene, fe, camera, opts.occlusion_offset))
         clock.lap("feature edges")
@@ -63,7 +63,8 @@ class LineRenderer:
         return strokes
 
 
-def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float) -> np.ndarray:
+def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float,
+                 edge_index: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) ray-origin offsets for mesh-edge features: `fraction` x scene radius along the mean
     normal of the edge's faces that face the eye (all its faces, turned around, when none does).
 
@@ -72,18 +73,25 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     origin off the surface by far more than the rounding (1e-5 r vs ~1e-7 r) removes them; true
     occluders closer than that are far below a pixel. Only the eye-facing side is used: the back
     face of a silhouette often rests on another object (a box on the ground), and a lift along
-    it would start the ray inside that object."""
+    it would start the ray inside that object.
+
+    `edge_index` (N,), if given, is the scene edge of each feature (all mesh edges, va < vb as
+    in scene.edges): it saves looking the edges up by their vertices."""
     lift = np.zeros((len(fe), 3))
     V = len(scene.vertices)
     mesh = (fe.va >= 0) & (fe.va < V) & (fe.vb >= 0) & (fe.vb < V)
     if not mesh.any():
         return lift
-    lo = np.minimum(fe.va[mesh], fe.vb[mesh])
-    hi = np.maximum(fe.va[mesh], fe.vb[mesh])
-    keys = scene.edges[:, 0] * (V + 1) + scene.edges[:, 1]  # sorted: edges are sorted rows
-    q = lo * (V + 1) + hi
-    pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
-    found = keys[pos] == q
+    if edge_index is not None:
+        pos = np.asarray(edge_index)[mesh]
+        found = np.ones(len(pos), bool)
+    else:
+        lo = np.minimum(fe.va[mesh], fe.vb[mesh])
+        hi = np.maximum(fe.va[mesh], fe.vb[mesh])
+        keys = scene.edges[:, 0] * (V + 1) + scene.edges[:, 1]  # sorted: edges are sorted rows
+        q = lo * (V + 1) + hi
+        pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
+        found = keys[pos] == q
     ef = scene.edge_faces[pos]
     n = scene.face_normals
     ff = front_facing(scene, camera)
@@ -103,7 +111,7 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     a, b = fe.a[mesh], fe.b[mesh]
     local = np.maximum(np.linalg.norm(0.5 * (a + b) - scene.center, axis=1), np.linalg.norm(b - a, axis=1))
     size = fraction * np.minimum(scene.radius, local)
-    out = np.zeros((len(q), 3))
+    out = np.zeros((len(pos), 3))
     out[ok] = m[ok] / ln[ok, None] * size[ok, None]
     lift[mesh] = out
     # A non-manifold edge has no "first two faces" independent of face order: no lift, so that
