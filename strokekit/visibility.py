@@ -32,6 +32,7 @@ class Occluder:
         #: world -> Embree frame: (X - origin) * inv_scale. Ray parameters (t in units of the
         #: direction) are the same in both frames.
         self.inv_scale = 1.0 / scene.radius if scene.radius > 0 else 1.0
+        self._origin_col = self.origin[:, None]
         local = ((scene.vertices - self.origin) * self.inv_scale).astype(np.float32)
         self.backend = backend
         if backend in (None, "open3d"):
@@ -60,7 +61,9 @@ class Occluder:
         o = (origins - self.origin) * self.inv_scale
         d = (targets - origins) * self.inv_scale
         if self.backend == "open3d":
-            rays = np.concatenate([o, d], axis=1).astype(np.float32)
+            rays = np.empty((len(o), 6), np.float32)
+            rays[:, :3] = o
+            rays[:, 3:] = d
             hit = self._rs.test_occlusions(self._o3c.Tensor(rays), tnear=0.0, tfar=1.0)
             return hit.numpy().astype(bool)
         length = np.linalg.norm(d, axis=1)
@@ -145,6 +148,64 @@ class Occluder:
             targets = eye - tail[:, None] * toward
         return ~self.occluded_segments(origins, targets)
 
+    # --- the same queries on (3, N) coordinate rows (perspective, lifted) -------------------------
+    # visible_runs' hot path. Every value is computed by the same float64 operations, in the same
+    # order, as visible / _visible_from / occluded_segments (so the float32 rays, hence the
+    # answers, are bit for bit the same); only the memory layout differs, which makes numpy's
+    # elementwise loops contiguous. np.einsum("ij,ij->i", x, x) sums (x0 x0 + x2 x2) + x1 x1 and
+    # np.linalg.norm(x, axis=1) sqrt((x0 x0 + x1 x1) + x2 x2): the helpers below keep those orders.
+
+    def _occluded_rows(self, o: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """occluded_segments for (3, N) origins and targets (open3d backend)."""
+        n = o.shape[1]
+        if n == 0:
+            return np.zeros(0, bool)
+        rays = np.empty((n, 6), np.float32)
+        rays[:, :3] = ((o - self._origin_col) * self.inv_scale).T
+        rays[:, 3:] = ((t - o) * self.inv_scale).T
+        hit = self._rs.test_occlusions(self._o3c.Tensor(rays), tnear=0.0, tfar=1.0)
+        return hit.numpy().astype(bool)
+
+    def _visible_from_rows(self, P: np.ndarray, eye: np.ndarray, eps: np.ndarray, eye_eps: float,
+                           d: np.ndarray | None = None, dist: np.ndarray | None = None) -> np.ndarray:
+        """_visible_from (perspective) for (3, N) points; eye (3, 1); eye_eps = offset x |eye - origin|.
+        d = eye - P and dist = its length (einsum order) may be passed when already known."""
+        if d is None:
+            d = eye - P
+            dist = np.sqrt(_einsum_sq(d))
+        toward = d / np.where(dist > 0, dist, 1.0)
+        origins = P + np.minimum(eps, 0.5 * dist) * toward
+        tail = np.minimum(np.maximum(eps, eye_eps), 0.25 * dist)
+        targets = eye - tail * toward
+        return ~self._occluded_rows(origins, targets)
+
+    def visible_rows(self, P: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
+                     scale: np.ndarray) -> np.ndarray:
+        """visible(points, camera, offset, lift, scale) for a perspective camera and the open3d
+        backend, with points and lift as (3, N) rows."""
+        c = P - self._origin_col
+        eps = offset * np.maximum(np.sqrt(_einsum_sq(c)), scale)
+        eye = np.asarray(camera.eye, float)
+        eye_eps = offset * np.linalg.norm(eye - self.origin)
+        eye = eye[:, None]
+        lifted = P + lift
+        d = eye - lifted
+        dist = np.sqrt(_einsum_sq(d))
+        vis = self._visible_from_rows(lifted, eye, eps, eye_eps, d, dist)
+        hidden = np.flatnonzero(~vis)
+        if len(hidden):
+            o = lifted[:, hidden]
+            dh = d[:, hidden]
+            toward = dh / np.maximum(np.sqrt(_norm_sq(dh)), 1e-300)
+            eh = eps[hidden]
+            reach = 100.0 * np.sqrt(_norm_sq(lift[:, hidden])) + eh
+            start = o + eh * toward
+            near = self._occluded_rows(start, start + reach * toward)
+            again = hidden[near]
+            if len(again):
+                vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
+        return vis
+
     def eye_enclosed(self, camera: Camera, n: int = 64) -> bool:
         """True when the perspective eye sits inside a closed part of the scene: nearly every
         ray from it first meets a triangle from its back side."""
@@ -161,6 +222,16 @@ class Occluder:
             return False
         back = np.einsum("ij,ij->i", self.scene.face_normals[ids], dirs) > 0
         return bool(back.mean() >= 0.95)
+
+
+def _einsum_sq(x: np.ndarray) -> np.ndarray:
+    """np.einsum("ij,ij->i", X, X) of the (N, 3) X whose rows x (3, N) holds, same bits."""
+    return (x[0] * x[0] + x[2] * x[2]) + x[1] * x[1]
+
+
+def _norm_sq(x: np.ndarray) -> np.ndarray:
+    """The square of np.linalg.norm(X, axis=1) before its sqrt, X (N, 3) given as rows x (3, N)."""
+    return (x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]
 
 
 def _has_embreex() -> bool:
@@ -247,8 +318,34 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     lift = None if features.lift is None else features.lift[idx]
     # Local size for the ray offset: the segment's world length (see Occluder.visible).
     size = np.linalg.norm(b[idx] - a[idx], axis=1)
-    vis = occluder.visible(world_at(seg, s), camera, options.occlusion_offset,
-                           None if lift is None else lift[seg], size[seg])
+    offset = options.occlusion_offset
+    if lift is not None and not camera.is_ortho and occluder.backend == "open3d":
+        # The same samples and rays on (3, N) rows (Occluder.visible_rows): the per-segment
+        # arrays are gathered once for the samples and once for the bisected changes.
+        At, Dt, liftT = A.T.copy(), (B - A).T.copy(), lift.T.copy()
+
+        def visible_at(seg_i, s_i):
+            z0, z1 = za.take(seg_i), zb.take(seg_i)
+            lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
+            return occluder.visible_rows(At.take(seg_i, axis=1) + lam * Dt.take(seg_i, axis=1), camera, offset,
+                                         liftT.take(seg_i, axis=1), size.take(seg_i))
+
+        def bisect_visible(cs):
+            A_c, D_c, lift_c, size_c = At.take(cs, axis=1), Dt.take(cs, axis=1), liftT.take(cs, axis=1), size.take(cs)
+            z0, z1 = za.take(cs), zb.take(cs)
+
+            def at(mid):
+                lam = mid * z0 / ((1 - mid) * z1 + mid * z0)
+                return occluder.visible_rows(A_c + lam * D_c, camera, offset, lift_c, size_c)
+            return at
+    else:
+        def visible_at(seg_i, s_i):
+            return occluder.visible(world_at(seg_i, s_i), camera, offset,
+                                    None if lift is None else lift[seg_i], size[seg_i])
+
+        def bisect_visible(cs):
+            return lambda mid: visible_at(cs, mid)
+    vis = visible_at(seg, s)
     # Changes of visibility between consecutive samples of one segment.
     same = seg[1:] == seg[:-1]
     change = np.flatnonzero(same & (vis[1:] != vis[:-1]))
@@ -258,10 +355,10 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         vis_lo = vis[change]
         width_px = (hi - lo) * L[cs]
         iters = int(math.ceil(math.log2(max(width_px.max(), 1e-12) / options.bisection_tol_px))) if width_px.max() > options.bisection_tol_px else 0
+        visible_mid = bisect_visible(cs)
         for _ in range(max(iters, 0)):
             mid = 0.5 * (lo + hi)
-            vm = occluder.visible(world_at(cs, mid), camera, options.occlusion_offset,
-                                  None if lift is None else lift[cs], size[cs])
+            vm = visible_mid(mid)
             go_hi = vm == vis_lo  # the change lies in [mid, hi]
             lo = np.where(go_hi, mid, lo)
             hi = np.where(go_hi, hi, mid)
