@@ -14,16 +14,15 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
     (world), face, length_px, self-similar level and weight. Deterministic."""
     pts = np.round(strokes.points, 4) + 0.0
     u = np.round(strokes.u, 5) + 0.0
-    out = []
-    lengths = strokes.lengths
-    for s in range(len(strokes)):
-        sl = strokes.stroke(s)
-        out.append({
-            "id": int(strokes.ids[s]), "kind": KINDS[int(strokes.kind[s])],
-            "points": pts[sl], "u": u[sl], "surface": strokes.surface[sl], "face": strokes.face[sl],
-            "length_px": round(float(lengths[s]), 4),
-            "level": round(float(strokes.level[s]), 6), "level_weight": round(float(strokes.level_weight[s]), 6),
-        })
+    surface, face = strokes.surface, strokes.face
+    off = strokes.offsets.tolist()
+    lengths, level, weight = strokes.lengths.tolist(), strokes.level.tolist(), strokes.level_weight.tolist()
+    out = [{
+        "id": i, "kind": KINDS[k],
+        "points": pts[a:b], "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
+        "length_px": round(ln, 4), "level": round(lv, 6), "level_weight": round(w, 6),
+    } for i, k, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), off[:-1], off[1:],
+                                       lengths, level, weight)]
     doc = {"frame": int(frame), "width": int(width), "height": int(height),
            "camera": strokes.camera.to_json() if strokes.camera is not None else None,
            "period_px": strokes.period_px}

@@ -36,14 +36,27 @@ def path_data(points: np.ndarray, decimals: int = 2) -> str:
     return "M" + " ".join(point_strings(points, decimals))
 
 
+def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
+    """Each stroke's points as 'x y x y ...' (the text after "M" of its path). The same strings as
+    joining point_strings per stroke, formatted by one %-operation over all points (no per-point
+    Python work)."""
+    counts = np.diff(strokes.offsets).tolist()
+    if not counts:
+        return []
+    r = (np.round(strokes.points, decimals) + 0.0).ravel().tolist()  # + 0.0 turns -0.0 into 0.0
+    fmt = f"%.{decimals}f %.{decimals}f"
+    # Strokes separated by NUL, which the formatted numbers never contain.
+    template = "\0".join(" ".join([fmt] * n) for n in counts)
+    return (template % tuple(r)).split("\0")
+
+
 def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ...], *, decimals: int = 2,
                  stroke_width: float = 1.5, underlays: list | None = None) -> str:
     """The SVG text of one frame. `kinds` lists the layers to write (in KINDS order), even when empty.
     `underlays` is a list of svgwrite elements placed under the line layers (e.g. band polygons)."""
     out = [_HEAD.format(w=int(width), h=int(height))]
     out += [el.tostring() for el in underlays or []]
-    pts = point_strings(strokes.points, decimals)
-    off = strokes.offsets.tolist()
+    data = stroke_path_data(strokes, decimals)
     ids = strokes.ids.tolist()
     by_kind: dict[int, list[int]] = {}
     for s, k in enumerate(strokes.kind.tolist()):
@@ -57,7 +70,7 @@ def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ..
             out.append(group + " />")
             continue
         out.append(group + ">")
-        out += [f'<path d="M{" ".join(pts[off[s]:off[s + 1]])}" id="s{ids[s]}" />' for s in members]
+        out += [f'<path d="M{data[s]}" id="s{ids[s]}" />' for s in members]
         out.append("</g>")
     out.append("</svg>\n")
     return "".join(out)
