@@ -10,9 +10,6 @@ each directed run within its chain (O(log n) numpy passes, no per-run Python loo
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-
 from .model import KINDS, Strokes, VisibleRuns
 from .options import LineOptions
 
@@ -59,22 +56,27 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     direction[0::2], direction[1::2] = d, -d
     partner = _partners(node, direction, float(np.cos(np.radians(options.split_angle_deg))))
 
-    # Components of the run graph; cycles are cut at their smallest run's start end.
-    linked = np.flatnonzero(partner >= 0)
-    g = coo_matrix((np.ones(len(linked)), (linked // 2, partner[linked] // 2)), shape=(R, R))
-    n_comp, comp = connected_components(g, directed=False)
-    open_end = np.zeros(n_comp, bool)
-    open_end[comp[np.flatnonzero(partner < 0) // 2]] = True
-    min_run = np.full(n_comp, R, np.int64)
-    np.minimum.at(min_run, comp, np.arange(R))
-    cyc = np.flatnonzero(~open_end)
-    if len(cyc):
-        cut = 2 * min_run[cyc]
-        partner[partner[cut]] = -1
-        partner[cut] = -1
-
     # Directed items: d = 2r + dir; item d enters at end d and leaves at end d ^ 1.
     items = np.arange(2 * R)
+
+    # Closed chains (components of the run graph with no free end) are cut at their smallest
+    # run's start end. Every run has at most two links, so a component is a path or a cycle:
+    # pointer jumping backward along the directed chains for ceil(log2(2R)) rounds brings every
+    # item of a path to its head (an item without predecessor) and gives every item of a cycle
+    # the smallest run of the whole cycle.
+    pred = np.where(partner >= 0, partner ^ 1, -1)
+    ptr = np.where(pred >= 0, pred, items)
+    low = items // 2
+    for _ in range(max(1, int(2 * R - 1).bit_length())):
+        low = np.minimum(low, low[ptr])
+        ptr = ptr[ptr]
+    on_cycle = pred[ptr] >= 0
+    if on_cycle.any():
+        is_cut = np.zeros(R, bool)
+        is_cut[low[on_cycle]] = True
+        cut = 2 * np.flatnonzero(is_cut)
+        partner[partner[cut]] = -1
+        partner[cut] = -1
     succ = partner[items ^ 1]
     pred = np.where(partner >= 0, partner ^ 1, -1)
     # Pointer jumping toward the head of each directed chain.

@@ -74,9 +74,7 @@ def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
         return strokes
     from scipy.spatial import cKDTree
 
-    pts, owner = resample(strokes, tol_px)
-    order = np.argsort(owner, kind="stable")  # samples grouped by stroke, in order along it
-    pts, owner = pts[order], owner[order]
+    pts, owner, counts = _resample_grouped(strokes, tol_px)
     tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)  # built every frame: cheap build wins
     n = len(strokes)
     rank = np.empty(n, np.int64)
@@ -93,20 +91,49 @@ def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
         ok = valid & (other != me) & (kind[other] == kind[me]) & (rank[other] < rank[me])
         return ok.any(axis=1)
 
-    starts = np.searchsorted(owner, np.arange(n), side="left")
-    ends = np.searchsorted(owner, np.arange(n), side="right") - 1
-    probe = np.stack([starts, (starts + ends) // 2, ends], axis=1)
-    candidate = covered(probe.ravel()).reshape(n, 3).all(axis=1)
+    starts = np.cumsum(counts) - counts
+    ends = starts + counts - 1
+    probe = np.stack([starts, (starts + ends) // 2, ends], axis=1).ravel()
+    probe_cov = covered(probe)
+    candidate = probe_cov.reshape(n, 3).all(axis=1)
     if not candidate.any():
         return strokes
-    sample_idx = np.flatnonzero(candidate[owner])
-    cov = covered(sample_idx)
-    n_cov = np.bincount(owner[sample_idx], weights=cov, minlength=n)
-    n_all = np.bincount(owner, minlength=n)
-    redundant = candidate & (n_cov == n_all)
+    # A sample's answer does not depend on what else is asked: the probes are not asked again.
+    cov = np.zeros(len(pts), bool)
+    known = np.zeros(len(pts), bool)
+    cov[probe], known[probe] = probe_cov, True
+    in_candidate = candidate[owner]
+    rest = np.flatnonzero(in_candidate & ~known)
+    if len(rest):
+        cov[rest] = covered(rest)
+    sample_idx = np.flatnonzero(in_candidate)
+    n_cov = np.bincount(owner[sample_idx], weights=cov[sample_idx], minlength=n)
+    redundant = candidate & (n_cov == counts)
     if not redundant.any():
         return strokes
     return strokes.select(~redundant)
+
+
+def _resample_grouped(strokes: Strokes, step_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """resample(strokes, step_px) with the samples grouped by stroke, in order along it (the
+    order a stable sort by stroke gives: each stroke's samples, then its last point), and the
+    number of samples of each stroke."""
+    seg = strokes.segment_lengths
+    sop = strokes.stroke_of_point
+    S = len(strokes)
+    seg_idx = np.flatnonzero(seg > 0)
+    n = np.ceil(seg[seg_idx] / step_px).astype(np.int64)
+    rep = np.repeat(seg_idx, n)
+    k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+    t = (k / np.repeat(n, n))[:, None]
+    P = strokes.points
+    inner = np.take(P, rep - 1, axis=0) * (1 - t) + np.take(P, rep, axis=0) * t
+    owner_inner = sop[rep]
+    counts = np.bincount(owner_inner, minlength=S) + 1
+    pts = np.empty((len(rep) + S, 2))
+    pts[np.arange(len(rep)) + owner_inner] = inner
+    pts[np.cumsum(counts) - 1] = P[strokes.offsets[1:] - 1]
+    return pts, np.repeat(np.arange(S), counts), counts
 
 
 def simplify(strokes: Strokes, tol_px: float) -> Strokes:
