@@ -10,7 +10,7 @@ each directed run within its chain (O(log n) numpy passes, no per-run Python loo
 from __future__ import annotations
 
 import numpy as np
-from .model import KINDS, Strokes, VisibleRuns
+from .model import KINDS, Strokes, VisibleRuns, row_norm
 from .options import LineOptions
 
 
@@ -50,7 +50,7 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     node = np.empty(2 * R, np.int64)
     node[0::2], node[1::2] = k0, k1
     d = runs.p1 - runs.p0
-    ln = np.linalg.norm(d, axis=1)
+    ln = row_norm(d)
     d = np.where(ln[:, None] > 1e-9, d / np.where(ln > 1e-9, ln, 1)[:, None], 0.0)
     direction = np.empty((2 * R, 2))
     direction[0::2], direction[1::2] = d, -d

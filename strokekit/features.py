@@ -114,9 +114,9 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
         # silhouette drawn beside smooth contours keeps its edge).
         kind[whole] = np.where(kind[whole] == KIND_INDEX["silhouette"], kind[whole], -1)
     sel = np.flatnonzero(kind >= 0)
-    e = scene.edges[sel]
+    e = np.take(scene.edges, sel, axis=0)
     # The face on the front side carries the surface point of a silhouette; the first face otherwise.
-    ef = scene.edge_faces[sel]
+    ef = np.take(scene.edge_faces, sel, axis=0)
     face = ef[:, 0].copy()
     sil = kind[sel] == KIND_INDEX["silhouette"]
     if sil.any():
@@ -124,7 +124,7 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
         second_front = ff[ef[sil, 1]]
         face[sil] = np.where(second_front, ef[sil, 1], ef[sil, 0])
     v = scene.vertices
-    mesh = FeatureEdges(a=v[e[:, 0]], b=v[e[:, 1]], kind=kind[sel], va=e[:, 0].astype(np.int64),
+    mesh = FeatureEdges(a=np.take(v, e[:, 0], axis=0), b=np.take(v, e[:, 1], axis=0), kind=kind[sel], va=e[:, 0].astype(np.int64),
                         vb=e[:, 1].astype(np.int64), face=face)
     parts = [mesh]
     if smooth is not None:

@@ -11,7 +11,7 @@ from .camera import Camera
 from .chaining import chain_runs
 from .errors import InputError
 from .features import feature_edges, front_facing, static_feature_mask
-from .model import KIND_INDEX, FeatureEdges, Strokes
+from .model import KIND_INDEX, FeatureEdges, Strokes, row_norm
 from .options import LineOptions
 from .scene import Scene
 from .strokeops import drop_retraced, drop_short, simplify, split_max_length
@@ -92,7 +92,7 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
         q = lo * (V + 1) + hi
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
-    ef = scene.edge_faces[pos]
+    ef = np.take(scene.edge_faces, pos, axis=0)
     n = scene.face_normals
     ff = front_facing(scene, camera)
     has1 = ef[:, 1] >= 0
@@ -102,14 +102,14 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     # Eye-facing faces' normals; where no face faces the eye, the reverse of all of them.
     w0 = np.where(any_front, front0, True).astype(float)
     w1 = np.where(any_front, front1, has1).astype(float)
-    m = w0[:, None] * n[ef[:, 0]] + w1[:, None] * n[f1]
+    m = w0[:, None] * np.take(n, ef[:, 0], axis=0) + w1[:, None] * np.take(n, f1, axis=0)
     m = np.where(any_front[:, None], m, -m)
-    ln = np.linalg.norm(m, axis=1)
+    ln = row_norm(m)
     ok = found & (ln > 1e-6)
     # The size that matters is local: a small object beside a huge floor must not be lifted by a
     # fraction of the floor's size (its own silhouette would float past nearby occluders).
     a, b = fe.a[mesh], fe.b[mesh]
-    local = np.maximum(np.linalg.norm(0.5 * (a + b) - scene.center, axis=1), np.linalg.norm(b - a, axis=1))
+    local = np.maximum(row_norm(0.5 * (a + b) - scene.center), row_norm(b - a))
     size = fraction * np.minimum(scene.radius, local)
     out = np.zeros((len(pos), 3))
     out[ok] = m[ok] / ln[ok, None] * size[ok, None]

@@ -18,6 +18,19 @@ KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmani
 KIND_INDEX = {k: i for i, k in enumerate(KINDS)}
 
 
+def row_norm(x: np.ndarray) -> np.ndarray:
+    """np.linalg.norm(x, axis=1) of an (N, 2) or (N, 3) float64 array, the same bits
+    (sqrt((x0 x0 + x1 x1) + x2 x2), the order of numpy's reduction) without the generic
+    reduction machinery (several times faster on short rows)."""
+    x = np.asarray(x)
+    if x.ndim == 2 and x.dtype == np.float64 and x.shape[1] in (2, 3):
+        s = x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1]
+        if x.shape[1] == 3:
+            s += x[:, 2] * x[:, 2]
+        return np.sqrt(s)
+    return np.linalg.norm(x, axis=1)
+
+
 @dataclass(frozen=True, eq=False)
 class FeatureEdges:
     """Candidate feature segments of one frame, in world space.
@@ -80,7 +93,7 @@ class VisibleRuns:
 
     @property
     def length_px(self) -> np.ndarray:
-        return np.linalg.norm(self.p1 - self.p0, axis=1)
+        return row_norm(self.p1 - self.p0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,7 +126,7 @@ class Strokes:
         """(N,) length in px of the segment ending at each point (0 at each stroke's first point)."""
         d = np.zeros(len(self.points))
         if len(self.points) > 1:
-            d[1:] = np.linalg.norm(np.diff(self.points, axis=0), axis=1)
+            d[1:] = row_norm(np.diff(self.points, axis=0))
         d[self.offsets[:-1]] = 0.0
         return d
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from .camera import Camera
 from .errors import InputError
-from .model import FeatureEdges, VisibleRuns
+from .model import FeatureEdges, VisibleRuns, row_norm
 from .options import LineOptions
 from .scene import Scene
 
@@ -294,11 +294,13 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     keep = t1 > t0 + 0.0
     # A segment clipped to a single point still counts when it is not degenerate in 3D.
     idx = np.flatnonzero(keep)
-    A = a[idx] + t0[idx, None] * (b[idx] - a[idx])
-    B = a[idx] + t1[idx, None] * (b[idx] - a[idx])
+    a_i, b_i = np.take(a, idx, axis=0), np.take(b, idx, axis=0)
+    ab = b_i - a_i
+    A = a_i + t0[idx, None] * ab
+    B = a_i + t1[idx, None] * ab
     pa, za = camera.project(A)
     pb, zb = camera.project(B)
-    L = np.linalg.norm(pb - pa, axis=1)
+    L = row_norm(pb - pa)
     n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
     # Samples: n_int + 1 per segment, uniform in screen space.
     counts = n_int + 1
@@ -317,7 +319,7 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
 
     lift = None if features.lift is None else features.lift[idx]
     # Local size for the ray offset: the segment's world length (see Occluder.visible).
-    size = np.linalg.norm(b[idx] - a[idx], axis=1)
+    size = row_norm(ab)
     offset = options.occlusion_offset
     if lift is not None and not camera.is_ortho and occluder.backend == "open3d":
         # The same samples and rays on (3, N) rows (Occluder.visible_rows): the per-segment
