@@ -23,14 +23,18 @@ def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float) -> np.n
         return partner
     order = np.argsort(node, kind="stable")
     ns = node[order]
-    starts = np.flatnonzero(np.r_[True, ns[1:] != ns[:-1]])
-    counts = np.diff(np.r_[starts, m])
+    new = np.empty(m, bool)
+    new[0] = True
+    np.not_equal(ns[1:], ns[:-1], out=new[1:])
+    starts = np.flatnonzero(new)
+    counts = np.diff(starts, append=m)
     pairs = starts[counts == 2]
     e0, e1 = order[pairs], order[pairs + 1]
     # Directions away from the node: the chain goes in along -d0 and out along d1; the turn is the
     # angle between -d0 and d1. Split when turn > split angle, i.e. -d0.d1 < cos(split).
-    turn_cos = -np.einsum("ij,ij->i", direction[e0], direction[e1])
-    degenerate = (np.abs(direction[e0]).sum(axis=1) == 0) | (np.abs(direction[e1]).sum(axis=1) == 0)
+    d0, d1 = np.take(direction, e0, axis=0), np.take(direction, e1, axis=0)
+    turn_cos = -np.einsum("ij,ij->i", d0, d1)
+    degenerate = (np.abs(d0).sum(axis=1) == 0) | (np.abs(d1).sum(axis=1) == 0)
     ok = (turn_cos >= cos_split) | degenerate
     partner[e0[ok]] = e1[ok]
     partner[e1[ok]] = e0[ok]

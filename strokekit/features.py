@@ -33,7 +33,8 @@ def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
         _, _, fwd = camera.basis
         ff = (n @ -fwd) > 0.0
     else:
-        ff = (n @ np.asarray(camera.eye, float) - scene.face_offsets) > 0.0
+        t = n @ np.asarray(camera.eye, float)
+        ff = np.subtract(t, scene.face_offsets, out=t) > 0.0
     ff.setflags(write=False)
     c["front_facing"] = (camera, ff)  # holds the camera: its id cannot be reused while cached
     return ff
@@ -83,7 +84,7 @@ def silhouette_mask(scene: Scene, camera: Camera) -> np.ndarray:
     """(E,) manifold edges whose two faces face opposite ways."""
     ff = np.append(front_facing(scene, camera), False)
     f0, f1 = _manifold_face_pairs(scene)
-    return ff[f0] != ff[f1]
+    return np.take(ff, f0) != np.take(ff, f1)
 
 
 def feature_edges(scene: Scene, camera: Camera, options: LineOptions,

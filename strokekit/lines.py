@@ -82,6 +82,7 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     mesh = (fe.va >= 0) & (fe.va < V) & (fe.vb >= 0) & (fe.vb < V)
     if not mesh.any():
         return lift
+    all_mesh = edge_index is not None and bool(mesh.all())
     if edge_index is not None:
         pos = np.asarray(edge_index)[mesh]
         found = np.ones(len(pos), bool)
@@ -108,12 +109,15 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     ok = found & (ln > 1e-6)
     # The size that matters is local: a small object beside a huge floor must not be lifted by a
     # fraction of the floor's size (its own silhouette would float past nearby occluders).
-    a, b = fe.a[mesh], fe.b[mesh]
+    a, b = (fe.a, fe.b) if all_mesh else (fe.a[mesh], fe.b[mesh])
     local = np.maximum(row_norm(0.5 * (a + b) - scene.center), row_norm(b - a))
     size = fraction * np.minimum(scene.radius, local)
-    out = np.zeros((len(pos), 3))
-    out[ok] = m[ok] / ln[ok, None] * size[ok, None]
-    lift[mesh] = out
+    if all_mesh and ok.all():  # no masking needed
+        lift = m / ln[:, None] * size[:, None]
+    else:
+        out = np.zeros((len(pos), 3))
+        out[ok] = m[ok] / ln[ok, None] * size[ok, None]
+        lift[mesh] = out
     # A non-manifold edge has no "first two faces" independent of face order: no lift, so that
     # renumbering faces cannot change the drawing.
     lift[fe.kind == KIND_INDEX["nonmanifold"]] = 0.0
