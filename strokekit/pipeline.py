@@ -8,9 +8,7 @@ each worker loads the scene and builds its BVH once (cached per process).
 
 from __future__ import annotations
 
-import os
 import platform
-import sys
 import time
 import traceback
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
@@ -18,7 +16,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 
 from .camera import Camera
 from .errors import InputError, StrokekitError, UsageError
@@ -151,16 +148,31 @@ _WORKER_CACHE: dict = {}
 
 
 def _renderer(scene_path: str, scene_hash: str, lines: LineOptions) -> LineRenderer:
-    key = (scene_path, scene_hash, lines)
+    """This process's renderer of the scene (loaded and its BVH built once per worker).
+    `scene_hash` (when given) must be the hash the run started with."""
+    key = (scene_path, lines)
     r = _WORKER_CACHE.get(key)
     if r is None:
         _WORKER_CACHE.clear()
-        scene = load_scene(scene_path)
-        if scene_hash and scene.content_hash != scene_hash:
-            raise InputError("scene file changed during the run", scene_path)
-        r = LineRenderer(scene, lines)
+        r = LineRenderer(load_scene(scene_path), lines)
         _WORKER_CACHE[key] = r
+    if scene_hash and r.scene.content_hash != scene_hash:
+        raise InputError("scene file changed during the run", scene_path)
     return r
+
+
+def _warm_worker(scene_path: str, lines: LineOptions) -> None:
+    """Pool initializer: import, load the scene and build its BVH while the main process loads
+    its own copy, instead of after it. Errors are left to the frame tasks to report (an
+    initializer that raises would break the whole pool)."""
+    try:
+        _renderer(scene_path, "", lines)
+    except Exception:
+        _WORKER_CACHE.clear()
+
+
+def _noop() -> None:
+    return None
 
 
 def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int, camera: Camera,
@@ -239,8 +251,9 @@ class _InlineExecutor(Executor):
         return f
 
 
-def make_executor(workers: int, scheduler: str | None) -> tuple[Executor, Callable[[], None]]:
-    """(executor, close). `scheduler` 'tcp://host:port' uses a dask.distributed cluster."""
+def make_executor(workers: int, scheduler: str | None, warm: tuple | None = None) -> tuple[Executor, Callable[[], None]]:
+    """(executor, close). `scheduler` 'tcp://host:port' uses a dask.distributed cluster. For a
+    local pool, `warm` = (scene_path, lines) starts every worker now and has it load the scene."""
     if scheduler:
         try:
             from distributed import Client
@@ -256,16 +269,18 @@ def make_executor(workers: int, scheduler: str | None) -> tuple[Executor, Callab
         return _InlineExecutor(), lambda: None
     import multiprocessing as mp
 
-    ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+                             initializer=_warm_worker if warm else None, initargs=tuple(warm or ()))
+    if warm:
+        for _ in range(workers):  # a pool spawns its workers on demand: ask for all of them now
+            ex.submit(_noop)
     return ex, lambda: ex.shutdown(wait=True, cancel_futures=True)
 
 
 # --- the run -------------------------------------------------------------------------------------------
 
-def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) -> RunResult:
-    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish."""
-    t_start = time.perf_counter()
-    res = RunResult()
+def _load_and_plan(spec: RunSpec, res: RunResult):
+    """The main process's scene (hash, summary) and the stage plan, timed as the first stage."""
     t = time.perf_counter()
     scene = load_scene(spec.scene_path)
     res.scene_hash = scene.content_hash
@@ -273,29 +288,38 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
                          "materials": len(scene.materials)}
     res.stages = plan_stages(scene, spec)
     res.stages[0].seconds = time.perf_counter() - t
-    stage = {s.name: s for s in res.stages}
-    out = spec.outputs
-    out.out_dir.mkdir(parents=True, exist_ok=True)
-    # Temporary files of an interrupted earlier run are ours to remove (their final names never existed).
-    for stale in out.out_dir.glob(".*.part"):
-        stale.unlink(missing_ok=True)
-    frames = [f for f, _ in spec.cameras]
-    cams = dict(spec.cameras)
-    tracking_on = stage["tracking"].ran
+    return scene
 
-    # Resume: frames whose every file exists are not written again. With tracking their lines are
-    # still computed (the tracker's state depends on every earlier frame), so a resumed run gives
-    # the same bytes as an uninterrupted one.
-    done_before = set()
-    if spec.skip_existing:
-        done_before = {f for f in frames if all(p.exists() for p in out.frame_files(f))}
-    res.frames_skipped = sorted(done_before)
-    need_lines = [f for f in frames if f not in done_before or tracking_on]
 
-    executor, close = make_executor(spec.workers, spec.scheduler)
-    lines_results: dict[int, Strokes] = {}
-    underlays: dict[int, list | None] = {}
+def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) -> RunResult:
+    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish."""
+    t_start = time.perf_counter()
+    res = RunResult()
+    # Workers start first: their imports and scene load overlap the main process's own load.
+    executor, close = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
     try:
+        scene = _load_and_plan(spec, res)
+        stage = {s.name: s for s in res.stages}
+        out = spec.outputs
+        out.out_dir.mkdir(parents=True, exist_ok=True)
+        # Temporary files of an interrupted earlier run are ours to remove (their final names never existed).
+        for stale in out.out_dir.glob(".*.part"):
+            stale.unlink(missing_ok=True)
+        frames = [f for f, _ in spec.cameras]
+        cams = dict(spec.cameras)
+        tracking_on = stage["tracking"].ran
+
+        # Resume: frames whose every file exists are not written again. With tracking their lines are
+        # still computed (the tracker's state depends on every earlier frame), so a resumed run gives
+        # the same bytes as an uninterrupted one.
+        done_before = set()
+        if spec.skip_existing:
+            done_before = {f for f in frames if all(p.exists() for p in out.frame_files(f))}
+        res.frames_skipped = sorted(done_before)
+        need_lines = [f for f in frames if f not in done_before or tracking_on]
+
+        lines_results: dict[int, Strokes] = {}
+        underlays: dict[int, list | None] = {}
         t = time.perf_counter()
         futs = {}
         for f in need_lines:
