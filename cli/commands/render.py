@@ -23,7 +23,8 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.command("render")
 @click.argument("scene", type=click.Path())
 @click.option("--camera", "camera_file", type=click.Path(dir_okay=False), default=None,
-              help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node.")
+              help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node "
+                   "(its animation, if any, sampled at 24 fps).")
 @click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")
 @click.option("--elevation", type=float, default=15.0, show_default=True, help="Orbit elevation, degrees.")
 @click.option("--fov", type=click.FloatRange(0.1, 179.9), default=40.0, show_default=True, help="Orbit field of view, degrees.")
