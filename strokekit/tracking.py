@@ -140,6 +140,26 @@ def _cat(*parts) -> np.ndarray:
     return np.concatenate([np.atleast_1d(p) for p in parts])
 
 
+#: Cached properties of Strokes that depend on the points and offsets only.
+_GEOMETRY_CACHE = ("segment_lengths", "arc_length", "lengths")
+
+
+def _replace(strokes: Strokes, **changes) -> Strokes:
+    """dataclasses.replace that keeps the cached arc lengths (and stroke_of_point) of `strokes`
+    when the new strokes share its points (and offsets) arrays: they would be recomputed
+    identically (each costs ~0.1-0.3 ms a frame and the tracker replaces strokes a dozen times)."""
+    out = replace(strokes, **changes)
+    old, new = strokes.__dict__, out.__dict__
+    if out.offsets is strokes.offsets:
+        if "stroke_of_point" in old:
+            new["stroke_of_point"] = old["stroke_of_point"]
+        if out.points is strokes.points:
+            for k in _GEOMETRY_CACHE:
+                if k in old:
+                    new[k] = old[k]
+    return out
+
+
 def _tree(points: np.ndarray):
     """A k-d tree built for one query pass: unbalanced, not compacted (builds ~2x faster on a
     frame's samples; queries are exact either way)."""
@@ -209,7 +229,7 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
                   ids=np.arange(K, dtype=np.int64), u=np.zeros(N), level=strokes.level[src_s],
                   level_weight=strokes.level_weight[src_s], camera=strokes.camera, frame=strokes.frame,
                   period_px=strokes.period_px)
-    return replace(out, u=out.arc_length / out.period_px)
+    return _replace(out, u=out.arc_length / out.period_px)
 
 
 def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
@@ -242,7 +262,7 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     owner = _cat(strokes.stroke_of_point, stroke)
     order = np.lexsort((_cat(np.zeros(len(G)), np.ones(len(g))), allg, owner))
     counts = np.bincount(owner, minlength=len(strokes))
-    return replace(strokes, points=P[order], surface=X[order], face=F[order], u=U[order],
+    return _replace(strokes, points=P[order], surface=X[order], face=F[order], u=U[order],
                    offsets=_cat(0, np.cumsum(counts)).astype(np.int64))
 
 
@@ -265,9 +285,9 @@ def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> S
     keep[pieces.offsets[:-1][second[order]]] = False  # the joint point is already there
     owner = pst[order][pieces.stroke_of_point][keep]
     counts = np.bincount(owner, minlength=S)
-    out = replace(strokes, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
+    out = _replace(strokes, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
                   u=np.zeros(int(keep.sum())), offsets=_cat(0, np.cumsum(counts)).astype(np.int64))
-    return replace(out, u=out.arc_length / out.period_px)
+    return _replace(out, u=out.arc_length / out.period_px)
 
 
 def _turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.ndarray, vid: np.ndarray, P: float):
@@ -466,36 +486,44 @@ def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: 
     a, b, straight = a[ok], b[ok], straight[ok]
     if len(a) == 0:
         return group, rev, pos
-    # Deterministic links, each run end in one link at most: link[run, end] = (other run, its end).
-    link = {}
+    # Deterministic links, each run end in one link at most. Run ends are the entries of the
+    # e_* arrays (nodes); partner[node] is the node it is linked to (-1: free). Plain Python on
+    # int lists: a greedy pass in a fixed order over ~100-200 candidate links a frame.
     # Where three ends meet, the straightest continuation is linked first (straightest_first).
     keys = (e_run[b], e_run[a], -np.round(straight, 9)) if straightest_first else (e_run[b], e_run[a])
-    for k in np.lexsort(keys).tolist():  # a few links per frame
-        ka, kb = (int(e_run[a[k]]), int(e_end[a[k]])), (int(e_run[b[k]]), int(e_end[b[k]]))
-        if ka in link or kb in link or ka[0] == kb[0]:
+    o = np.lexsort(keys)
+    run_of, end_of = e_run.tolist(), e_end.tolist()
+    partner = [-1] * len(run_of)
+    for x, y in zip(a[o].tolist(), b[o].tolist()):
+        if partner[x] >= 0 or partner[y] >= 0 or run_of[x] == run_of[y]:
             continue
-        link[ka], link[kb] = kb, ka
-    runs = sorted({k[0] for k in link})
-    seen = set()
-    sign, g_l, rev_l, pos_l = r_sign.tolist(), group.tolist(), rev.tolist(), pos.tolist()
+        partner[x], partner[y] = y, x
+    # lk[r, e]: the node linked to end e (0 start, 1 end) of run r, -1 if none.
+    partner = np.array(partner, np.int64)
+    lk = np.full((R, 2), -1, np.int64)
+    lk[e_run, e_end] = partner
+    linked = lk >= 0
+    runs = np.flatnonzero(linked.any(axis=1))
     # Path starts: runs with one linked end; then rings (every run of them linked at both ends).
-    starts = [r for r in runs if ((r, 0) in link) != ((r, 1) in link)] + runs
+    starts = _cat(runs[linked[runs, 0] != linked[runs, 1]], runs).tolist()
+    lk = lk.ravel().tolist()
+    seen = [False] * R
+    sign, g_l, rev_l, pos_l = r_sign.tolist(), group.tolist(), rev.tolist(), pos.tolist()
     for r0 in starts:
-        if r0 in seen:
+        if seen[r0]:
             continue
         # Enter r0 through its free end (a ring: through its start), leave through the other.
-        enter = 1 if (r0, 0) in link and (r0, 1) not in link else 0
-        path = []  # (run, entered at end)
-        r, e = r0, enter
-        while r not in seen:
-            seen.add(r)
-            path.append((r, e))
-            nxt = link.get((r, 1 - e))
-            if nxt is None:
+        e = 1 if lk[2 * r0] >= 0 and lk[2 * r0 + 1] < 0 else 0
+        r = r0
+        members, backwards = [], []  # backwards: entered at the stroke end, traversed reversed
+        while not seen[r]:
+            seen[r] = True
+            members.append(r)
+            backwards.append(e == 1)
+            nxt = lk[2 * r + 1 - e]
+            if nxt < 0:
                 break
-            r, e = nxt
-        members = [p[0] for p in path]
-        backwards = [p[1] == 1 for p in path]  # entered at the stroke end: traversed reversed
+            r, e = run_of[nxt], end_of[nxt]
         # Whole path backwards if the votes say so (plain Python: paths are short and few).
         if sum(-sign[m] if bk else sign[m] for m, bk in zip(members, backwards)) < 0:
             members, backwards = members[::-1], [not bk for bk in backwards[::-1]]
@@ -541,7 +569,7 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
                   kind=strokes.kind[first], ids=np.arange(len(first), dtype=np.int64), u=np.zeros(len(src)),
                   level=strokes.level[first], level_weight=strokes.level_weight[first], camera=strokes.camera,
                   frame=strokes.frame, period_px=strokes.period_px)
-    return replace(out, u=out.arc_length / out.period_px)
+    return _replace(out, u=out.arc_length / out.period_px)
 
 
 def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
@@ -561,11 +589,11 @@ def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
     owner = (np.cumsum(new_g) - 1)[pieces.stroke_of_point][keep]
     counts = np.bincount(owner, minlength=int(new_g.sum()))
     sel = np.flatnonzero(new_g)
-    out = replace(pieces, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
+    out = _replace(pieces, points=pieces.points[keep], surface=pieces.surface[keep], face=pieces.face[keep],
                   u=np.zeros(int(keep.sum())), offsets=_cat(0, np.cumsum(counts)).astype(np.int64),
                   kind=pieces.kind[sel], ids=np.arange(len(sel), dtype=np.int64), level=pieces.level[sel],
                   level_weight=pieces.level_weight[sel])
-    return replace(out, u=out.arc_length / out.period_px)
+    return _replace(out, u=out.arc_length / out.period_px)
 
 
 def _segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
@@ -791,7 +819,7 @@ class Tracker:
         level set; strokes may be re-cut, healed and reversed). The camera of `strokes` is required for
         carrying samples from the previous frame."""
         o = self.options
-        strokes = replace(strokes, period_px=o.period_px)
+        strokes = _replace(strokes, period_px=o.period_px)
         if o.method == "none":
             out = self._fresh(strokes, renumber=True)
         elif self.prev is None or len(self.prev) == 0 or strokes.camera is None or self.prev.camera is None \
@@ -812,7 +840,7 @@ class Tracker:
         else:
             ids = self.next_id + np.arange(S, dtype=np.int64)
             self.next_id += S
-        return replace(strokes, ids=ids, u=strokes.arc_length / self.options.period_px,
+        return _replace(strokes, ids=ids, u=strokes.arc_length / self.options.period_px,
                        level=np.zeros(S), level_weight=np.ones(S))
 
     # -- Kalnins 2003
@@ -966,7 +994,7 @@ class Tracker:
             u_new = a[sop] + b[sop] * cur.arc_length
         ids, self.next_id = assign_ids(S, cand_s, cand_i, cand_w, self.next_id, o.min_id_px)
         level, weight = levels_from_slope(b, P)
-        return replace(cur, ids=ids, u=u_new, level=level, level_weight=weight)
+        return _replace(cur, ids=ids, u=u_new, level=level, level_weight=weight)
 
     # -- seed 000 strategies 1-5
     def _seed(self, cur: Strokes) -> Strokes:
@@ -1043,7 +1071,7 @@ class Tracker:
         ids[fresh] = self.next_id + np.arange(len(fresh))
         self.next_id += len(fresh)
         K = len(out)
-        return replace(out, ids=ids, u=out.arc_length / P, level=np.zeros(K), level_weight=np.ones(K))
+        return _replace(out, ids=ids, u=out.arc_length / P, level=np.zeros(K), level_weight=np.ones(K))
 
 
 def track_frames(frames: list[Strokes], options: TrackingOptions | None = None) -> list[Strokes]:
