@@ -349,63 +349,101 @@ class PiecewiseU:
         return j * self.h[st]
 
     def _interval(self, st, s):
+        # Cached for the last (st, s) pair: the fit and the evaluation at the votes share it.
+        c = self.__dict__.get("_iv")
+        if c is not None and c[0] is st and c[1] is s:
+            return c[2], c[3]
         h = self.h[st]
         x = np.where(h > 0, s / np.where(h > 0, h, 1.0), 0.0)
         j = np.clip(np.floor(x), 0, self.n[st] - 1).astype(np.int64)
-        return self.base[st] + j, np.clip(x - j, 0.0, 1.0)
+        k, a = self.base[st] + j, np.clip(x - j, 0.0, 1.0)
+        self._iv = (st, s, k, a)
+        return k, a
 
     def eval(self, knots: np.ndarray, st: np.ndarray, s: np.ndarray) -> np.ndarray:
         k, a = self._interval(st, s)
         return knots[k] * (1 - a) + knots[k + 1] * a
 
-    def fit(self, st, s, u, w, prior_a, prior_b, b0, stretch_weight, bend_weight) -> np.ndarray:
-        """Knot values minimizing sum w (u(s) - u)^2 (votes) + stretch_weight / h (du - h b0)^2
-        per interval (slope close to the nominal b0 = 1/P) +
-        bend_weight L (second difference)^2 per inner knot (even stretch) + 1e-6 (knot - prior)^2
-        (the line fit a + b s; fixes strokes without votes)."""
-        from scipy.linalg import solveh_banded
+    @staticmethod
+    def _terms(nk, cols, vals, y):
+        """Normal-equation terms of residuals sum_a vals[a] x[cols[a]] - y (weights already in
+        vals and y), in the order they are added: [(band row or 3 for rhs, (nk,) array)]."""
+        out = []
+        m = len(cols)
+        for a_ in range(m):
+            out.append((0, np.bincount(cols[a_], vals[a_] * vals[a_], minlength=nk)))
+            out.append((3, np.bincount(cols[a_], vals[a_] * y, minlength=nk)))
+            for b_ in range(a_ + 1, m):
+                out.append((b_ - a_, np.bincount(cols[a_], vals[a_] * vals[b_], minlength=nk)))
+        return out
 
+    def _fixed_terms(self, prior_a, prior_b, b0, stretch_weight, bend_weight):
+        """The terms that do not depend on the votes (stretch, bend, anchor), cached for the
+        same arguments (the tracker fits twice with the same prior, dropping outliers)."""
+        key = (prior_a, prior_b, b0, stretch_weight, bend_weight)
+        c = self.__dict__.get("_fixed")
+        if c is not None and all(x is y or (not isinstance(x, np.ndarray) and x == y) for x, y in zip(c[0], key)):
+            return c[1]
         nk = int(self.base[-1])
         S = len(self.L)
-        # Normal equations accumulated straight into the 3 lower bands of a symmetric banded
-        # matrix (every residual touches at most 3 consecutive knots of one stroke).
-        band = np.zeros((3, nk))
-        rhs = np.zeros(nk)
-
-        def add(cols, vals, y):
-            """Residuals sum_a vals[a] x[cols[a]] - y (weights already in vals and y)."""
-            m = len(cols)
-            for a_ in range(m):
-                band[0] += np.bincount(cols[a_], vals[a_] * vals[a_], minlength=nk)
-                rhs[:] += np.bincount(cols[a_], vals[a_] * y, minlength=nk)
-                for b_ in range(a_ + 1, m):
-                    band[b_ - a_] += np.bincount(cols[a_], vals[a_] * vals[b_], minlength=nk)
-
-        # votes
-        k, a = self._interval(st, s)
-        sw = np.sqrt(w)
-        add([k, k + 1], [sw * (1 - a), sw * a], sw * u)
+        terms = []
         # stretch, per interval
         js = np.repeat(np.arange(S), self.n)
         kk = self.base[js] + (np.arange(self.n.sum()) - np.repeat(_cat(0, np.cumsum(self.n)[:-1]), self.n))
         hh = np.maximum(self.h[js], 1.0)
         ws = np.sqrt(stretch_weight / hh)
-        add([kk, kk + 1], [-ws, ws], ws * self.h[js] * b0)
+        terms += self._terms(nk, [kk, kk + 1], [-ws, ws], ws * self.h[js] * b0)
         # bend, per inner knot (strokes with >= 2 intervals)
         inner = np.flatnonzero(self.n[js] >= 2)
         jb = kk[inner]
         last_interval = jb + 1 >= self.base[js[inner]] + self.n[js[inner]]
         jb, sb = jb[~last_interval], js[inner][~last_interval]
         wb = np.sqrt(bend_weight * np.maximum(self.L[sb], 1.0))
-        add([jb, jb + 1, jb + 2], [wb, -2 * wb, wb], np.zeros(len(jb)))
+        terms += self._terms(nk, [jb, jb + 1, jb + 2], [wb, -2 * wb, wb], np.zeros(len(jb)))
         # weak anchor to the line fit
         ks = np.repeat(np.arange(S), self.n + 1)
         sk = (np.arange(nk) - self.base[ks]) * self.h[ks]
         we = 1e-3
-        add([np.arange(nk)], [np.full(nk, we)], we * (prior_a[ks] + prior_b[ks] * sk))
+        terms += self._terms(nk, [np.arange(nk)], [np.full(nk, we)], we * (prior_a[ks] + prior_b[ks] * sk))
+        self._fixed = (key, terms)
+        return terms
+
+    def fit(self, st, s, u, w, prior_a, prior_b, b0, stretch_weight, bend_weight) -> np.ndarray:
+        """Knot values minimizing sum w (u(s) - u)^2 (votes) + stretch_weight / h (du - h b0)^2
+        per interval (slope close to the nominal b0 = 1/P) +
+        bend_weight L (second difference)^2 per inner knot (even stretch) + 1e-6 (knot - prior)^2
+        (the line fit a + b s; fixes strokes without votes)."""
+        nk = int(self.base[-1])
+        # Normal equations accumulated straight into the 3 lower bands of a symmetric banded
+        # matrix (every residual touches at most 3 consecutive knots of one stroke), in a fixed
+        # order: votes, stretch, bend, anchor.
+        band = np.zeros((3, nk))
+        rhs = np.zeros(nk)
+        k, a = self._interval(st, s)
+        sw = np.sqrt(w)
+        terms = self._terms(nk, [k, k + 1], [sw * (1 - a), sw * a], sw * u)
+        for row, t in terms + self._fixed_terms(prior_a, prior_b, b0, stretch_weight, bend_weight):
+            if row == 3:
+                rhs += t
+            else:
+                band[row] += t
         band[1, -1:] = 0.0
         band[2, -2:] = 0.0
-        return solveh_banded(band, rhs, lower=True, check_finite=False)
+        if nk == 0:
+            from scipy.linalg import solveh_banded
+
+            return solveh_banded(band, rhs, lower=True, check_finite=False)
+        # scipy.linalg.solveh_banded without its checks and wrappers: the same LAPACK pbsv.
+        from scipy.linalg.lapack import dpbsv
+
+        _, x, info = dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
+        if info > 0:
+            from numpy.linalg import LinAlgError
+
+            raise LinAlgError(f"{info}th leading minor not positive definite")
+        if info < 0:
+            raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
+        return x
 
 
 def _local_slope(smp: Samples) -> np.ndarray:
@@ -638,16 +676,9 @@ def levels_from_slope(slope_periods_per_px: np.ndarray, period_px: float) -> tup
     return level, 1.0 - (c - level)
 
 
-def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1, r_label, radius_px: float,
-                    min_tangent_dot: float, tol_px: float, dense_tree=None):
-    """Move every cut between two runs of one stroke (labels A | B) to where an end of the previous
-    frame's stroke A or B projects on the new stroke (both ends found: their mean), when that is
-    within `tol_px` of the cut. The end points are matched like the votes (projected with
-    `camera`, nearest dense sample within `radius_px` with agreeing tangent, refined along its
-    tangent). Returns new (s0, s1) per run; runs keep at least 1e-3 px."""
-    inner = np.flatnonzero((r_stroke[1:] == r_stroke[:-1]) & (r_label[1:] >= 0) & (r_label[:-1] >= 0))
-    if len(inner) == 0 or len(prev) == 0 or len(dense) == 0:
-        return r_s0, r_s1
+def _end_samples(prev: Strokes) -> Samples:
+    """Both ends of every stroke of `prev` (starts, then ends) as samples: surface point, tangent
+    into the stroke, id (for snap_boundaries)."""
     first, last = prev.offsets[:-1], prev.offsets[1:] - 1
     P, X = prev.points, prev.surface
     e_pt = _cat(first, last)
@@ -655,10 +686,28 @@ def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1,
     t = P[e_nb] - P[e_pt]
     t = t / np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
     n = len(e_pt)
-    ends = Samples(p=P[e_pt], X=X[e_pt], u=np.zeros(n), t=t, ids=_cat(prev.ids, prev.ids),
+    return Samples(p=P[e_pt], X=X[e_pt], u=np.zeros(n), t=t, ids=_cat(prev.ids, prev.ids),
                    stroke=np.zeros(n, np.int64), s=np.zeros(n), w=np.ones(n))
-    m, q = match_samples(ends, camera, dense, dense_tree, radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=4,
-                         return_projected=True)
+
+
+def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1, r_label, radius_px: float,
+                    min_tangent_dot: float, tol_px: float, dense_tree=None, ends_match=None):
+    """Move every cut between two runs of one stroke (labels A | B) to where an end of the previous
+    frame's stroke A or B projects on the new stroke (both ends found: their mean), when that is
+    within `tol_px` of the cut. The end points are matched like the votes (projected with
+    `camera`, nearest dense sample within `radius_px` with agreeing tangent, refined along its
+    tangent). `ends_match`: (_end_samples(prev), match, projected) when the caller already matched
+    them against `dense` (as match_samples(..., k=4, return_projected=True) would).
+    Returns new (s0, s1) per run; runs keep at least 1e-3 px."""
+    inner = np.flatnonzero((r_stroke[1:] == r_stroke[:-1]) & (r_label[1:] >= 0) & (r_label[:-1] >= 0))
+    if len(inner) == 0 or len(prev) == 0 or len(dense) == 0:
+        return r_s0, r_s1
+    if ends_match is not None:
+        ends, m, q = ends_match
+    else:
+        ends = _end_samples(prev)
+        m, q = match_samples(ends, camera, dense, dense_tree, radius_px=radius_px, min_tangent_dot=min_tangent_dot,
+                             k=4, return_projected=True)
     hit = np.flatnonzero(m >= 0)
     if len(hit) == 0:
         return r_s0, r_s1
@@ -853,8 +902,23 @@ class Tracker:
         votes = resample_strokes(prev, o.vote_spacing_px)
         dense = resample_strokes(cur, o.dense_spacing_px)
         dense_tree = _tree(dense.p) if len(dense) else None  # shared by the vote and end matches
-        m, q = match_samples(votes, cur.camera, dense, dense_tree, radius_px=o.search_radius_px,
-                             min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
+        # The previous strokes' ends (snap_boundaries) are matched in the same query as the votes
+        # (each point's match is independent of the others; 2+ rows each, so that the projection
+        # takes the same matrix-vector path).
+        ends = _end_samples(prev) if o.snap_boundaries and len(prev) and len(dense) else None
+        V = len(votes)
+        if ends is not None and V >= 2:
+            # (only X, t and the length of the samples are used by the match)
+            src = Samples(p=np.concatenate([votes.p, ends.p]), X=np.concatenate([votes.X, ends.X]), u=None,
+                          t=np.concatenate([votes.t, ends.t]), ids=None, stroke=None, s=None, w=None)
+            m, q = match_samples(src, cur.camera, dense, dense_tree, radius_px=o.search_radius_px,
+                                 min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
+            ends_match = (ends, m[V:], q[V:])
+            m, q = m[:V], q[:V]
+        else:
+            m, q = match_samples(votes, cur.camera, dense, dense_tree, radius_px=o.search_radius_px,
+                                 min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
+            ends_match = None
         hit = m >= 0
         vm = m[hit]
         # Where along the new stroke each vote falls, finer than the sample spacing: the
@@ -886,7 +950,7 @@ class Tracker:
         dense0 = dense
         cur, dense, vm = _turn_loops_to_seams(cur, dense, vm, u, vid, P)
         if dense is not dense0:  # samples reordered: the tree's indices no longer apply
-            dense_tree = None
+            dense_tree = ends_match = None
         # Segments (Kalnins' brush path segments): each new chain is cut where the id its votes
         # carry changes, so a chain that now runs through two old strokes keeps both ids.
         run, r_stroke, r_s0, r_s1, r_label = segment_by_votes(dense, cur.lengths, vm, vid, w, o.min_segment_px)
@@ -896,7 +960,7 @@ class Tracker:
             # frame's end of either stroke projects, not halfway between dense samples.
             r_s0, r_s1 = snap_boundaries(prev, cur.camera, dense, r_stroke, r_s0, r_s1, r_label,
                                          o.search_radius_px, o.min_tangent_dot, 1.5 * o.dense_spacing_px,
-                                         dense_tree)
+                                         dense_tree, ends_match)
         rv = run[vm]
         r_len = r_s1 - r_s0
         s_rel = np.clip(dense.s[vm] + ds - r_s0[rv], 0.0, r_len[rv])
