@@ -150,18 +150,22 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
         return (out, q) if return_projected else out
     tree = dst_tree if dst_tree is not None else cKDTree(dst.p)
     kk = min(k, len(dst))
-    dist, idx = tree.query(q[ok], k=kk, distance_upper_bound=radius_px)
+    every = ok.all()  # the usual case: no copies, no scatter
+    dist, idx = tree.query(q if every else q[ok], k=kk, distance_upper_bound=radius_px)
     dist = dist.reshape(len(dist), kk)
     idx = idx.reshape(len(idx), kk)
     valid = np.isfinite(dist)
     safe = np.where(valid, idx, 0)
-    dots = np.abs(np.einsum("ikj,ij->ik", dst.t[safe], src.t[ok]))
+    dots = np.abs(np.einsum("ikj,ij->ik", dst.t[safe], src.t if every else src.t[ok]))
     good = valid & (dots >= min_tangent_dot)
     # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.
     has = good.any(axis=1)
     first = np.argmax(good, axis=1)
     m = np.where(has, safe[np.arange(len(safe)), first], -1)
-    out[np.flatnonzero(ok)] = m
+    if every:
+        out = m
+    else:
+        out[np.flatnonzero(ok)] = m
     return (out, q) if return_projected else out
 
 

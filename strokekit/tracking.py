@@ -652,18 +652,27 @@ def assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, can
     rank = np.empty(len(order), np.int64)
     rank[order] = np.arange(len(order))
     alive = np.ones(len(cs), bool)
+    # Ids as 0..n_ids-1 (so that both sides index flat arrays).
+    _, cinv = np.unique(ci, return_inverse=True)
+    cinv = cinv.ravel()
+    n_ids = int(cinv.max()) + 1 if len(cinv) else 0
+    used_s = np.zeros(n_strokes, bool)
+    used_i = np.zeros(n_ids, bool)
+    big = np.iinfo(np.int64).max
     # Pairs that come first for both their stroke and their id are exactly the ones the greedy
     # pass takes; take them all, drop what they exclude, repeat (a few rounds, all vectorized).
     while alive.any():
         idx = np.flatnonzero(alive)
-        best_s = np.full(n_strokes, np.iinfo(np.int64).max)
-        np.minimum.at(best_s, cs[idx], rank[idx])
-        _, id_inv = np.unique(ci[idx], return_inverse=True)
-        best_i = np.full(id_inv.max() + 1, np.iinfo(np.int64).max)
-        np.minimum.at(best_i, id_inv, rank[idx])
-        take = idx[(best_s[cs[idx]] == rank[idx]) & (best_i[id_inv] == rank[idx])]
+        ri, si, ii = rank[idx], cs[idx], cinv[idx]
+        best_s = np.full(n_strokes, big)
+        np.minimum.at(best_s, si, ri)
+        best_i = np.full(n_ids, big)
+        np.minimum.at(best_i, ii, ri)
+        take = idx[(best_s[si] == ri) & (best_i[ii] == ri)]
         ids[cs[take]] = ci[take]
-        alive &= ~np.isin(cs, cs[take]) & ~np.isin(ci, ci[take])
+        used_s[cs[take]] = True
+        used_i[cinv[take]] = True
+        alive &= ~used_s[cs] & ~used_i[cinv]
     fresh = np.flatnonzero(ids < 0)
     ids[fresh] = next_id + np.arange(len(fresh))
     return ids, next_id + len(fresh)
@@ -987,7 +996,10 @@ class Tracker:
         base = np.maximum.accumulate(np.where(g_start, off_sorted, 0.0)) if R else np.zeros(0)
         offset = np.zeros(R)
         offset[order] = off_sorted - base
-        st = np.searchsorted(np.unique(group), group)[rv] if R else np.zeros(0, np.int64)
+        if o.chain_touching:  # group = arange(R): one output stroke per run, in order
+            st = rv
+        else:
+            st = np.searchsorted(np.unique(group), group)[rv] if R else np.zeros(0, np.int64)
         L = cur.lengths
         s = offset[rv] + np.where(rev[rv], r_len[rv] - s_rel, s_rel)
         s = np.clip(s, 0, L[st])
