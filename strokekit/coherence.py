@@ -105,12 +105,13 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     S = len(strokes)
     n = np.maximum(1, np.ceil(L / step_px - 1e-9)).astype(np.int64)
     stroke = np.repeat(np.arange(S), n)
-    k = np.arange(n.sum()) - np.repeat(np.r_[0, np.cumsum(n)[:-1]], n)
+    cn = np.cumsum(n)
+    k = np.arange(cn[-1]) - np.repeat(cn - n, n)
     w = (L / n)[stroke]
     s = (k + 0.5) * w
     # A global, strictly increasing arc coordinate: stroke s starts at base[s] (1 px gap between
     # strokes so that a search never crosses a stroke boundary).
-    base = np.r_[0.0, np.cumsum(L[:-1] + 1.0)]
+    base = np.concatenate([[0.0], np.cumsum(L[:-1] + 1.0)])
     G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
     g = s + base[stroke]
     first = strokes.offsets[:-1][stroke]

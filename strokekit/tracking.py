@@ -137,7 +137,7 @@ class TrackingOptions:
 def _cat(*parts) -> np.ndarray:
     """np.r_ for scalars and arrays along the first axis (np.r_ costs ~10 us a call; the tracker
     makes dozens of these per frame on small arrays)."""
-    return np.concatenate([np.atleast_1d(p) for p in parts])
+    return np.concatenate([p if type(p) is np.ndarray and p.ndim else (p,) for p in parts])
 
 
 #: Cached properties of Strokes that depend on the points and offsets only.
