@@ -785,19 +785,22 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         return r, np.bincount(r, weights=dense.w) if D else np.zeros(0)
 
     lab = fill(label)
+    done = None  # (r, rl) of the final labels when the loop already has them
     for _ in range(4):
         r, rl = runs(lab)
         if len(rl) == 0:
             break
-        rs = stroke[np.flatnonzero(_cat(True, r[1:] != r[:-1]))]
+        rfirst = np.flatnonzero(_cat(True, r[1:] != r[:-1]))
+        rs = stroke[rfirst]
         longest = np.zeros(len(rl), bool)
         o = np.lexsort((-rl, rs))
         longest[o[_cat(True, rs[o][1:] != rs[o][:-1])]] = True
-        short = (rl < min_segment_px) & ~longest & (lab[np.flatnonzero(_cat(True, r[1:] != r[:-1]))] >= 0)
+        short = (rl < min_segment_px) & ~longest & (lab[rfirst] >= 0)
         if not short.any():
+            done = r, rl
             break
         lab = fill(np.where(short[r], -1, lab))
-    r, rl = runs(lab)
+    r, rl = done if done is not None else runs(lab)
     first = np.flatnonzero(_cat(True, r[1:] != r[:-1])) if D else np.zeros(0, np.int64)
     last = _cat(first[1:] - 1, D - 1) if D else np.zeros(0, np.int64)
     rs = stroke[first]
