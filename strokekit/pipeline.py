@@ -11,7 +11,8 @@ from __future__ import annotations
 import platform
 import time
 import traceback
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from collections import deque
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
@@ -175,6 +176,13 @@ def _noop() -> None:
     return None
 
 
+def _keep_renderer(scene_path: str, scene: Scene, lines: LineOptions) -> None:
+    """Make `scene` (already loaded here) this process's renderer for frame tasks."""
+    if (scene_path, lines) not in _WORKER_CACHE:
+        _WORKER_CACHE.clear()
+        _WORKER_CACHE[(scene_path, lines)] = LineRenderer(scene, lines)
+
+
 def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int, camera: Camera,
                outputs: OutputOptions, do_lines: bool = True) -> dict:
     """Per-frame work that needs no other frame: lines, and the raster outputs (written here).
@@ -251,9 +259,62 @@ class _InlineExecutor(Executor):
         return f
 
 
-def make_executor(workers: int, scheduler: str | None, warm: tuple | None = None) -> tuple[Executor, Callable[[], None]]:
-    """(executor, close). `scheduler` 'tcp://host:port' uses a dask.distributed cluster. For a
-    local pool, `warm` = (scene_path, lines) starts every worker now and has it load the scene."""
+@dataclass
+class Workers:
+    """Where frame tasks run. `executor` takes them; with `main_helps` this process runs tasks
+    too, beside a local pool of `pool_size` processes (--workers N: this one and N - 1 more)."""
+
+    executor: Executor
+    close: Callable[[], None]
+    main_helps: bool = False
+    pool_size: int = 0
+    #: One future per pool worker that completes once a worker has started (imports, scene).
+    started: list = field(default_factory=list)
+
+    def _capacity(self, n_tasks: int) -> int:
+        if not self.main_helps:
+            return n_tasks
+        ready = sum(f.done() for f in self.started) if self.started else self.pool_size
+        return 2 * ready
+
+    def map(self, tasks: list[tuple], handle: Callable[[dict], bool]) -> None:
+        """Run every (fn, *args) of `tasks`, calling `handle(result)` in this process as each
+        finishes (in any order); `handle` returning False stops the rest.
+
+        With main_helps, each pool worker that has started gets at most two tasks queued and
+        this process runs the others one by one, so frames get done while the workers are
+        still starting (a spawned worker needs seconds of imports and scene loading; a short
+        run ends before they are up) and no worker idles."""
+        pending = deque(tasks)
+        running: set = set()
+        go = True
+
+        def collect(futs) -> bool:
+            for fut in futs:
+                running.discard(fut)
+                if not handle(fut.result()):
+                    return False
+            return True
+
+        while go and (pending or running):
+            while pending and len(running) < self._capacity(len(tasks)):
+                fn, *args = pending.popleft()
+                running.add(self.executor.submit(fn, *args))
+            if self.main_helps and pending:
+                fn, *args = pending.popleft()
+                go = handle(fn(*args)) and collect([f for f in running if f.done()])
+            else:
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                go = collect(done)
+        for fut in running:
+            fut.cancel()
+
+
+def make_executor(workers: int, scheduler: str | None, warm: tuple | None = None) -> Workers:
+    """Where the run's tasks go. `scheduler` 'tcp://host:port': a dask.distributed cluster.
+    Otherwise `workers` processes on this machine: this one, plus a spawn-started pool of
+    workers - 1 processes; `warm` = (scene_path, lines) starts the pool now and has each worker
+    load the scene and build its BVH right away."""
     if scheduler:
         try:
             from distributed import Client
@@ -264,17 +325,29 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple | None = None
         except Exception as e:
             raise InputError(f"cannot reach the dask scheduler at {scheduler} ({e})") from None
         ex = client.get_executor(pure=False)
-        return ex, client.close
+        return Workers(ex, client.close)
     if workers <= 1:
-        return _InlineExecutor(), lambda: None
+        return Workers(_InlineExecutor(), lambda: None)
     import multiprocessing as mp
 
-    ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"),
+    n = workers - 1
+    ex = ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"),
                              initializer=_warm_worker if warm else None, initargs=tuple(warm or ()))
-    if warm:
-        for _ in range(workers):  # a pool spawns its workers on demand: ask for all of them now
-            ex.submit(_noop)
-    return ex, lambda: ex.shutdown(wait=True, cancel_futures=True)
+    # A pool spawns its workers on demand: ask for all of them now. Each first task completes
+    # once its worker has run the initializer.
+    started = [ex.submit(_noop) for _ in range(n)]
+
+    def close() -> None:
+        # Every task of ours has finished or been cancelled by now; a worker may still be in its
+        # initializer (a short run can end before the pool is up). Waiting for it would add its
+        # whole start-up to the run, so the idle or starting workers are stopped instead.
+        procs = list((getattr(ex, "_processes", None) or {}).values())  # shutdown forgets them
+        ex.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            proc.terminate()
+        ex.shutdown(wait=True)
+
+    return Workers(ex, close, main_helps=True, pool_size=n, started=started)
 
 
 # --- the run -------------------------------------------------------------------------------------------
@@ -296,7 +369,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
     t_start = time.perf_counter()
     res = RunResult()
     # Workers start first: their imports and scene load overlap the main process's own load.
-    executor, close = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
+    workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
     try:
         scene = _load_and_plan(spec, res)
         stage = {s.name: s for s in res.stages}
@@ -321,21 +394,17 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
         lines_results: dict[int, Strokes] = {}
         underlays: dict[int, list | None] = {}
         t = time.perf_counter()
-        futs = {}
-        for f in need_lines:
-            raster_out = out if f not in done_before else replace(out, raster_options=None)
-            futs[executor.submit(frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
-                                 raster_out)] = f
+        if workers.main_helps:  # this process renders too: with the scene it has loaded
+            _keep_renderer(spec.scene_path, scene, spec.lines)
+        tasks = [(frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
+                  out if f not in done_before else replace(out, raster_options=None)) for f in need_lines]
         n_done = 0
-        for fut in as_completed(futs):
-            r = fut.result()
+
+        def lines_done(r: dict) -> bool:
+            nonlocal n_done
             n_done += 1
             if "error" in r:
                 res.failures[r["frame"]] = r["error"]
-                if spec.fail_fast:
-                    for other in futs:
-                        other.cancel()
-                    break
             else:
                 lines_results[r["frame"]] = r["strokes"]
                 underlays[r["frame"]] = r["underlays"]
@@ -343,7 +412,10 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
                 res.outputs += r["files"]
                 _add_timings(stage, r["timings"])
             if progress:
-                progress("lines", n_done, len(futs))
+                progress("lines", n_done, len(tasks))
+            return not (spec.fail_fast and "error" in r)
+
+        workers.map(tasks, lines_done)
 
         # Tracking walks the frames in order (the only sequential stage).
         ordered = [f for f in frames if f in lines_results]
@@ -359,16 +431,13 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
         # Writing, in parallel again.
         extra = {"contours": spec.lines.contours,
                  "tracking": getattr(spec.tracking, "method", "none") if tracking_on else "none"}
-        wfuts = {}
-        for f in ordered:
-            if f in done_before:
-                continue
-            if spec.fail_fast and res.failures:
-                break
-            wfuts[executor.submit(write_task, lines_results[f], f, out, spec.lines.kinds, extra, underlays.get(f))] = f
+        wtasks = [] if spec.fail_fast and res.failures else [
+            (write_task, lines_results[f], f, out, spec.lines.kinds, extra, underlays.get(f))
+            for f in ordered if f not in done_before]
         n_done = 0
-        for fut in as_completed(wfuts):
-            r = fut.result()
+
+        def written(r: dict) -> bool:
+            nonlocal n_done
             n_done += 1
             if "error" in r:
                 res.failures[r["frame"]] = r["error"]
@@ -378,7 +447,10 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
                 res.frame_seconds[r["frame"]] = res.frame_seconds.get(r["frame"], 0.0) + r["seconds"]
                 _add_timings(stage, r["timings"])
             if progress:
-                progress("write", n_done, len(wfuts))
+                progress("write", n_done, len(wtasks))
+            return True
+
+        workers.map(wtasks, written)
         if out.gltf and out.gltf_sequence and ordered:
             from .writers.gltf import glb_for_sequence
 
@@ -388,7 +460,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
             res.outputs.append(str(atomic_write_bytes(path, glb_for_sequence(seq, out.gltf_options))))
             stage["ribbons + glTF"].seconds += time.perf_counter() - t
     finally:
-        close()
+        workers.close()
     res.frames_ok.sort()
     res.outputs.sort()
     res.wall_seconds = time.perf_counter() - t_start

@@ -120,3 +120,45 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
     # Frames that were complete were not rewritten.
     complete = [n for n in before if n.endswith(".svg") and n.replace(".svg", ".json") in before]
     assert complete and all(before[n] == (part / n).stat().st_mtime_ns for n in complete)
+
+
+def test_main_process_shares_the_frames_and_feeds_only_started_workers():
+    """With a local pool, this process renders frames too; the pool gets at most two queued
+    tasks per worker that has started, so a short run never waits for workers still importing."""
+    from concurrent.futures import Future
+
+    from strokekit.pipeline import Workers
+
+    class Recorder:
+        def __init__(self):
+            self.submitted = []
+
+        def submit(self, fn, *args):
+            self.submitted.append(args[0])
+            f = Future()
+            f.set_result(fn(*args))
+            return f
+
+    ran = []
+
+    def task(k):
+        return {"k": k}
+
+    not_started = Future()  # a worker still in its initializer
+    ex = Recorder()
+    Workers(ex, lambda: None, main_helps=True, pool_size=1, started=[not_started]).map(
+        [(task, k) for k in range(6)], lambda r: ran.append(r["k"]) or True)
+    assert sorted(ran) == list(range(6)) and ex.submitted == []
+
+    started = Future()
+    started.set_result(None)
+    ex, ran = Recorder(), []
+    Workers(ex, lambda: None, main_helps=True, pool_size=1, started=[started]).map(
+        [(task, k) for k in range(6)], lambda r: ran.append(r["k"]) or True)
+    assert sorted(ran) == list(range(6)) and 0 < len(ex.submitted) < 6  # shared, nothing twice
+
+    # A handler returning False (fail-fast) stops the rest.
+    ex, ran = Recorder(), []
+    Workers(ex, lambda: None, main_helps=True, pool_size=1, started=[not_started]).map(
+        [(task, k) for k in range(6)], lambda r: ran.append(r["k"]) or r["k"] < 2)
+    assert ran == [0, 1, 2]
