@@ -356,13 +356,15 @@ def dolly_path(center: np.ndarray, radius: float, frames: int, *, start: float =
 
 
 def gltf_camera_count(path) -> int:
-    """Number of cameras a glTF/GLB file defines (0 when it cannot be read)."""
+    """Number of camera nodes (nodes placing a camera) of a glTF/GLB file: what `--camera FILE`
+    can use (0 when the file cannot be read)."""
     import pygltflib
 
     try:
-        return len(pygltflib.GLTF2().load(str(path)).cameras or [])
+        g = pygltflib.GLTF2().load(str(path))
     except Exception:  # info only: the scene loader reports broken files
         return 0
+    return sum(1 for n in g.nodes or [] if n.camera is not None)
 
 
 # --- glTF camera nodes and their animation -------------------------------------------------------
@@ -612,6 +614,8 @@ def _camera_at(m: np.ndarray, cam, width: int | None, height: int | None) -> Cam
         return Camera(eye=tuple(eye), target=tuple(eye + fwd), up=tuple(up), projection="orthographic",
                       ortho_height=2 * cam.orthographic.ymag, width=w, height=h)
     p = cam.perspective
+    if p is not None and not (isinstance(p.yfov, (int, float)) and math.isfinite(p.yfov) and 0 < p.yfov < math.pi):
+        raise InputError(f"perspective camera needs a yfov in (0, pi) radians, got {p.yfov!r}")
     h = height or 1024
     aspect = (p.aspectRatio if p is not None and p.aspectRatio else 1.0)
     w = width or int(round(h * aspect))

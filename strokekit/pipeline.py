@@ -45,16 +45,21 @@ class OutputOptions:
     def stem(self, frame: int) -> str:
         return self.pattern.format(frame=frame)
 
+    def frame_file(self, frame: int, suffix: str) -> Path:
+        """OUT/<pattern>.<suffix>: the suffix is appended, never replaces a dotted part of the
+        name (a pattern like shot.{frame:04d} keeps its frame number)."""
+        return self.out_dir / f"{self.stem(frame)}{suffix}"
+
     def frame_files(self, frame: int) -> list[Path]:
         """The files one frame produces with these options."""
         stem = self.out_dir / self.stem(frame)
         out = []
         if self.svg:
-            out.append(stem.with_suffix(".svg"))
+            out.append(self.frame_file(frame, ".svg"))
         if self.json:
-            out.append(stem.with_suffix(".json"))
+            out.append(self.frame_file(frame, ".json"))
         if self.gltf and not self.gltf_sequence:
-            out.append(stem.with_suffix(".glb"))
+            out.append(self.frame_file(frame, ".glb"))
         if self.raster_options is not None:
             from .raster import raster_file_suffixes
 
@@ -153,6 +158,8 @@ def _renderer(scene_path: str, scene_hash: str, lines: LineOptions) -> LineRende
     `scene_hash` (when given) must be the hash the run started with."""
     key = (scene_path, lines)
     r = _WORKER_CACHE.get(key)
+    if r is not None and scene_hash and r.scene.content_hash != scene_hash:
+        r = None  # kept from an earlier run (a dask worker lives on): the file has changed since
     if r is None:
         _WORKER_CACHE.clear()
         r = LineRenderer(load_scene(scene_path), lines)
@@ -162,14 +169,17 @@ def _renderer(scene_path: str, scene_hash: str, lines: LineOptions) -> LineRende
     return r
 
 
-def _warm_worker(scene_path: str, lines: LineOptions) -> None:
+def _warm_worker(scene_path: str, lines: LineOptions, started) -> None:
     """Pool initializer: import, load the scene and build its BVH while the main process loads
-    its own copy, instead of after it. Errors are left to the frame tasks to report (an
-    initializer that raises would break the whole pool)."""
+    its own copy, instead of after it, then count this worker in `started` (a shared integer).
+    Errors are left to the frame tasks to report (an initializer that raises would break the
+    whole pool)."""
     try:
         _renderer(scene_path, "", lines)
     except Exception:
         _WORKER_CACHE.clear()
+    with started.get_lock():
+        started.value += 1
 
 
 def _noop() -> None:
@@ -178,7 +188,8 @@ def _noop() -> None:
 
 def _keep_renderer(scene_path: str, scene: Scene, lines: LineOptions) -> None:
     """Make `scene` (already loaded here) this process's renderer for frame tasks."""
-    if (scene_path, lines) not in _WORKER_CACHE:
+    r = _WORKER_CACHE.get((scene_path, lines))
+    if r is None or r.scene.content_hash != scene.content_hash:
         _WORKER_CACHE.clear()
         _WORKER_CACHE[(scene_path, lines)] = LineRenderer(scene, lines)
 
@@ -219,7 +230,6 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
     t0 = time.perf_counter()
     try:
         cam = strokes.camera
-        stem = outputs.out_dir / outputs.stem(frame)
         files = []
         timings: dict = {}
         if outputs.svg:
@@ -227,18 +237,19 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
 
             text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
                                 stroke_width=outputs.stroke_width_px, underlays=underlays)
-            files.append(str(atomic_write_bytes(stem.with_suffix(".svg"), text.encode())))
+            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".svg"), text.encode())))
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:
             from .writers.strokes_json import strokes_json
 
-            files.append(str(atomic_write_bytes(stem.with_suffix(".json"),
+            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".json"),
                                                 strokes_json(strokes, cam.width, cam.height, frame, extra=extra))))
             timings["json"] = time.perf_counter() - t0 - sum(timings.values())
         if outputs.gltf and not outputs.gltf_sequence:
             from .writers.gltf import glb_for_frame
 
-            files.append(str(atomic_write_bytes(stem.with_suffix(".glb"), glb_for_frame(strokes, cam, outputs.gltf_options))))
+            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".glb"),
+                                                glb_for_frame(strokes, cam, outputs.gltf_options))))
             timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())
         return {"frame": frame, "files": files, "seconds": time.perf_counter() - t0, "timings": timings}
     except Exception as e:
@@ -266,16 +277,16 @@ class Workers:
 
     executor: Executor
     close: Callable[[], None]
-    main_helps: bool = False
-    pool_size: int = 0
-    #: One future per pool worker that completes once a worker has started (imports, scene).
-    started: list = field(default_factory=list)
+    #: Pool workers that have finished starting (imports, scene, BVH): a shared integer, or None
+    #: when this process does not render (dask) or is the only one (inline).
+    started: object | None = None
+
+    @property
+    def main_helps(self) -> bool:
+        return self.started is not None
 
     def _capacity(self, n_tasks: int) -> int:
-        if not self.main_helps:
-            return n_tasks
-        ready = sum(f.done() for f in self.started) if self.started else self.pool_size
-        return 2 * ready
+        return 2 * self.started.value if self.main_helps else n_tasks
 
     def map(self, tasks: list[tuple], handle: Callable[[dict], bool]) -> None:
         """Run every (fn, *args) of `tasks`, calling `handle(result)` in this process as each
@@ -306,15 +317,18 @@ class Workers:
             else:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 go = collect(done)
+        # Stopped early: tasks already running finish (they may be writing files); queued ones
+        # are dropped.
         for fut in running:
             fut.cancel()
+        wait(running)
 
 
-def make_executor(workers: int, scheduler: str | None, warm: tuple | None = None) -> Workers:
+def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
     """Where the run's tasks go. `scheduler` 'tcp://host:port': a dask.distributed cluster.
     Otherwise `workers` processes on this machine: this one, plus a spawn-started pool of
-    workers - 1 processes; `warm` = (scene_path, lines) starts the pool now and has each worker
-    load the scene and build its BVH right away."""
+    workers - 1 processes, started now; each loads the scene and builds its BVH right away
+    (`warm` = (scene_path, lines))."""
     if scheduler:
         try:
             from distributed import Client
@@ -329,25 +343,38 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple | None = None
     if workers <= 1:
         return Workers(_InlineExecutor(), lambda: None)
     import multiprocessing as mp
+    import signal
 
-    n = workers - 1
-    ex = ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn"),
-                             initializer=_warm_worker if warm else None, initargs=tuple(warm or ()))
-    # A pool spawns its workers on demand: ask for all of them now. Each first task completes
-    # once its worker has run the initializer.
-    started = [ex.submit(_noop) for _ in range(n)]
+    ctx = mp.get_context("spawn")
+    started = ctx.Value("i", 0)
+    ex = ProcessPoolExecutor(max_workers=workers - 1, mp_context=ctx, initializer=_warm_worker,
+                             initargs=(*warm, started))
+    # A pool spawns its workers on demand: ask for all of them now. They inherit an ignored
+    # SIGINT, so Ctrl-C reaches this process alone (one "aborted" line, no traceback from a
+    # worker interrupted in its imports) and close() ends them.
+    try:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: signals are not ours to change
+        old = None
+    try:
+        for _ in range(workers - 1):
+            ex.submit(_noop)
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGINT, old)
 
     def close() -> None:
-        # Every task of ours has finished or been cancelled by now; a worker may still be in its
-        # initializer (a short run can end before the pool is up). Waiting for it would add its
-        # whole start-up to the run, so the idle or starting workers are stopped instead.
+        # Our tasks have all finished by now (Workers.map waits for running ones; an interrupt
+        # or error ends the run anyway); a worker may still be in its initializer, as a short
+        # run can end before the pool is up. Waiting would add its whole start-up to the run, so
+        # idle or starting workers are stopped instead (ProcessPoolExecutor has no public way).
         procs = list((getattr(ex, "_processes", None) or {}).values())  # shutdown forgets them
         ex.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
             proc.terminate()
         ex.shutdown(wait=True)
 
-    return Workers(ex, close, main_helps=True, pool_size=n, started=started)
+    return Workers(ex, close, started=started)
 
 
 # --- the run -------------------------------------------------------------------------------------------
@@ -394,8 +421,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
         lines_results: dict[int, Strokes] = {}
         underlays: dict[int, list | None] = {}
         t = time.perf_counter()
-        if workers.main_helps:  # this process renders too: with the scene it has loaded
-            _keep_renderer(spec.scene_path, scene, spec.lines)
+        if workers.main_helps or isinstance(workers.executor, _InlineExecutor):
+            _keep_renderer(spec.scene_path, scene, spec.lines)  # frames rendered here use this load
         tasks = [(frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
                   out if f not in done_before else replace(out, raster_options=None)) for f in need_lines]
         n_done = 0

@@ -282,7 +282,7 @@ def load_scene(path: str | Path) -> Scene:
     materials: list[Material] = []
     mat_index: dict[tuple, int] = {}
     offset = 0
-    for node in _nodes_in_stable_order(loaded):
+    for node, name in _nodes_in_stable_order(loaded):
         transform, geom_name = loaded.graph[node]
         geom = loaded.geometry[geom_name]
         f = getattr(geom, "faces", None)
@@ -300,7 +300,7 @@ def load_scene(path: str | Path) -> Scene:
         faces.append(np.asarray(f, np.int64) + offset)
         fobj.append(np.full(len(f), len(objects), np.int32))
         fmat.append(np.full(len(f), mat_index[key], np.int32))
-        objects.append(_object_name(str(node), str(geom_name)))
+        objects.append(name)
         offset += len(v)
     if not faces:
         raise InputError("no triangle faces in file (empty, or a point cloud)", p)
@@ -308,21 +308,25 @@ def load_scene(path: str | Path) -> Scene:
                        objects=objects, materials=materials, source=str(p))
 
 
-#: trimesh names a glTF node that has no name "<mesh index>_<6 random hex digits>" (a new name on
-#: every load, so it must neither order the faces nor name the object) or by its index.
-_GENERATED_NODE = re.compile(r"\d+(_[0-9a-f]{6})?")
+def _object_name(node: str, geometry: str, parent: str | None) -> str:
+    """The name of a scene object: its glTF node's name, or its mesh's name where trimesh made the
+    node name up. trimesh names a node without a name by its index, and gives each primitive of a
+    multi-primitive mesh a child node "<parent>_<6 random hex digits>", new on every load: such a
+    name must neither name the object nor order the faces."""
+    made_up = node.isdigit() or (parent is not None and re.fullmatch(re.escape(parent) + r"_[0-9a-f]{6}", node))
+    return geometry if made_up else node
 
 
-def _object_name(node: str, geometry: str) -> str:
-    return geometry if _GENERATED_NODE.fullmatch(node) else node
-
-
-def _nodes_in_stable_order(loaded) -> list:
-    """The geometry nodes of a trimesh scene in an order that is the same on every load: by
-    object name (the node's own name, or its mesh's where trimesh made one up), mesh name and
-    world transform. Face order, object ids and the scene hash follow from it."""
-    def key(node):
+def _nodes_in_stable_order(loaded) -> list[tuple]:
+    """(node, object name) of the geometry nodes of a trimesh scene, in an order that is the same
+    on every load: by object name, mesh name (deterministic) and world transform. Face order,
+    object ids and the scene hash follow from it."""
+    parents = loaded.graph.transforms.parents
+    rows = []
+    for node in loaded.graph.nodes_geometry:
         transform, geom_name = loaded.graph[node]
-        return (_object_name(str(node), str(geom_name)), str(geom_name),
-                np.asarray(transform, np.float64).tobytes())
-    return sorted(loaded.graph.nodes_geometry, key=key)
+        parent = parents.get(node)
+        name = _object_name(str(node), str(geom_name), None if parent is None else str(parent))
+        rows.append(((name, str(geom_name), np.asarray(transform, np.float64).tobytes()), node, name))
+    rows.sort(key=lambda r: r[0])
+    return [(node, name) for _, node, name in rows]

@@ -207,17 +207,14 @@ def test_camera_file_errors_name_frames_from_1_and_check_the_size(cube, tmp_path
     assert code == 1 and "image size must be positive" in err and "frame" not in err
 
 
-def test_outputs_are_readable_like_any_new_file(cube, tmp_path, capsys):
-    """Atomic writes go through mkstemp (mode 0600); the renamed files get 0666 less the umask,
-    so other users and web servers can read the results."""
-    import os
+def test_outputs_are_readable_like_any_new_file(cube, tmp_path, capsys, monkeypatch):
+    """Atomic writes go through mkstemp (mode 0600); the renamed files get 0666 less the umask
+    (read once at import), so other users and web servers can read the results."""
+    from strokekit import fileio
 
-    old = os.umask(0o022)
-    try:
-        code, _, err = run_cli(["render", cube, "--orbit", "1", "--out", tmp_path / "o", "--size", "64x64",
-                                "--report", tmp_path / "r.json"], capsys)
-    finally:
-        os.umask(old)
+    monkeypatch.setattr(fileio, "_UMASK", 0o022)
+    code, _, err = run_cli(["render", cube, "--orbit", "1", "--out", tmp_path / "o", "--size", "64x64",
+                            "--report", tmp_path / "r.json"], capsys)
     assert code == 0, err
     for p in [*(tmp_path / "o").iterdir(), tmp_path / "r.json"]:
         assert p.stat().st_mode & 0o777 == 0o644, p
@@ -246,8 +243,18 @@ def test_unwritable_output_is_one_line_before_any_work(cube, tmp_path, capsys):
 
 
 def test_a_frame_draws_the_same_lines_alone_and_in_a_sequence(tmp_path, capsys):
-    """Cleanup of doubled contour pieces is per frame: frame 5 rendered alone and inside a
-    sequence (no tracking) give the same bytes."""
+    """Cleanup of doubled contour pieces is part of the per-frame line pass (not of tracking):
+    the renderer's strokes have none left, and frame 5 alone and inside a sequence rendered
+    without tracking give the same bytes."""
+    from strokekit import LineOptions, LineRenderer, load_camera_path, load_scene
+    from strokekit.tracking import drop_doubled
+
+    scene = load_scene(SAMPLES / "still_life.glb")
+    cam = load_camera_path(SAMPLES / "orbit.json").cameras[4]
+    drawn = LineRenderer(scene, LineOptions()).render(cam)
+    raw = LineRenderer(scene, LineOptions(doubled_px=0.0)).render(cam)
+    assert raw.lengths.sum() > drawn.lengths.sum()  # the sample does have doubled pieces
+    assert drop_doubled(drawn, 1.0).lengths.sum() == drawn.lengths.sum()
     base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--no-json", "-q"]
     assert run_cli([*base, "--frames", "5", "--out", tmp_path / "a"], capsys)[0] == 0
     assert run_cli([*base, "--frames", "3-6", "--no-coherence", "--out", tmp_path / "b"], capsys)[0] == 0
@@ -264,6 +271,17 @@ def test_gltf_with_unnamed_nodes_loads_the_same_every_time(tmp_path, capsys):
     a, b = load_scene(p), load_scene(p)
     assert a.content_hash == b.content_hash and a.objects == b.objects
     assert "Cesium_Milk_Truck" in a.objects
+    # A named node with a multi-primitive mesh: trimesh gives each primitive a child node
+    # "Truck_<random hex>"; the scene must not depend on those names either.
+    import pygltflib
+
+    g = pygltflib.GLTF2().load(str(p))
+    multi = next(i for i, n in enumerate(g.nodes) if n.mesh is not None and len(g.meshes[n.mesh].primitives) > 1)
+    g.nodes[multi].name = "Truck"
+    named = tmp_path / "named.glb"
+    g.save(str(named))
+    a, b = load_scene(named), load_scene(named)
+    assert a.content_hash == b.content_hash and a.objects == b.objects
     outs = []
     for k in range(2):
         code, _, err = run_cli(["render", p, "--orbit", "2", "--size", "128x128", "-q", "--out", tmp_path / f"o{k}"],
@@ -271,3 +289,13 @@ def test_gltf_with_unnamed_nodes_loads_the_same_every_time(tmp_path, capsys):
         assert code == 0, err
         outs.append((tmp_path / f"o{k}" / "frame_0002.svg").read_bytes())
     assert outs[0] == outs[1]
+
+
+def test_dotted_pattern_keeps_the_frame_number(cube, tmp_path, capsys):
+    """shot.{frame:04d} (VFX style) gives shot.0001.svg, shot.0002.svg: the extension is
+    appended, never put in place of the frame number."""
+    code, _, err = run_cli(["render", cube, "--orbit", "2", "--size", "64x64", "--pattern", "shot.{frame:04d}",
+                            "--gltf", "--out", tmp_path / "o"], capsys)
+    assert code == 0, err
+    names = sorted(p.name for p in (tmp_path / "o").iterdir())
+    assert names == [f"shot.000{i}.{e}" for i in (1, 2) for e in ("glb", "json", "svg")]

@@ -124,41 +124,66 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
 
 def test_main_process_shares_the_frames_and_feeds_only_started_workers():
     """With a local pool, this process renders frames too; the pool gets at most two queued
-    tasks per worker that has started, so a short run never waits for workers still importing."""
-    from concurrent.futures import Future
+    tasks per worker that has started, so a short run never waits for workers still importing;
+    every task runs exactly once; fail-fast stops the rest."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+    from types import SimpleNamespace
 
     from strokekit.pipeline import Workers
 
-    class Recorder:
+    class CountingPool:  # a one-worker "pool" that records how many tasks wait in it
         def __init__(self):
+            self.ex, self.lock = ThreadPoolExecutor(1), threading.Lock()
+            self.outstanding = self.max_outstanding = 0
             self.submitted = []
 
         def submit(self, fn, *args):
-            self.submitted.append(args[0])
-            f = Future()
-            f.set_result(fn(*args))
-            return f
+            with self.lock:
+                self.outstanding += 1
+                self.max_outstanding = max(self.max_outstanding, self.outstanding)
+                self.submitted.append(args[0])
 
-    ran = []
+            def run():
+                try:
+                    return fn(*args)
+                finally:
+                    with self.lock:
+                        self.outstanding -= 1
+            return self.ex.submit(run)
 
     def task(k):
         return {"k": k}
 
-    not_started = Future()  # a worker still in its initializer
-    ex = Recorder()
-    Workers(ex, lambda: None, main_helps=True, pool_size=1, started=[not_started]).map(
-        [(task, k) for k in range(6)], lambda r: ran.append(r["k"]) or True)
-    assert sorted(ran) == list(range(6)) and ex.submitted == []
+    def share(started_workers, tasks=20, stop_after=None):
+        pool, ran = CountingPool(), []
 
-    started = Future()
-    started.set_result(None)
-    ex, ran = Recorder(), []
-    Workers(ex, lambda: None, main_helps=True, pool_size=1, started=[started]).map(
-        [(task, k) for k in range(6)], lambda r: ran.append(r["k"]) or True)
-    assert sorted(ran) == list(range(6)) and 0 < len(ex.submitted) < 6  # shared, nothing twice
+        def handle(r):
+            ran.append(r["k"])
+            return stop_after is None or r["k"] < stop_after
+        Workers(pool, lambda: None, started=SimpleNamespace(value=started_workers)).map(
+            [(task, k) for k in range(tasks)], handle)
+        return pool, ran
 
-    # A handler returning False (fail-fast) stops the rest.
-    ex, ran = Recorder(), []
-    Workers(ex, lambda: None, main_helps=True, pool_size=1, started=[not_started]).map(
-        [(task, k) for k in range(6)], lambda r: ran.append(r["k"]) or r["k"] < 2)
+    pool, ran = share(0)  # the worker is still starting: everything is done here
+    assert sorted(ran) == list(range(20)) and pool.submitted == []
+    pool, ran = share(1)  # one worker up: it takes some, never more than two queued
+    assert sorted(ran) == list(range(20))
+    assert 2 <= len(pool.submitted) < 20 and pool.max_outstanding <= 2
+    pool, ran = share(0, stop_after=2)  # a handler returning False (fail-fast) stops the rest
     assert ran == [0, 1, 2]
+
+
+def test_scene_edited_between_two_runs_of_one_process_is_rendered_fresh(tmp_path, capsys):
+    """Workers keep their renderer between runs (a dask worker lives on): a scene file changed
+    since the last run is loaded again, not refused as 'changed during the run'."""
+    from test_cli import CUBE_OBJ
+
+    scene = tmp_path / "cube.obj"
+    scene.write_text(CUBE_OBJ)
+    args = ["render", scene, "--orbit", "2", "--size", "64x64", "-q", "--workers", "1"]
+    assert run_cli([*args, "--out", tmp_path / "a"], capsys)[0] == 0
+    scene.write_text(CUBE_OBJ.replace("v 1 1 1", "v 1.5 1.5 1.5"))
+    code, _, err = run_cli([*args, "--out", tmp_path / "b"], capsys)
+    assert code == 0, err
+    assert tree_bytes(tmp_path / "a") != tree_bytes(tmp_path / "b")

@@ -59,7 +59,8 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--decimals", type=click.IntRange(0, 8), default=2, show_default=True, help="SVG coordinate decimals.")
 @click.option("--stroke-width", type=float, default=1.5, show_default=True, help="SVG stroke width in px.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
-              help="Worker processes (default: the machine's cores for 8 frames or more, else 1).")
+              help="Processes rendering frames: this one and N-1 started beside it (default: the machine's "
+                   "cores for 8 frames or more, else 1).")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address, e.g. tcp://host:8786.")
 @click.option("--skip-existing", is_flag=True, help="Resume: do not rewrite frames whose files all exist.")
 @click.option("--fail-fast", is_flag=True, help="Stop at the first failed frame.")
@@ -86,7 +87,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         raise UsageError(f"bad --pattern {pattern!r}: use {{frame}} e.g. frame_{{frame:04d}}") from None
     if len(names) < 2:
         raise UsageError(f"bad --pattern {pattern!r}: it must contain {{frame}}, or every frame gets the same name")
-    if any(sep in pattern for sep in ("/", "\\")) or pattern.startswith("."):
+    if any(sep in pattern for sep in ("/", "\\")) or any(n.startswith(".") for n in names):
         raise UsageError(f"bad --pattern {pattern!r}: a file name inside --out, without folders")
     width = height = None
     if size:
