@@ -6,12 +6,24 @@ STROKEKIT_DEBUG=1."""
 
 from __future__ import annotations
 
-import importlib
 import os
-import pkgutil
+import signal
 import sys
 
-import click
+
+def _aborted_while_starting(signum, frame):
+    # Ctrl-C during the second or two of imports below: no traceback from deep inside them.
+    sys.stderr.write("strokekit: aborted\n")
+    os._exit(130)
+
+
+if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    signal.signal(signal.SIGINT, _aborted_while_starting)
+
+import importlib  # noqa: E402
+import pkgutil  # noqa: E402
+
+import click  # noqa: E402
 
 from strokekit.errors import StrokekitError
 
@@ -29,6 +41,10 @@ for _info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.nam
     _cmd = getattr(_mod, "command", None)
     if isinstance(_cmd, click.Command):
         cli.add_command(_cmd)
+
+
+if signal.getsignal(signal.SIGINT) is _aborted_while_starting:
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # imports done: KeyboardInterrupt again
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -64,6 +80,8 @@ def main(argv: list[str] | None = None) -> None:
             raise
         click.echo(f"strokekit: internal error: {type(e).__name__}: {e} (set STROKEKIT_DEBUG=1 for details)", err=True)
         sys.exit(1)
+    if argv is None:  # the command itself: the work is done and reported, exit as said
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     sys.exit(rv if isinstance(rv, int) else 0)
 
 

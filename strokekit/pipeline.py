@@ -265,7 +265,7 @@ class _InlineExecutor(Executor):
         f: Future = Future()
         try:
             f.set_result(fn(*args, **kwargs))
-        except BaseException as e:
+        except Exception as e:  # an interrupt stops the run here and now, not after every task
             f.set_exception(e)
         return f
 

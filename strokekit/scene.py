@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import hashlib
 import re
-from dataclasses import dataclass, field
+import signal
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
@@ -262,8 +263,6 @@ def load_scene(path: str | Path) -> Scene:
     """Load OBJ, PLY, STL, OFF or glTF/GLB into a world-space Scene (node transforms applied).
 
     Raises InputError with one clear line for missing, empty, unknown or broken files."""
-    import trimesh
-
     p = Path(path)
     if not p.exists():
         raise InputError("file not found", p)
@@ -274,7 +273,7 @@ def load_scene(path: str | Path) -> Scene:
     if p.stat().st_size == 0:
         raise InputError("file is empty", p)
     try:
-        loaded = trimesh.load(str(p), force="scene", process=False)
+        loaded = _load_holding_interrupts(p)
     except Exception as e:  # trimesh raises many kinds on bad files
         raise InputError(f"cannot read mesh ({type(e).__name__}: {e})", p) from None
     verts, faces, fobj, fmat = [], [], [], []
@@ -330,3 +329,24 @@ def _nodes_in_stable_order(loaded) -> list[tuple]:
         rows.append(((name, str(geom_name), np.asarray(transform, np.float64).tobytes()), node, name))
     rows.sort(key=lambda r: r[0])
     return [(node, name) for _, node, name in rows]
+
+
+def _load_holding_interrupts(path: Path):
+    """Import trimesh and load `path` with Ctrl-C held until done: trimesh catches BaseException
+    around its optional imports and between loaders, which would swallow a KeyboardInterrupt
+    (and could leave an optional module marked missing). A held interrupt is raised right after.
+    Only the main thread can hold it (Python runs signal handlers there)."""
+    held: list[int] = []
+    try:
+        previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
+    except ValueError:  # not the main thread
+        previous = None
+    try:
+        import trimesh
+
+        return trimesh.load(str(path), force="scene", process=False)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+            if held:
+                raise KeyboardInterrupt

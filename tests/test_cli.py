@@ -299,3 +299,29 @@ def test_dotted_pattern_keeps_the_frame_number(cube, tmp_path, capsys):
     assert code == 0, err
     names = sorted(p.name for p in (tmp_path / "o").iterdir())
     assert names == [f"shot.000{i}.{e}" for i in (1, 2) for e in ("glb", "json", "svg")]
+
+
+def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
+    """trimesh catches BaseException around optional imports and between loaders; a Ctrl-C that
+    lands there must still stop the run (it used to be swallowed and the run went on)."""
+    import signal
+
+    import trimesh
+
+    from strokekit.scene import load_scene
+
+    real = trimesh.load
+
+    def load_that_swallows(*a, **k):
+        try:
+            signal.raise_signal(signal.SIGINT)  # the user presses Ctrl-C during the load
+        except BaseException:  # what trimesh does around its optional parts
+            pass
+        return real(*a, **k)
+
+    monkeypatch.setattr(trimesh, "load", load_that_swallows)
+    p = tmp_path / "cube.obj"
+    p.write_text(CUBE_OBJ)
+    with pytest.raises(KeyboardInterrupt):
+        load_scene(p)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
