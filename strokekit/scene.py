@@ -272,6 +272,20 @@ def load_scene(path: str | Path) -> Scene:
         raise InputError(f"unknown mesh format '{p.suffix}' (supported: {', '.join(SUPPORTED)})", p)
     if p.stat().st_size == 0:
         raise InputError("file is empty", p)
+    key = _cache_key(p)
+    parts = _cache_read(key)
+    cached = parts is not None
+    if not cached:
+        parts = _read_parts(p)
+    scene = build_scene(*parts[:4], objects=parts[4], materials=parts[5], source=str(p))
+    if not cached:
+        _cache_write(key, parts)  # once build_scene has accepted it (finite, has faces)
+    return scene
+
+
+def _read_parts(p: Path) -> tuple:
+    """(vertices, faces, face_object, face_material, objects, materials) of a mesh file, world
+    space, through trimesh."""
     try:
         loaded = _load_holding_interrupts(p)
     except Exception as e:  # trimesh raises many kinds on bad files
@@ -303,8 +317,80 @@ def load_scene(path: str | Path) -> Scene:
         offset += len(v)
     if not faces:
         raise InputError("no triangle faces in file (empty, or a point cloud)", p)
-    return build_scene(np.concatenate(verts), np.concatenate(faces), np.concatenate(fobj), np.concatenate(fmat),
-                       objects=objects, materials=materials, source=str(p))
+    return (np.concatenate(verts), np.concatenate(faces), np.concatenate(fobj), np.concatenate(fmat),
+            tuple(objects), tuple(materials))
+
+
+# --- scene cache ----------------------------------------------------------------------------------
+# Parsing a mesh file costs the trimesh import (~0.8 s) and the parse (~0.3 s for the bunny) in
+# every process of a run (the main one and each worker), and again on every run. The parsed
+# arrays are kept in a cache folder under a key of the file's bytes and the versions of the
+# code that read them: the same bytes give the same arrays, so outputs do not change.
+
+#: Bump when the reading of files changes (naming, ordering, materials).
+_CACHE_FORMAT = 1
+
+
+def _cache_dir() -> Path | None:
+    """$STROKEKIT_CACHE_DIR, else $XDG_CACHE_HOME/strokekit, else ~/.cache/strokekit;
+    None when STROKEKIT_CACHE=0."""
+    import os
+
+    if os.environ.get("STROKEKIT_CACHE", "1") == "0":
+        return None
+    if os.environ.get("STROKEKIT_CACHE_DIR"):
+        return Path(os.environ["STROKEKIT_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "strokekit"
+
+
+def _cache_key(p: Path) -> str | None:
+    from importlib.metadata import PackageNotFoundError, version
+
+    if _cache_dir() is None:
+        return None
+    try:
+        stamp = f"{_CACHE_FORMAT}|{version('trimesh')}|{version('numpy')}|{p.suffix.lower()}|"
+    except PackageNotFoundError:
+        return None
+    h = hashlib.sha256(stamp.encode())
+    with open(p, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _cache_read(key: str | None) -> tuple | None:
+    if key is None:
+        return None
+    f = _cache_dir() / "scenes" / f"{key}.npz"
+    try:
+        with np.load(f, allow_pickle=False) as z:
+            import json
+
+            objects = tuple(json.loads(str(z["objects"])))
+            materials = tuple(Material(m[0], tuple(m[1])) for m in json.loads(str(z["materials"])))
+            return (z["vertices"], z["faces"], z["face_object"], z["face_material"], objects, materials)
+    except (OSError, KeyError, ValueError):  # absent, unreadable or from another layout: read the file
+        return None
+
+
+def _cache_write(key: str | None, parts: tuple) -> None:
+    if key is None:
+        return
+    import io
+    import json
+
+    from .fileio import atomic_write_bytes
+
+    buf = io.BytesIO()
+    np.savez(buf, vertices=parts[0], faces=parts[1], face_object=parts[2], face_material=parts[3],
+             objects=np.array(json.dumps(list(parts[4]))),
+             materials=np.array(json.dumps([[m.name, list(m.base_color)] for m in parts[5]])))
+    try:
+        atomic_write_bytes(_cache_dir() / "scenes" / f"{key}.npz", buf.getvalue())
+    except OSError:  # a read-only home or a full disk only costs the next run its parse time
+        pass
 
 
 def _object_name(node: str, geometry: str, parent: str | None) -> str:

@@ -8,6 +8,10 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
+# Tests read mesh files through trimesh every time: the scene cache (strokekit.scene) would make
+# "loads the same twice" checks pass trivially. Its own test turns it on in a temporary folder.
+os.environ["STROKEKIT_CACHE"] = "0"
+
 # CI draws the same property-test examples on every run (a failure there is reproducible from the
 # log); locally hypothesis keeps exploring new ones.
 settings.register_profile("ci", derandomize=True, print_blob=True)

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+
+from strokekit.errors import InputError
 import trimesh
 
 from strokekit.camera import Camera
@@ -193,3 +195,33 @@ def test_open_rim_resting_on_ground_is_visible():
     dist, _ = cKDTree(pts).query(probe)
     # The rim is a 64-gon: its chords lie within the sagitta of the circle.
     assert dist.max() < 0.3 * (1 - np.cos(np.pi / 64)) * cam.focal_px / 6.0 + 0.1
+
+
+def test_scene_cache_gives_the_same_scene_without_reading_the_file_again(tmp_path, monkeypatch):
+    """The second load of unchanged bytes comes from the cache (no trimesh parse) and is the same
+    scene; changed bytes are read again; STROKEKIT_CACHE=0 turns the cache off."""
+    import trimesh
+
+    from strokekit.scene import load_scene
+
+    monkeypatch.setenv("STROKEKIT_CACHE", "1")
+    monkeypatch.setenv("STROKEKIT_CACHE_DIR", str(tmp_path / "cache"))
+    src = tmp_path / "two.obj"
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n")
+    first = load_scene(src)
+    assert len(list((tmp_path / "cache" / "scenes").glob("*.npz"))) == 1
+
+    def no_parse(*a, **k):
+        raise AssertionError("the file was parsed again")
+
+    monkeypatch.setattr(trimesh, "load", no_parse)
+    again = load_scene(src)
+    assert again.content_hash == first.content_hash and again.objects == first.objects
+    assert again.materials == first.materials and again.source == first.source
+    src.write_text("v 0 0 0\nv 2 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n")
+    with pytest.raises(InputError, match="parsed again"):  # new bytes: read through trimesh
+        load_scene(src)
+    monkeypatch.setenv("STROKEKIT_CACHE", "0")
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n")
+    with pytest.raises(InputError, match="parsed again"):  # cached bytes, but the cache is off
+        load_scene(src)
