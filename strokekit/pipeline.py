@@ -272,8 +272,8 @@ class _InlineExecutor(Executor):
 
 @dataclass
 class Workers:
-    """Where frame tasks run. `executor` takes them; with `main_helps` this process runs tasks
-    too, beside a local pool of `pool_size` processes (--workers N: this one and N - 1 more)."""
+    """Where frame tasks run. `executor` takes them; beside a local pool (`started` set: --workers
+    N is this process and N - 1 pool workers) this process runs tasks too (`main_helps`)."""
 
     executor: Executor
     close: Callable[[], None]
