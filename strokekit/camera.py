@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import math
 from functools import cached_property
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -170,23 +170,14 @@ def _matrix_to_quat(m: np.ndarray) -> np.ndarray:
 
 
 def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z)."""
     w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    return _quats_to_matrices(np.array([[x, y, z, w]], float))[0]
 
 
 def _slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
-    d = float(np.dot(q0, q1))
-    if d < 0:
-        q1, d = -q1, -d
-    if d > 0.9995:
-        q = q0 + t * (q1 - q0)
-        return q / np.linalg.norm(q)
-    th = math.acos(d)
-    return (math.sin((1 - t) * th) * q0 + math.sin(t * th) * q1) / math.sin(th)
+    """Shortest-path slerp of two unit quaternions (any one component order) at fraction t."""
+    return _slerp_many(np.asarray(q0, float)[None], np.asarray(q1, float)[None], np.array([float(t)]))[0]
 
 
 def _lookat_quat(cam: Camera) -> np.ndarray:
