@@ -5,7 +5,7 @@ scene -> FeatureEdges (per frame) -> VisibleRuns -> Strokes -> (tracked) Strokes
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np

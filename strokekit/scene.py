@@ -215,7 +215,6 @@ def build_scene(vertices: np.ndarray, faces: np.ndarray, face_object: np.ndarray
     remap = np.full(len(v), -1, np.int64)
     remap[used] = inverse.ravel()
     f = remap[f]
-    n_in = len(f)
     # Degenerate: repeated vertex or zero area (relative to the scene's size).
     a, b, c = uniq[f[:, 0]], uniq[f[:, 1]], uniq[f[:, 2]]
     area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)

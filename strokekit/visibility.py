@@ -15,7 +15,6 @@ import math
 import numpy as np
 
 from .camera import Camera
-from .errors import InputError
 from .model import FeatureEdges, VisibleRuns, row_norm
 from .options import LineOptions
 from .scene import Scene

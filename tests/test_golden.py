@@ -3,7 +3,6 @@ per line kind (ids may be renumbered), checked with `strokekit diff` as a user's
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import pytest
 
