@@ -14,8 +14,7 @@ from .features import feature_edges, front_facing, static_feature_mask
 from .model import KIND_INDEX, FeatureEdges, Strokes, row_norm
 from .options import LineOptions
 from .scene import Scene
-from .strokeops import drop_retraced, drop_short, simplify, split_max_length
-from .tracking import drop_doubled
+from .strokeops import drop_doubled, drop_retraced, drop_short, simplify, split_max_length
 from .visibility import Occluder, visible_runs
 
 

@@ -34,7 +34,7 @@ class LineOptions:
     merge_overlaps: bool = True  # drop zig-zag spurs that retrace a longer stroke
     overlap_tol_px: float = 0.5
     # Parts of contour strokes that run beside a longer stroke of their kind within this many px
-    # are dropped (mesh contours come out shingled; tracking.drop_doubled). 0 keeps them. Done per
+    # are dropped (mesh contours come out shingled; strokeops.drop_doubled). 0 keeps them. Done per
     # frame, so a frame draws the same lines alone, in a sequence, with or without tracking. 1 px
     # keeps every visible contour within 1 px of a drawn line (BRIEF 2 at tol 1); 2 px gives
     # steadier ids on scanned meshes (bunny M1 0.92 -> 0.95) at the cost of that guarantee.

@@ -56,17 +56,16 @@ strokes are healed (0: exactly the input lines).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
-from .model import KIND_INDEX, Strokes
+from .model import Strokes
+from .strokeops import _cat, _replace, _tree, cut_pieces
 
 METHODS = ("kalnins", "seed", "none")
-#: Kinds whose strokes can double each other (see drop_doubled).
-CONTOUR_KINDS = ("silhouette", "smooth_contour")
 
 
 @dataclass(frozen=True)
@@ -132,104 +131,6 @@ class TrackingOptions:
                 raise UsageError(f"{name.replace('_', '-')} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.min_tangent_dot <= 1:
             raise UsageError(f"min tangent dot must be in [0, 1], got {self.min_tangent_dot}")
-
-
-def _cat(*parts) -> np.ndarray:
-    """np.r_ for scalars and arrays along the first axis (np.r_ costs ~10 us a call; the tracker
-    makes dozens of these per frame on small arrays)."""
-    return np.concatenate([p if type(p) is np.ndarray and p.ndim else (p,) for p in parts])
-
-
-#: Cached properties of Strokes that depend on the points and offsets only.
-_GEOMETRY_CACHE = ("segment_lengths", "arc_length", "lengths")
-
-
-def _replace(strokes: Strokes, **changes) -> Strokes:
-    """dataclasses.replace that keeps the cached arc lengths (and stroke_of_point) of `strokes`
-    when the new strokes share its points (and offsets) arrays: they would be recomputed
-    identically (each costs ~0.1-0.3 ms a frame and the tracker replaces strokes a dozen times)."""
-    out = replace(strokes, **changes)
-    old, new = strokes.__dict__, out.__dict__
-    if out.offsets is strokes.offsets:
-        if "stroke_of_point" in old:
-            new["stroke_of_point"] = old["stroke_of_point"]
-        if out.points is strokes.points:
-            for k in _GEOMETRY_CACHE:
-                if k in old:
-                    new[k] = old[k]
-    return out
-
-
-def _tree(points: np.ndarray):
-    """A k-d tree built for one query pass: unbalanced, not compacted (builds ~2x faster on a
-    frame's samples; queries are exact either way)."""
-    from scipy.spatial import cKDTree
-
-    return cKDTree(points, balanced_tree=False, compact_nodes=False)
-
-
-# --- stroke surgery --------------------------------------------------------------------------
-
-def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndarray,
-               reverse: np.ndarray | None = None) -> Strokes:
-    """Pieces of strokes: piece k is stroke[k] between arc lengths s0[k] < s1[k] (px), new end
-    points interpolated (position, surface point; face of the nearer point), reversed where
-    `reverse` is true. u is arc length / P, ids 0..K-1, kind, level and weight of the source.
-    Vectorized over all pieces."""
-    stroke = np.asarray(stroke, np.int64)
-    K = len(stroke)
-    if K == 0:
-        return Strokes.empty(strokes.camera, strokes.frame, strokes.period_px)
-    rev = np.zeros(K, bool) if reverse is None else np.asarray(reverse, bool)
-    L = strokes.lengths
-    base = _cat(0.0, np.cumsum(L[:-1] + 1.0))
-    G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
-    g0 = base[stroke] + np.asarray(s0, float)
-    g1 = base[stroke] + np.asarray(s1, float)
-    first = strokes.offsets[:-1][stroke]
-    last = strokes.offsets[1:][stroke] - 1
-    # Interior original points: G strictly inside (g0, g1).
-    lo = np.maximum(np.searchsorted(G, g0, side="right"), first)
-    hi = np.minimum(np.searchsorted(G, g1, side="left"), last + 1)
-    n_in = np.maximum(hi - lo, 0)
-
-    def at(g):
-        j = np.clip(np.searchsorted(G, g, side="right"), first + 1, np.maximum(last, first + 1))
-        j = np.minimum(j, len(G) - 1)
-        i = np.maximum(j - 1, first)
-        d = G[j] - G[i]
-        a = np.clip(np.where(d > 0, (g - G[i]) / np.where(d > 0, d, 1.0), 0.0), 0, 1)
-        p = strokes.points[i] * (1 - a)[:, None] + strokes.points[j] * a[:, None]
-        X = surface_between(strokes, i, j, a)
-        f = np.where(a < 0.5, strokes.face[i], strokes.face[j])
-        return p, X, f
-
-    pa, Xa, fa = at(g0)
-    pb, Xb, fb = at(g1)
-    counts = n_in + 2
-    offsets = _cat(0, np.cumsum(counts)).astype(np.int64)
-    N = int(offsets[-1])
-    piece = np.repeat(np.arange(K), counts)
-    pos = np.arange(N) - offsets[:-1][piece]  # position within the piece, 0..count-1
-    src = lo[piece] + pos - 1  # original point index for interior positions
-    interior = (pos > 0) & (pos < counts[piece] - 1)
-    src = np.where(interior, src, 0)
-    points = strokes.points[src].copy()
-    surface = strokes.surface[src].copy()
-    face = strokes.face[src].copy()
-    head, tail = offsets[:-1], offsets[1:] - 1
-    points[head], surface[head], face[head] = pa, Xa, fa
-    points[tail], surface[tail], face[tail] = pb, Xb, fb
-    if rev.any():
-        # Reverse the point order inside reversed pieces.
-        order = np.where(rev[piece], offsets[:-1][piece] + counts[piece] - 1 - pos, np.arange(N))
-        points, surface, face = points[order], surface[order], face[order]
-    src_s = stroke
-    out = Strokes(points=points, surface=surface, face=face, offsets=offsets, kind=strokes.kind[src_s],
-                  ids=np.arange(K, dtype=np.int64), u=np.zeros(N), level=strokes.level[src_s],
-                  level_weight=strokes.level_weight[src_s], camera=strokes.camera, frame=strokes.frame,
-                  period_px=strokes.period_px)
-    return _replace(out, u=out.arc_length / out.period_px)
 
 
 def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
@@ -810,56 +711,6 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
     s0 = np.where(head, 0.0, 0.5 * (s[first] + s[np.maximum(first - 1, 0)]))
     s1 = np.where(tail, lengths[rs], 0.5 * (s[last] + s[np.minimum(last + 1, D - 1)]))
     return r, rs, s0, s1, lab[first]
-
-
-def drop_doubled(strokes: Strokes, radius_px: float, min_piece_px: float = 1.0, step_px: float = 1.0,
-                 kinds: tuple[str, ...] = CONTOUR_KINDS) -> Strokes:
-    """The strokes without the parts that double a longer stroke: a part of a stroke is dropped
-    where a longer stroke (ties: lower index) runs beside it, within `radius_px` px across, tangents
-    agreeing (|t.t'| >= 0.65), level along it (the neighbour sample is within 0.75 px of it along
-    the tangent, so a stroke that merely continues another one at a shared end keeps its ends).
-    Mesh contours of fine meshes come out shingled: short pieces that overlap their neighbours
-    side by side for a pixel or two. Only strokes of one of `kinds` (contours: they slide over
-    the surface and are extracted piecewise) are compared, each with strokes of its own kind:
-    creases and borders are mesh edges, never shingled, and two of them close together are two
-    lines. Pieces shorter than `min_piece_px` left over are dropped.
-    Works on samples every `step_px` (cuts within half of it; coarser costs M1: the healing of
-    the pieces left needs precise ends), vectorized; ids are renumbered, u = arc length / P."""
-    if len(strokes) < 2 or radius_px <= 0:
-        return strokes
-    smp = resample_strokes(strokes, step_px, with_surface=False)
-    L = strokes.lengths
-    rank = np.empty(len(L), np.int64)
-    rank[np.lexsort((np.arange(len(L)), -L))] = np.arange(len(L))  # 0: the longest
-    # All sample pairs closer than radius_px; only pairs of two strokes matter (few).
-    pr = _tree(smp.p).query_pairs(radius_px, output_type="ndarray")
-    sk = strokes.kind[smp.stroke]
-    pr = pr[(smp.stroke[pr[:, 0]] != smp.stroke[pr[:, 1]]) & (sk[pr[:, 0]] == sk[pr[:, 1]])]
-    pr = pr[np.isin(sk[pr[:, 0]], [KIND_INDEX[k] for k in kinds])]
-    # Orient each pair (sample, covering sample of the longer stroke).
-    a, b = pr[:, 0], pr[:, 1]
-    swap = rank[smp.stroke[a]] < rank[smp.stroke[b]]
-    a, b = np.where(swap, b, a), np.where(swap, a, b)
-    along = np.abs(np.einsum("ij,ij->i", smp.p[b] - smp.p[a], smp.t[a]))
-    ok = along <= 0.5 * (smp.w[a] + smp.w[b]) - 0.25  # beside, not one stroke continuing the other
-    ok &= np.abs(np.einsum("ij,ij->i", smp.t[b], smp.t[a])) >= 0.65
-    covered = np.zeros(len(smp), bool)
-    covered[a[ok]] = True
-    if not covered.any():
-        return strokes
-    keep = ~covered
-    D = len(smp)
-    start = _cat(True, (keep[1:] != keep[:-1]) | (smp.stroke[1:] != smp.stroke[:-1]))
-    first = np.flatnonzero(start)
-    last = _cat(first[1:] - 1, D - 1)
-    st = smp.stroke[first]
-    head = _cat(True, st[1:] != st[:-1])
-    tail = _cat(st[1:] != st[:-1], True)
-    s0 = np.where(head, 0.0, smp.s[first] - 0.5 * smp.w[first])
-    s1 = np.where(tail, L[st], smp.s[last] + 0.5 * smp.w[last])
-    # Leftovers under min_piece_px go; a whole stroke (nothing of it doubled) always stays.
-    sel = keep[first] & ((s1 - s0 >= min_piece_px) | (head & tail))
-    return cut_pieces(strokes, st[sel], s0[sel], s1[sel])
 
 
 # --- the tracker -----------------------------------------------------------------------------

@@ -247,7 +247,7 @@ def test_a_frame_draws_the_same_lines_alone_and_in_a_sequence(tmp_path, capsys):
     the renderer's strokes have none left, and frame 5 alone and inside a sequence rendered
     without tracking give the same bytes."""
     from strokekit import LineOptions, LineRenderer, load_camera_path, load_scene
-    from strokekit.tracking import drop_doubled
+    from strokekit.strokeops import drop_doubled
 
     scene = load_scene(SAMPLES / "still_life.glb")
     cam = load_camera_path(SAMPLES / "orbit.json").cameras[4]

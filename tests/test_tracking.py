@@ -19,8 +19,8 @@ from strokekit.options import LineOptions
 from strokekit.scene import build_scene, load_scene
 from scipy.spatial import cKDTree
 
-from strokekit.tracking import (Tracker, TrackingOptions, cut_pieces, drop_doubled, levels_from_slope,
-                                track_frames)
+from strokekit.strokeops import cut_pieces, drop_doubled
+from strokekit.tracking import Tracker, TrackingOptions, levels_from_slope, track_frames
 from strokekit.writers.strokes_json import strokes_json
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
