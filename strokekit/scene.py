@@ -271,14 +271,14 @@ def load_scene(path: str | Path) -> Scene:
         raise InputError(f"unknown mesh format '{p.suffix}' (supported: {', '.join(SUPPORTED)})", p)
     if p.stat().st_size == 0:
         raise InputError("file is empty", p)
-    key = _cache_key(p)
-    parts = _cache_read(key)
+    cache = _cache_file(p)
+    parts = _cache_read(cache)
     cached = parts is not None
     if not cached:
         parts = _read_parts(p)
     scene = build_scene(*parts[:4], objects=parts[4], materials=parts[5], source=str(p))
     if not cached:
-        _cache_write(key, parts)  # once build_scene has accepted it (finite, has faces)
+        _cache_write(cache, parts)  # once build_scene has accepted it (finite, has faces)
     return scene
 
 
@@ -343,10 +343,13 @@ def _cache_dir() -> Path | None:
     return Path(base) / "strokekit"
 
 
-def _cache_key(p: Path) -> str | None:
+def _cache_file(p: Path) -> Path | None:
+    """The cache file of mesh file `p` (None: the cache is off): named by the hash of its bytes
+    and of the versions of the code that reads them."""
     from importlib.metadata import PackageNotFoundError, version
 
-    if _cache_dir() is None:
+    folder = _cache_dir()
+    if folder is None:
         return None
     try:
         stamp = f"{_CACHE_FORMAT}|{version('trimesh')}|{version('numpy')}|{p.suffix.lower()}|"
@@ -356,13 +359,12 @@ def _cache_key(p: Path) -> str | None:
     with open(p, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
-    return h.hexdigest()
+    return folder / "scenes" / f"{h.hexdigest()}.npz"
 
 
-def _cache_read(key: str | None) -> tuple | None:
-    if key is None:
+def _cache_read(f: Path | None) -> tuple | None:
+    if f is None:
         return None
-    f = _cache_dir() / "scenes" / f"{key}.npz"
     try:
         with np.load(f, allow_pickle=False) as z:
             import json
@@ -374,8 +376,8 @@ def _cache_read(key: str | None) -> tuple | None:
         return None
 
 
-def _cache_write(key: str | None, parts: tuple) -> None:
-    if key is None:
+def _cache_write(f: Path | None, parts: tuple) -> None:
+    if f is None:
         return
     import io
     import json
@@ -387,7 +389,7 @@ def _cache_write(key: str | None, parts: tuple) -> None:
              objects=np.array(json.dumps(list(parts[4]))),
              materials=np.array(json.dumps([[m.name, list(m.base_color)] for m in parts[5]])))
     try:
-        atomic_write_bytes(_cache_dir() / "scenes" / f"{key}.npz", buf.getvalue())
+        atomic_write_bytes(f, buf.getvalue())
     except OSError:  # a read-only home or a full disk only costs the next run its parse time
         pass
 
