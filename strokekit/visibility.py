@@ -74,6 +74,29 @@ class Occluder:
             out[idx_ray[(dist > 0) & (dist < length[idx_ray])]] = True
         return out
 
+    def segment_hits(self, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """(N,) where the segment origins -> targets (world, (N, 3)) first meets a triangle, as a
+        fraction of its length; inf where it meets none before its end (open there)."""
+        if len(origins) == 0:
+            return np.zeros(0)
+        o = (origins - self.origin) * self.inv_scale
+        d = (targets - origins) * self.inv_scale
+        if self.backend == "open3d":
+            rays = np.empty((len(o), 6), np.float32)
+            rays[:, :3] = o
+            rays[:, 3:] = d
+            t = self._rs.cast_rays(self._o3c.Tensor(rays))["t_hit"].numpy().astype(float)
+        else:
+            length = np.linalg.norm(d, axis=1)
+            unit = d / np.where(length > 0, length, 1)[:, None]
+            idx_tri, idx_ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False,
+                                                                    return_locations=True)
+            t = np.full(len(o), np.inf)
+            if len(idx_ray):
+                dist = np.einsum("ij,ij->i", loc - o[idx_ray], unit[idx_ray])
+                t[idx_ray] = np.where(dist > 0, dist / np.where(length[idx_ray] > 0, length[idx_ray], 1.0), np.inf)
+        return np.where(t <= 1.0, t, np.inf)
+
     def first_hits(self, origins: np.ndarray, directions: np.ndarray) -> dict:
         """Nearest hit per ray (world origins, unnormalized directions): 't_hit' (in units of the
         direction), 'primitive_ids' (-1 none), 'primitive_uvs'. open3d only."""
@@ -109,26 +132,23 @@ class Occluder:
         if lift is None:
             return self._visible_from(points, camera, eps, offset)
         lifted = points + lift
-        vis = self._visible_from(lifted, camera, eps, offset)
-        hidden = np.flatnonzero(~vis)
-        if len(hidden):
-            # Only a lifted ray blocked right at its start can be the contact case; most hidden
-            # samples are hidden by something far away and need no second full ray.
-            o = lifted[hidden]
-            if camera.is_ortho:
-                toward = np.broadcast_to(-camera.basis[2], o.shape)
-            else:
-                d = np.asarray(camera.eye, float) - o
-                toward = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
-            reach = 100.0 * np.linalg.norm(lift[hidden], axis=1) + eps[hidden]
-            start = o + eps[hidden, None] * toward
-            near = self.occluded_segments(start, start + reach[:, None] * toward)
-            again = hidden[near]
-            if len(again):
-                vis[again] = self._visible_from(points[again], camera, eps[again], offset)
+        hit_at = self._visible_from(lifted, camera, eps, offset, first_hit=True)
+        vis = np.isinf(hit_at)
+        # Only a lifted ray blocked right at its start can be the contact case; most hidden
+        # samples are hidden by something far away and need no second full ray. The first hit's
+        # distance (one closest-hit ray instead of an occlusion ray and a short second one)
+        # tells which.
+        reach = 100.0 * np.linalg.norm(lift, axis=1) + eps
+        again = np.flatnonzero(~vis & (hit_at <= reach))
+        if len(again):
+            vis[again] = self._visible_from(points[again], camera, eps[again], offset)
         return vis
 
-    def _visible_from(self, points: np.ndarray, camera: Camera, eps: np.ndarray, offset: float) -> np.ndarray:
+    def _visible_from(self, points: np.ndarray, camera: Camera, eps: np.ndarray, offset: float,
+                      first_hit: bool = False):
+        """Rays from points toward the eye, started eps along. Visibility (N,) bool; with
+        `first_hit`, instead the distance to the first hit along the ray (world units, inf where
+        the ray reaches the eye)."""
         if camera.is_ortho:
             _, _, fwd = camera.basis
             toward = np.broadcast_to(-fwd, points.shape)
@@ -145,6 +165,9 @@ class Occluder:
             # surface as an occluder of everything. Stop short by the float32 rounding scale there.
             tail = np.minimum(np.maximum(eps, offset * np.linalg.norm(eye - self.origin)), 0.25 * dist)
             targets = eye - tail[:, None] * toward
+        if first_hit:
+            t = self.segment_hits(origins, targets)
+            return t * np.linalg.norm(targets - origins, axis=1)
         return ~self.occluded_segments(origins, targets)
 
     # --- the same queries on (3, N) coordinate rows (perspective, lifted) -------------------------
@@ -154,19 +177,31 @@ class Occluder:
     # elementwise loops contiguous. np.einsum("ij,ij->i", x, x) sums (x0 x0 + x2 x2) + x1 x1 and
     # np.linalg.norm(x, axis=1) sqrt((x0 x0 + x1 x1) + x2 x2): the helpers below keep those orders.
 
-    def _occluded_rows(self, o: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """occluded_segments for (3, N) origins and targets (open3d backend)."""
-        n = o.shape[1]
-        if n == 0:
-            return np.zeros(0, bool)
-        rays = np.empty((n, 6), np.float32)
+    def _rays_rows(self, o: np.ndarray, t: np.ndarray):
+        """open3d rays (Embree frame, float32) of the segments between (3, N) origins and targets."""
+        rays = np.empty((o.shape[1], 6), np.float32)
         rays[:, :3] = ((o - self._origin_col) * self.inv_scale).T
         rays[:, 3:] = ((t - o) * self.inv_scale).T
-        hit = self._rs.test_occlusions(self._o3c.Tensor(rays), tnear=0.0, tfar=1.0)
+        return self._o3c.Tensor(rays)
+
+    def _occluded_rows(self, o: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """occluded_segments for (3, N) origins and targets (open3d backend)."""
+        if o.shape[1] == 0:
+            return np.zeros(0, bool)
+        hit = self._rs.test_occlusions(self._rays_rows(o, t), tnear=0.0, tfar=1.0)
         return hit.numpy().astype(bool)
 
+    def _hit_distance_rows(self, o: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """segment_hits for (3, N) origins and targets, times the segment lengths (world units)."""
+        if o.shape[1] == 0:
+            return np.zeros(0)
+        f = self._rs.cast_rays(self._rays_rows(o, t))["t_hit"].numpy().astype(float)
+        f = np.where(f <= 1.0, f, np.inf)
+        return f * np.sqrt(_norm_sq(t - o))
+
     def _visible_from_rows(self, P: np.ndarray, eye: np.ndarray, eps: np.ndarray, eye_eps: float,
-                           d: np.ndarray | None = None, dist: np.ndarray | None = None) -> np.ndarray:
+                           d: np.ndarray | None = None, dist: np.ndarray | None = None,
+                           first_hit: bool = False) -> np.ndarray:
         """_visible_from (perspective) for (3, N) points; eye (3, 1); eye_eps = offset x |eye - origin|.
         d = eye - P and dist = its length (einsum order) may be passed when already known."""
         if d is None:
@@ -176,6 +211,8 @@ class Occluder:
         origins = P + np.minimum(eps, 0.5 * dist) * toward
         tail = np.minimum(np.maximum(eps, eye_eps), 0.25 * dist)
         targets = eye - tail * toward
+        if first_hit:
+            return self._hit_distance_rows(origins, targets)
         return ~self._occluded_rows(origins, targets)
 
     def visible_rows(self, P: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
@@ -190,19 +227,12 @@ class Occluder:
         lifted = P + lift
         d = eye - lifted
         dist = np.sqrt(_einsum_sq(d))
-        vis = self._visible_from_rows(lifted, eye, eps, eye_eps, d, dist)
-        hidden = np.flatnonzero(~vis)
-        if len(hidden):
-            o = lifted[:, hidden]
-            dh = d[:, hidden]
-            toward = dh / np.maximum(np.sqrt(_norm_sq(dh)), 1e-300)
-            eh = eps[hidden]
-            reach = 100.0 * np.sqrt(_norm_sq(lift[:, hidden])) + eh
-            start = o + eh * toward
-            near = self._occluded_rows(start, start + reach * toward)
-            again = hidden[near]
-            if len(again):
-                vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
+        hit_at = self._visible_from_rows(lifted, eye, eps, eye_eps, d, dist, first_hit=True)
+        vis = np.isinf(hit_at)
+        reach = 100.0 * np.sqrt(_norm_sq(lift)) + eps
+        again = np.flatnonzero(~vis & (hit_at <= reach))
+        if len(again):
+            vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
         return vis
 
     def eye_enclosed(self, camera: Camera, n: int = 64) -> bool:
