@@ -109,7 +109,7 @@ def test_bench_rows_table_json_and_plot(tmp_path):
     table = format_table(res)
     assert "exact" in table and "P@0.5" in table and len(table.splitlines()) == 3 + len(res["rows"]) + 3 + 3
     doc = json.loads(json.dumps(result_json(res)))
-    assert doc["rows"][1]["knobs"]["sample_spacing_px"] == 2.0
+    assert doc["rows"][1]["knobs"]["sample_spacing_px"] == 4.0
     # Raster section: supersample 1, 2, 4 against 4; the reference against itself is exact and a
     # coarser raster is close to it but not equal on a curved object.
     iou = {r["supersample"]: r["iou"] for r in doc["raster"]}
