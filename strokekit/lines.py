@@ -14,7 +14,7 @@ from .features import feature_edges, front_facing, static_feature_mask
 from .model import KIND_INDEX, FeatureEdges, Strokes, row_norm
 from .options import LineOptions
 from .scene import Scene
-from .strokeops import drop_doubled, drop_retraced, drop_short, simplify, split_max_length
+from .strokeops import drop_overlaps, drop_short, simplify, split_max_length
 from .visibility import Occluder, visible_runs
 
 
@@ -51,10 +51,7 @@ class LineRenderer:
         # A run visible at a single point (an edge touching the view only at one sample) has no
         # length to draw.
         strokes = strokes.select(strokes.lengths > 0.0)
-        if opts.merge_overlaps:
-            strokes = drop_retraced(strokes, opts.overlap_tol_px)
-        if opts.doubled_px > 0:
-            strokes = drop_doubled(strokes, opts.doubled_px)
+        strokes = drop_overlaps(strokes, opts.overlap_tol_px if opts.merge_overlaps else 0.0, opts.doubled_px)
         strokes = split_max_length(strokes, opts.max_length_px)
         strokes = drop_short(strokes, opts.min_length_px)
         strokes = simplify(strokes, opts.simplify_tol_px)

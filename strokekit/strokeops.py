@@ -4,8 +4,9 @@ pieces out of strokes, simplify. All vectorized over points."""
 
 from __future__ import annotations
 
-import numpy as np
 from dataclasses import replace
+
+import numpy as np
 
 from .coherence import resample_strokes, surface_between
 from .model import KIND_INDEX, Strokes
@@ -61,81 +62,6 @@ def resample(strokes: Strokes, step_px: float) -> tuple[np.ndarray, np.ndarray]:
     pts = strokes.points[rep - 1] * (1 - t) + strokes.points[rep] * t
     last = strokes.offsets[1:] - 1
     return np.concatenate([pts, strokes.points[last]]), np.concatenate([sop[rep], sop[last]])
-
-
-def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
-    """Drop strokes that lie entirely within `tol_px` of a longer (or equally long, earlier)
-    stroke of the same kind: the back-and-forth spurs of mesh contours (seed 000 Fig 3.5/3.6) that
-    would otherwise draw the same line twice.
-
-    Strokes are resampled every `tol_px`; a sample is covered when one of its nearest samples
-    (k-nearest query, within tol) belongs to a higher-ranked stroke of the same kind. Only strokes
-    whose first, middle and last samples are covered are checked in full: most strokes are
-    rejected by three queries."""
-    if len(strokes) < 2:
-        return strokes
-    from scipy.spatial import cKDTree
-
-    pts, owner, counts = _resample_grouped(strokes, tol_px)
-    tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)  # built every frame: cheap build wins
-    n = len(strokes)
-    rank = np.empty(n, np.int64)
-    rank[np.lexsort((np.arange(n), -strokes.lengths))] = np.arange(n)
-    kind = strokes.kind
-
-    def covered(sample_idx: np.ndarray) -> np.ndarray:
-        k = min(12, len(pts))
-        _, nb = tree.query(pts[sample_idx], k=k, distance_upper_bound=tol_px * (1 + 1e-9))
-        nb = nb.reshape(len(sample_idx), k)
-        valid = nb < len(pts)
-        other = owner[np.where(valid, nb, 0)]
-        me = owner[sample_idx][:, None]
-        ok = valid & (other != me) & (kind[other] == kind[me]) & (rank[other] < rank[me])
-        return ok.any(axis=1)
-
-    starts = np.cumsum(counts) - counts
-    ends = starts + counts - 1
-    probe = np.stack([starts, (starts + ends) // 2, ends], axis=1).ravel()
-    probe_cov = covered(probe)
-    candidate = probe_cov.reshape(n, 3).all(axis=1)
-    if not candidate.any():
-        return strokes
-    # A sample's answer does not depend on what else is asked: the probes are not asked again.
-    cov = np.zeros(len(pts), bool)
-    known = np.zeros(len(pts), bool)
-    cov[probe], known[probe] = probe_cov, True
-    in_candidate = candidate[owner]
-    rest = np.flatnonzero(in_candidate & ~known)
-    if len(rest):
-        cov[rest] = covered(rest)
-    sample_idx = np.flatnonzero(in_candidate)
-    n_cov = np.bincount(owner[sample_idx], weights=cov[sample_idx], minlength=n)
-    redundant = candidate & (n_cov == counts)
-    if not redundant.any():
-        return strokes
-    return strokes.select(~redundant)
-
-
-def _resample_grouped(strokes: Strokes, step_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """resample(strokes, step_px) with the samples grouped by stroke, in order along it (the
-    order a stable sort by stroke gives: each stroke's samples, then its last point), and the
-    number of samples of each stroke."""
-    seg = strokes.segment_lengths
-    sop = strokes.stroke_of_point
-    S = len(strokes)
-    seg_idx = np.flatnonzero(seg > 0)
-    n = np.ceil(seg[seg_idx] / step_px).astype(np.int64)
-    rep = np.repeat(seg_idx, n)
-    k = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
-    t = (k / np.repeat(n, n))[:, None]
-    P = strokes.points
-    inner = np.take(P, rep - 1, axis=0) * (1 - t) + np.take(P, rep, axis=0) * t
-    owner_inner = sop[rep]
-    counts = np.bincount(owner_inner, minlength=S) + 1
-    pts = np.empty((len(rep) + S, 2))
-    pts[np.arange(len(rep)) + owner_inner] = inner
-    pts[np.cumsum(counts) - 1] = P[strokes.offsets[1:] - 1]
-    return pts, np.repeat(np.arange(S), counts), counts
 
 
 def simplify(strokes: Strokes, tol_px: float) -> Strokes:
@@ -274,41 +200,83 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     return _replace(out, u=out.arc_length / out.period_px)
 
 
+def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
+    """Drop strokes that lie entirely within `tol_px` of a longer stroke of the same kind (see
+    drop_overlaps)."""
+    return drop_overlaps(strokes, retraced_px=tol_px, doubled_px=0.0)
+
+
 def drop_doubled(strokes: Strokes, radius_px: float, min_piece_px: float = 1.0, step_px: float = 1.0,
                  kinds: tuple[str, ...] = CONTOUR_KINDS) -> Strokes:
-    """The strokes without the parts that double a longer stroke: a part of a stroke is dropped
-    where a longer stroke (ties: lower index) runs beside it, within `radius_px` px across, tangents
-    agreeing (|t.t'| >= 0.65), level along it (the neighbour sample is within 0.75 px of it along
-    the tangent, so a stroke that merely continues another one at a shared end keeps its ends).
-    Mesh contours of fine meshes come out shingled: short pieces that overlap their neighbours
-    side by side for a pixel or two. Only strokes of one of `kinds` (contours: they slide over
-    the surface and are extracted piecewise) are compared, each with strokes of its own kind:
-    creases and borders are mesh edges, never shingled, and two of them close together are two
-    lines. Pieces shorter than `min_piece_px` left over are dropped.
-    Works on samples every `step_px` (cuts within half of it; coarser costs M1: the healing of
-    the pieces left needs precise ends), vectorized; ids are renumbered, u = arc length / P."""
-    if len(strokes) < 2 or radius_px <= 0:
+    """Cut out the parts of strokes that double a longer stroke (see drop_overlaps)."""
+    return drop_overlaps(strokes, retraced_px=0.0, doubled_px=radius_px, min_piece_px=min_piece_px,
+                         step_px=step_px, kinds=kinds)
+
+
+def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float = 1.0, *,
+                  min_piece_px: float = 1.0, step_px: float = 1.0,
+                  kinds: tuple[str, ...] = CONTOUR_KINDS) -> Strokes:
+    """The strokes without what draws a line twice, in one pass over one set of samples (every
+    `step_px` along each stroke, one k-d tree, one query of the close sample pairs).
+
+    1. Retraced strokes (`retraced_px` > 0): a stroke that lies entirely within `retraced_px` of
+       a longer stroke (ties: lower index) of the same kind is dropped whole: the back-and-forth
+       spurs of mesh contours (seed 000 Fig 3.5/3.6), the edges of coincident copies of a mesh.
+       A stroke's samples are half a step from any of its points, so "within" is tested as a
+       sample within hypot(retraced_px, step_px / 2) of a sample of the longer stroke.
+    2. Doubled parts (`doubled_px` > 0), among the strokes left: a part of a stroke is dropped
+       where a longer stroke runs beside it, within `doubled_px` across, tangents agreeing
+       (|t.t'| >= 0.65), level along it (the neighbour sample is within 0.75 px of it along the
+       tangent, so a stroke that merely continues another one at a shared end keeps its ends).
+       Mesh contours of fine meshes come out shingled: short pieces that overlap their
+       neighbours side by side for a pixel or two. Only strokes of one of `kinds` (contours: they
+       slide over the surface and are extracted piecewise) are compared, each with strokes of its
+       own kind: creases and borders are mesh edges, never shingled, and two of them close
+       together are two lines. Pieces shorter than `min_piece_px` left over are dropped; cuts
+       fall within half a step (coarser steps cost M1: the healing of the pieces left needs
+       precise ends). When something is cut, ids are renumbered and u = arc length / P."""
+    if len(strokes) < 2 or (retraced_px <= 0 and doubled_px <= 0):
         return strokes
     smp = resample_strokes(strokes, step_px, with_surface=False)
+    S = len(strokes)
     L = strokes.lengths
-    rank = np.empty(len(L), np.int64)
-    rank[np.lexsort((np.arange(len(L)), -L))] = np.arange(len(L))  # 0: the longest
-    # All sample pairs closer than radius_px; only pairs of two strokes matter (few).
-    pr = _tree(smp.p).query_pairs(radius_px, output_type="ndarray")
-    sk = strokes.kind[smp.stroke]
-    pr = pr[(smp.stroke[pr[:, 0]] != smp.stroke[pr[:, 1]]) & (sk[pr[:, 0]] == sk[pr[:, 1]])]
-    pr = pr[np.isin(sk[pr[:, 0]], [KIND_INDEX[k] for k in kinds])]
-    # Orient each pair (sample, covering sample of the longer stroke).
+    rank = np.empty(S, np.int64)
+    rank[np.lexsort((np.arange(S), -L))] = np.arange(S)  # 0: the longest
+    reach = float(np.hypot(retraced_px, 0.5 * step_px)) if retraced_px > 0 else 0.0
+    # All sample pairs closer than the larger radius; only pairs of two strokes of one kind matter.
+    pr = _tree(smp.p).query_pairs(max(reach, doubled_px), output_type="ndarray")
+    st = smp.stroke
+    sk = strokes.kind[st]
+    pr = pr[(st[pr[:, 0]] != st[pr[:, 1]]) & (sk[pr[:, 0]] == sk[pr[:, 1]])]
+    # Orient each pair (sample, sample of the longer stroke beside it).
     a, b = pr[:, 0], pr[:, 1]
-    swap = rank[smp.stroke[a]] < rank[smp.stroke[b]]
+    swap = rank[st[a]] < rank[st[b]]
     a, b = np.where(swap, b, a), np.where(swap, a, b)
-    along = np.abs(np.einsum("ij,ij->i", smp.p[b] - smp.p[a], smp.t[a]))
-    ok = along <= 0.5 * (smp.w[a] + smp.w[b]) - 0.25  # beside, not one stroke continuing the other
-    ok &= np.abs(np.einsum("ij,ij->i", smp.t[b], smp.t[a])) >= 0.65
-    covered = np.zeros(len(smp), bool)
-    covered[a[ok]] = True
-    if not covered.any():
-        return strokes
+    dp = smp.p[b] - smp.p[a]
+    d2 = np.einsum("ij,ij->i", dp, dp)
+    gone = np.zeros(S, bool)
+    if retraced_px > 0:
+        near = np.zeros(len(smp), bool)
+        near[a[d2 <= reach * reach]] = True
+        counts = np.bincount(st, minlength=S)
+        gone = np.bincount(st, weights=near, minlength=S) == counts
+    covered = gone[st]
+    if doubled_px > 0:
+        ok = ~gone[st[a]] & ~gone[st[b]] & (d2 <= doubled_px * doubled_px)
+        ok &= np.isin(sk[a], [KIND_INDEX[k] for k in kinds])
+        along = np.abs(np.einsum("ij,ij->i", dp, smp.t[a]))
+        ok &= along <= 0.5 * (smp.w[a] + smp.w[b]) - 0.25  # beside, not one stroke continuing the other
+        ok &= np.abs(np.einsum("ij,ij->i", smp.t[b], smp.t[a])) >= 0.65
+        doubled = np.zeros(len(smp), bool)
+        doubled[a[ok]] = True
+        if doubled.any():
+            return _cut_uncovered(strokes, smp, covered | doubled, min_piece_px)
+    return strokes.select(~gone) if gone.any() else strokes
+
+
+def _cut_uncovered(strokes: Strokes, smp, covered: np.ndarray, min_piece_px: float) -> Strokes:
+    """The pieces of strokes between their covered samples (drop_overlaps)."""
+    L = strokes.lengths
     keep = ~covered
     D = len(smp)
     start = _cat(True, (keep[1:] != keep[:-1]) | (smp.stroke[1:] != smp.stroke[:-1]))
@@ -319,6 +287,6 @@ def drop_doubled(strokes: Strokes, radius_px: float, min_piece_px: float = 1.0, 
     tail = _cat(st[1:] != st[:-1], True)
     s0 = np.where(head, 0.0, smp.s[first] - 0.5 * smp.w[first])
     s1 = np.where(tail, L[st], smp.s[last] + 0.5 * smp.w[last])
-    # Leftovers under min_piece_px go; a whole stroke (nothing of it doubled) always stays.
+    # Leftovers under min_piece_px go; a whole stroke (nothing of it covered) always stays.
     sel = keep[first] & ((s1 - s0 >= min_piece_px) | (head & tail))
     return cut_pieces(strokes, st[sel], s0[sel], s1[sel])
