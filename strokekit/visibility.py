@@ -362,12 +362,13 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
                                          liftT.take(seg_i, axis=1), size.take(seg_i))
 
         def bisect_visible(cs):
+            """visible(m, mid): visibility at parameters mid (m,) of the first m changes cs."""
             A_c, D_c, lift_c, size_c = At.take(cs, axis=1), Dt.take(cs, axis=1), liftT.take(cs, axis=1), size.take(cs)
             z0, z1 = za.take(cs), zb.take(cs)
 
-            def at(mid):
-                lam = mid * z0 / ((1 - mid) * z1 + mid * z0)
-                return occluder.visible_rows(A_c + lam * D_c, camera, offset, lift_c, size_c)
+            def at(mid, m):
+                lam = mid * z0[:m] / ((1 - mid) * z1[:m] + mid * z0[:m])
+                return occluder.visible_rows(A_c[:, :m] + lam * D_c[:, :m], camera, offset, lift_c[:, :m], size_c[:m])
             return at
     else:
         def visible_at(seg_i, s_i):
@@ -375,7 +376,7 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
                                     None if lift is None else lift[seg_i], size[seg_i])
 
         def bisect_visible(cs):
-            return lambda mid: visible_at(cs, mid)
+            return lambda mid, m: visible_at(cs[:m], mid)
     vis = visible_at(seg, s)
     # Changes of visibility between consecutive samples of one segment.
     same = seg[1:] == seg[:-1]
@@ -384,15 +385,20 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         cs = seg[change]
         lo, hi = s[change].copy(), s[change + 1].copy()
         vis_lo = vis[change]
+        # Each bracket halves until it is within the tolerance: short edges' brackets need fewer
+        # steps. Sorted by their number of steps, the brackets still open are a prefix.
         width_px = (hi - lo) * L[cs]
-        iters = int(math.ceil(math.log2(max(width_px.max(), 1e-12) / options.bisection_tol_px))) if width_px.max() > options.bisection_tol_px else 0
+        steps = np.ceil(np.log2(np.maximum(width_px, 1e-300) / options.bisection_tol_px))
+        steps = np.maximum(steps, 0).astype(np.int64)
+        order = np.argsort(-steps, kind="stable")
+        cs, lo, hi, vis_lo, steps = cs[order], lo[order], hi[order], vis_lo[order], steps[order]
         visible_mid = bisect_visible(cs)
-        for _ in range(max(iters, 0)):
-            mid = 0.5 * (lo + hi)
-            vm = visible_mid(mid)
-            go_hi = vm == vis_lo  # the change lies in [mid, hi]
-            lo = np.where(go_hi, mid, lo)
-            hi = np.where(go_hi, hi, mid)
+        for i in range(int(steps[0])):
+            m = int(np.searchsorted(-steps, -i, side="left"))  # brackets with steps > i
+            mid = 0.5 * (lo[:m] + hi[:m])
+            go_hi = visible_mid(mid, m) == vis_lo[:m]  # the change lies in [mid, hi]
+            lo[:m] = np.where(go_hi, mid, lo[:m])
+            hi[:m] = np.where(go_hi, hi[:m], mid)
         # The run endpoint is the visible side of the final bracket.
         s_change = np.where(vis_lo, lo, hi)
         rising = ~vis_lo  # hidden -> visible: a run starts
