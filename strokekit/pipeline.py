@@ -251,12 +251,19 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
             files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".glb"),
                                                 glb_for_frame(strokes, cam, outputs.gltf_options))))
             timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())
-        return {"frame": frame, "files": files, "seconds": time.perf_counter() - t0, "timings": timings}
+        return {"stage": "write", "frame": frame, "files": files, "seconds": time.perf_counter() - t0,
+                "timings": timings}
     except Exception as e:
-        return {"frame": frame, "error": f"frame {frame}: writing failed: {type(e).__name__}: {e}"}
+        return {"stage": "write", "frame": frame, "error": f"frame {frame}: writing failed: {type(e).__name__}: {e}"}
 
 
 # --- executors ---------------------------------------------------------------------------------------
+
+class _NoPool:
+    """The `started` count of a run without pool workers: none will ever start."""
+
+    value = 0
+
 
 class _InlineExecutor(Executor):
     """Runs tasks in this process, one by one (workers=1): no start-up cost."""
@@ -277,26 +284,27 @@ class Workers:
 
     executor: Executor
     close: Callable[[], None]
-    #: Pool workers that have finished starting (imports, scene, BVH): a shared integer, or None
-    #: when this process does not render (dask) or is the only one (inline).
+    #: Pool workers that have finished starting (imports, scene, BVH): a shared integer (always
+    #: 0 when this process is the only one), or None when this process does not render (dask).
     started: object | None = None
 
     @property
     def main_helps(self) -> bool:
         return self.started is not None
 
-    def _capacity(self, n_tasks: int) -> int:
-        return 2 * self.started.value if self.main_helps else n_tasks
+    def _capacity(self) -> int:
+        return 2 * self.started.value if self.main_helps else 1 << 30
 
-    def map(self, tasks: list[tuple], handle: Callable[[dict], bool]) -> None:
+    def map(self, tasks, handle: Callable[[dict], bool]) -> None:
         """Run every (fn, *args) of `tasks`, calling `handle(result)` in this process as each
-        finishes (in any order); `handle` returning False stops the rest.
+        finishes (in any order); `handle` returning False stops the rest. `tasks` may be a deque
+        that `handle` adds to while the map runs (appendleft: next in line): those run too.
 
         With main_helps, each pool worker that has started gets at most two tasks queued and
         this process runs the others one by one, so frames get done while the workers are
         still starting (a spawned worker needs seconds of imports and scene loading; a short
         run ends before they are up) and no worker idles."""
-        pending = deque(tasks)
+        pending = tasks if isinstance(tasks, deque) else deque(tasks)
         running: set = set()
         go = True
 
@@ -308,13 +316,13 @@ class Workers:
             return True
 
         while go and (pending or running):
-            while pending and len(running) < self._capacity(len(tasks)):
+            while pending and len(running) < self._capacity():
                 fn, *args = pending.popleft()
                 running.add(self.executor.submit(fn, *args))
             if self.main_helps and pending:
                 fn, *args = pending.popleft()
                 go = handle(fn(*args)) and collect([f for f in running if f.done()])
-            else:
+            elif running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 go = collect(done)
         # Stopped early: tasks already running finish (they may be writing files); queued ones
@@ -341,7 +349,8 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
         ex = client.get_executor(pure=False)
         return Workers(ex, client.close)
     if workers <= 1:
-        return Workers(_InlineExecutor(), lambda: None)
+        # This process does every task, one by one, handling each result before the next task.
+        return Workers(_InlineExecutor(), lambda: None, started=_NoPool())
     import multiprocessing as mp
     import signal
 
@@ -420,64 +429,89 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
 
         lines_results: dict[int, Strokes] = {}
         underlays: dict[int, list | None] = {}
-        t = time.perf_counter()
         if workers.main_helps or isinstance(workers.executor, _InlineExecutor):
             _keep_renderer(spec.scene_path, scene, spec.lines)  # frames rendered here use this load
-        tasks = [(frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
-                  out if f not in done_before else replace(out, raster_options=None)) for f in need_lines]
-        n_done = 0
-
-        def lines_done(r: dict) -> bool:
-            nonlocal n_done
-            n_done += 1
-            if "error" in r:
-                res.failures[r["frame"]] = r["error"]
-            else:
-                lines_results[r["frame"]] = r["strokes"]
-                underlays[r["frame"]] = r["underlays"]
-                res.frame_seconds[r["frame"]] = r["seconds"]
-                res.outputs += r["files"]
-                _add_timings(stage, r["timings"])
-            if progress:
-                progress("lines", n_done, len(tasks))
-            return not (spec.fail_fast and "error" in r)
-
-        workers.map(tasks, lines_done)
-
-        # Tracking walks the frames in order (the only sequential stage).
-        ordered = [f for f in frames if f in lines_results]
-        if tracking_on and ordered:
-            from .tracking import Tracker
-
-            t = time.perf_counter()
-            tracker = Tracker(spec.tracking)
-            for f in ordered:
-                lines_results[f] = tracker.step(lines_results[f])
-            stage["tracking"].seconds = time.perf_counter() - t
-
-        # Writing, in parallel again.
+        pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
+                         out if f not in done_before else replace(out, raster_options=None)) for f in need_lines)
+        n_lines = len(pending)
+        n_write = sum(f not in done_before for f in need_lines)
         extra = {"contours": spec.lines.contours,
                  "tracking": getattr(spec.tracking, "method", "none") if tracking_on else "none"}
-        wtasks = [] if spec.fail_fast and res.failures else [
-            (write_task, lines_results[f], f, out, spec.lines.kinds, extra, underlays.get(f))
-            for f in ordered if f not in done_before]
-        n_done = 0
+        tracker = None
+        if tracking_on:
+            from .tracking import Tracker
 
-        def written(r: dict) -> bool:
+            tracker = Tracker(spec.tracking)
+        finished: set[int] = set()  # frames whose lines are done or failed
+        ordered: list[int] = []  # frames with lines, in frame order, tracked when tracking is on
+        keep_strokes = out.gltf and out.gltf_sequence
+        n_done = n_written = 0
+
+        def lines_done(r: dict) -> None:
             nonlocal n_done
             n_done += 1
+            f = r["frame"]
+            finished.add(f)
             if "error" in r:
-                res.failures[r["frame"]] = r["error"]
+                res.failures[f] = r["error"]
             else:
+                lines_results[f] = r["strokes"]
+                underlays[f] = r["underlays"]
+                res.frame_seconds[f] = r["seconds"]
                 res.outputs += r["files"]
-                res.frames_ok.append(r["frame"])
-                res.frame_seconds[r["frame"]] = res.frame_seconds.get(r["frame"], 0.0) + r["seconds"]
                 _add_timings(stage, r["timings"])
             if progress:
-                progress("write", n_done, len(wtasks))
-            return True
+                progress("lines", n_done, n_lines)
+            # Frames go on in frame order as soon as every earlier one is done: the tracking
+            # pass (the only sequential stage) runs here, beside the workers' line work, and
+            # each tracked frame is written next (its write task goes first in line), so
+            # output appears from the start and no stage waits for all frames.
+            advance()
 
-        workers.map(wtasks, written)
+        cursor = 0
+
+        def advance() -> None:
+            nonlocal cursor
+            while cursor < len(need_lines) and need_lines[cursor] in finished:
+                f = need_lines[cursor]
+                cursor += 1
+                if f not in lines_results:
+                    continue
+                if tracker is not None:
+                    t = time.perf_counter()
+                    lines_results[f] = tracker.step(lines_results[f])
+                    stage["tracking"].seconds += time.perf_counter() - t
+                ordered.append(f)
+                if f not in done_before and not (spec.fail_fast and res.failures):
+                    pending.appendleft((write_task, lines_results[f], f, out, spec.lines.kinds, extra,
+                                        underlays.pop(f, None)))
+                if not keep_strokes and f in done_before:
+                    lines_results.pop(f)
+
+        def written(r: dict) -> None:
+            nonlocal n_written
+            n_written += 1
+            f = r["frame"]
+            if "error" in r:
+                res.failures[f] = r["error"]
+            else:
+                res.outputs += r["files"]
+                res.frames_ok.append(f)
+                res.frame_seconds[f] = res.frame_seconds.get(f, 0.0) + r["seconds"]
+                _add_timings(stage, r["timings"])
+            if not keep_strokes:
+                lines_results.pop(f, None)
+            if progress:
+                progress("write", n_written, n_write)
+
+        def handle(r: dict) -> bool:
+            if r.get("stage") == "write":
+                written(r)
+            else:
+                lines_done(r)
+            return not (spec.fail_fast and "error" in r)
+
+        workers.map(pending, handle)
         if out.gltf and out.gltf_sequence and ordered:
             from .writers.gltf import glb_for_sequence
 

@@ -174,6 +174,37 @@ def test_main_process_shares_the_frames_and_feeds_only_started_workers():
     assert ran == [0, 1, 2]
 
 
+def test_tasks_added_while_mapping_run_next():
+    """The run streams: a handler may add tasks (a frame's write task, once it is tracked) and
+    they run before the remaining line tasks, so files appear from the first frame on. (That
+    frames are still tracked in frame order whatever order their lines finish in is
+    test_pool_and_inline_give_identical_bytes.)"""
+    from collections import deque
+    from types import SimpleNamespace
+
+    from strokekit.pipeline import Workers, make_executor
+
+    order = []
+
+    def task(name):
+        order.append(name)
+        return {"name": name}
+
+    pending = deque([(task, "lines 1"), (task, "lines 2")])
+
+    def handle(r):
+        if r["name"].startswith("lines"):
+            pending.appendleft((task, "write " + r["name"][-1]))
+        return True
+    make_executor(1, None, warm=()).map(pending, handle)  # --workers 1
+    assert order == ["lines 1", "write 1", "lines 2", "write 2"]
+    # The main process helping a pool whose workers have not started does the same.
+    order.clear()
+    pending.extend([(task, "lines 1"), (task, "lines 2")])
+    Workers(None, lambda: None, started=SimpleNamespace(value=0)).map(pending, handle)
+    assert order == ["lines 1", "write 1", "lines 2", "write 2"]
+
+
 def test_scene_edited_between_two_runs_of_one_process_is_rendered_fresh(tmp_path, capsys):
     """Workers keep their renderer between runs (a dask worker lives on): a scene file changed
     since the last run is loaded again, not refused as 'changed during the run'."""
