@@ -20,6 +20,30 @@ from .options import LineOptions
 from .scene import Scene
 
 
+def import_open3d():
+    """open3d, imported without its plotly drawing module.
+
+    `import open3d` imports open3d.visualization, which imports plotly and dash (with IPython):
+    0.7 s of a 1.2 s import, paid by the command and again by every spawned worker, for drawing
+    functions strokekit never calls. A stand-in module takes their place when open3d has not been
+    imported yet; calling them says so."""
+    import sys
+
+    name = "open3d.visualization.draw_plotly"
+    if "open3d" not in sys.modules and name not in sys.modules:
+        import types
+
+        def unavailable(*args, **kwargs):
+            raise RuntimeError("open3d's plotly drawing is not loaded in a strokekit process")
+
+        stand_in = types.ModuleType(name)
+        stand_in.get_plotly_fig = stand_in.draw_plotly = stand_in.draw_plotly_server = unavailable
+        sys.modules[name] = stand_in
+    import open3d
+
+    return open3d
+
+
 class Occluder:
     """Occlusion queries against a scene. Backend: open3d RaycastingScene (Embree); trimesh's
     embreex intersector when open3d cannot be imported."""
@@ -36,8 +60,7 @@ class Occluder:
         self.backend = backend
         if backend in (None, "open3d"):
             try:
-                import open3d as o3d
-
+                o3d = import_open3d()
                 self._o3c = o3d.core
                 self._rs = o3d.t.geometry.RaycastingScene()
                 self._rs.add_triangles(o3d.core.Tensor(local), o3d.core.Tensor(scene.faces.astype(np.uint32)))
