@@ -12,7 +12,7 @@ from .model import KINDS
 #: this; supersample: raster masks; simplify_tol_px: polyline simplification (0 = none).
 QUALITY_PRESETS: dict[str, dict] = {
     "draft": {"sample_spacing_px": 8.0, "bisection_tol_px": 0.5, "supersample": 1, "simplify_tol_px": 0.25},
-    "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.05, "supersample": 2, "simplify_tol_px": 0.0},
+    "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "simplify_tol_px": 0.0},
     "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "simplify_tol_px": 0.0},
 }
 
@@ -26,7 +26,7 @@ class LineOptions:
     kinds: tuple[str, ...] = DEFAULT_KINDS
     crease_angle_deg: float = 60.0
     sample_spacing_px: float = 4.0
-    bisection_tol_px: float = 0.05
+    bisection_tol_px: float = 0.01
     split_angle_deg: float = 90.0
     max_length_px: float = 0.0  # 0: no limit
     min_length_px: float = 0.0  # strokes shorter than this are dropped
