@@ -46,8 +46,10 @@ class RasterOptions:
     colours (RGBA); objectid, depth: compositing passes; fill: seed 003 hatching/dots/noise of
     `fill_pattern` with a base period of `fill_period_px` output pixels; gooch: warm/cool ramps;
     band_polygons: the bands as SVG polygons (see `band_polygons_svg`); edge_supersample R > K
-    (0 = off): output pixels whose K x K samples disagree are resampled on an R x R grid for the
-    coverages (masks, labels, alpha), so band edges get R x R quality for a fraction of the rays."""
+    (0 = off): output pixels that may hold a band edge are resampled on an R x R grid for the
+    coverages (masks, labels, alpha), so band edges get R x R quality for a fraction of the
+    rays: pixels whose K x K samples, or the nearest samples of their neighbours, disagree (see
+    `_edge_coverage`)."""
 
     bands: int = 3
     thresholds: tuple[float, ...] = ()
@@ -526,22 +528,13 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder, options: Ras
 
 
 def _edge_coverage(frame: RasterFrame, occluder: Occluder, R: int, vnormals: np.ndarray | None):
-    """(pixel indices (P,), coverages (P, N+1)) of the output pixels whose K x K samples carry
-    more than one label or whose label differs from a neighbour's, from R x R samples through each such pixel (sample centres
-    ((a + 0.5) / R) inside the pixel, like a uniform R-times supersampling there)."""
+    """(pixel indices (P,), coverages (P, N+1)) of the output pixels that may hold more than one
+    label, from R x R samples through each such pixel (sample centres ((a + 0.5) / R) inside the
+    pixel, like a uniform R-times supersampling there). Refined: the pixels whose K x K samples
+    disagree or differ from a next sample of a neighbouring pixel (`_sample_edge_pixels`)."""
     cam, o = frame.camera, frame.options
     n = frame.n_bands + 1
-    cov = frame.sample_coverage
-    lab = np.argmax(cov, axis=2)
-    # Mixed pixels, and pixels whose majority label differs from a 4-neighbour's: an edge may
-    # run between the K x K samples of a pixel (always so at K = 1).
-    edge = cov.max(axis=2) < 1.0
-    dh = lab[:, 1:] != lab[:, :-1]
-    dv = lab[1:, :] != lab[:-1, :]
-    edge[:, 1:] |= dh
-    edge[:, :-1] |= dh
-    edge[1:, :] |= dv
-    edge[:-1, :] |= dv
+    edge = _sample_edge_pixels(frame.labels_ss, frame.hits.supersample)
     mixed = np.flatnonzero(edge)
     if len(mixed) == 0:
         return None
@@ -562,6 +555,39 @@ def _edge_coverage(frame: RasterFrame, occluder: Occluder, R: int, vnormals: np.
     lab[hit] = quantize_bands(ndl, o.bands, o.thresholds)
     counts = np.bincount(np.repeat(np.arange(len(mixed)), R * R) * n + lab, minlength=len(mixed) * n)
     return mixed, (counts.reshape(len(mixed), n) / (R * R)).astype(np.float32)
+
+
+def _sample_edge_pixels(labels_ss: np.ndarray, k: int) -> np.ndarray:
+    """(H, W) bool: output pixels with a sample whose label differs from one of its 8 neighbour
+    samples, i.e. whose K x K samples plus the ring of nearest samples of the neighbouring pixels
+    do not all agree. A label edge between two samples a sample spacing apart may run through
+    either of their pixels, so both are refined (a pixel-majority rule misses an edge that only
+    grazes a pixel, and refines pixels whose own samples are a full spacing from any edge)."""
+    L = labels_ss
+    E = np.zeros(L.shape, bool)
+    dh = L[:, 1:] != L[:, :-1]
+    dv = L[1:, :] != L[:-1, :]
+    E[:, 1:] |= dh
+    E[:, :-1] |= dh
+    E[1:, :] |= dv
+    E[:-1, :] |= dv
+    # Diagonal neighbours: two diagonal samples differ only if their 2 x 2 square has an
+    # axis-aligned difference; mark all four samples of such squares.
+    sq = dh[1:, :] | dh[:-1, :]
+    sq |= dv[:, 1:]
+    sq |= dv[:, :-1]
+    E[1:, 1:] |= sq
+    E[:-1, :-1] |= sq
+    E[1:, :-1] |= sq
+    E[:-1, 1:] |= sq
+    if k == 1:
+        return E
+    out = E[::k, ::k].copy()
+    for dy in range(k):
+        for dx in range(k):
+            if dy or dx:
+                out |= E[dy::k, dx::k]
+    return out
 
 
 def raster_outputs(scene: Scene, camera: Camera, occluder: Occluder, options: RasterOptions) -> dict[str, bytes]:
