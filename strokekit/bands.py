@@ -48,8 +48,9 @@ class RasterOptions:
     band_polygons: the bands as SVG polygons (see `band_polygons_svg`); edge_supersample R > K
     (0 = off): output pixels that may hold a band edge are resampled on an R x R grid for the
     coverages (masks, labels, alpha), so band edges get R x R quality for a fraction of the
-    rays: pixels whose K x K samples, or the nearest samples of their neighbours, disagree (see
-    `_edge_coverage`)."""
+    rays: pixels whose K x K samples, or the nearest samples of their neighbours, disagree, and
+    pixels crossed by a triangle too thin for the K x K grid (slivers, trim, thin parts) where it
+    may show another band (see `_edge_coverage`)."""
 
     bands: int = 3
     thresholds: tuple[float, ...] = ()
@@ -531,10 +532,13 @@ def _edge_coverage(frame: RasterFrame, occluder: Occluder, R: int, vnormals: np.
     """(pixel indices (P,), coverages (P, N+1)) of the output pixels that may hold more than one
     label, from R x R samples through each such pixel (sample centres ((a + 0.5) / R) inside the
     pixel, like a uniform R-times supersampling there). Refined: the pixels whose K x K samples
-    disagree or differ from a next sample of a neighbouring pixel (`_sample_edge_pixels`)."""
+    disagree or differ from a next sample of a neighbouring pixel (`_sample_edge_pixels`), and the
+    pixels a triangle too thin for the K x K grid crosses where it may show another label than
+    the samples there (`_thin_face_pixels`)."""
     cam, o = frame.camera, frame.options
     n = frame.n_bands + 1
     edge = _sample_edge_pixels(frame.labels_ss, frame.hits.supersample)
+    edge.ravel()[_thin_face_pixels(frame, vnormals)] = True
     mixed = np.flatnonzero(edge)
     if len(mixed) == 0:
         return None
@@ -588,6 +592,179 @@ def _sample_edge_pixels(labels_ss: np.ndarray, k: int) -> np.ndarray:
             if dy or dx:
                 out |= E[dy::k, dx::k]
     return out
+
+
+def _face_band_range(frame: RasterFrame, vnormals: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lo, hi, back): (F,) uint8 the lowest and highest band label a sample anywhere on each
+    face could get (a conservative interval; bands are monotone in n.l), and (F,) bool where we
+    see the face's back side.
+
+    flat: the face's n.l. smooth: the interpolated numerator (wa la + wb lb + wc lc) is linear,
+    so its extremes are corner values, and the renormalization divides it by |n| in
+    [sqrt(min n_i.n_j), 1] (|sum w_i n_i|^2 = sum w_i w_j n_i.n_j >= min n_i.n_j). Two-sided
+    lighting flips the sign on the back side, which is the same over a whole face (its corners
+    lie in its plane, so n.(P - eye) is one number; see _facing_sign)."""
+    scene, cam, o = frame.scene, frame.camera, frame.options
+    nf = scene.face_normals
+    if cam.is_ortho:
+        back = nf @ cam.basis[2] > 0
+    else:
+        back = scene.face_offsets - nf @ np.asarray(cam.eye, float) > 0
+    if o.shading == "flat":
+        lo = hi = nf @ frame.light
+    else:
+        corner, normals, _ = corner_shading(scene, o.crease_angle_deg, vnormals)
+        nl = normals @ frame.light
+        la, lb, lc = (np.take(nl, corner[:, k]) for k in range(3))
+        lmin, lmax = np.minimum(np.minimum(la, lb), lc), np.maximum(np.maximum(la, lb), lc)
+        root = _min_norm(scene, o.crease_angle_deg, vnormals)
+        lo = np.where(lmin >= 0, lmin, lmin / root)
+        hi = np.where(lmax >= 0, lmax / root, lmax)
+    LO, HI = np.where(back, -hi, lo), np.where(back, -lo, hi)
+    return quantize_bands(LO, o.bands, o.thresholds), quantize_bands(HI, o.bands, o.thresholds), back
+
+
+def _min_norm(scene: Scene, crease_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
+    """(F,) a lower bound of |w_a n_a + w_b n_b + w_c n_c| over each face (weights >= 0 summing
+    to 1) for smooth shading's corner normals: sqrt of the smallest pairwise dot product,
+    floored at 1e-3 (see _face_band_range). Cached per scene and angle like corner_shading."""
+    from .contours import scene_cache
+
+    key = ("raster_min_norm", float(crease_angle_deg))
+    c = scene_cache(scene) if vnormals is None else {}
+    if key not in c:
+        gram = corner_shading(scene, crease_angle_deg, vnormals)[2]
+        c[key] = np.sqrt(np.clip(np.minimum(np.minimum(gram[:, 0], gram[:, 1]), gram[:, 2]), 1e-6, 1.0))
+    return c[key]
+
+
+def _face_neighbours(scene: Scene) -> np.ndarray:
+    """(F, 3) int64 the faces across each face's manifold edges, -1 for a border or non-manifold
+    edge (order not by edge). Cached per scene."""
+    from .contours import scene_cache
+
+    c = scene_cache(scene)
+    if "raster_face_neighbours" not in c:
+        ef = scene.edge_faces[scene.edge_face_count == 2]
+        src, dst = np.concatenate([ef[:, 0], ef[:, 1]]), np.concatenate([ef[:, 1], ef[:, 0]])
+        order = np.argsort(src, kind="stable")
+        src, dst = src[order], dst[order]
+        first = np.searchsorted(src, src)
+        rank = np.arange(len(src)) - first
+        nb = np.full((len(scene.faces), 3), -1, np.int64)
+        keep = rank < 3
+        nb[src[keep], rank[keep]] = dst[keep]
+        c["raster_face_neighbours"] = nb
+    return c["raster_face_neighbours"]
+
+
+#: Relative depth slack of the thin-triangle occlusion test (float32 depths, curvature between
+#: samples).
+THIN_DEPTH_SLACK = 1e-3
+
+
+def _thin_face_pixels(frame: RasterFrame, vnormals: np.ndarray | None) -> np.ndarray:
+    """Flat indices (with repeats) of the output pixels that a thin triangle crosses where it
+    may show a label the pixel's K x K samples do not have.
+
+    A triangle whose screen footprint holds a disk of diameter s sqrt 2 (s = 1/K px, the sample
+    spacing: the diagonal of a sample cell) always holds a sample, and where it ends between
+    samples it is next to a sampled part, which `_sample_edge_pixels` refines. A triangle with a
+    smaller incircle (inradius < s / sqrt 2) can fall between the samples along whole stretches:
+    a sliver band, trim or a thin part narrower than the sample spacing, missed in most pixels
+    it crosses. Every point of such a triangle is within its inradius (< 1 px) of an edge, so
+    the pixels it touches are the pixels its edges pass through: found exactly as the two
+    pixels on either side of every crossing of an edge with a pixel row or column line, and the
+    pixels of its corners. A pixel is kept unless the triangle is hidden there (its depth where
+    the edge enters or leaves the pixel is behind every sample of the 3 x 3 pixels around it) or
+    cannot change it (the pixel's samples all carry the one label the face can have,
+    `_face_band_range`)."""
+    scene, cam, hits = frame.scene, frame.camera, frame.hits
+    K = hits.supersample
+    W, H = int(cam.width), int(cam.height)
+    xy, z = cam.project(scene.vertices)
+    f = scene.faces
+    near = 0.0 if cam.is_ortho else cam.near_distance(scene.radius)
+    (xa, xb, xc), (ya, yb, yc), (za, zb, zc) = (tuple(v[f[:, k]] for k in range(3)) for v in (xy[:, 0], xy[:, 1], z))
+    ok = (np.minimum(np.minimum(za, zb), zc) > near)
+    ok &= (np.maximum(np.maximum(xa, xb), xc) >= 0) & (np.minimum(np.minimum(xa, xb), xc) < W)
+    ok &= (np.maximum(np.maximum(ya, yb), yc) >= 0) & (np.minimum(np.minimum(ya, yb), yc) < H)
+    # inradius = 2 area / perimeter < s / sqrt 2
+    twice_area = np.abs((xb - xa) * (yc - ya) - (yb - ya) * (xc - xa))
+    perimeter = np.hypot(xb - xa, yb - ya) + np.hypot(xc - xb, yc - yb) + np.hypot(xa - xc, ya - yc)
+    ok &= twice_area < perimeter * (np.sqrt(0.5) / K)
+    lo, hi, back = _face_band_range(frame, vnormals)
+    # A thin face inside a patch of one band, every neighbour across its edges seen from the
+    # same side with that same one band (no border, fold or silhouette at its edges), cannot
+    # change a label where it is missed: the samples around it carry its band.
+    nb = _face_neighbours(scene)
+    cand = np.flatnonzero(ok)
+    nbc = nb[cand]
+    nbs = np.maximum(nbc, 0)
+    l0 = lo[cand][:, None]
+    plain = (hi[cand] == lo[cand]) & ((nbc >= 0) & (lo[nbs] == l0) & (hi[nbs] == l0)
+                                      & (back[nbs] == back[cand][:, None])).all(axis=1)
+    cand = cand[~plain]
+    if len(cand) == 0:
+        return np.zeros(0, np.int64)
+    lo, hi = lo[cand], hi[cand]
+    # The 3 edges of each candidate, corner k -> k + 1: start a, direction d, end depths.
+    c3 = np.stack([np.take(v, cand) for v in (xa, xb, xc, ya, yb, yc, za, zb, zc)]).reshape(3, 3, -1)
+    a = c3[:2].transpose(2, 1, 0).reshape(-1, 2)
+    d = np.roll(c3[:2], -1, axis=1).transpose(2, 1, 0).reshape(-1, 2) - a
+    z0 = c3[2].T.reshape(-1)
+    z1 = np.roll(c3[2], -1, axis=0).T.reshape(-1)
+    # Cells an edge passes through: the pixel of its start corner, and the pixels on both sides
+    # of each crossing with a pixel column line x = g (c = 0) or row line y = g (c = 1).
+    edge_of, pts, ts = [np.arange(len(a))], [a], [np.zeros(len(a))]
+    for c in range(2):
+        # Only the lines inside the image matter.
+        lo_c, hi_c = np.minimum(a[:, c], a[:, c] + d[:, c]), np.maximum(a[:, c], a[:, c] + d[:, c])
+        g0 = np.clip(np.floor(lo_c), -1, (W, H)[c]) + 1
+        g1 = np.clip(np.floor(hi_c), -1, (W, H)[c])
+        cnt = np.maximum(g1 - g0 + 1, 0).astype(np.int64)
+        own = np.repeat(np.arange(len(a)), cnt)
+        g = np.repeat(g0 - (np.cumsum(cnt) - cnt), cnt) + np.arange(len(own))
+        t = np.clip((g - a[own, c]) / d[own, c], 0.0, 1.0)  # cnt > 0 only where d != 0
+        p = a[own] + t[:, None] * d[own]
+        p[:, c] = g
+        q = p.copy()
+        q[:, c] -= 0.5  # the pixel before the line; p itself names the one after
+        p[:, c] += 0.5
+        edge_of += [own, own]
+        pts += [p, q]
+        ts += [t, t]
+    edge_of = np.concatenate(edge_of)
+    t = np.concatenate(ts)
+    pts = np.concatenate(pts)
+    px, py = np.floor(pts[:, 0]).astype(np.int64), np.floor(pts[:, 1]).astype(np.int64)
+    inside = (px >= 0) & (px < W) & (py >= 0) & (py < H)
+    pix = (py * W + px)[inside]
+    e, t = edge_of[inside], t[inside]
+    # View depth along the edge: 1/z is linear in the screen parameter (perspective), z is (ortho).
+    if cam.is_ortho:
+        zt = z0[e] + t * (z1[e] - z0[e])
+    else:
+        zt = 1.0 / ((1 - t) / z0[e] + t / z1[e])
+    # Per pixel touched: the deepest sample of the 3 x 3 pixels around it (inf where one is
+    # background: nothing hides there) and the smallest and largest label of its own samples.
+    mark = np.zeros(W * H, bool)
+    mark[pix] = True
+    upix = np.flatnonzero(mark)
+    slot = np.empty(W * H, np.int64)
+    slot[upix] = np.arange(len(upix))
+    inv = slot[pix]
+    uy, ux = np.divmod(upix, W)
+    rr = np.clip(uy[:, None] * K + np.arange(-K, 2 * K), 0, H * K - 1)
+    cc = np.clip(ux[:, None] * K + np.arange(-K, 2 * K), 0, W * K - 1)
+    zmax = hits.depth[rr[:, :, None], cc[:, None, :]].reshape(len(upix), -1).max(axis=1)
+    labs = frame.labels_ss[rr[:, K:2 * K, None], cc[:, None, K:2 * K]].reshape(len(upix), -1)
+    lmin, lmax = labs.min(axis=1), labs.max(axis=1)
+    fo = e // 3
+    seen = zt <= np.take(zmax, inv).astype(np.float64) * (1 + THIN_DEPTH_SLACK)
+    lm = np.take(lmin, inv)
+    same = (lm == np.take(lmax, inv)) & (np.take(lo, fo) == lm) & (np.take(hi, fo) == lm)
+    return pix[seen & ~same]
 
 
 def raster_outputs(scene: Scene, camera: Camera, occluder: Occluder, options: RasterOptions) -> dict[str, bytes]:
