@@ -339,7 +339,8 @@ def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> 
 def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
                  scene_radius: float) -> VisibleRuns:
     """Clip, sample every `sample_spacing_px` on screen, test occlusion, bisect each change to
-    `bisection_tol_px`, and return the visible pieces."""
+    `bisection_tol_px`, and return the visible pieces (edge_visibility "split"); or test each
+    clipped segment at its middle and keep it whole or drop it ("whole")."""
     a, b = features.a, features.b
     near = camera.near_distance(scene_radius)
     t0, t1 = clip_segments(a, b, camera, near)
@@ -353,13 +354,21 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     pa, za = camera.project(A)
     pb, zb = camera.project(B)
     L = row_norm(pb - pa)
-    n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
-    # Samples: n_int + 1 per segment, uniform in screen space.
-    counts = n_int + 1
-    starts = np.cumsum(counts) - counts
-    seg = np.repeat(np.arange(len(idx)), counts)
-    k = np.arange(counts.sum()) - np.repeat(starts, counts)
-    s = k / np.repeat(n_int, counts)
+    if options.edge_visibility == "whole":
+        # One sample in the middle of each segment: a single sample is both its first and its
+        # last, so the segment becomes one run (visible) or none, with no change to bisect.
+        counts = np.ones(len(idx), np.int64)
+        starts = np.arange(len(idx))
+        seg = starts.copy()
+        s = np.full(len(idx), 0.5)
+    else:
+        n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
+        # Samples: n_int + 1 per segment, uniform in screen space.
+        counts = n_int + 1
+        starts = np.cumsum(counts) - counts
+        seg = np.repeat(np.arange(len(idx)), counts)
+        k = np.arange(counts.sum()) - np.repeat(starts, counts)
+        s = k / np.repeat(n_int, counts)
 
     def world_at(seg_i, s_i):
         if camera.is_ortho:
