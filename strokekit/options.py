@@ -7,14 +7,14 @@ from dataclasses import dataclass, fields
 from .errors import UsageError
 from .model import KINDS
 
-#: Accuracy knobs per preset. edge_visibility: "split" (edges sampled and split where their
-#: visibility changes) or "whole" (one ray per edge, drawn whole or not at all);
+#: Accuracy knobs per preset. whole_edge_px: edges shorter than this on screen get one
+#: visibility ray at their middle and are drawn whole or not at all (0: none);
 #: sample_spacing_px: distance between visibility samples along an edge on screen;
 #: bisection_tol_px: where visibility changes, the split point is located to this; supersample:
 #: raster masks; simplify_tol_px: polyline simplification (0 = none); doubled_px and
 #: merge_overlaps: the cleanup of lines drawn twice (draft previews keep them).
 QUALITY_PRESETS: dict[str, dict] = {
-    "draft": {"edge_visibility": "whole", "sample_spacing_px": 8.0, "bisection_tol_px": 0.5, "supersample": 1,
+    "draft": {"whole_edge_px": 8.0, "sample_spacing_px": 8.0, "bisection_tol_px": 0.5, "supersample": 1,
               "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False},
     "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "simplify_tol_px": 0.0},
     "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "simplify_tol_px": 0.0},
@@ -29,10 +29,11 @@ class LineOptions:
 
     kinds: tuple[str, ...] = DEFAULT_KINDS
     crease_angle_deg: float = 60.0
-    # "split": visibility sampled along each edge and every change located by bisection (BRIEF 2).
-    # "whole": one ray at the middle of each edge, drawn whole or not at all (seed 000's per-edge
-    # test; a partly hidden edge is off by up to its length): the draft preset, for previews.
-    edge_visibility: str = "split"
+    # Edges shorter than this many px on screen get one visibility ray at their middle and are
+    # drawn whole or not at all (seed 000's per-edge test; a partly hidden one is off by up to
+    # its length): the draft preset, for previews of fine meshes. Longer edges, and every edge
+    # at 0, are sampled and split where their visibility changes (BRIEF 2).
+    whole_edge_px: float = 0.0
     sample_spacing_px: float = 4.0
     bisection_tol_px: float = 0.01
     split_angle_deg: float = 90.0
@@ -70,8 +71,8 @@ class LineOptions:
             raise UsageError("max/min stroke length must be >= 0")
         if not self.doubled_px >= 0:
             raise UsageError(f"doubled must be >= 0 px, got {self.doubled_px}")
-        if self.edge_visibility not in ("split", "whole"):
-            raise UsageError(f"edge visibility must be 'split' or 'whole', got {self.edge_visibility!r}")
+        if not self.whole_edge_px >= 0:
+            raise UsageError(f"whole-edge must be >= 0 px, got {self.whole_edge_px}")
         if self.contours not in ("mesh", "smooth"):
             raise UsageError(f"contours must be 'mesh' or 'smooth', got {self.contours!r}")
 

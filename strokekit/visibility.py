@@ -339,8 +339,8 @@ def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> 
 def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
                  scene_radius: float) -> VisibleRuns:
     """Clip, sample every `sample_spacing_px` on screen, test occlusion, bisect each change to
-    `bisection_tol_px`, and return the visible pieces (edge_visibility "split"); or test each
-    clipped segment at its middle and keep it whole or drop it ("whole")."""
+    `bisection_tol_px`, and return the visible pieces; segments shorter than `whole_edge_px` on
+    screen are tested at their middle only and kept whole or dropped."""
     a, b = features.a, features.b
     near = camera.near_distance(scene_radius)
     t0, t1 = clip_segments(a, b, camera, near)
@@ -354,21 +354,16 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     pa, za = camera.project(A)
     pb, zb = camera.project(B)
     L = row_norm(pb - pa)
-    if options.edge_visibility == "whole":
-        # One sample in the middle of each segment: a single sample is both its first and its
-        # last, so the segment becomes one run (visible) or none, with no change to bisect.
-        counts = np.ones(len(idx), np.int64)
-        starts = np.arange(len(idx))
-        seg = starts.copy()
-        s = np.full(len(idx), 0.5)
-    else:
-        n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
-        # Samples: n_int + 1 per segment, uniform in screen space.
-        counts = n_int + 1
-        starts = np.cumsum(counts) - counts
-        seg = np.repeat(np.arange(len(idx)), counts)
-        k = np.arange(counts.sum()) - np.repeat(starts, counts)
-        s = k / np.repeat(n_int, counts)
+    n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
+    # Samples: n_int + 1 per segment, uniform in screen space; one, in the middle, for a segment
+    # shorter than whole_edge_px (it is both its first and last sample: the segment becomes one
+    # run or none, with no change to bisect).
+    whole = L < options.whole_edge_px
+    counts = np.where(whole, 1, n_int + 1)
+    starts = np.cumsum(counts) - counts
+    seg = np.repeat(np.arange(len(idx)), counts)
+    k = np.arange(counts.sum()) - np.repeat(starts, counts)
+    s = np.where(whole[seg], 0.5, k / np.repeat(n_int, counts))
 
     def world_at(seg_i, s_i):
         if camera.is_ortho:

@@ -152,21 +152,26 @@ def test_partly_hidden_edge_is_split_not_dropped():
     assert np.any(np.isclose(xs, 230.0, atol=0.01)) and np.any(np.isclose(xs, 270.0, atol=0.01))
 
 
-def test_whole_edge_visibility_keeps_or_drops_each_edge_whole():
-    """edge_visibility "whole" (the draft preset): one ray per edge at its middle, so an edge is
-    drawn end to end or not at all; the bar's top edge, hidden at its middle by the post, is
-    dropped whole, while the post's own edges are drawn end to end."""
+def inner_top_pts(st) -> list[float]:
+    """x of the points on the bar's top edge (row 240) other than its two corners, rounded to 0.1 px."""
+    x = st.points[:, 0]
+    on = np.isclose(st.points[:, 1], 240.0, atol=1e-6) & (x > 50.5) & (x < 449.5)
+    return sorted(set(np.round(x[on], 1).tolist()))
+
+
+def test_short_edges_keep_or_drop_whole_with_whole_edge_px():
+    """whole_edge_px (the draft preset's 8 px): an edge shorter than that on screen gets one ray
+    at its middle, so it is drawn end to end or not at all; the bar's top edge (400 px), hidden
+    at its middle by the post, is dropped whole once the threshold exceeds its length and split
+    below it, while the post's own edges are drawn end to end."""
     vb, fb = box_mesh([-2, -0.1, -1], [2, 0.1, -0.9])
     vf, ff = box_mesh([-0.2, -1, 0], [0.2, 1, 0.2])
     scene = build_scene(np.r_[vb, vf], np.r_[fb, ff + len(vb)], np.r_[np.zeros(12), np.ones(12)])
     cam = Camera(eye=(0, 0, 5), target=(0, 0, 0), projection="orthographic", ortho_height=5, width=500, height=500)
     split = LineRenderer(scene, LineOptions()).render(cam)
-    whole = LineRenderer(scene, LineOptions.preset("draft")).render(cam)
-    assert LineOptions.preset("draft").edge_visibility == "whole"
-    def inner_top(st):  # points of the bar's top edge (row 240) other than its two corners
-        x = st.points[:, 0]
-        return np.isclose(st.points[:, 1], 240.0, atol=1e-6) & (x > 50.5) & (x < 449.5)
-    assert inner_top(split).any() and not inner_top(whole).any()
+    whole = LineRenderer(scene, LineOptions(whole_edge_px=401.0)).render(cam)
+    assert inner_top_pts(LineRenderer(scene, LineOptions(whole_edge_px=399.0)).render(cam)) == inner_top_pts(split)
+    assert inner_top_pts(split) == [230.0, 270.0] and inner_top_pts(whole) == []
     # The post (x = -0.2..0.2 world -> 230..270 px) spans rows 150..350 in both renders.
     post = lambda st: st.points[np.isclose(st.points[:, 0], 230.0, atol=1e-6), 1]  # noqa: E731
     assert post(whole).min() == pytest.approx(150.0, abs=1e-6) and post(whole).max() == pytest.approx(350.0, abs=1e-6)

@@ -40,9 +40,9 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--quality", type=click.Choice(list(QUALITY_PRESETS)), default="default", show_default=True,
               help="Accuracy preset: draft (fast), default, exact (slow reference).")
 @click.option("--crease-angle", type=float, default=None, help="Crease threshold in degrees [60].")
-@click.option("--edge-visibility", type=click.Choice(["split", "whole"]), default=None,
-              help="split: edges sampled and split where visibility changes; whole: one ray per edge, drawn "
-                   "whole or not at all (draft) (overrides --quality).")
+@click.option("--whole-edge", "whole_edge", type=float, default=None,
+              help="Edges shorter than N px get one visibility ray and are drawn whole or not at all "
+                   "(draft: 8; default 0: every edge is split where its visibility changes) (overrides --quality).")
 @click.option("--sample-spacing", type=float, default=None, help="Visibility samples every N px (overrides --quality).")
 @click.option("--bisection-tol", type=float, default=None, help="Visibility change located to N px (overrides --quality).")
 @click.option("--split-angle", type=float, default=None, help="Split strokes at turns sharper than N degrees [90].")
@@ -72,7 +72,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--explain", is_flag=True, help="List the stages that ran, why, and their time.")
 @render_extra_options
 def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out_dir, pattern, kinds, contours, quality,
-            crease_angle, edge_visibility, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, doubled, period,
+            crease_angle, whole_edge, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, doubled, period,
             suggestive_threshold, suggestive_kr_threshold, svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
             explain, **extra):
     """Render the visible feature lines of SCENE for every frame of a camera path (--camera, or
@@ -116,7 +116,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
                           height=height or 1024, up_axis=up)
     frames = parse_frames(frame_spec, len(path))
     lines = LineOptions.preset(quality, kinds=split_list(kinds), contours=contours, crease_angle_deg=crease_angle,
-                               edge_visibility=edge_visibility, sample_spacing_px=sample_spacing,
+                               whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
                                bisection_tol_px=bisection_tol,
                                split_angle_deg=split_angle, max_length_px=max_length, min_length_px=min_length,
                                simplify_tol_px=simplify_tol, doubled_px=doubled, period_px=period,
