@@ -388,10 +388,11 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
 
 # --- the run -------------------------------------------------------------------------------------------
 
-def _load_and_plan(spec: RunSpec, res: RunResult):
-    """The main process's scene (hash, summary) and the stage plan, timed as the first stage."""
+def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None):
+    """The main process's scene (hash, summary) and the stage plan, timed as the first stage.
+    `scene`: the scene file already loaded by the caller (not loaded again)."""
     t = time.perf_counter()
-    scene = load_scene(spec.scene_path)
+    scene = load_scene(spec.scene_path) if scene is None else scene
     res.scene_hash = scene.content_hash
     res.scene_summary = {"faces": int(len(scene.faces)), "objects": len(scene.objects),
                          "materials": len(scene.materials)}
@@ -400,14 +401,20 @@ def _load_and_plan(spec: RunSpec, res: RunResult):
     return scene
 
 
-def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) -> RunResult:
-    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish."""
+def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, *,
+        workers: Workers | None = None, scene: Scene | None = None) -> RunResult:
+    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
+    `workers`: make_executor(spec.workers, spec.scheduler, (spec.scene_path, spec.lines)) started
+    by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
+    `scene`: spec.scene_path already loaded by the caller."""
     t_start = time.perf_counter()
     res = RunResult()
     # Workers start first: their imports and scene load overlap the main process's own load.
-    workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
+    own = workers is None
+    if own:
+        workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
     try:
-        scene = _load_and_plan(spec, res)
+        scene = _load_and_plan(spec, res, scene)
         stage = {s.name: s for s in res.stages}
         out = spec.outputs
         out.out_dir.mkdir(parents=True, exist_ok=True)
@@ -521,7 +528,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None) 
             res.outputs.append(str(atomic_write_bytes(path, glb_for_sequence(seq, out.gltf_options))))
             stage["ribbons + glTF"].seconds += time.perf_counter() - t
     finally:
-        workers.close()
+        if own:
+            workers.close()
     res.frames_ok.sort()
     res.outputs.sort()
     res.wall_seconds = time.perf_counter() - t_start

@@ -13,7 +13,7 @@ from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_folder
 from strokekit.frames import parse_frames
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
-from strokekit.pipeline import OutputOptions, RunSpec, run, run_report
+from strokekit.pipeline import OutputOptions, RunSpec, make_executor, run, run_report
 from strokekit.scene import load_scene
 
 from ..common import is_interactive, split_list
@@ -103,18 +103,6 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     check_output_folder(out_dir)
     if report_path:
         check_output_folder(Path(report_path).parent)
-    s = load_scene(scene)
-    if camera_file:
-        path = load_camera_path(camera_file)
-        if width:
-            from dataclasses import replace
-
-            path = type(path)(cameras=tuple(replace(c, width=width, height=height) for c in path.cameras),
-                              fps=path.fps, source=path.source)
-    else:
-        path = orbit_path(s.center, s.radius, orbit or 48, elevation=elevation, fov_y=fov, width=width or 1024,
-                          height=height or 1024, up_axis=up)
-    frames = parse_frames(frame_spec, len(path))
     lines = LineOptions.preset(quality, kinds=split_list(kinds), contours=contours, crease_angle_deg=crease_angle,
                                whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
                                bisection_tol_px=bisection_tol,
@@ -122,17 +110,40 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
                                simplify_tol_px=simplify_tol, doubled_px=doubled, period_px=period,
                                suggestive_derivative_threshold=suggestive_threshold,
                                suggestive_kr_threshold=suggestive_kr_threshold)
-    gltf_options = gltf_options_from(extra, lines, path.fps)
-    outputs = OutputOptions(out_dir=Path(out_dir), pattern=pattern, svg=svg, json=write_json,
-                            decimals=decimals, stroke_width_px=stroke_width,
-                            gltf=gltf_options is not None, gltf_sequence=bool(extra.get("gltf_sequence")),
-                            gltf_options=gltf_options, raster_options=raster_options_from(extra, quality, lines.crease_angle_deg))
+    path = None
+    if camera_file:
+        path = load_camera_path(camera_file)
+        if width:
+            from dataclasses import replace
+
+            path = type(path)(cameras=tuple(replace(c, width=width, height=height) for c in path.cameras),
+                              fps=path.fps, source=path.source)
+    frames = parse_frames(frame_spec, len(path) if path is not None else orbit or 48)
     if workers is None:
         workers = (os.cpu_count() or 1) if len(frames) >= 8 else 1
-    spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
-                   tracking=tracking_options_from(extra, lines, len(frames)), workers=min(workers, len(frames)),
-                   scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast)
-    res = _run_with_progress(spec, quiet)
+    workers = min(workers, len(frames))
+    # The workers start before this process loads the scene: their start-up (imports, scene,
+    # BVH: about a second) overlaps ours.
+    if not Path(scene).is_file():
+        load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
+    pool = make_executor(workers, scheduler, warm=(str(scene), lines))
+    try:
+        s = load_scene(scene)
+        if path is None:
+            path = orbit_path(s.center, s.radius, orbit or 48, elevation=elevation, fov_y=fov, width=width or 1024,
+                              height=height or 1024, up_axis=up)
+        gltf_options = gltf_options_from(extra, lines, path.fps)
+        outputs = OutputOptions(out_dir=Path(out_dir), pattern=pattern, svg=svg, json=write_json,
+                                decimals=decimals, stroke_width_px=stroke_width,
+                                gltf=gltf_options is not None, gltf_sequence=bool(extra.get("gltf_sequence")),
+                                gltf_options=gltf_options,
+                                raster_options=raster_options_from(extra, quality, lines.crease_angle_deg))
+        spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
+                       tracking=tracking_options_from(extra, lines, len(frames)), workers=workers,
+                       scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast)
+        res = _run_with_progress(spec, quiet, pool, s)
+    finally:
+        pool.close()
     if report_path:
         atomic_write_text(report_path, json.dumps(run_report(spec, res), indent=1) + "\n")
     if explain:
@@ -154,9 +165,9 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     return res.exit_code
 
 
-def _run_with_progress(spec: RunSpec, quiet: bool):
+def _run_with_progress(spec: RunSpec, quiet: bool, workers, scene):
     if not is_interactive(quiet):
-        return run(spec)
+        return run(spec, workers=workers, scene=scene)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
@@ -173,4 +184,4 @@ def _run_with_progress(spec: RunSpec, quiet: bool):
             dt = max(time.perf_counter() - t0[phase], 1e-9)
             prog.update(tasks[phase], completed=done, fps=done / dt)
 
-        return run(spec, progress=cb)
+        return run(spec, progress=cb, workers=workers, scene=scene)
