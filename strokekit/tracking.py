@@ -656,16 +656,23 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
                      min_segment_px: float):
     """Cut the strokes sampled by `dense` (1 px samples, in stroke order; lengths (S,) px) into runs of the same
     carried id. vm (V,) dense sample hit by each vote, vid (V,) its carried id, w (V,) its weight.
-    Samples without a vote take the label of the nearest voted sample of their stroke; runs
-    shorter than `min_segment_px` (except the longest of a stroke) are absorbed by neighbours.
+    A sample is labelled with the id of most vote weight on it; samples without a vote take the
+    label of the nearest voted sample of their stroke; runs shorter than `min_segment_px` (except
+    the longest of a stroke) are absorbed by neighbours.
     Returns run (D,) run of each dense sample, and per run: stroke, s0, s1 (px), label (carried
     id, -1 where the stroke had no vote)."""
     D = len(dense)
     label = np.full(D, -1, np.int64)
     if len(vm):
-        # Heaviest vote wins a sample (sorted ascending, the last write wins).
-        o = np.lexsort((vid, w))
-        label[vm[o]] = vid[o]
+        # The id with the most vote weight on a sample wins it (ties: the lower id). Summed, not
+        # the single heaviest vote: where parallel contour pieces run 1-3 px apart, a sample gets
+        # votes of its own line and a stray one of the neighbour line.
+        M = int(vid.max()) + 1
+        key, inv = np.unique(vm.astype(np.int64) * M + vid, return_inverse=True)
+        kw = np.bincount(inv.ravel(), weights=w)
+        ks, ki = key // M, key % M
+        o = np.lexsort((-ki, kw, ks))  # per sample by weight, the last write wins
+        label[ks[o]] = ki[o]
     idx = np.arange(D)
     stroke, s = dense.stroke, dense.s
 
@@ -775,12 +782,14 @@ class Tracker:
             src = Samples(p=np.concatenate([votes.p, ends.p]), X=np.concatenate([votes.X, ends.X]), u=None,
                           t=np.concatenate([votes.t, ends.t]), ids=None, stroke=None, s=None, w=None)
             m, q = match_samples(src, cur.camera, dense, dense_tree, radius_px=o.search_radius_px,
-                                 min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
+                                 min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True,
+                                 piece_distance=True)
             ends_match = (ends, m[V:], q[V:])
             m, q = m[:V], q[:V]
         else:
             m, q = match_samples(votes, cur.camera, dense, dense_tree, radius_px=o.search_radius_px,
-                                 min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
+                                 min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True,
+                                 piece_distance=True)
             ends_match = None
         hit = m >= 0
         vm = m[hit]
@@ -796,7 +805,8 @@ class Tracker:
             # The other way too (as the metrics do): every new sample looks back for the nearest
             # old sample of the previous frame and takes its u (refined along the old tangent).
             rm, rq = match_samples(dense, prev.camera, votes, _tree(votes.p), radius_px=o.search_radius_px,
-                                   min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True)
+                                   min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True,
+                                 piece_distance=True)
             rh = np.flatnonzero(rm >= 0)
             src = rm[rh]
             slope = _local_slope(votes)
