@@ -372,3 +372,32 @@ def test_id_boundary_stays_where_it_was_when_the_chain_ends_move():
         assert np.isclose(t2.lengths.sum(), b.lengths.sum())
         if touching:
             assert pair_metrics(t1, t2).m1 >= 0.99
+
+
+def test_votes_go_to_the_nearest_line_and_a_sample_to_the_most_vote_weight():
+    # Shingled mesh contours (bunny): pieces of contour 1-3 px apart. The tracker's samples are
+    # 3-4 px apart, so the nearest sample *centre* can be on the neighbour line while the line
+    # itself passes nearer (the metric's 1 px samples find that line): votes must land on the
+    # line whose piece passes nearest. Protects bunny M1 (0.922 -> 0.929 on the 120-frame orbit).
+    from strokekit.coherence import Samples, match_samples
+    from strokekit.tracking import segment_by_votes
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), width=SIZE, height=SIZE)
+    # Line A along y = 0 with samples every 3 px at x = 0, 3; line B along y = 1.5 px, sample at x = 1.5.
+    p = np.array([[0.0, 0.0], [3.0, 0.0], [1.5, 1.5]]) + SIZE / 2
+    t = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
+    dst = Samples(p=p, X=np.zeros((3, 3)), u=np.zeros(3), t=t, ids=np.array([1, 1, 2]),
+                  stroke=np.array([0, 0, 1]), s=np.array([1.5, 4.5, 1.5]), w=np.full(3, 3.0))
+    # A voter 0.5 px off line A, halfway between A's samples: 1.58 px from A's, 1.0 px from B's centre.
+    q = np.array([[1.5 + SIZE / 2, 0.5 + SIZE / 2]])
+    X = np.c_[(q - SIZE / 2) * np.array([1, -1]) * 10.0 / cam.focal_px, [0.0]]
+    src = Samples(p=q, X=X, u=np.zeros(1), t=np.array([[1.0, 0.0]]), ids=np.array([7]), stroke=np.zeros(1, np.int64),
+                  s=np.zeros(1), w=np.ones(1))
+    assert match_samples(src, cam, dst, k=4)[0] == 2  # the metric's rule on these sparse samples: B
+    assert match_samples(src, cam, dst, k=4, piece_distance=True)[0] in (0, 1)  # the tracker's: A
+    # Two votes of id 3 (4 px each) and one stray heavier vote of id 9 (5 px) on one sample: id 3.
+    one = Samples(p=np.zeros((2, 2)), X=np.zeros((2, 3)), u=np.zeros(2), t=np.tile([1.0, 0.0], (2, 1)),
+                  ids=np.zeros(2, np.int64), stroke=np.zeros(2, np.int64), s=np.array([1.5, 4.5]), w=np.full(2, 3.0))
+    run, r_stroke, r_s0, r_s1, r_label = segment_by_votes(one, np.array([6.0]), np.array([0, 0, 0]),
+                                                          np.array([3, 3, 9]), np.array([4.0, 4.0, 5.0]), 6.0)
+    assert r_label.tolist() == [3]
