@@ -75,50 +75,46 @@ class Occluder:
         self._intersector = trimesh.ray.ray_pyembree.RayMeshIntersector(mesh) if _has_embreex() else mesh.ray
         self.backend = "embreex" if _has_embreex() else "trimesh"
 
+    def _local_rays(self, origins: np.ndarray, targets: np.ndarray):
+        """The segments origins -> targets (world, (N, 3)) in the Embree frame: an open3d ray
+        tensor (origin, direction = the whole segment), or (origins, directions) arrays."""
+        o = (origins - self.origin) * self.inv_scale
+        d = (targets - origins) * self.inv_scale
+        if self.backend != "open3d":
+            return o, d
+        rays = np.empty((len(o), 6), np.float32)
+        rays[:, :3] = o
+        rays[:, 3:] = d
+        return self._o3c.Tensor(rays)
+
     def occluded_segments(self, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """(N,) True where the segment origins -> targets (world, (N, 3)) hits a triangle.
         Callers offset the origins; the target end is open."""
         if len(origins) == 0:
             return np.zeros(0, bool)
-        o = (origins - self.origin) * self.inv_scale
-        d = (targets - origins) * self.inv_scale
         if self.backend == "open3d":
-            rays = np.empty((len(o), 6), np.float32)
-            rays[:, :3] = o
-            rays[:, 3:] = d
-            hit = self._rs.test_occlusions(self._o3c.Tensor(rays), tnear=0.0, tfar=1.0)
+            hit = self._rs.test_occlusions(self._local_rays(origins, targets), tnear=0.0, tfar=1.0)
             return hit.numpy().astype(bool)
-        length = np.linalg.norm(d, axis=1)
-        unit = d / np.where(length > 0, length, 1)[:, None]
-        idx_tri, idx_ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False, return_locations=True)
-        out = np.zeros(len(o), bool)
-        if len(idx_ray):
-            dist = np.einsum("ij,ij->i", loc - o[idx_ray], unit[idx_ray])
-            out[idx_ray[(dist > 0) & (dist < length[idx_ray])]] = True
-        return out
+        return np.isfinite(self.segment_hits(origins, targets))
 
     def segment_hits(self, origins: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """(N,) where the segment origins -> targets (world, (N, 3)) first meets a triangle, as a
         fraction of its length; inf where it meets none before its end (open there)."""
         if len(origins) == 0:
             return np.zeros(0)
-        o = (origins - self.origin) * self.inv_scale
-        d = (targets - origins) * self.inv_scale
         if self.backend == "open3d":
-            rays = np.empty((len(o), 6), np.float32)
-            rays[:, :3] = o
-            rays[:, 3:] = d
-            t = self._rs.cast_rays(self._o3c.Tensor(rays))["t_hit"].numpy().astype(float)
-        else:
-            length = np.linalg.norm(d, axis=1)
-            unit = d / np.where(length > 0, length, 1)[:, None]
-            idx_tri, idx_ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False,
-                                                                    return_locations=True)
-            t = np.full(len(o), np.inf)
-            if len(idx_ray):
-                dist = np.einsum("ij,ij->i", loc - o[idx_ray], unit[idx_ray])
-                t[idx_ray] = np.where(dist > 0, dist / np.where(length[idx_ray] > 0, length[idx_ray], 1.0), np.inf)
-        return np.where(t <= 1.0, t, np.inf)
+            t = self._rs.cast_rays(self._local_rays(origins, targets))["t_hit"].numpy().astype(float)
+            return np.where(t <= 1.0, t, np.inf)
+        o, d = self._local_rays(origins, targets)
+        length = np.linalg.norm(d, axis=1)
+        unit = d / np.where(length > 0, length, 1)[:, None]
+        idx_tri, idx_ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False, return_locations=True)
+        t = np.full(len(o), np.inf)
+        if len(idx_ray):
+            dist = np.einsum("ij,ij->i", loc - o[idx_ray], unit[idx_ray])
+            inside = (dist > 0) & (dist < length[idx_ray])
+            t[idx_ray[inside]] = dist[inside] / length[idx_ray][inside]
+        return t
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray) -> dict:
         """Nearest hit per ray (world origins, unnormalized directions): 't_hit' (in units of the

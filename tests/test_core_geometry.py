@@ -252,3 +252,28 @@ def test_scene_cache_gives_the_same_scene_without_reading_the_file_again(tmp_pat
     src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n")
     with pytest.raises(InputError, match="parsed again"):  # cached bytes, but the cache is off
         load_scene(src)
+
+
+@pytest.mark.parametrize("backend", ["embreex"])
+def test_fallback_backend_draws_the_same_lines(backend):
+    """Without open3d, occlusion goes through embreex (trimesh's intersector): the drawing of a
+    scene with partly hidden edges, several objects and a curved silhouette is the same within
+    0.02 px (changes are bisected to 0.01 px by both; float32 answers may differ in the last bits)."""
+    pytest.importorskip(backend)
+    from strokekit.accuracy import accuracy
+
+    vb, fb = box_mesh([-2, -0.1, -1], [2, 0.1, -0.9])
+    vf, ff = box_mesh([-0.2, -1, 0], [0.2, 1, 0.2])
+    sph = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    sv = sph.vertices + [1.0, 0.6, -0.5]
+    V = np.r_[vb, vf, sv]
+    F = np.r_[fb, ff + len(vb), sph.faces + len(vb) + len(vf)]
+    scene = build_scene(V, F, np.r_[np.zeros(12), np.ones(12), np.full(len(sph.faces), 2)])
+    cam = Camera(eye=(1.5, 1.0, 5.0), target=(0, 0, 0), fov_y=40.0, width=640, height=480)
+    ref = LineRenderer(scene, LineOptions(), backend="open3d").render(cam)
+    alt_r = LineRenderer(scene, LineOptions(), backend=backend)
+    assert alt_r.occluder.backend == backend
+    alt = alt_r.render(cam)
+    a = accuracy([alt], [ref], tols=(0.02,), step_px=0.01)  # compared every 0.01 px
+    assert a.precision[0.02] > 0.999 and a.recall[0.02] > 0.999
+    assert abs(alt.lengths.sum() - ref.lengths.sum()) < 0.05 and a.drawn_length > 1000
