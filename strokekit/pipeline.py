@@ -12,7 +12,7 @@ import platform
 import time
 import traceback
 from collections import deque
-from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
@@ -265,24 +265,12 @@ class _NoPool:
     value = 0
 
 
-class _InlineExecutor(Executor):
-    """Runs tasks in this process, one by one (workers=1): no start-up cost."""
-
-    def submit(self, fn, *args, **kwargs):
-        f: Future = Future()
-        try:
-            f.set_result(fn(*args, **kwargs))
-        except Exception as e:  # an interrupt stops the run here and now, not after every task
-            f.set_exception(e)
-        return f
-
-
 @dataclass
 class Workers:
     """Where frame tasks run. `executor` takes them; beside a local pool (`started` set: --workers
     N is this process and N - 1 pool workers) this process runs tasks too (`main_helps`)."""
 
-    executor: Executor
+    executor: Executor | None  # None: this process runs every task (main_helps, no pool)
     close: Callable[[], None]
     #: Pool workers that have finished starting (imports, scene, BVH): a shared integer (always
     #: 0 when this process is the only one), or None when this process does not render (dask).
@@ -325,11 +313,14 @@ class Workers:
             elif running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 go = collect(done)
-        # Stopped early: tasks already running finish (they may be writing files); queued ones
-        # are dropped.
+        # Stopped early: tasks already running finish (they may be writing files) and their
+        # results are handled (the files they wrote are reported); queued ones are dropped.
         for fut in running:
             fut.cancel()
         wait(running)
+        for fut in running:
+            if not fut.cancelled() and fut.exception() is None:
+                handle(fut.result())
 
 
 def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
@@ -350,7 +341,7 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
         return Workers(ex, client.close)
     if workers <= 1:
         # This process does every task, one by one, handling each result before the next task.
-        return Workers(_InlineExecutor(), lambda: None, started=_NoPool())
+        return Workers(None, lambda: None, started=_NoPool())
     import multiprocessing as mp
     import signal
 
@@ -388,10 +379,10 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
 
 # --- the run -------------------------------------------------------------------------------------------
 
-def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None):
+def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, load_seconds: float = 0.0):
     """The main process's scene (hash, summary) and the stage plan, timed as the first stage.
-    `scene`: the scene file already loaded by the caller (not loaded again)."""
-    t = time.perf_counter()
+    `scene`: the scene file already loaded by the caller (not loaded again) in `load_seconds`."""
+    t = time.perf_counter() - load_seconds
     scene = load_scene(spec.scene_path) if scene is None else scene
     res.scene_hash = scene.content_hash
     res.scene_summary = {"faces": int(len(scene.faces)), "objects": len(scene.objects),
@@ -402,19 +393,22 @@ def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None):
 
 
 def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, *,
-        workers: Workers | None = None, scene: Scene | None = None) -> RunResult:
+        workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
+        started_at: float | None = None) -> RunResult:
     """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
     `workers`: make_executor(spec.workers, spec.scheduler, (spec.scene_path, spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
-    `scene`: spec.scene_path already loaded by the caller."""
-    t_start = time.perf_counter()
+    `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
+    load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
+    (the report's wall time counts from there: the pool start and the load are part of it)."""
+    t_start = time.perf_counter() if started_at is None else started_at
     res = RunResult()
     # Workers start first: their imports and scene load overlap the main process's own load.
     own = workers is None
     if own:
         workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
     try:
-        scene = _load_and_plan(spec, res, scene)
+        scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         stage = {s.name: s for s in res.stages}
         out = spec.outputs
         out.out_dir.mkdir(parents=True, exist_ok=True)
@@ -436,12 +430,12 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
 
         lines_results: dict[int, Strokes] = {}
         underlays: dict[int, list | None] = {}
-        if workers.main_helps or isinstance(workers.executor, _InlineExecutor):
+        if workers.main_helps:
             _keep_renderer(spec.scene_path, scene, spec.lines)  # frames rendered here use this load
         pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
                          out if f not in done_before else replace(out, raster_options=None)) for f in need_lines)
         n_lines = len(pending)
-        n_write = sum(f not in done_before for f in need_lines)
+        to_write = [f for f in need_lines if f not in done_before]
         extra = {"contours": spec.lines.contours,
                  "tracking": getattr(spec.tracking, "method", "none") if tracking_on else "none"}
         tracker = None
@@ -450,6 +444,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
 
             tracker = Tracker(spec.tracking)
         finished: set[int] = set()  # frames whose lines are done or failed
+        lines_failed: set[int] = set()
         ordered: list[int] = []  # frames with lines, in frame order, tracked when tracking is on
         keep_strokes = out.gltf and out.gltf_sequence
         n_done = n_written = 0
@@ -461,6 +456,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             finished.add(f)
             if "error" in r:
                 res.failures[f] = r["error"]
+                lines_failed.add(f)
             else:
                 lines_results[f] = r["strokes"]
                 underlays[f] = r["underlays"]
@@ -509,7 +505,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             if not keep_strokes:
                 lines_results.pop(f, None)
             if progress:
-                progress("write", n_written, n_write)
+                # Frames whose lines failed are never written: they leave the total.
+                progress("write", n_written, len(to_write) - len(lines_failed.intersection(to_write)))
 
         def handle(r: dict) -> bool:
             if r.get("stage") == "write":

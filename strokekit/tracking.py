@@ -669,7 +669,8 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         # votes of its own line and a stray one of the neighbour line.
         M = int(vid.max()) + 1
         key, inv = np.unique(vm.astype(np.int64) * M + vid, return_inverse=True)
-        kw = np.bincount(inv.ravel(), weights=w)
+        # Rounded: a sum's last bits depend on the order of the votes, a tie must not.
+        kw = np.round(np.bincount(inv.ravel(), weights=w), 9)
         ks, ki = key // M, key % M
         o = np.lexsort((-ki, kw, ks))  # per sample by weight, the last write wins
         label[ks[o]] = ki[o]
@@ -806,7 +807,7 @@ class Tracker:
             # old sample of the previous frame and takes its u (refined along the old tangent).
             rm, rq = match_samples(dense, prev.camera, votes, _tree(votes.p), radius_px=o.search_radius_px,
                                    min_tangent_dot=o.min_tangent_dot, k=4, return_projected=True,
-                                 piece_distance=True)
+                                   piece_distance=True)
             rh = np.flatnonzero(rm >= 0)
             src = rm[rh]
             slope = _local_slope(votes)

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from cli.main import main
+from strokekit.scene import load_scene
 from helpers import SAMPLES, model_path
 
 
@@ -152,10 +153,16 @@ def test_main_process_shares_the_frames_and_feeds_only_started_workers():
                         self.outstanding -= 1
             return self.ex.submit(run)
 
+    executed = []
+
     def task(k):
+        executed.append(k)
+        if threading.current_thread() is not threading.main_thread():
+            time.sleep(0.05)  # still running in the pool when the handler stops the run
         return {"k": k}
 
     def share(started_workers, tasks=20, stop_after=None):
+        executed.clear()
         pool, ran = CountingPool(), []
 
         def handle(r):
@@ -172,6 +179,26 @@ def test_main_process_shares_the_frames_and_feeds_only_started_workers():
     assert 2 <= len(pool.submitted) < 20 and pool.max_outstanding <= 2
     pool, ran = share(0, stop_after=2)  # a handler returning False (fail-fast) stops the rest
     assert ran == [0, 1, 2]
+    # Stopped while the pool still runs a task: that task finishes and its result is handled too
+    # (a write that completes after --fail-fast stopped the run is reported, not lost).
+    pool, ran = share(1, stop_after=0)
+    assert sorted(ran) == sorted(executed) and len(ran) >= 1
+
+
+def test_a_run_given_the_loaded_scene_reports_its_load_and_start_time(tmp_path):
+    """The command loads the scene and starts the pool before run(): the report's load stage
+    and wall time still count them."""
+    from strokekit.camera import orbit_path
+    from strokekit.options import LineOptions
+    from strokekit.pipeline import OutputOptions, RunSpec, run
+
+    path = model_path("spot.obj")
+    scene = load_scene(path)
+    cams = orbit_path(scene.center, scene.radius, 1, width=64, height=64).cameras
+    spec = RunSpec(scene_path=str(path), cameras=((1, cams[0]),), lines=LineOptions(),
+                   outputs=OutputOptions(out_dir=tmp_path))
+    res = run(spec, scene=scene, load_seconds=5.0, started_at=time.perf_counter() - 6.0)
+    assert res.stages[0].seconds >= 5.0 and res.wall_seconds >= 6.0 and res.frames_ok == [1]
 
 
 def test_tasks_added_while_mapping_run_next():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 
 import click
@@ -52,6 +53,9 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--doubled", type=float, default=None,
               help="Drop parts of contour strokes running beside a longer one within N px (mesh-contour "
                    "shingles) [1]; 0 keeps every visible contour edge, 2 keeps ids steadier on scanned meshes.")
+@click.option("--drop-retraced/--keep-retraced", "drop_retraced", default=None,
+              help="Drop strokes that retrace a longer stroke of their kind within 0.5 px (zig-zag spurs, "
+                   "coincident copies) [default: drop; draft: keep].")
 @click.option("--period", type=float, default=None, help="Texture period P in px for the parametrization u [30].")
 @click.option("--suggestive-threshold", type=float, default=None,
               help="Suggestive contours: minimum derivative of radial curvature, scale-free [50].")
@@ -66,13 +70,14 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
                    "cores for 8 frames or more, else 1).")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address, e.g. tcp://host:8786.")
 @click.option("--skip-existing", is_flag=True, help="Resume: do not rewrite frames whose files all exist.")
-@click.option("--fail-fast", is_flag=True, help="Stop at the first failed frame.")
+@click.option("--fail-fast", is_flag=True,
+              help="Stop at the first failed frame (frames already written stay; the run streams them out in order).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress and no summary.")
 @click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="Write a JSON run report.")
 @click.option("--explain", is_flag=True, help="List the stages that ran, why, and their time.")
 @render_extra_options
 def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out_dir, pattern, kinds, contours, quality,
-            crease_angle, whole_edge, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, doubled, period,
+            crease_angle, whole_edge, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, doubled, drop_retraced, period,
             suggestive_threshold, suggestive_kr_threshold, svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
             explain, **extra):
     """Render the visible feature lines of SCENE for every frame of a camera path (--camera, or
@@ -107,7 +112,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
                                whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
                                bisection_tol_px=bisection_tol,
                                split_angle_deg=split_angle, max_length_px=max_length, min_length_px=min_length,
-                               simplify_tol_px=simplify_tol, doubled_px=doubled, period_px=period,
+                               simplify_tol_px=simplify_tol, doubled_px=doubled, merge_overlaps=drop_retraced,
+                               period_px=period,
                                suggestive_derivative_threshold=suggestive_threshold,
                                suggestive_kr_threshold=suggestive_kr_threshold)
     path = None
@@ -126,9 +132,12 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     # BVH: about a second) overlaps ours.
     if not Path(scene).is_file():
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
+    t_start = time.perf_counter()
     pool = make_executor(workers, scheduler, warm=(str(scene), lines))
     try:
+        t_load = time.perf_counter()
         s = load_scene(scene)
+        load_seconds = time.perf_counter() - t_load
         if path is None:
             path = orbit_path(s.center, s.radius, orbit or 48, elevation=elevation, fov_y=fov, width=width or 1024,
                               height=height or 1024, up_axis=up)
@@ -141,7 +150,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
                        tracking=tracking_options_from(extra, lines, len(frames)), workers=workers,
                        scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast)
-        res = _run_with_progress(spec, quiet, pool, s)
+        res = _run_with_progress(spec, quiet, dict(workers=pool, scene=s, load_seconds=load_seconds,
+                                                   started_at=t_start))
     finally:
         pool.close()
     if report_path:
@@ -165,16 +175,14 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     return res.exit_code
 
 
-def _run_with_progress(spec: RunSpec, quiet: bool, workers, scene):
+def _run_with_progress(spec: RunSpec, quiet: bool, run_args: dict):
     if not is_interactive(quiet):
-        return run(spec, workers=workers, scene=scene)
+        return run(spec, **run_args)
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[fps]:.1f} frames/s"), TimeRemainingColumn(), transient=True) as prog:
         tasks = {}
-        import time
-
         t0 = {}
 
         def cb(phase, done, total):
@@ -182,6 +190,6 @@ def _run_with_progress(spec: RunSpec, quiet: bool, workers, scene):
                 tasks[phase] = prog.add_task(phase, total=total, fps=0.0)
                 t0[phase] = time.perf_counter()
             dt = max(time.perf_counter() - t0[phase], 1e-9)
-            prog.update(tasks[phase], completed=done, fps=done / dt)
+            prog.update(tasks[phase], completed=done, total=total, fps=done / dt)
 
-        return run(spec, progress=cb, workers=workers, scene=scene)
+        return run(spec, progress=cb, **run_args)
