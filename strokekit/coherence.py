@@ -137,7 +137,8 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
 
 def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None = None, *,
                   radius_px: float = MATCH_RADIUS_PX, min_tangent_dot: float = MIN_TANGENT_DOT,
-                  k: int = 8, return_projected: bool = False, piece_distance: bool = False):
+                  k: int = 8, return_projected: bool = False, piece_distance: bool = False,
+                  exact: bool = False):
     """For every sample of `src`: the index of its match in `dst` (or -1). src.X is projected
     with `camera` (dst's camera); the match is the nearest dst sample within `radius_px` px
     whose tangent agrees with the src tangent (|t.t'| >= min_tangent_dot). With
@@ -146,7 +147,10 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     samples, the one whose piece of line (length w along t, centred on p) passes nearest wins,
     instead of the one whose centre is nearest: where lines run 1-3 px apart (shingled mesh
     contours) the nearest centre of samples 3-4 px apart is often on the wrong line, the line
-    the 1 px samples of the metrics pick is not. The metrics use the plain rule."""
+    the 1 px samples of the metrics pick is not. The metrics use the plain rule.
+    exact (the metrics, BRIEF 3): where all k nearest samples are within reach and none agrees,
+    every sample within reach is examined, so the nearest agreeing one is never missed in
+    crowded places (the tracker's votes are content with the k nearest)."""
     out = np.full(len(src), -1, np.int64)
     if len(src) == 0 or len(dst) == 0:
         return (out, np.full((len(src), 2), np.nan)) if return_projected else out
@@ -179,11 +183,37 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
         # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.
         first = np.argmax(good, axis=1)
     m = np.where(has, safe[np.arange(len(safe)), first], -1)
+    if exact and not piece_distance:
+        redo = np.flatnonzero(~has & valid[:, -1])
+        if len(redo):
+            m[redo] = _nearest_agreeing(tree, (q if every else q[ok])[redo], st[redo], dst.t, radius_px,
+                                        min_tangent_dot)
     if every:
         out = m
     else:
         out[np.flatnonzero(ok)] = m
     return (out, q) if return_projected else out
+
+
+def _nearest_agreeing(tree: cKDTree, q: np.ndarray, t: np.ndarray, dst_t: np.ndarray, radius_px: float,
+                      min_tangent_dot: float) -> np.ndarray:
+    """(N,) for points q (N, 2) with tangents t: the nearest sample of `tree` within radius_px whose
+    tangent (dst_t) agrees, among all of them, or -1."""
+    near = tree.query_ball_point(q, radius_px)
+    counts = np.fromiter((len(x) for x in near), np.int64, len(near))
+    out = np.full(len(q), -1, np.int64)
+    if counts.sum() == 0:
+        return out
+    cand = np.fromiter((j for x in near for j in x), np.int64, int(counts.sum()))
+    row = np.repeat(np.arange(len(q)), counts)
+    d = tree.data[cand] - q[row]
+    dist2 = np.einsum("ij,ij->i", d, d)
+    good = np.abs(np.einsum("ij,ij->i", dst_t[cand], t[row])) >= min_tangent_dot
+    row, cand, dist2 = row[good], cand[good], dist2[good]
+    o = np.lexsort((cand, dist2, row))  # per row the nearest first (ties: lower index)
+    first = o[np.r_[True, row[o][1:] != row[o][:-1]]] if len(o) else o
+    out[row[first]] = cand[first]
+    return out
 
 
 def _wrap(du: np.ndarray) -> np.ndarray:
@@ -270,8 +300,8 @@ def pair_metrics(prev: Strokes, cur: Strokes, *, radius_px: float = MATCH_RADIUS
     P = cur.period_px
     ta = cKDTree(a.p) if len(a) else None
     tb = cKDTree(b.p) if len(b) else None
-    ab = match_samples(a, cur.camera, b, tb, radius_px=radius_px, min_tangent_dot=min_tangent_dot)
-    ba = match_samples(b, prev.camera, a, ta, radius_px=radius_px, min_tangent_dot=min_tangent_dot)
+    ab = match_samples(a, cur.camera, b, tb, radius_px=radius_px, min_tangent_dot=min_tangent_dot, exact=True)
+    ba = match_samples(b, prev.camera, a, ta, radius_px=radius_px, min_tangent_dot=min_tangent_dot, exact=True)
     ma, mb = ab >= 0, ba >= 0
     matched = a.w[ma].sum() + b.w[mb].sum()
     same = a.w[ma][a.ids[ma] == b.ids[ab[ma]]].sum() + b.w[mb][b.ids[mb] == a.ids[ba[mb]]].sum()
