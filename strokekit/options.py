@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
 
 from .errors import UsageError
@@ -21,6 +22,16 @@ QUALITY_PRESETS: dict[str, dict] = {
 }
 
 DEFAULT_KINDS = ("silhouette", "border", "crease", "material", "nonmanifold")
+
+#: The command-line option of each LineOptions field whose name differs from it.
+_FLAGS = {"sample_spacing_px": "--sample-spacing", "bisection_tol_px": "--bisection-tol", "period_px": "--period",
+          "max_length_px": "--max-length", "min_length_px": "--min-length", "simplify_tol_px": "--simplify",
+          "doubled_px": "--doubled", "whole_edge_px": "--whole-edge"}
+
+
+def _flag(field_name: str) -> str:
+    """'--sample-spacing (sample_spacing_px)': how error messages name a LineOptions field."""
+    return f"{_FLAGS.get(field_name, '--' + field_name.replace('_', '-'))} ({field_name})"
 
 
 @dataclass(frozen=True)
@@ -60,19 +71,19 @@ class LineOptions:
             raise UsageError(f"unknown line kind(s) {', '.join(unknown)} (known: {', '.join(KINDS)})")
         if not self.kinds:
             raise UsageError("no line kinds selected")
+        # Messages name the command-line option (and the field, for library users).
         for name in ("sample_spacing_px", "bisection_tol_px", "period_px"):
-            if not getattr(self, name) > 0:
-                raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
+            v = getattr(self, name)
+            if not (v > 0 and math.isfinite(v)):
+                raise UsageError(f"{_flag(name)} must be a finite number > 0, got {v}")
+        for name in ("max_length_px", "min_length_px", "simplify_tol_px", "doubled_px", "whole_edge_px"):
+            v = getattr(self, name)
+            if not (v >= 0 and math.isfinite(v)):
+                raise UsageError(f"{_flag(name)} must be a finite number >= 0 px, got {v}")
         if not 0 < self.crease_angle_deg < 180:
-            raise UsageError(f"crease angle must be in (0, 180) degrees, got {self.crease_angle_deg}")
+            raise UsageError(f"--crease-angle must be in (0, 180) degrees, got {self.crease_angle_deg}")
         if not 0 < self.split_angle_deg <= 180:
-            raise UsageError(f"split angle must be in (0, 180] degrees, got {self.split_angle_deg}")
-        if self.max_length_px < 0 or self.min_length_px < 0:
-            raise UsageError("max/min stroke length must be >= 0")
-        if not self.doubled_px >= 0:
-            raise UsageError(f"doubled must be >= 0 px, got {self.doubled_px}")
-        if not self.whole_edge_px >= 0:
-            raise UsageError(f"whole-edge must be >= 0 px, got {self.whole_edge_px}")
+            raise UsageError(f"--split-angle must be in (0, 180] degrees, got {self.split_angle_deg}")
         if self.contours not in ("mesh", "smooth"):
             raise UsageError(f"contours must be 'mesh' or 'smooth', got {self.contours!r}")
 

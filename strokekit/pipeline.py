@@ -130,8 +130,9 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
     add("  crease", "crease" in kinds and scene.crease_mask(L.crease_angle_deg).any(),
         f"crease lines requested, creases above {L.crease_angle_deg:g} deg exist",
         "not requested or no edge is sharper than the crease angle")
-    add("  material boundary", "material" in kinds and len(scene.materials) > 1,
-        "requested and the scene has several materials", "not requested or the scene has one material")
+    add("  material boundary", "material" in kinds and len(scene.materials) > 1 and scene.is_material_boundary.any(),
+        "requested and faces of different materials meet",
+        "not requested, or no edge between faces of different materials")
     add("  nonmanifold", "nonmanifold" in kinds and scene.is_nonmanifold.any(),
         "requested and non-manifold edges exist", "not requested or no non-manifold edge")
     add("  suggestive contour", "suggestive" in kinds, "requested", "not requested")
@@ -431,7 +432,11 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         lines_results: dict[int, Strokes] = {}
         underlays: dict[int, list | None] = {}
         if workers.main_helps:
-            _keep_renderer(spec.scene_path, scene, spec.lines)  # frames rendered here use this load
+            # Frames rendered here use this load; building the renderer (open3d, the BVH) is part
+            # of the load stage.
+            t = time.perf_counter()
+            _keep_renderer(spec.scene_path, scene, spec.lines)
+            stage["load scene + BVH"].seconds += time.perf_counter() - t
         pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
                          out if f not in done_before else replace(out, raster_options=None)) for f in need_lines)
         n_lines = len(pending)

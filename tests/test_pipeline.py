@@ -60,8 +60,9 @@ def test_failed_frame_does_not_lose_the_others(tmp_path, capsys):
     assert rep["frames"]["2"]["status"] == "failed" and rep["frames"]["1"]["status"] == "ok"
     assert rep["exit_code"] == 3 and list(rep["failures"]) == ["2"]
     # --fail-fast stops at the failure and still reports it.
-    code, _, _ = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "ff", "--fail-fast", "-q"], capsys)
-    assert code in (1, 3)
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "ff", "--fail-fast"], capsys)
+    assert code == 3 and "stopped at frame 2 (--fail-fast), 1 not run" in err
+    assert sorted(p.name for p in (tmp_path / "ff").iterdir()) == ["frame_0001.json", "frame_0001.svg"]
 
 
 def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):

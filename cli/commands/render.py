@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -105,6 +106,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             raise UsageError(f"bad --size {size!r}: use WxH, e.g. 1024x768") from None
         if width <= 0 or height <= 0:
             raise UsageError(f"bad --size {size!r}: width and height must be positive")
+    if not (stroke_width > 0 and math.isfinite(stroke_width)):
+        raise UsageError(f"--stroke-width must be a finite number > 0 px, got {stroke_width}")
     check_output_folder(out_dir)
     if report_path:
         check_output_folder(Path(report_path).parent)
@@ -171,6 +174,9 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             msg += f" ({len(res.frames_skipped)} already there, skipped)"
         if res.failures:
             msg += f"; {len(res.failures)} frame(s) failed"
+            not_run = len(spec.cameras) - len(set(res.frames_ok) | set(res.frames_skipped) | set(res.failures))
+            if spec.fail_fast and not_run:
+                msg += f"; stopped at frame {min(res.failures)} (--fail-fast), {not_run} not run"
         click.echo(msg, err=True)
     return res.exit_code
 
@@ -189,7 +195,8 @@ def _run_with_progress(spec: RunSpec, quiet: bool, run_args: dict):
             if phase not in tasks:
                 tasks[phase] = prog.add_task(phase, total=total, fps=0.0)
                 t0[phase] = time.perf_counter()
-            dt = max(time.perf_counter() - t0[phase], 1e-9)
-            prog.update(tasks[phase], completed=done, total=total, fps=done / dt)
+            dt = time.perf_counter() - t0[phase]
+            # A rate needs a measured interval: none until a quarter second has passed.
+            prog.update(tasks[phase], completed=done, total=total, fps=done / dt if dt >= 0.25 else 0.0)
 
         return run(spec, progress=cb, **run_args)

@@ -113,6 +113,9 @@ def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.
 
     k_default, r_default = _RASTER_DEFAULTS[quality]
     thresholds = _floats(extra["band_thresholds"], "--band-thresholds") if extra.get("band_thresholds") else ()
+    if thresholds and extra.get("bands") and extra["bands"] != len(thresholds) + 1:
+        raise UsageError(f"--bands {extra['bands']} but --band-thresholds gives {len(thresholds) + 1} bands "
+                         "(N thresholds make N + 1 bands; give one of the two)")
     bands = extra.get("bands") or (len(thresholds) + 1 if thresholds else 3)
     return RasterOptions(bands=bands, thresholds=thresholds, shading=extra["shading"],
                          light=_floats(extra["light"], "--light", 3), light_space=extra["light_space"],
