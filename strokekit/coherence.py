@@ -22,6 +22,8 @@ the screen position of the projected point, never on identical surface points.
 
 from __future__ import annotations
 
+import re
+
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -265,6 +267,7 @@ class PairMetrics:
     flatness: float = 0.0  # of frame f, with self-similar levels
     flatness_raw: float = 0.0  # of frame f, u as written
     flatness_blend: float = 0.0  # of frame f, blended octaves counted apart
+    prev_frame: int = -1  # the frame compared with (frame - 1 unless frames are missing)
 
     @property
     def m1(self) -> float:
@@ -311,7 +314,7 @@ def pair_metrics(prev: Strokes, cur: Strokes, *, radius_px: float = MATCH_RADIUS
     common, ia, ib = np.intersect1d(prev.ids, cur.ids, return_indices=True)
     # Ids are unique per frame when tracked; with repeated ids compare the first occurrences.
     growth = np.abs(cur.lengths[ib] - prev.lengths[ia])
-    return PairMetrics(frame=int(cur.frame), matched_px=float(matched), same_id_px=float(same),
+    return PairMetrics(frame=int(cur.frame), prev_frame=int(prev.frame), matched_px=float(matched), same_id_px=float(same),
                        unmatched_px=float(unmatched), total_px=float(total), sliding_px=slide, growth_px=growth,
                        flatness=_flatness(cur, b, "level"), flatness_raw=_flatness(cur, b, "raw"),
                        flatness_blend=_flatness(cur, b, "blend"))
@@ -349,26 +352,27 @@ def overall(pairs: list[PairMetrics]) -> dict:
             **_stats("M7", np.concatenate([p.growth_px for p in pairs]))}
 
 
-def frame_files(out_dir) -> list[Path]:
-    """The frame_*.json files of a folder in frame order."""
+def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
+    """The frame JSON files of a folder named by `pattern` (render --pattern), sorted by name."""
     d = Path(out_dir)
     if not d.exists():
         raise InputError("folder not found", d)
     if not d.is_dir():
         raise InputError("not a folder", d)
-    files = sorted(d.glob("frame_*.json"))
+    glob = re.sub(r"\{frame[^}]*\}", "*", pattern) + ".json"
+    files = sorted(d.glob(glob))
     if len(files) < 2:
-        raise InputError(f"needs at least 2 frame_*.json files to compare, found {len(files)}", d)
+        raise InputError(f"needs at least 2 {glob} files to compare, found {len(files)}", d)
     return files
 
 
-def folder_metrics(out_dir, **kw) -> tuple[list[PairMetrics], dict]:
-    """Read every frame_*.json of `out_dir` (strokekit.writers.strokes_json format), in frame
-    order, and return (per pair metrics, overall summary)."""
+def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", **kw) -> tuple[list[PairMetrics], dict]:
+    """Read every frame JSON of `out_dir` named by `pattern` (strokekit.writers.strokes_json
+    format), in frame order, and return (per pair metrics, overall summary)."""
     from .writers.strokes_json import read_strokes_json
 
     frames = []
-    for f in frame_files(out_dir):
+    for f in frame_files(out_dir, pattern):
         try:
             st = read_strokes_json(f)
         except (KeyError, ValueError, TypeError) as e:

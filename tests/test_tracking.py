@@ -245,6 +245,24 @@ def test_coherence_command_prints_table_and_json(tmp_path, cube_frames):
     assert isinstance(res.exception, InputError)
 
 
+def test_coherence_command_reads_a_pattern_and_warns_about_missing_frames(tmp_path, cube_frames):
+    """`coherence --pattern` reads frames written with render --pattern; a gap in the frame
+    numbers is said (the pair compares two frames that are not neighbours)."""
+    from click.testing import CliRunner
+
+    from cli.commands.coherence import command
+
+    tracked = track_frames(cube_frames[:4])
+    for f in tracked:
+        if f.frame != 3:
+            (tmp_path / f"shot_{f.frame:03d}.json").write_bytes(strokes_json(f, SIZE, SIZE, f.frame))
+    res = CliRunner().invoke(command, [str(tmp_path), "--json", "--pattern", "shot_{frame:03d}"])
+    assert res.exit_code == 0, res.output
+    assert "frame 4 is compared with frame 2" in res.stderr and "frame 2 is compared" not in res.stderr
+    res = CliRunner().invoke(command, [str(tmp_path)])  # the default pattern finds none of them
+    assert isinstance(res.exception, InputError) and "frame_*.json" in str(res.exception)
+
+
 # --- re-cutting, healing, doubled lines (small synthetic frames on the plane z = 0) -----------
 
 def _plane_strokes(polylines, frame=1, eye=(0.0, 0.0, 10.0), n=60, kind="crease"):

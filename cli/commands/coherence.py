@@ -18,11 +18,17 @@ _COLUMNS = [("frame", "pair", "{:d}"), ("M1", "M1 ids", "{:.3f}"), ("M2", "M2 po
 @click.option("--json", "as_json", is_flag=True, help="Print JSON (per pair and overall) instead of a table.")
 @click.option("--radius", type=float, default=6.0, show_default=True, help="Match radius, px.")
 @click.option("--min-dot", type=float, default=0.65, show_default=True, help="Minimum |t.t'| of a match.")
-def command(out_dir: str, as_json: bool, radius: float, min_dot: float):
+@click.option("--pattern", default="frame_{frame:04d}", show_default=True,
+              help="File name pattern of the frames (as given to render --pattern).")
+def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern: str):
     """Per frame pair and overall: M1 id persistence, M2 popping, M4 sliding (median/p95/max px),
     M5 flatness (octaves, with self-similar levels and raw u), M7 end growth, from the
-    frame_*.json files of OUT_DIR."""
-    pairs, total = folder_metrics(out_dir, radius_px=radius, min_tangent_dot=min_dot)
+    frame JSON files of OUT_DIR (README: what each metric measures)."""
+    pairs, total = folder_metrics(out_dir, pattern, radius_px=radius, min_tangent_dot=min_dot)
+    for p in pairs:
+        if p.frame - p.prev_frame != 1:
+            click.echo(f"strokekit: warning: frame {p.frame} is compared with frame {p.prev_frame} "
+                       f"(frames in between are missing)", err=True)
     rows = [p.summary() for p in pairs]
     if as_json:
         click.echo(orjson.dumps({"pairs": rows, "overall": total}, option=orjson.OPT_INDENT_2).decode())
