@@ -50,10 +50,11 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--split-angle", type=float, default=None, help="Split strokes at turns sharper than N degrees [90].")
 @click.option("--max-length", type=float, default=None, help="Split strokes longer than N px [no limit].")
 @click.option("--min-length", type=float, default=None, help="Drop strokes shorter than N px [0].")
-@click.option("--simplify", "simplify_tol", type=float, default=None, help="Simplify strokes within N px.")
+@click.option("--simplify", "simplify_tol", type=float, default=None, help="Simplify strokes within N px (Douglas-Peucker) [0: off].")
 @click.option("--doubled", type=float, default=None,
               help="Drop parts of contour strokes running beside a longer one within N px (mesh-contour "
-                   "shingles) [1]; 0 keeps every visible contour edge, 2 keeps ids steadier on scanned meshes.")
+                   "shingles) [1; draft: 0]; 0 keeps every visible contour edge, 2 keeps ids steadier on scanned "
+                   "meshes.")
 @click.option("--drop-retraced/--keep-retraced", "drop_retraced", default=None,
               help="Drop strokes that retrace a longer stroke of their kind within 0.5 px (zig-zag spurs, "
                    "coincident copies) [default: drop; draft: keep].")
