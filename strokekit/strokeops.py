@@ -200,12 +200,6 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     return _replace(out, u=out.arc_length / out.period_px)
 
 
-def drop_retraced(strokes: Strokes, tol_px: float = 0.5) -> Strokes:
-    """Drop strokes that lie entirely within `tol_px` of a longer stroke of the same kind (see
-    drop_overlaps)."""
-    return drop_overlaps(strokes, retraced_px=tol_px, doubled_px=0.0)
-
-
 def drop_doubled(strokes: Strokes, radius_px: float, min_piece_px: float = 1.0, step_px: float = 1.0,
                  kinds: tuple[str, ...] = CONTOUR_KINDS) -> Strokes:
     """Cut out the parts of strokes that double a longer stroke (see drop_overlaps)."""
