@@ -196,9 +196,13 @@ def _keep_renderer(scene_path: str, scene: Scene, lines: LineOptions) -> None:
 
 
 def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int, camera: Camera,
-               outputs: OutputOptions, do_lines: bool = True) -> dict:
+               outputs: OutputOptions, do_lines: bool = True, write: tuple | None = None) -> dict:
     """Per-frame work that needs no other frame: lines, and the raster outputs (written here).
-    Returns {'frame', 'strokes', 'seconds', 'files'}; errors come back as {'error': message}."""
+    Returns {'frame', 'strokes', 'seconds', 'files'}; errors come back as {'error': message}.
+    `write` = (kinds, extra, keep_strokes): the frame needs nothing from other frames (no
+    tracking), so its SVG/JSON/GLB are written here too, and the result carries the write
+    task's result under 'written' (and the strokes only when `keep_strokes`): strokes are not
+    shipped to the main process and back."""
     t0 = time.perf_counter()
     try:
         r = _renderer(scene_path, scene_hash, lines)
@@ -216,8 +220,14 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
             for suffix, data in pngs.items():
                 files.append(str(atomic_write_bytes(f"{stem}_{suffix}.png", data)))
             timings["raster pass"] = time.perf_counter() - t1
-        return {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
-                "timings": timings, "underlays": underlays or None}
+        res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
+               "timings": timings, "underlays": underlays or None}
+        if write is not None and strokes is not None:
+            kinds, extra, keep_strokes = write
+            res["written"] = write_task(strokes, frame, outputs, kinds, extra, res.pop("underlays"))
+            if not keep_strokes:
+                res["strokes"] = None
+        return res
     except StrokekitError as e:
         return {"frame": frame, "error": str(e)}
     except Exception as e:  # a failed frame must not lose the others
@@ -437,12 +447,16 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             t = time.perf_counter()
             _keep_renderer(spec.scene_path, scene, spec.lines)
             stage["load scene + BVH"].seconds += time.perf_counter() - t
-        pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
-                         out if f not in done_before else replace(out, raster_options=None)) for f in need_lines)
-        n_lines = len(pending)
         to_write = [f for f in need_lines if f not in done_before]
         extra = {"contours": spec.lines.contours,
                  "tracking": getattr(spec.tracking, "method", "none") if tracking_on else "none"}
+        keep_strokes = out.gltf and out.gltf_sequence
+        # Without tracking a frame needs no other: it is written where its lines are computed.
+        write_in_task = None if tracking_on else (spec.lines.kinds, extra, keep_strokes)
+        pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
+                         out if f not in done_before else replace(out, raster_options=None), True,
+                         write_in_task if f not in done_before else None) for f in need_lines)
+        n_lines = len(pending)
         tracker = None
         if tracking_on:
             from .tracking import Tracker
@@ -451,7 +465,6 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         finished: set[int] = set()  # frames whose lines are done or failed
         lines_failed: set[int] = set()
         ordered: list[int] = []  # frames with lines, in frame order, tracked when tracking is on
-        keep_strokes = out.gltf and out.gltf_sequence
         n_done = n_written = 0
 
         def lines_done(r: dict) -> None:
@@ -464,12 +477,14 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
                 lines_failed.add(f)
             else:
                 lines_results[f] = r["strokes"]
-                underlays[f] = r["underlays"]
+                underlays[f] = r.get("underlays")
                 res.frame_seconds[f] = r["seconds"]
                 res.outputs += r["files"]
                 _add_timings(stage, r["timings"])
             if progress:
                 progress("lines", n_done, n_lines)
+            if "written" in r:
+                written(r["written"])
             # Frames go on in frame order as soon as every earlier one is done: the tracking
             # pass (the only sequential stage) runs here, beside the workers' line work, and
             # each tracked frame is written next (its write task goes first in line), so
@@ -490,6 +505,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
                     lines_results[f] = tracker.step(lines_results[f])
                     stage["tracking"].seconds += time.perf_counter() - t
                 ordered.append(f)
+                if write_in_task is not None:
+                    continue  # written by its frame task
                 if f not in done_before and not (spec.fail_fast and res.failures):
                     pending.appendleft((write_task, lines_results[f], f, out, spec.lines.kinds, extra,
                                         underlays.pop(f, None)))
@@ -518,7 +535,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
                 written(r)
             else:
                 lines_done(r)
-            return not (spec.fail_fast and "error" in r)
+            return not (spec.fail_fast and ("error" in r or "error" in r.get("written", ())))
 
         workers.map(pending, handle)
         if out.gltf and out.gltf_sequence and ordered:
