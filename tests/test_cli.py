@@ -330,3 +330,54 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         load_scene(p)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc")
+def test_report_where_no_file_can_be_created_is_refused_before_any_frame(cube, tmp_path, capsys):
+    """/proc passes a permission check (os.access, as root) but no file can be created there: the
+    report must be refused up front, naming the report path, not after every frame with the
+    name of a temporary file."""
+    for report in ("/proc/strokekit-report.json", "/proc/strokekit-none/r.json"):
+        code, _, err = run_cli(["render", cube, "--orbit", "2", "--out", tmp_path / "o", "--report", report], capsys)
+        assert code == 1, err
+        assert len(err.strip().splitlines()) == 1 and err.startswith(f"strokekit: error: {report}: "), err
+        assert ".part" not in err and not (tmp_path / "o").exists()
+    code, _, err = run_cli(["render", cube, "--orbit", "2", "--out", "/proc/strokekit-out"], capsys)
+    assert code == 1 and err.startswith("strokekit: error: /proc/strokekit-out: ") and len(err.splitlines()) == 1
+    code, _, err = run_cli(["render", cube, "--orbit", "2", "--out", tmp_path / "o", "--report", ""], capsys)
+    assert code == 2 and "--report" in err and not (tmp_path / "o").exists()
+    code, _, err = run_cli(["bench", cube, "--frames", "1", "--plot", "/proc/strokekit-b.png"], capsys)
+    assert code == 1 and err.startswith("strokekit: error: /proc/strokekit-b.png: "), err
+
+
+def test_report_in_a_read_only_folder_is_refused_before_any_frame(cube, tmp_path, capsys):
+    import os
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        if os.access(ro, os.W_OK):
+            pytest.skip("running as root: a read-only folder is still writable")
+        code, _, err = run_cli(["render", cube, "--orbit", "2", "--out", tmp_path / "o", "--report", ro / "r.json"],
+                               capsys)
+        assert code == 1 and str(ro / "r.json") in err and len(err.splitlines()) == 1
+        assert not (tmp_path / "o").exists()
+    finally:
+        ro.chmod(0o755)
+
+
+def test_a_failed_atomic_write_names_the_file_not_its_temporary(tmp_path):
+    from strokekit.fileio import atomic_write_bytes, check_output_file
+
+    blocker = tmp_path / "f"
+    blocker.write_text("x")
+    with pytest.raises(OSError) as e:
+        atomic_write_bytes(blocker / "a.json", b"{}")
+    assert e.value.filename == str(blocker / "a.json")
+    if Path("/proc/self").is_dir():
+        with pytest.raises(OSError) as e:
+            atomic_write_bytes("/proc/strokekit-x.json", b"{}")
+        assert e.value.filename == "/proc/strokekit-x.json"
+    check_output_file(tmp_path / "new" / "deeper" / "r.json")  # missing folders are fine: created later
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]  # and the check leaves nothing behind

@@ -43,6 +43,10 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
             raise UsageError(f"--sweep must be comma-separated numbers, got {sweep!r}") from None
         if not values or min(values) <= 0:
             raise UsageError("--sweep values must be > 0")
+    if plot_path is not None:
+        from strokekit.fileio import check_output_file
+
+        check_output_file(plot_path)  # said now, not after a minute of timing
     scene = load_scene(scene_path)
     if camera_path:
         cams = list(load_camera_path(camera_path).cameras)[:frames]

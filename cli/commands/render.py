@@ -12,7 +12,7 @@ import click
 
 from strokekit.camera import load_camera_path, orbit_path
 from strokekit.errors import UsageError
-from strokekit.fileio import atomic_write_text, check_output_folder
+from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder
 from strokekit.frames import parse_frames
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
 from strokekit.pipeline import OutputOptions, RunSpec, make_executor, run, run_report
@@ -109,9 +109,12 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             raise UsageError(f"bad --size {size!r}: width and height must be positive")
     if not (stroke_width > 0 and math.isfinite(stroke_width)):
         raise UsageError(f"--stroke-width must be a finite number > 0 px, got {stroke_width}")
+    # Outputs that cannot be written are said now, not after every frame has been rendered.
     check_output_folder(out_dir)
-    if report_path:
-        check_output_folder(Path(report_path).parent)
+    if report_path is not None:
+        if not report_path.strip():
+            raise UsageError("--report needs a file name")
+        check_output_file(report_path)
     lines = LineOptions.preset(quality, kinds=split_list(kinds), contours=contours, crease_angle_deg=crease_angle,
                                whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
                                bisection_tol_px=bisection_tol,
