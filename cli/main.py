@@ -30,7 +30,19 @@ from strokekit.errors import StrokekitError
 from . import commands
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
+class _Interrupted(Exception):
+    """Ctrl-C inside a command, carried past click (which would print an empty line and abort)."""
+
+
+class _Group(click.Group):
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            raise _Interrupted() from None
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 110})
 @click.version_option(package_name="strokekit")
 def cli():
     """Turn 3D scenes into coherent line drawings (SVG, JSON, glTF ribbons, toon masks)."""
@@ -68,7 +80,7 @@ def main(argv: list[str] | None = None) -> None:
     except StrokekitError as e:
         click.echo(f"strokekit: error: {e}", err=True)
         sys.exit(e.exit_code)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, _Interrupted):
         click.echo("strokekit: interrupted", err=True)
         sys.exit(130)
     except OSError as e:  # an output that cannot be written: not a folder, no permission, disk full

@@ -20,7 +20,7 @@ from typing import Callable
 
 from .camera import Camera
 from .errors import InputError, StrokekitError, UsageError
-from .fileio import atomic_write_bytes
+from .fileio import atomic_write_bytes, temp_file_target
 from .lines import LineRenderer
 from .model import Strokes
 from .options import LineOptions
@@ -101,12 +101,33 @@ class RunResult:
     wall_seconds: float = 0.0
     scene_hash: str = ""
     scene_summary: dict = field(default_factory=dict)
+    #: Stopped by Ctrl-C (KeyboardInterrupt): frames_ok are the frames written before it.
+    interrupted: bool = False
 
     @property
     def exit_code(self) -> int:
+        if self.interrupted:
+            return 130  # the shell's code for a process stopped by SIGINT
         if not self.failures:
             return 0
         return 3 if self.frames_ok or self.frames_skipped else 1
+
+    @property
+    def status(self) -> str:
+        """'ok', 'interrupted', 'partial' (some frames failed) or 'failed' (no frame done)."""
+        if self.interrupted:
+            return "interrupted"
+        return {0: "ok", 3: "partial"}.get(self.exit_code, "failed")
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a run. The run has shut its workers down and removed the temporary files
+    they left; `result` holds what was done before (frames written, failures, timings), with
+    `result.interrupted` set. A KeyboardInterrupt, so code that does not know it stops as usual."""
+
+    def __init__(self, result: RunResult):
+        super().__init__("run interrupted")
+        self.result = result
 
 
 # --- the stage plan -------------------------------------------------------------------------------
@@ -282,7 +303,7 @@ class Workers:
     N is this process and N - 1 pool workers) this process runs tasks too (`main_helps`)."""
 
     executor: Executor | None  # None: this process runs every task (main_helps, no pool)
-    close: Callable[[], None]
+    close: Callable[[], None]  # may be called more than once (an interrupted run closes them itself)
     #: Pool workers that have finished starting (imports, scene, BVH): a shared integer (always
     #: 0 when this process is the only one), or None when this process does not render (dask).
     started: object | None = None
@@ -349,7 +370,7 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
         except Exception as e:
             raise InputError(f"cannot reach the dask scheduler at {scheduler} ({e})") from None
         ex = client.get_executor(pure=False)
-        return Workers(ex, client.close)
+        return Workers(ex, _once(client.close))
     if workers <= 1:
         # This process does every task, one by one, handling each result before the next task.
         return Workers(None, lambda: None, started=_NoPool())
@@ -385,7 +406,18 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
             proc.terminate()
         ex.shutdown(wait=True)
 
-    return Workers(ex, close, started=started)
+    return Workers(ex, _once(close), started=started)
+
+
+def _once(fn: Callable[[], None]) -> Callable[[], None]:
+    done = []
+
+    def call_once() -> None:
+        if not done:
+            done.append(True)
+            fn()
+
+    return call_once
 
 
 # --- the run -------------------------------------------------------------------------------------------
@@ -546,13 +578,43 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             path = out.out_dir / "sequence.glb"
             res.outputs.append(str(atomic_write_bytes(path, glb_for_sequence(seq, out.gltf_options))))
             stage["ribbons + glTF"].seconds += time.perf_counter() - t
+    except KeyboardInterrupt:
+        # Ctrl-C: the frames in progress are abandoned. The workers stop now (also the caller's:
+        # their tasks belong to this run), then the temporary files of the writes they were in
+        # are removed; every file left is complete (written whole, then renamed).
+        workers.close()
+        remove_temp_files(spec)
+        res.interrupted = True
+        _finish(res, t_start)
+        raise RunInterrupted(res) from None
     finally:
         if own:
             workers.close()
+    return _finish(res, t_start)
+
+
+def _finish(res: RunResult, t_start: float) -> RunResult:
     res.frames_ok.sort()
     res.outputs.sort()
     res.wall_seconds = time.perf_counter() - t_start
     return res
+
+
+def remove_temp_files(spec: RunSpec) -> list[Path]:
+    """Remove the temporary files (.<name>.<random>.part) that writes of this run's outputs left
+    in its output folder (a worker stopped mid-write); returns them. Others' files are not touched."""
+    out = spec.outputs
+    names = {p.name for f, _ in spec.cameras for p in out.frame_files(f)} | {"sequence.glb"}
+    removed = []
+    try:
+        temps = list(out.out_dir.glob(".*.part"))
+    except OSError:
+        return removed
+    for tmp in temps:
+        if temp_file_target(tmp) in names:
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+    return removed
 
 
 def _add_timings(stage: dict, timings: dict) -> None:
@@ -591,6 +653,7 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
         else:
             frames[str(f)] = {"status": "not run"}
     return {
+        "status": res.status,
         "versions": versions(),
         "platform": platform.platform(),
         "scene": {"path": spec.scene_path, "sha256": file_hash, "content_hash": res.scene_hash, **res.scene_summary},

@@ -381,3 +381,15 @@ def test_a_failed_atomic_write_names_the_file_not_its_temporary(tmp_path):
         assert e.value.filename == "/proc/strokekit-x.json"
     check_output_file(tmp_path / "new" / "deeper" / "r.json")  # missing folders are fine: created later
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]  # and the check leaves nothing behind
+
+
+def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatch):
+    """click turns a KeyboardInterrupt into an empty line and 'Aborted!'; the user gets one line."""
+    import cli.commands.info as info
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(info, "load_scene", interrupted)
+    code, out, err = run_cli(["info", cube], capsys)
+    assert code == 130 and err == "strokekit: interrupted\n" and out == ""

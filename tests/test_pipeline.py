@@ -246,3 +246,94 @@ def test_scene_edited_between_two_runs_of_one_process_is_rendered_fresh(tmp_path
     code, _, err = run_cli([*args, "--out", tmp_path / "b"], capsys)
     assert code == 0, err
     assert tree_bytes(tmp_path / "a") != tree_bytes(tmp_path / "b")
+
+
+def _cube(tmp_path: Path) -> Path:
+    import trimesh
+
+    p = tmp_path / "cube.obj"
+    trimesh.creation.box(extents=[2, 2, 2]).export(p)
+    return p
+
+
+def test_interrupted_run_keeps_what_it_wrote_and_says_so(tmp_path):
+    """Ctrl-C in the middle of run(): RunInterrupted (a KeyboardInterrupt) carries the result
+    with the frames written so far; the temporary files of writes this run was in are removed
+    (not other files); the report says 'interrupted' and exit code 130."""
+    from strokekit.camera import orbit_path
+    from strokekit.options import LineOptions
+    from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, run, run_report
+
+    cube = _cube(tmp_path)
+    s = load_scene(cube)
+    out = tmp_path / "o"
+    spec = RunSpec(scene_path=str(cube), cameras=tuple(orbit_path(s.center, s.radius, 6, width=64, height=64)
+                                                        .select(list(range(1, 7)))),
+                   lines=LineOptions(), outputs=OutputOptions(out_dir=out))
+    foreign = out / ".notes.txt.k2j4h5g6.part"
+
+    def progress(phase, done, total):
+        if phase == "write" and done == 2:
+            # A worker stopped in the middle of writing frame 4, and a temporary that is not ours.
+            (out / ".frame_0004.svg.a1b2c3d4.part").write_text("<svg")
+            foreign.write_text("x")
+            raise KeyboardInterrupt
+
+    with pytest.raises(RunInterrupted) as e:
+        run(spec, progress)
+    res = e.value.result
+    assert isinstance(e.value, KeyboardInterrupt)
+    assert res.interrupted and res.exit_code == 130 and res.frames_ok == [1, 2]
+    assert sorted(p.name for p in out.iterdir()) == [foreign.name, "frame_0001.json", "frame_0001.svg",
+                                                     "frame_0002.json", "frame_0002.svg"]
+    rep = run_report(spec, res)
+    assert rep["status"] == "interrupted" and rep["exit_code"] == 130
+    assert [f for f, v in rep["frames"].items() if v["status"] == "ok"] == ["1", "2"]
+    assert all(v["status"] == "not run" for f, v in rep["frames"].items() if f not in ("1", "2"))
+    assert run_report(spec, run(spec))["status"] == "ok"
+
+
+def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
+    """SIGINT to `strokekit render` with a pool once frames are coming out: exit 130, one line
+    saying how many frames were written, the --report written with status 'interrupted', the
+    worker processes gone, no temporary file left, and every frame file there is whole."""
+    import xml.etree.ElementTree as ET
+
+    psutil = pytest.importorskip("psutil")
+    out, report = tmp_path / "o", tmp_path / "run.json"
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    env.pop("STROKEKIT_DEBUG", None)
+    cmd = [sys.executable, "-m", "cli.main", "render", str(SAMPLES / "still_life.glb"), "--orbit", "1000",
+           "--size", "200x150", "--workers", "2", "--out", str(out), "--report", str(report)]
+    # SIGINT as a terminal gives it, also when this test runs where it is ignored (a background job).
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.time() + 60
+        while time.time() < deadline and proc.poll() is None and len(list(out.glob("frame_*.svg"))) < 2:
+            time.sleep(0.01)
+        assert proc.poll() is None, "the run ended before it could be interrupted"
+        children = psutil.Process(proc.pid).children(recursive=True)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("strokekit: interrupted: ") and "Traceback" not in err, err
+    rep = json.loads(report.read_text())
+    assert rep["status"] == "interrupted" and rep["exit_code"] == 130
+    # The frames whose writing this process had taken note of (a file may be there whose result
+    # had not come back yet: it is whole, but not counted).
+    done = sorted(int(f) for f, v in rep["frames"].items() if v["status"] == "ok")
+    assert len(done) < 1000 and f" {len(done)} of 1000 frame(s) written" in lines[0]
+    assert not list(out.glob(".*"))  # no temporary file
+    for f in done:  # the report's frames are there in full
+        assert (out / f"frame_{f:04d}.svg").exists() and (out / f"frame_{f:04d}.json").exists()
+    for p in out.glob("frame_*.svg"):  # and every file there is whole
+        ET.parse(p)
+    for p in out.glob("frame_*.json"):
+        json.loads(p.read_text())
+    alive = psutil.wait_procs(children, timeout=10)[1]
+    assert children and not alive, "worker processes outlived the run"

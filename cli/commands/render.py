@@ -15,7 +15,7 @@ from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder
 from strokekit.frames import parse_frames
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
-from strokekit.pipeline import OutputOptions, RunSpec, make_executor, run, run_report
+from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, make_executor, run, run_report
 from strokekit.scene import load_scene
 
 from ..common import is_interactive, split_list
@@ -86,7 +86,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     --orbit N; without either, a 48-frame orbit).
 
     Writes OUT/frame_0001.svg and .json (and .glb, band PNGs when asked) per frame. Exit codes: 0 done,
-    1 bad input or unwritable output, 2 usage error, 3 some frames failed (the others are written)."""
+    1 bad input or unwritable output, 2 usage error, 3 some frames failed (the others are written),
+    130 interrupted by Ctrl-C (the frames written so far stay, whole; --report lists them)."""
     if camera_file and orbit:
         raise UsageError("give either --camera or --orbit, not both")
     if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
@@ -157,12 +158,21 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
                        tracking=tracking_options_from(extra, lines, len(frames)), workers=workers,
                        scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast)
-        res = _run_with_progress(spec, quiet, dict(workers=pool, scene=s, load_seconds=load_seconds,
-                                                   started_at=t_start))
+        try:
+            res = _run_with_progress(spec, quiet, dict(workers=pool, scene=s, load_seconds=load_seconds,
+                                                       started_at=t_start))
+        except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
+            res = e.result
     finally:
         pool.close()
     if report_path:
         atomic_write_text(report_path, json.dumps(run_report(spec, res), indent=1) + "\n")
+    if res.interrupted:
+        # Said even with --quiet: it explains the exit code.
+        msg = (f"strokekit: interrupted: {len(res.frames_ok)} of {len(spec.cameras)} frame(s) written to "
+               f"{Path(out_dir)}/")
+        click.echo(msg + (f"; report in {report_path}" if report_path else ""), err=True)
+        return res.exit_code
     if explain:
         click.echo("stages:")
         for st in res.stages:
