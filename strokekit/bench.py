@@ -228,15 +228,30 @@ def result_json(result: dict) -> dict:
 
 
 def plot_bench(result: dict, path, tol: float = 1.0) -> None:
+    """Write bench_figure(result, tol) to `path` as a PNG (atomic)."""
+    import io
+
+    import matplotlib.pyplot as plt
+
+    from .fileio import atomic_write_bytes
+
+    fig = bench_figure(result, tol)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def bench_figure(result: dict, tol: float = 1.0):
     """Accuracy against time, one curve per knob: the error 1 - min(precision, recall) at `tol`
-    px (left) and at the next tol (right), log scale, against ms per frame (log scale)."""
+    px (left) and at the next tol (right), log scale, against ms per frame (log scale); the
+    raster pass beside them. Points are labelled with their preset or knob value; labels never
+    overlap each other, the markers or the legend (points at the same place share one label,
+    e.g. '8, 16'). Returns the matplotlib figure (Agg)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .fileio import atomic_write_bytes
-    import io
 
     tols = result["tols"]
     panels = [tol] + [t for t in tols if t != tol][:1]
@@ -247,42 +262,109 @@ def plot_bench(result: dict, path, tol: float = 1.0) -> None:
     for r in result["rows"]:
         curves.setdefault(r.curve, []).append(r)
     floor = 1e-6  # log axis: perfect rows are drawn at this error
+    labels: list[tuple] = []  # (axes, [(x, y, text, colour)])
     for ax, t in zip(axes[0], panels):
+        points = []
         for name, rows in curves.items():
             # Along the knob: presets in their order, sweeps by value.
             if name != "quality":
                 rows = sorted(rows, key=lambda r: float(r.label))
             x = [r.ms_per_frame for r in rows]
             y = [max(floor, 1.0 - min(r.accuracy.precision[t], r.accuracy.recall[t])) for r in rows]
-            ax.plot(x, y, "o-", label=name if name == "quality" else f"{name} (default preset otherwise)")
-            for xi, yi, r in zip(x, y, rows):
-                ax.annotate(r.label, (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
+            (line,) = ax.plot(x, y, "o-", label="--quality preset" if name == "quality"
+                              else f"{name}: value in px (default preset otherwise)")
+            points += [(xi, yi, r.label, line.get_color()) for xi, yi, r in zip(x, y, rows)]
+        labels.append((ax, points))
         ax.axhline(1e-3, color="grey", ls="--", lw=1, label="bar: 0.999")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_ylim(floor * 0.5, 1.0)
+        _log_axes(ax, floor)
         ax.set_xlabel("ms per frame (lines + SVG + JSON, median)")
         ax.set_ylabel(f"1 - min(precision, recall) at {t:g} px vs {REFERENCE}  (lower is better)")
         ax.set_title(f"{Path(result['scene']).name}: error at {t:g} px against time")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper right")
     if raster:
         ax = axes[0][-1]
         x = [r["ms_per_frame"] for r in raster]
         y = [max(floor, 1.0 - r["iou"]) for r in raster]
-        ax.plot(x, y, "s-", color="C2", label="raster supersample")
-        for xi, yi, r in zip(x, y, raster):
-            ax.annotate(f"K={r['supersample']}", (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=8)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_ylim(floor * 0.5, 1.0)
+        (line,) = ax.plot(x, y, "s-", color="C2", label="raster supersample K")
+        labels.append((ax, [(xi, yi, f"K={r['supersample']}", line.get_color()) for xi, yi, r in zip(x, y, raster)]))
+        _log_axes(ax, floor)
         ax.set_xlabel("ms per frame (raster pass + PNG, median)")
         ax.set_ylabel(f"1 - IoU of band coverage vs K={raster[0]['reference']}  (lower is better)")
         ax.set_title("raster pass: error against time")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    for ax, points in labels:
+        _label_points(ax, points)
+    return fig
+
+
+def _log_axes(ax, floor: float) -> None:
+    """Log-log axes whose time ticks read as plain numbers (10, 20, 50, 100), not 2x10^1."""
+    from matplotlib.ticker import FuncFormatter, LogLocator
+
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_ylim(floor * 0.5, 1.0)
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+    ax.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_tick_params(which="minor", labelsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def _label_points(ax, points: list[tuple], merge_px: float = 6.0) -> list:
+    """Label each (x, y, text, colour) point of `ax` beside its marker, where the label covers no
+    other label, no marker and not the legend: the first free place of a few around the point.
+    Points closer than `merge_px` on screen (the same measure twice, e.g. two sweep values that
+    cost the same) share one label 'a, b'. Returns the annotations."""
+    fig = ax.figure
+    renderer = fig.canvas.get_renderer()
+    to_px = ax.transData.transform
+    groups: list[list] = []  # points that fall on one spot: [px, py, texts, colour]
+    for x, y, text, colour in points:
+        px, py = to_px((x, y))
+        for g in groups:
+            if abs(g[0] - px) <= merge_px and abs(g[1] - py) <= merge_px:
+                g[2].append(text)
+                break
+        else:
+            groups.append([px, py, [text], colour])
+    marker_r = 5.0  # px around a marker kept free
+    obstacles = [(g[0] - marker_r, g[1] - marker_r, g[0] + marker_r, g[1] + marker_r) for g in groups]
+    legend = ax.get_legend()
+    if legend is not None:
+        b = legend.get_window_extent(renderer)
+        obstacles.append((b.x0, b.y0, b.x1, b.y1))
+    frame = ax.get_window_extent(renderer)
+    # (dx, dy) in points, horizontal and vertical alignment: beside, above, below, further out.
+    places = [(5, 4, "left", "bottom"), (5, -4, "left", "top"), (-5, 4, "right", "bottom"),
+              (-5, -4, "right", "top"), (0, 8, "center", "bottom"), (0, -8, "center", "top"),
+              (12, 14, "left", "bottom"), (12, -14, "left", "top"), (-12, 14, "right", "bottom"),
+              (-12, -14, "right", "top")]
+
+    def free(b) -> bool:
+        inside = b.x0 >= frame.x0 and b.x1 <= frame.x1 and b.y0 >= frame.y0 and b.y1 <= frame.y1
+        return inside and not any(b.x0 < o[2] and b.x1 > o[0] and b.y0 < o[3] and b.y1 > o[1] for o in obstacles)
+
+    label_box = dict(boxstyle="square,pad=0.1", fc="white", ec="none", alpha=0.75)  # readable over lines
+    out = []
+    for px, py, texts, colour in groups:
+        xy = ax.transData.inverted().transform((px, py))
+        best = None
+        for dx, dy, ha, va in places:
+            a = ax.annotate(", ".join(texts), xy, textcoords="offset points", xytext=(dx, dy), ha=ha, va=va,
+                            fontsize=8, color=colour, bbox=label_box)
+            b = a.get_window_extent(renderer)
+            if free(b):
+                best = (a, b)
+                break
+            a.remove()
+        if best is None:  # nowhere free: the first place, as before
+            dx, dy, ha, va = places[0]
+            a = ax.annotate(", ".join(texts), xy, textcoords="offset points", xytext=(dx, dy), ha=ha, va=va,
+                            fontsize=8, color=colour, bbox=label_box)
+            best = (a, a.get_window_extent(renderer))
+        b = best[1]
+        obstacles.append((b.x0, b.y0, b.x1, b.y1))
+        out.append(best[0])
+    return out

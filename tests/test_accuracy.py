@@ -121,6 +121,58 @@ def test_bench_rows_table_json_and_plot(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 5000
 
 
+def test_bench_plot_labels_do_not_overlap():
+    """The bunny bench as measured: sweep values 8 and 16 cost the same and miss the same lines
+    (one spot on the plot), 4 sits beside 'default' and 2 beside both. Every label must be
+    readable: one label '8, 16' for the shared spot, no two labels overlapping, none under the
+    legend, and time ticks that do not run into each other."""
+    import matplotlib.pyplot as plt
+
+    from strokekit.accuracy import Accuracy
+    from strokekit.bench import BenchRow, bench_figure
+    from strokekit.options import LineOptions
+
+    tols = (0.5, 1.0, 2.0)
+
+    def row(curve, label, ms, err05, err1):
+        r = BenchRow(curve, label, LineOptions(), ms)
+        r.accuracy = Accuracy(tols, {0.5: 1 - err05, 1.0: 1 - err1, 2.0: 1.0}, {0.5: 1 - err05, 1.0: 1 - err1, 2.0: 1.0},
+                              1.0, 1.0, 1)
+        return r
+
+    rows = [row("quality", "draft", 9.07, 4.2e-2, 3.2e-3), row("quality", "default", 17.8, 8.4e-4, 6.4e-5),
+            row("quality", "exact", 74.3, 0.0, 0.0)]
+    rows += [row("sample_spacing_px", v, ms, e05, e1) for v, ms, e05, e1 in
+             (("0.5", 32.5, 9.3e-5, 4.7e-5), ("1", 19.6, 9.3e-5, 4.7e-5), ("2", 16.2, 4.8e-4, 6.4e-5),
+              ("4", 15.0, 8.4e-4, 6.4e-5), ("8", 14.2, 1.5e-3, 4.1e-4), ("16", 14.1, 1.6e-3, 4.1e-4))]
+    raster = [{"supersample": k, "ms_per_frame": ms, "iou": iou, "reference": 4, "frames": 2}
+              for k, ms, iou in ((1, 221.0, 0.9787), (2, 642.0, 0.9927), (4, 3644.0, 1.0))]
+    fig = bench_figure({"scene": "bunny.obj", "tols": tols, "rows": rows, "raster": raster})
+    try:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+
+        def overlap(a, b):
+            return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+        for ax in fig.axes:
+            texts = [t for t in ax.texts if t.get_text()]
+            boxes = [t.get_window_extent(renderer) for t in texts]
+            legend = ax.get_legend().get_window_extent(renderer)
+            for i, a in enumerate(boxes):
+                assert not overlap(a, legend), texts[i].get_text()
+                for j in range(i):
+                    assert not overlap(a, boxes[j]), (texts[i].get_text(), texts[j].get_text())
+            ticks = [t.get_window_extent(renderer) for t in ax.get_xticklabels(which="both")
+                     if t.get_visible() and t.get_text()]
+            ticks = [b for b in ticks if ax.get_window_extent(renderer).x0 - 1 <= b.x0]
+            assert all(not overlap(a, b) for i, a in enumerate(ticks) for b in ticks[:i])
+        names = sorted(t.get_text() for t in fig.axes[0].texts)
+        assert names == sorted(["draft", "default", "exact", "0.5", "1", "2", "4", "8, 16"])
+    finally:
+        plt.close(fig)
+
+
 def test_bench_cli_json(tmp_path, capsys):
     import json
 
