@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 import click
@@ -25,3 +26,28 @@ def echo_json(obj) -> None:
 
 def is_interactive(quiet: bool) -> bool:
     return not quiet and sys.stderr.isatty()
+
+
+def _check_finite(type_: click.ParamType, rv, value, param, ctx):
+    if isinstance(rv, float) and not math.isfinite(rv):
+        type_.fail(f"{value!r} is not a finite number.", param, ctx)
+    return rv
+
+
+class FiniteFloat(click.types.FloatParamType):
+    """A float option that must be finite: click's FLOAT takes 'nan' and 'inf', which then break
+    deep in the work (or pass silently)."""
+
+    def convert(self, value, param, ctx):
+        return _check_finite(self, super().convert(value, param, ctx), value, param, ctx)
+
+
+class FiniteFloatRange(click.FloatRange):
+    """click.FloatRange that refuses nan (which every range comparison lets through) and inf."""
+
+    def convert(self, value, param, ctx):
+        return _check_finite(self, super().convert(value, param, ctx), value, param, ctx)
+
+
+#: The type of every float option: `type=FINITE` instead of `type=float`.
+FINITE = FiniteFloat()

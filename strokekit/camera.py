@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, UsageError
 
 _FALLBACK_UPS = (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
 
@@ -42,7 +42,7 @@ class Camera:
         for name in ("eye", "target", "up"):
             v = np.asarray(getattr(self, name), dtype=float)
             if v.shape != (3,) or not np.all(np.isfinite(v)):
-                raise InputError(f"camera {name} must be 3 finite numbers, got {getattr(self, name)!r}")
+                raise InputError(f"camera {name} must be 3 finite numbers, got {_show(getattr(self, name))}")
             object.__setattr__(self, name, tuple(float(x) for x in v))
         if self.projection not in ("perspective", "orthographic"):
             raise InputError(f"camera projection must be 'perspective' or 'orthographic', got {self.projection!r}")
@@ -245,6 +245,14 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str)
     return cam
 
 
+def _show(value) -> str:
+    """A camera value for a message: (1, nan, 2), not (np.float64(1.0), np.float64(nan), ...)."""
+    try:
+        return "(" + ", ".join(f"{float(x):g}" for x in value) + ")"
+    except (TypeError, ValueError):
+        return repr(value)
+
+
 def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
     """Parse either form of BRIEF 1.2 into a CameraPath."""
     if not isinstance(data, dict):
@@ -256,6 +264,8 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
         raise InputError(f"bad width/height/fps ({e})", source) from None
     if width <= 0 or height <= 0:
         raise InputError(f"image size must be positive, got {width} x {height}", source)
+    if not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"fps must be a number > 0, got {fps:g}", source)
     # Entries are named as output frames are, from 1 (BRIEF 1.2: entry k is output frame k+1).
     if "frames" in data:
         frames = data["frames"]
@@ -313,6 +323,14 @@ def orbit_path(center: np.ndarray, radius: float, frames: int, *, elevation: flo
         raise InputError(f"orbit needs a positive frame count, got {frames}")
     if not (np.isfinite(radius) and radius > 0):
         raise InputError("cannot orbit an empty or degenerate scene")
+    for name, v in (("elevation", elevation), ("fov_y", fov_y), ("degrees_per_frame", degrees_per_frame),
+                    ("start_azimuth", start_azimuth), ("distance_factor", distance_factor), ("fps", fps)):
+        if v is not None and not math.isfinite(v):
+            raise UsageError(f"orbit {name} must be a finite number, got {v}")
+    if not 0.0 < fov_y < 180.0:
+        raise UsageError(f"orbit fov_y must be in (0, 180) degrees, got {fov_y:g}")
+    if not (distance_factor > 0 and fps > 0):
+        raise UsageError(f"orbit distance_factor and fps must be > 0, got {distance_factor:g} and {fps:g}")
     step = 360.0 / frames if degrees_per_frame is None else degrees_per_frame
     dist = distance_factor * 1.15 * radius / math.sin(math.radians(fov_y) / 2.0)
     el = math.radians(elevation)
@@ -334,6 +352,8 @@ def dolly_path(center: np.ndarray, radius: float, frames: int, *, start: float =
                fov_y: float = 40.0, width: int = 1024, height: int = 1024, elevation: float = 15.0,
                azimuth: float = 0.0, up_axis: str = "y") -> CameraPath:
     """The camera moves from `start` to `end` times the framing distance, geometrically."""
+    if not all(math.isfinite(v) and v > 0 for v in (start, end)):
+        raise UsageError(f"dolly start and end must be finite numbers > 0, got {start:g} and {end:g}")
     base = orbit_path(center, radius, 1, elevation=elevation, fov_y=fov_y, width=width, height=height,
                       up_axis=up_axis, start_azimuth=azimuth)
     cam0 = base.cameras[0]

@@ -393,3 +393,37 @@ def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatc
     monkeypatch.setattr(info, "load_scene", interrupted)
     code, out, err = run_cli(["info", cube], capsys)
     assert code == 130 and err == "strokekit: interrupted\n" and out == ""
+
+
+@pytest.mark.parametrize("args, option", [
+    (["render", "{cube}", "--elevation", "inf"], "--elevation"),  # was an internal error (math domain error)
+    (["render", "{cube}", "--fov", "nan"], "--fov"),  # a FloatRange lets nan through
+    (["render", "{cube}", "--suggestive-threshold", "nan"], "--suggestive-threshold"),  # was accepted silently
+    (["render", "{cube}", "--gltf", "--ribbon-width", "nan"], "--ribbon-width"),
+    (["camera", "orbit", "{cube}", "--fps", "nan"], "--fps"),  # wrote "fps": NaN, which is not JSON
+    (["camera", "dolly", "{cube}", "--end", "inf"], "--end"),
+    (["info", "{cube}", "--crease-angle", "nan"], "--crease-angle"),
+    (["diff", "{cube}", "{cube}", "--png-scale", "nan"], "--png-scale"),
+])
+def test_non_finite_numbers_are_usage_errors_naming_the_option(cube, tmp_path, capsys, args, option):
+    args = [a.replace("{cube}", str(cube)) for a in args]
+    code, out, err = run_cli([*args, *(["--out", tmp_path / "o"] if args[0] == "render" else [])], capsys)
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and option in err and "finite" in err, err
+    assert not out and not (tmp_path / "o").exists()
+
+
+def test_camera_values_are_said_as_numbers_and_fps_is_checked(cube, tmp_path, capsys):
+    from strokekit.camera import orbit_path
+    from strokekit.errors import UsageError as SkUsageError
+
+    cam = write_camera(tmp_path / "c.json", [{"eye": [0, 0, float("nan")], "target": [0, 0, 0]}])
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+    assert code == 1 and "got (0, 0, nan)" in err and "np.float64" not in err
+    for fps in (float("nan"), -3, 0):
+        cam = write_camera(tmp_path / "c.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}], fps=fps)
+        code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+        assert code == 1 and "c.json: fps must be a number > 0" in err, err
+    assert not (tmp_path / "o").exists()
+    with pytest.raises(SkUsageError, match="elevation"):
+        orbit_path(np.zeros(3), 1.0, 2, elevation=float("inf"))

@@ -10,6 +10,8 @@ from strokekit.camera import dolly_path, orbit_path
 from strokekit.fileio import atomic_write_text
 from strokekit.scene import load_scene
 
+from ..common import FINITE, FiniteFloatRange
+
 
 def _emit(path, out):
     text = json.dumps(path.to_json(), indent=1) + "\n"
@@ -22,8 +24,8 @@ def _emit(path, out):
 _common = [
     click.argument("scene", type=click.Path()),
     click.option("--frames", type=click.IntRange(min=1), default=48, show_default=True, help="Number of frames."),
-    click.option("--elevation", type=float, default=15.0, show_default=True, help="Degrees above the horizon."),
-    click.option("--fov", type=click.FloatRange(0.1, 179.9), default=40.0, show_default=True, help="Vertical field of view, degrees."),
+    click.option("--elevation", type=FINITE, default=15.0, show_default=True, help="Degrees above the horizon."),
+    click.option("--fov", type=FiniteFloatRange(0.1, 179.9), default=40.0, show_default=True, help="Vertical field of view, degrees."),
     click.option("--width", type=click.IntRange(min=1), default=1024, show_default=True),
     click.option("--height", type=click.IntRange(min=1), default=1024, show_default=True),
     click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis."),
@@ -44,8 +46,9 @@ def command():
 
 @command.command("orbit")
 @_with_common
-@click.option("--degrees-per-frame", type=float, default=None, help="Default: a full turn over the frames.")
-@click.option("--fps", type=float, default=24.0, show_default=True)
+@click.option("--degrees-per-frame", type=FINITE, default=None, help="Default: a full turn over the frames.")
+@click.option("--fps", type=FiniteFloatRange(min=0, min_open=True), default=24.0, show_default=True,
+              help="Frames per second (for glTF animation).")
 def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
     """A turntable orbit around the scene that keeps it in view."""
     s = load_scene(scene)
@@ -55,8 +58,8 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
 
 @command.command("dolly")
 @_with_common
-@click.option("--start", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True, help="Start distance factor.")
-@click.option("--end", type=click.FloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
+@click.option("--start", type=FiniteFloatRange(min=0, min_open=True), default=1.0, show_default=True, help="Start distance factor.")
+@click.option("--end", type=FiniteFloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
 def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
     s = load_scene(scene)

@@ -9,18 +9,20 @@ import orjson
 from strokekit.diff import diff_paths
 from strokekit.errors import StrokekitError
 
+from ..common import FINITE, FiniteFloatRange
+
 
 @click.command("diff")
 @click.argument("a", type=click.Path())
 @click.argument("b", type=click.Path())
-@click.option("--tol", type=float, default=0.05, show_default=True,
+@click.option("--tol", type=FINITE, default=0.05, show_default=True,
               help="Tolerance in px: every point of a stroke must lie this close to a stroke of the same kind "
                    "on the other side.")
 @click.option("--json", "as_json", is_flag=True, help="Print the comparison as JSON (for machines).")
 @click.option("--png", "png", type=click.Path(), default=None,
               help="Draw the difference: only in A red, only in B blue, common grey. With two folders, a folder "
                    "that receives one <name>.png per differing file.")
-@click.option("--png-scale", type=click.FloatRange(min=0, min_open=True), default=1.0, show_default=True,
+@click.option("--png-scale", type=FiniteFloatRange(min=0, min_open=True), default=1.0, show_default=True,
               help="Pixels of the difference image per SVG px.")
 @click.option("--quiet", "-q", is_flag=True, help="Print nothing; the exit code tells.")
 @click.pass_context

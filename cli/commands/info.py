@@ -7,13 +7,13 @@ import click
 from strokekit.camera import gltf_camera_count
 from strokekit.scene import load_scene
 
-from ..common import echo_json
+from ..common import FINITE, echo_json
 
 
 @click.command("info")
 @click.argument("scene", type=click.Path())
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
-@click.option("--crease-angle", type=float, default=60.0, show_default=True, help="Crease threshold, degrees.")
+@click.option("--crease-angle", type=FINITE, default=60.0, show_default=True, help="Crease threshold, degrees.")
 def command(scene: str, as_json: bool, crease_angle: float):
     """Meshes, faces, materials, bounds, borders and non-manifold edges, and the line kinds present."""
     s = load_scene(scene)

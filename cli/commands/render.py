@@ -18,7 +18,7 @@ from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
 from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, make_executor, run, run_report
 from strokekit.scene import load_scene
 
-from ..common import is_interactive, split_list
+from ..common import FINITE, FiniteFloatRange, is_interactive, split_list
 from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
 
 
@@ -28,8 +28,8 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
               help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node "
                    "(its animation, if any, sampled at 24 fps).")
 @click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")
-@click.option("--elevation", type=float, default=15.0, show_default=True, help="Orbit elevation, degrees.")
-@click.option("--fov", type=click.FloatRange(0.1, 179.9), default=40.0, show_default=True, help="Orbit field of view, degrees.")
+@click.option("--elevation", type=FINITE, default=15.0, show_default=True, help="Orbit elevation, degrees.")
+@click.option("--fov", type=FiniteFloatRange(0.1, 179.9), default=40.0, show_default=True, help="Orbit field of view, degrees.")
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="Orbit up axis.")
 @click.option("--size", default=None, help="Image size WxH (overrides the camera file), e.g. 1024x1024.")
 @click.option("--frames", "frame_spec", default=None, help="Frames to render, 1-based: 1-24 or 1,3,5-9 (default all).")
@@ -41,32 +41,32 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
               help="Mesh contours (silhouette edges) or smooth interpolated contours.")
 @click.option("--quality", type=click.Choice(list(QUALITY_PRESETS)), default="default", show_default=True,
               help="Accuracy preset: draft (fast), default, exact (slow reference).")
-@click.option("--crease-angle", type=float, default=None, help="Crease threshold in degrees [60].")
-@click.option("--whole-edge", "whole_edge", type=float, default=None,
+@click.option("--crease-angle", type=FINITE, default=None, help="Crease threshold in degrees [60].")
+@click.option("--whole-edge", "whole_edge", type=FINITE, default=None,
               help="Edges shorter than N px get one visibility ray and are drawn whole or not at all "
                    "(draft: 8; default 0: every edge is split where its visibility changes) (overrides --quality).")
-@click.option("--sample-spacing", type=float, default=None, help="Visibility samples every N px (overrides --quality).")
-@click.option("--bisection-tol", type=float, default=None, help="Visibility change located to N px (overrides --quality).")
-@click.option("--split-angle", type=float, default=None, help="Split strokes at turns sharper than N degrees [90].")
-@click.option("--max-length", type=float, default=None, help="Split strokes longer than N px [no limit].")
-@click.option("--min-length", type=float, default=None, help="Drop strokes shorter than N px [0].")
-@click.option("--simplify", "simplify_tol", type=float, default=None, help="Simplify strokes within N px (Douglas-Peucker) [0: off].")
-@click.option("--doubled", type=float, default=None,
+@click.option("--sample-spacing", type=FINITE, default=None, help="Visibility samples every N px (overrides --quality).")
+@click.option("--bisection-tol", type=FINITE, default=None, help="Visibility change located to N px (overrides --quality).")
+@click.option("--split-angle", type=FINITE, default=None, help="Split strokes at turns sharper than N degrees [90].")
+@click.option("--max-length", type=FINITE, default=None, help="Split strokes longer than N px [no limit].")
+@click.option("--min-length", type=FINITE, default=None, help="Drop strokes shorter than N px [0].")
+@click.option("--simplify", "simplify_tol", type=FINITE, default=None, help="Simplify strokes within N px (Douglas-Peucker) [0: off].")
+@click.option("--doubled", type=FINITE, default=None,
               help="Drop parts of contour strokes running beside a longer one within N px (mesh-contour "
                    "shingles) [1; draft: 0]; 0 keeps every visible contour edge, 2 keeps ids steadier on scanned "
                    "meshes.")
 @click.option("--drop-retraced/--keep-retraced", "drop_retraced", default=None,
               help="Drop strokes that retrace a longer stroke of their kind within 0.5 px (zig-zag spurs, "
                    "coincident copies) [default: drop; draft: keep].")
-@click.option("--period", type=float, default=None, help="Texture period P in px for the parametrization u [30].")
-@click.option("--suggestive-threshold", type=float, default=None,
+@click.option("--period", type=FINITE, default=None, help="Texture period P in px for the parametrization u [30].")
+@click.option("--suggestive-threshold", type=FINITE, default=None,
               help="Suggestive contours: minimum derivative of radial curvature, scale-free [50].")
-@click.option("--suggestive-kr-threshold", type=float, default=None,
+@click.option("--suggestive-kr-threshold", type=FINITE, default=None,
               help="Suggestive contours: skip faces whose radial curvature stays below this / scene radius [0].")
 @click.option("--svg/--no-svg", default=True, show_default=True)
 @click.option("--json/--no-json", "write_json", default=True, show_default=True)
 @click.option("--decimals", type=click.IntRange(0, 8), default=2, show_default=True, help="SVG coordinate decimals.")
-@click.option("--stroke-width", type=float, default=1.5, show_default=True, help="SVG stroke width in px.")
+@click.option("--stroke-width", type=FINITE, default=1.5, show_default=True, help="SVG stroke width in px.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Processes rendering frames: this one and N-1 started beside it (default: the machine's "
                    "cores for 8 frames or more, else 1).")

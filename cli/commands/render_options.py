@@ -8,11 +8,13 @@ import click
 
 from strokekit.errors import UsageError
 
+from ..common import FINITE
+
 _GLTF = [
     click.option("--gltf/--no-gltf", default=False, show_default=True, help="Write textured ribbons as frame_NNNN.glb."),
     click.option("--gltf-sequence", is_flag=True, help="One sequence.glb for all frames (a node per frame) instead."),
-    click.option("--ribbon-width", type=float, default=3.0, show_default=True, help="Ribbon width in px."),
-    click.option("--taper", type=float, default=1.0, show_default=True, help="Head/tail taper (0: none)."),
+    click.option("--ribbon-width", type=FINITE, default=3.0, show_default=True, help="Ribbon width in px."),
+    click.option("--taper", type=FINITE, default=1.0, show_default=True, help="Head/tail taper (0: none)."),
     click.option("--brush", default="ink", show_default=True, help="plain, ink, dry, or a PNG of your own stroke."),
     click.option("--alpha-mode", type=click.Choice(["blend", "mask"]), default="blend", show_default=True),
     click.option("--ribbon-space", type=click.Choice(["world", "image"]), default="world", show_default=True,
@@ -25,9 +27,9 @@ _TRACKING = [
                  show_default=True, help="Frame-to-frame tracking: kalnins (samples carry ids and u to the next frame), seed (simple "
                       "baseline: limited growth, short strokes not carried), or none."),
     click.option("--no-coherence", is_flag=True, help="Same as --coherence none: ids per frame, u = arc length / P."),
-    click.option("--max-growth", type=float, default=20.0, show_default=True,
+    click.option("--max-growth", type=FINITE, default=20.0, show_default=True,
                  help="With --coherence seed: a stroke grows at most N px per frame."),
-    click.option("--min-carry", type=float, default=10.0, show_default=True,
+    click.option("--min-carry", type=FINITE, default=10.0, show_default=True,
                  help="With --coherence seed: strokes shorter than N px are not carried to the next frame."),
 ]
 
@@ -50,7 +52,7 @@ _RASTER = [
     click.option("--depth", is_flag=True, help="Also _depth.png (16-bit linear depth)."),
     click.option("--fill", is_flag=True, help="Also _fill.png: hatching that keeps its screen size at any zoom (self-similar 3D texture)."),
     click.option("--fill-pattern", type=click.Choice(["hatch", "dots", "noise"]), default="hatch", show_default=True),
-    click.option("--fill-period", type=float, default=16.0, show_default=True, help="Fill texture period in px."),
+    click.option("--fill-period", type=FINITE, default=16.0, show_default=True, help="Fill texture period in px."),
     click.option("--gooch", is_flag=True, help="Gooch warm/cool ramp instead of darker shades."),
     click.option("--band-polygons", is_flag=True, help="Also the bands as vector polygons in an SVG layer under the lines."),
 ]
