@@ -427,3 +427,23 @@ def test_camera_values_are_said_as_numbers_and_fps_is_checked(cube, tmp_path, ca
     assert not (tmp_path / "o").exists()
     with pytest.raises(SkUsageError, match="elevation"):
         orbit_path(np.zeros(3), 1.0, 2, elevation=float("inf"))
+
+
+def test_help_reads_whole_at_80_columns(capsys, monkeypatch):
+    """A new user's first look: the command list is not cut off ('...'), no word of the render
+    help is broken across lines (the --kinds list was), and every render option says what it is."""
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, _ = run_cli(["--help"], capsys)
+    assert code == 0 and "..." not in out.split("Commands:")[1]
+    for name in ("bench", "camera", "coherence", "diff", "info", "render"):
+        assert f"  {name} " in out
+    code, out, _ = run_cli(["render", "--help"], capsys)
+    assert code == 0
+    words = set(out.split())
+    for kind in ("silhouette,", "smooth_contour,", "suggestive,", "nonmanifold,", "material,"):
+        assert kind in words, kind
+    # Every option line has a description beside its [default: ...] (none is a bare default).
+    import re
+
+    bare = [line for line in out.splitlines() if re.match(r"^\s+-[^ ]+( [^ ]+)*\s{2,}\[default", line)]
+    assert not bare, bare

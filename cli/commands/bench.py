@@ -9,7 +9,7 @@ import click
 from strokekit.errors import UsageError
 
 
-@click.command("bench")
+@click.command("bench", short_help="What accuracy costs in time: presets and a sweep.")
 @click.argument("scene_path", metavar="SCENE", type=click.Path())
 @click.option("--camera", "camera_path", type=click.Path(dir_okay=False), default=None,
               help="Camera path JSON (format: README, camera path files); default: an orbit around the scene.")

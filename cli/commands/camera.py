@@ -39,7 +39,7 @@ def _with_common(f):
     return f
 
 
-@click.group("camera")
+@click.group("camera", short_help="Write camera path files (orbit, dolly).")
 def command():
     """Generate camera path files (JSON, see the README) so every run can be reproduced from a file."""
 

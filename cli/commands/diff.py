@@ -12,7 +12,7 @@ from strokekit.errors import StrokekitError
 from ..common import FINITE, FiniteFloatRange
 
 
-@click.command("diff")
+@click.command("diff", short_help="Compare the strokes of two SVGs (or folders of them).")
 @click.argument("a", type=click.Path())
 @click.argument("b", type=click.Path())
 @click.option("--tol", type=FINITE, default=0.05, show_default=True,

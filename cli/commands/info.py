@@ -10,7 +10,7 @@ from strokekit.scene import load_scene
 from ..common import FINITE, echo_json
 
 
-@click.command("info")
+@click.command("info", short_help="What a scene holds and which lines it can have.")
 @click.argument("scene", type=click.Path())
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 @click.option("--crease-angle", type=FINITE, default=60.0, show_default=True, help="Crease threshold, degrees.")

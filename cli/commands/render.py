@@ -22,7 +22,7 @@ from ..common import FINITE, FiniteFloatRange, is_interactive, split_list
 from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
 
 
-@click.command("render")
+@click.command("render", short_help="Line drawings for every frame of a camera path.")
 @click.argument("scene", type=click.Path())
 @click.option("--camera", "camera_file", type=click.Path(dir_okay=False), default=None,
               help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node "
@@ -33,10 +33,12 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="Orbit up axis.")
 @click.option("--size", default=None, help="Image size WxH (overrides the camera file), e.g. 1024x1024.")
 @click.option("--frames", "frame_spec", default=None, help="Frames to render, 1-based: 1-24 or 1,3,5-9 (default all).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True)
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True,
+              help="Folder for the frame files (created if missing).")
 @click.option("--pattern", default="frame_{frame:04d}", show_default=True, help="File name pattern (no extension).")
-@click.option("--kinds", default=",".join(DEFAULT_KINDS), show_default=True,
-              help="Line kinds: silhouette,border,crease,material,nonmanifold,smooth_contour,suggestive,intersection.")
+@click.option("--kinds", default=", ".join(DEFAULT_KINDS), show_default=True,
+              help="Line kinds, comma-separated: silhouette, border, crease, material, nonmanifold, smooth_contour, "
+                   "suggestive, intersection.")
 @click.option("--contours", type=click.Choice(["mesh", "smooth"]), default="mesh", show_default=True,
               help="Mesh contours (silhouette edges) or smooth interpolated contours.")
 @click.option("--quality", type=click.Choice(list(QUALITY_PRESETS)), default="default", show_default=True,
@@ -63,8 +65,9 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
               help="Suggestive contours: minimum derivative of radial curvature, scale-free [50].")
 @click.option("--suggestive-kr-threshold", type=FINITE, default=None,
               help="Suggestive contours: skip faces whose radial curvature stays below this / scene radius [0].")
-@click.option("--svg/--no-svg", default=True, show_default=True)
-@click.option("--json/--no-json", "write_json", default=True, show_default=True)
+@click.option("--svg/--no-svg", default=True, show_default=True, help="Write frame_NNNN.svg (the drawing).")
+@click.option("--json/--no-json", "write_json", default=True, show_default=True,
+              help="Write frame_NNNN.json (strokes with ids, kinds and u, for tools).")
 @click.option("--decimals", type=click.IntRange(0, 8), default=2, show_default=True, help="SVG coordinate decimals.")
 @click.option("--stroke-width", type=FINITE, default=1.5, show_default=True, help="SVG stroke width in px.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
