@@ -168,18 +168,22 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     idx = idx.reshape(len(idx), kk)
     valid = np.isfinite(dist)
     safe = np.where(valid, idx, 0)
-    T = dst.t[safe]
     st = src.t if every else src.t[ok]
+    if piece_distance:
+        # One gather of (t, p, w/2) rows instead of three.
+        D = np.concatenate([dst.t, dst.p, 0.5 * dst.w[:, None]], axis=1)[safe]
+        T = D[..., :2]
+    else:
+        T = dst.t[safe]
     dots = np.abs(T[..., 0] * st[:, None, 0] + T[..., 1] * st[:, None, 1])
     good = valid & (dots >= min_tangent_dot)
     has = good.any(axis=1)
     if piece_distance:
         # Squared distance to the piece: across the line, plus beyond the piece's ends along it.
         qq = q if every else q[ok]
-        Pn = dst.p[safe]
-        along = (qq[:, None, 0] - Pn[..., 0]) * T[..., 0] + (qq[:, None, 1] - Pn[..., 1]) * T[..., 1]
+        along = (qq[:, None, 0] - D[..., 2]) * T[..., 0] + (qq[:, None, 1] - D[..., 3]) * T[..., 1]
         d2 = np.where(valid, dist * dist, 0.0)
-        beyond = np.maximum(np.abs(along) - 0.5 * dst.w[safe], 0.0)
+        beyond = np.maximum(np.abs(along) - D[..., 4], 0.0)
         first = np.argmin(np.where(good, np.maximum(d2 - along * along, 0.0) + beyond * beyond, np.inf), axis=1)
     else:
         # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.
