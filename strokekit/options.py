@@ -23,10 +23,11 @@ QUALITY_PRESETS: dict[str, dict] = {
 
 DEFAULT_KINDS = ("silhouette", "border", "crease", "material", "nonmanifold")
 
-#: The command-line option of each LineOptions field whose name differs from it.
+#: The command-line option of each LineOptions (and TrackingOptions) field whose name differs from it.
 _FLAGS = {"sample_spacing_px": "--sample-spacing", "bisection_tol_px": "--bisection-tol", "period_px": "--period",
           "max_length_px": "--max-length", "min_length_px": "--min-length", "simplify_tol_px": "--simplify",
-          "doubled_px": "--doubled", "whole_edge_px": "--whole-edge"}
+          "doubled_px": "--doubled", "whole_edge_px": "--whole-edge", "max_growth_px": "--max-growth",
+          "min_carry_px": "--min-carry"}
 
 
 def _flag(field_name: str) -> str:

@@ -63,9 +63,15 @@ import numpy as np
 from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
 from .model import Strokes
+from .options import _FLAGS, _flag
 from .strokeops import _cat, _replace, _tree, cut_pieces
 
 METHODS = ("kalnins", "seed", "none")
+
+
+def _field_name(name: str) -> str:
+    """How an error names a TrackingOptions field: its command-line option where it has one."""
+    return _flag(name) if name in _FLAGS else name
 
 
 @dataclass(frozen=True)
@@ -124,11 +130,11 @@ class TrackingOptions:
             raise UsageError(f"unknown coherence method {self.method!r} (known: {', '.join(METHODS)})")
         for name in ("period_px", "search_radius_px", "vote_spacing_px", "seed_search_px"):
             if not getattr(self, name) > 0:
-                raise UsageError(f"{name.replace('_', '-')} must be > 0, got {getattr(self, name)}")
+                raise UsageError(f"{_field_name(name)} must be > 0, got {getattr(self, name)}")
         for name in ("stretch_weight", "outlier_px", "min_id_px", "max_growth_px", "min_carry_px",
                      "seed_angle_penalty_px", "join_tol_px"):
             if not getattr(self, name) >= 0:
-                raise UsageError(f"{name.replace('_', '-')} must be >= 0, got {getattr(self, name)}")
+                raise UsageError(f"{_field_name(name)} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.min_tangent_dot <= 1:
             raise UsageError(f"min tangent dot must be in [0, 1], got {self.min_tangent_dot}")
 

@@ -131,6 +131,7 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
     (["--sample-spacing", "inf"], "--sample-spacing"),
     (["--simplify", "-1"], "--simplify"),
     (["--whole-edge", "-1"], "--whole-edge"),
+    (["--coherence", "seed", "--max-growth", "-1"], "--max-growth (max_growth_px) must be >= 0"),
     (["--stroke-width", "-1"], "--stroke-width"),
     (["--bands", "3", "--band-thresholds", "0.2,0.5,0.7"], "--bands 3 but --band-thresholds gives 4 bands"),
     (["--no-svg", "--no-json"], "nothing to write"),
