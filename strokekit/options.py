@@ -16,7 +16,8 @@ from .model import KINDS
 #: merge_overlaps: the cleanup of lines drawn twice (draft previews keep them).
 QUALITY_PRESETS: dict[str, dict] = {
     "draft": {"whole_edge_px": 8.0, "sample_spacing_px": 8.0, "bisection_tol_px": 0.5, "supersample": 1,
-              "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False},
+              "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False, "bisection_grid": True,
+              "retest_front_hits": False},
     "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "simplify_tol_px": 0.0},
     "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "simplify_tol_px": 0.0},
 }
@@ -48,6 +49,13 @@ class LineOptions:
     whole_edge_px: float = 0.0
     sample_spacing_px: float = 4.0
     bisection_tol_px: float = 0.01
+    # Locate each visibility change with one batch of rays on an even grid (spacing <= the
+    # tolerance) instead of halving its bracket: one occlusion call instead of one per halving,
+    # more rays (the draft preset; visibility.visible_runs).
+    bisection_grid: bool = False
+    # False: skip the plain-ray re-test of samples whose lifted ray is stopped near its start by
+    # the front side of a triangle (Occluder.visible_rows; the draft preset).
+    retest_front_hits: bool = True
     split_angle_deg: float = 90.0
     max_length_px: float = 0.0  # 0: no limit
     min_length_px: float = 0.0  # strokes shorter than this are dropped
