@@ -276,6 +276,42 @@ class Occluder:
             vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
         return vis
 
+    def visible_rows_lean(self, P: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
+                          scale: np.ndarray, retest_front_hits: bool = True) -> np.ndarray:
+        """visible_rows with the rays built in fewer passes (the draft preset's path): the same
+        rays up to float64 rounding, so the same answers but for rays that graze a triangle
+        edge within float32 rounding. The ray from origin O = X + e1 u to target T = eye - e2 u
+        (u the unit direction from the lifted point X to the eye, at distance r) is X + e1/r d
+        with direction d (1 - (e1 + e2)/r), d = eye - X."""
+        c = P - self._origin_col
+        eps = offset * np.maximum(np.sqrt(_einsum_sq(c)), scale)
+        eye = np.asarray(camera.eye, float)
+        eye_eps = offset * np.linalg.norm(eye - self.origin)
+        eye = eye[:, None]
+        lifted = P + lift
+        d = eye - lifted
+        dist = np.sqrt(_einsum_sq(d))
+        e1 = np.minimum(eps, 0.5 * dist)
+        seg_len = dist - e1 - np.minimum(np.maximum(eps, eye_eps), 0.25 * dist)
+        inv = 1.0 / np.where(dist > 0, dist, 1.0)
+        k = self.inv_scale
+        rays = np.empty((P.shape[1], 6), np.float32)
+        rays[:, :3] = ((lifted - self._origin_col) * k + d * (e1 * inv * k)).T
+        rays[:, 3:] = (d * (seg_len * inv * k)).T
+        r = self._rs.cast_rays(self._o3c.Tensor(rays))
+        f = r["t_hit"].numpy()
+        vis = ~(f <= 1.0)
+        # Hit distance along the ray (world units) against the reach of the contact re-test.
+        reach = 100.0 * np.sqrt(_norm_sq(lift)) + eps
+        again = np.flatnonzero(~vis & (f * seg_len <= reach))
+        if not retest_front_hits and len(again):
+            tri = r["primitive_ids"].numpy().take(again).astype(np.int64)
+            n = np.take(self.scene.face_normals, tri, axis=0)
+            again = again[np.einsum("ij,ji->i", n, d[:, again]) >= 0.0]
+        if len(again):
+            vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
+        return vis
+
     def eye_enclosed(self, camera: Camera, n: int = 64) -> bool:
         """True when the perspective eye sits inside a closed part of the scene: nearly every
         ray from it first meets a triangle from its back side."""
@@ -323,34 +359,38 @@ def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> 
     W, H, f = camera.width, camera.height, camera.focal_px
     cam_a = np.stack([qa @ right, qa @ up, qa @ fwd], axis=1)
     cam_b = np.stack([qb @ right, qb @ up, qb @ fwd], axis=1)
+    xa, ya, za = cam_a.T
+    xb, yb, zb = cam_b.T
+    # g >= 0 inside, linear along the segment: near plane, then left, right, top, bottom.
+    if camera.is_ortho:
+        planes = [(za - near, zb - near), (f * xa + W / 2, f * xb + W / 2), (W / 2 - f * xa, W / 2 - f * xb),
+                  (f * ya + H / 2, f * yb + H / 2), (H / 2 - f * ya, H / 2 - f * yb)]
+    else:
+        planes = [(za - near, zb - near), (f * xa + W / 2 * za, f * xb + W / 2 * zb),
+                  (W / 2 * za - f * xa, W / 2 * zb - f * xb), (f * ya + H / 2 * za, f * yb + H / 2 * zb),
+                  (H / 2 * za - f * ya, H / 2 * zb - f * yb)]
     t0 = np.zeros(len(a))
     t1 = np.ones(len(a))
-
-    def clip(ga, gb):  # keep where g >= 0, g linear along the segment
-        nonlocal t0, t1
+    # Segments with both ends inside every plane keep [0, 1]; the clip below runs on the others
+    # only (elementwise, so the same numbers as running it on all).
+    g = np.stack([x for pair in planes for x in pair])
+    cut = np.flatnonzero((g < 0).any(axis=0))
+    if len(cut) == 0:
+        return t0, t1
+    g = g[:, cut]
+    c0, c1 = t0[cut], t1[cut]
+    for k in range(0, len(g), 2):
+        ga, gb = g[k], g[k + 1]
         denom = ga - gb
         with np.errstate(divide="ignore", invalid="ignore"):
             t = ga / denom
         enter = (ga < 0) & (gb >= 0)
         leave = (ga >= 0) & (gb < 0)
         out = (ga < 0) & (gb < 0)
-        t0 = np.where(enter, np.maximum(t0, t), t0)
-        t1 = np.where(leave, np.minimum(t1, t), t1)
-        t1 = np.where(out, -1.0, t1)
-
-    xa, ya, za = cam_a.T
-    xb, yb, zb = cam_b.T
-    clip(za - near, zb - near)  # in front of the near plane
-    if camera.is_ortho:
-        clip(f * xa + W / 2, f * xb + W / 2)
-        clip(W / 2 - f * xa, W / 2 - f * xb)
-        clip(f * ya + H / 2, f * yb + H / 2)
-        clip(H / 2 - f * ya, H / 2 - f * yb)
-    else:
-        clip(f * xa + W / 2 * za, f * xb + W / 2 * zb)
-        clip(W / 2 * za - f * xa, W / 2 * zb - f * xb)
-        clip(f * ya + H / 2 * za, f * yb + H / 2 * zb)
-        clip(H / 2 * za - f * ya, H / 2 * zb - f * yb)
+        c0 = np.where(enter, np.maximum(c0, t), c0)
+        c1 = np.where(leave, np.minimum(c1, t), c1)
+        c1 = np.where(out, -1.0, c1)
+    t0[cut], t1[cut] = c0, c1
     return t0, t1
 
 
@@ -388,6 +428,9 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     screen are tested at their middle only and kept whole or dropped."""
     a, b = features.a, features.b
     near = camera.near_distance(scene_radius)
+    if (options.bisection_grid and features.lift is not None and not camera.is_ortho
+            and occluder.backend == "open3d"):
+        return _visible_runs_grid(features, camera, occluder, options, near)
     t0, t1 = clip_segments(a, b, camera, near)
     keep = t1 > t0 + 0.0
     # A segment clipped to a single point still counts when it is not degenerate in 3D.
@@ -508,5 +551,99 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     end_on_vertex = (s1 == 1.0) & (t1[fe] == 1.0) & (features.vb[fe] >= 0)
     key0 = np.where(start_on_vertex, features.va[fe], unique_key[0::2])
     key1 = np.where(end_on_vertex, features.vb[fe], unique_key[1::2])
+    return VisibleRuns(edge=fe, X0=X0, X1=X1, p0=p0, p1=p1, key0=key0, key1=key1, kind=features.kind[fe],
+                       face=features.face[fe])
+
+
+def _visible_runs_grid(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
+                       near: float) -> VisibleRuns:
+    """visible_runs with `bisection_grid` (the draft preset) for a perspective camera, the open3d
+    backend and lifted rays: the same samples, rays and runs, in fewer numpy passes. Segments
+    shorter than `whole_edge_px` (most of a draft frame) are one ray each and, when visible, one
+    run whose ends are the clipped segment's ends, taken as they are (no re-projection); only the
+    longer segments go through sampling, the grid search and run assembly."""
+    a, b = features.a, features.b
+    t0, t1 = clip_segments(a, b, camera, near)
+    idx = np.flatnonzero(t1 > t0)
+    n = len(idx)
+    a_i = np.take(a, idx, axis=0)
+    ab = np.take(b, idx, axis=0) - a_i
+    t0_i, t1_i = t0[idx], t1[idx]
+    A = a_i + t0_i[:, None] * ab
+    D = (t1_i - t0_i)[:, None] * ab  # B - A
+    B = A + D
+    p, z = camera.project(np.concatenate([A, B]))
+    pa, pb, za, zb = p[:n], p[n:], z[:n], z[n:]
+    L = row_norm(pb - pa)
+    whole = L < options.whole_edge_px
+    w_seg = np.flatnonzero(whole)
+    l_seg = np.flatnonzero(~whole)
+    nw = len(w_seg)
+    # Samples: the middle of every short segment, then n_int + 1 along every long one.
+    n_int = np.maximum(1, np.ceil(L[l_seg] / options.sample_spacing_px).astype(np.int64))
+    counts = n_int + 1
+    starts = np.cumsum(counts) - counts
+    seg_l = np.repeat(l_seg, counts)
+    s_l = (np.arange(len(seg_l)) - np.repeat(starts, counts)) / np.repeat(n_int, counts)
+    seg = np.concatenate([w_seg, seg_l])
+    s = np.concatenate([np.full(nw, 0.5), s_l])
+    At, Dt = A.T.copy(), D.T.copy()
+    liftT = np.take(features.lift, idx, axis=0).T.copy()
+    size = row_norm(ab)  # local size for the ray offset (see Occluder.visible)
+    offset, retest = options.occlusion_offset, options.retest_front_hits
+
+    def lam_at(seg_i, s_i):
+        z0, z1 = za.take(seg_i), zb.take(seg_i)
+        return s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
+
+    def visible_at(seg_i, s_i):
+        P = At.take(seg_i, axis=1) + lam_at(seg_i, s_i) * Dt.take(seg_i, axis=1)
+        return occluder.visible_rows_lean(P, camera, offset, liftT.take(seg_i, axis=1), size.take(seg_i), retest)
+
+    vis = visible_at(seg, s)
+    runs_w = w_seg[vis[:nw]]
+    vis_l = vis[nw:]
+    # Long segments: changes between consecutive samples, narrowed on the grid.
+    same = seg_l[1:] == seg_l[:-1]
+    change = np.flatnonzero(same & (vis_l[1:] != vis_l[:-1]))
+    cs = seg_l[change]
+    lo, hi = s_l[change], s_l[change + 1]
+    vis_lo = vis_l[change]
+    if len(change):
+        lo, hi = _grid_search(cs, lo, hi, vis_lo, (hi - lo) * L[cs], options.bisection_tol_px, visible_at)
+    s_change = np.where(vis_lo, lo, hi)
+    rising = ~vis_lo
+    first_vis, last_vis = vis_l[starts], vis_l[starts + counts - 1]
+    on_seg = np.concatenate([l_seg[first_vis], cs[rising]])
+    on_s = np.concatenate([np.zeros(int(first_vis.sum())), s_change[rising]])
+    off_seg = np.concatenate([l_seg[last_vis], cs[~rising]])
+    off_s = np.concatenate([np.ones(int(last_vis.sum())), s_change[~rising]])
+    o_on = np.lexsort((on_s, on_seg))
+    o_off = np.lexsort((off_s, off_seg))
+    run_l = on_seg[o_on]
+    s0_l, s1_l = on_s[o_on], off_s[o_off]
+    assert np.array_equal(run_l, off_seg[o_off]), "visibility events must pair up"
+    good = s1_l >= s0_l
+    run_l, s0_l, s1_l = run_l[good], s0_l[good], s1_l[good]
+    X0_l = (At.take(run_l, axis=1) + lam_at(run_l, s0_l) * Dt.take(run_l, axis=1)).T
+    X1_l = (At.take(run_l, axis=1) + lam_at(run_l, s1_l) * Dt.take(run_l, axis=1)).T
+    m = len(run_l)
+    p_l, _ = camera.project(np.concatenate([X0_l, X1_l]))
+    # Both kinds of runs, in segment order (a long segment's runs are in order along it).
+    run_seg = np.concatenate([runs_w, run_l])
+    order = np.argsort(run_seg, kind="stable")
+    run_seg = run_seg[order]
+    s0 = np.concatenate([np.zeros(len(runs_w)), s0_l])[order]
+    s1 = np.concatenate([np.ones(len(runs_w)), s1_l])[order]
+    X0 = np.concatenate([np.take(A, runs_w, axis=0), X0_l])[order]
+    X1 = np.concatenate([np.take(B, runs_w, axis=0), X1_l])[order]
+    p0 = np.concatenate([np.take(pa, runs_w, axis=0), p_l[:m]])[order]
+    p1 = np.concatenate([np.take(pb, runs_w, axis=0), p_l[m:]])[order]
+    fe = idx[run_seg]
+    r = len(fe)
+    unique_key = -(np.arange(2 * r, dtype=np.int64) + 1)
+    va, vb = features.va[fe], features.vb[fe]
+    key0 = np.where((s0 == 0.0) & (t0[fe] == 0.0) & (va >= 0), va, unique_key[0::2])
+    key1 = np.where((s1 == 1.0) & (t1[fe] == 1.0) & (vb >= 0), vb, unique_key[1::2])
     return VisibleRuns(edge=fe, X0=X0, X1=X1, p0=p0, p1=p1, key0=key0, key1=key1, kind=features.kind[fe],
                        face=features.face[fe])
