@@ -109,10 +109,13 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     n_chain = int(chain_start.sum())
     run = kept // 2
     fwd = kept % 2 == 0
-    entry_p = np.where(fwd[:, None], runs.p0[run], runs.p1[run])
-    exit_p = np.where(fwd[:, None], runs.p1[run], runs.p0[run])
-    entry_X = np.where(fwd[:, None], runs.X0[run], runs.X1[run])
-    exit_X = np.where(fwd[:, None], runs.X1[run], runs.X0[run])
+    # Ends of run r: index r (start) and R + r (end) into the stacked ends.
+    entry = np.where(fwd, run, run + R)
+    exit_ = np.where(fwd, run + R, run)
+    ends_p = np.concatenate([runs.p0, runs.p1])
+    ends_X = np.concatenate([runs.X0, runs.X1])
+    entry_p, exit_p = np.take(ends_p, entry, axis=0), np.take(ends_p, exit_, axis=0)
+    entry_X, exit_X = np.take(ends_X, entry, axis=0), np.take(ends_X, exit_, axis=0)
     # Points: entry of each chain's first run, then the exit of every run.
     first_idx = np.flatnonzero(chain_start)
     n_pts = len(kept) + n_chain

@@ -80,6 +80,21 @@ def static_feature_mask(scene: Scene, options: LineOptions) -> dict[str, np.ndar
     return out
 
 
+def _static_kinds(scene: Scene, static: dict[str, np.ndarray]) -> np.ndarray:
+    """(E,) int8 kind of every edge from the camera-independent masks (-1: none), by priority;
+    kept in `static` under "_kinds" (read-only), as the masks are kept for many frames."""
+    kind = static.get("_kinds")
+    if kind is None:
+        kind = np.full(len(scene.edges), -1, np.int8)
+        # Lowest priority first so that higher kinds overwrite.
+        for name in ("material", "crease", "nonmanifold", "border"):
+            if name in static:
+                kind[static[name]] = KIND_INDEX[name]
+        kind.setflags(write=False)
+        static["_kinds"] = kind
+    return kind
+
+
 def silhouette_mask(scene: Scene, camera: Camera) -> np.ndarray:
     """(E,) manifold edges whose two faces face opposite ways."""
     ff = np.append(front_facing(scene, camera), False)
@@ -99,14 +114,9 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     as a mesh silhouette edge gets none. `with_lift`: also give the mesh edges their occlusion-ray
     lift (lines.surface_lift) when no other part brings one."""
     static = static_feature_mask(scene, options) if static is None else static
-    E = len(scene.edges)
-    kind = np.full(E, -1, np.int8)
-    # Lowest priority first so that higher kinds overwrite.
-    for name in ("material", "crease", "nonmanifold", "border"):
-        if name in static:
-            kind[static[name]] = KIND_INDEX[name]
+    kind = _static_kinds(scene, static).copy()
     if "silhouette" in options.kinds and options.contours == "mesh":
-        kind[silhouette_mask(scene, camera)] = KIND_INDEX["silhouette"]
+        kind[np.flatnonzero(silhouette_mask(scene, camera))] = KIND_INDEX["silhouette"]
     smooth = None
     if wants_smooth_contours(options):
         smooth, whole = smooth_contours(scene, camera, crease_angle_deg=options.crease_angle_deg,
@@ -141,7 +151,8 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
         # would not add the mesh edges' lift (it only fills a missing one): add it here.
         from .lines import surface_lift
 
-        parts[0] = replace(mesh, lift=surface_lift(scene, mesh, camera, options.occlusion_offset, edge_index=sel))
+        parts[0] = replace(mesh, lift=surface_lift(scene, mesh, camera, options.occlusion_offset, edge_index=sel,
+                                                   edge_faces=ef))
     if len(parts) == 1:
         return parts[0]
     return FeatureEdges.concat(parts)

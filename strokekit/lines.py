@@ -50,7 +50,9 @@ class LineRenderer:
         strokes = chain_runs(runs, opts, camera=camera, frame=frame)
         # A run visible at a single point (an edge touching the view only at one sample) has no
         # length to draw.
-        strokes = strokes.select(strokes.lengths > 0.0)
+        has_length = strokes.lengths > 0.0
+        if not has_length.all():
+            strokes = strokes.select(has_length)
         strokes = drop_overlaps(strokes, opts.overlap_tol_px if opts.merge_overlaps else 0.0, opts.doubled_px)
         strokes = split_max_length(strokes, opts.max_length_px)
         strokes = drop_short(strokes, opts.min_length_px)
@@ -60,7 +62,7 @@ class LineRenderer:
 
 
 def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float,
-                 edge_index: np.ndarray | None = None) -> np.ndarray:
+                 edge_index: np.ndarray | None = None, edge_faces: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) ray-origin offsets for mesh-edge features: `fraction` x scene radius along the mean
     normal of the edge's faces that face the eye (all its faces, turned around, when none does).
 
@@ -72,14 +74,22 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     it would start the ray inside that object.
 
     `edge_index` (N,), if given, is the scene edge of each feature (all mesh edges, va < vb as
-    in scene.edges): it saves looking the edges up by their vertices."""
+    in scene.edges): it saves looking the edges up by their vertices; `edge_faces` (N, 2), with
+    it, their scene.edge_faces rows."""
     lift = np.zeros((len(fe), 3))
     V = len(scene.vertices)
-    mesh = (fe.va >= 0) & (fe.va < V) & (fe.vb >= 0) & (fe.vb < V)
-    if not mesh.any():
-        return lift
-    all_mesh = edge_index is not None and bool(mesh.all())
-    if edge_index is not None:
+    if edge_index is not None and edge_faces is not None:  # every feature is a mesh edge
+        mesh = all_mesh = True
+        pos = edge_index
+        found = True
+    else:
+        mesh = (fe.va >= 0) & (fe.va < V) & (fe.vb >= 0) & (fe.vb < V)
+        if not mesh.any():
+            return lift
+        all_mesh = edge_index is not None and bool(mesh.all())
+    if edge_faces is not None and all_mesh:
+        ef = edge_faces
+    elif edge_index is not None:
         pos = np.asarray(edge_index)[mesh]
         found = np.ones(len(pos), bool)
     else:
@@ -89,7 +99,8 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
         q = lo * (V + 1) + hi
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
-    ef = np.take(scene.edge_faces, pos, axis=0)
+    if not (edge_faces is not None and all_mesh):
+        ef = np.take(scene.edge_faces, pos, axis=0)
     n = scene.face_normals
     ff = front_facing(scene, camera)
     has1 = ef[:, 1] >= 0

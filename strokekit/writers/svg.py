@@ -44,10 +44,18 @@ def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
     if not counts:
         return []
     r = (np.round(strokes.points, decimals) + 0.0).ravel().tolist()  # + 0.0 turns -0.0 into 0.0
-    fmt = f"%.{decimals}f %.{decimals}f"
-    # Strokes separated by NUL, which the formatted numbers never contain.
-    template = "\0".join(" ".join([fmt] * n) for n in counts)
+    # Strokes separated by NUL, which the formatted numbers never contain; one template per
+    # point count.
+    formats = _POINT_FORMATS.setdefault(decimals, {})
+    for n in set(counts).difference(formats):
+        formats[n] = " ".join([f"%.{decimals}f %.{decimals}f"] * n)
+    template = "\0".join([formats[n] for n in counts])
+    if len(formats) > 4096:  # a frame with unusually many distinct lengths: do not keep them all
+        formats.clear()
     return (template % tuple(r)).split("\0")
+
+
+_POINT_FORMATS: dict[int, dict[int, str]] = {}
 
 
 def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ...], *, decimals: int = 2,
@@ -57,10 +65,13 @@ def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ..
     out = [_HEAD.format(w=int(width), h=int(height))]
     out += [el.tostring() for el in underlays or []]
     data = stroke_path_data(strokes, decimals)
+    # Strokes by kind, in stroke order within each kind.
+    order = np.argsort(strokes.kind, kind="stable")
+    kind_sorted = strokes.kind[order]
+    present = np.unique(kind_sorted).tolist()
+    bounds = np.searchsorted(kind_sorted, present).tolist() + [len(order)]
+    by_kind = {k: order[a:b].tolist() for k, a, b in zip(present, bounds[:-1], bounds[1:])}
     ids = strokes.ids.tolist()
-    by_kind: dict[int, list[int]] = {}
-    for s, k in enumerate(strokes.kind.tolist()):
-        by_kind.setdefault(k, []).append(s)
     for name in (k for k in KINDS if k in kinds or KINDS.index(k) in by_kind):
         group = (f'<g fill="none" id="layer-{name}" inkscape:groupmode="layer" inkscape:label="{name}" '
                  f'stroke="{KIND_COLORS.get(name, "#000000")}" stroke-linecap="round" stroke-linejoin="round" '
