@@ -14,9 +14,11 @@ from .model import KINDS, Strokes, VisibleRuns, row_norm
 from .options import LineOptions
 
 
-def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float) -> np.ndarray:
+def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float,
+              zero: np.ndarray | None = None) -> np.ndarray:
     """For 2R run ends with node ids and unit directions pointing away from the node into the run:
-    the other end at the same node when exactly two ends meet and the turn is gentle enough, else -1."""
+    the other end at the same node when exactly two ends meet and the turn is gentle enough, else -1.
+    `zero` (R,), if given, is True where run r's direction (ends 2r, 2r + 1) is all zeros."""
     m = len(node)
     partner = np.full(m, -1, np.int64)
     if m == 0:
@@ -27,14 +29,19 @@ def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float) -> np.n
     new[0] = True
     np.not_equal(ns[1:], ns[:-1], out=new[1:])
     starts = np.flatnonzero(new)
-    counts = np.diff(starts, append=m)
+    counts = np.empty(len(starts), np.int64)
+    np.subtract(starts[1:], starts[:-1], out=counts[:-1])
+    counts[-1] = m - starts[-1]
     pairs = starts[counts == 2]
     e0, e1 = order[pairs], order[pairs + 1]
     # Directions away from the node: the chain goes in along -d0 and out along d1; the turn is the
     # angle between -d0 and d1. Split when turn > split angle, i.e. -d0.d1 < cos(split).
     d0, d1 = np.take(direction, e0, axis=0), np.take(direction, e1, axis=0)
     turn_cos = -np.einsum("ij,ij->i", d0, d1)
-    degenerate = (np.abs(d0).sum(axis=1) == 0) | (np.abs(d1).sum(axis=1) == 0)
+    if zero is not None:
+        degenerate = zero[e0 >> 1] | zero[e1 >> 1]
+    else:
+        degenerate = (np.abs(d0).sum(axis=1) == 0) | (np.abs(d1).sum(axis=1) == 0)
     ok = (turn_cos >= cos_split) | degenerate
     partner[e0[ok]] = e1[ok]
     partner[e1[ok]] = e0[ok]
@@ -55,10 +62,11 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     node[0::2], node[1::2] = k0, k1
     d = runs.p1 - runs.p0
     ln = row_norm(d)
-    d = np.where(ln[:, None] > 1e-9, d / np.where(ln > 1e-9, ln, 1)[:, None], 0.0)
+    has_dir = ln > 1e-9
+    d = np.where(has_dir[:, None], d / np.where(has_dir, ln, 1)[:, None], 0.0)
     direction = np.empty((2 * R, 2))
     direction[0::2], direction[1::2] = d, -d
-    partner = _partners(node, direction, float(np.cos(np.radians(options.split_angle_deg))))
+    partner = _partners(node, direction, float(np.cos(np.radians(options.split_angle_deg))), ~has_dir)
 
     # Directed items: d = 2r + dir; item d enters at end d and leaves at end d ^ 1.
     items = np.arange(2 * R)
@@ -99,13 +107,17 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     last_of_head = np.full(2 * R, -1, np.int64)
     last_of_head[head[is_last]] = items[is_last]
     rev_head = last_of_head[head] ^ 1
-    keep = (head // 2 < rev_head // 2) | ((head // 2 == rev_head // 2) & (head % 2 == 0))
+    head_run, rev_run = head >> 1, rev_head >> 1
+    keep = (head_run < rev_run) | ((head_run == rev_run) & (head & 1 == 0))
     kept = items[keep]
-    order = np.lexsort((rank[kept], head[kept]))
+    # By head, then rank along the chain (unique within a chain: one key sorts both).
+    order = np.argsort(head[kept] * (2 * R) + rank[kept])
     # Chains ordered by their head's run index (which follows the scene's edge order).
     kept = kept[order]
     h = head[kept]
-    chain_start = np.r_[True, h[1:] != h[:-1]]
+    chain_start = np.empty(len(h), bool)
+    chain_start[:1] = True
+    np.not_equal(h[1:], h[:-1], out=chain_start[1:])
     n_chain = int(chain_start.sum())
     run = kept // 2
     fwd = kept % 2 == 0
@@ -126,7 +138,9 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     face = np.empty(n_pts, np.int64)
     points[pos_exit], surface[pos_exit], face[pos_exit] = exit_p, exit_X, runs.face[run]
     points[pos_entry], surface[pos_entry], face[pos_entry] = entry_p[first_idx], entry_X[first_idx], runs.face[run[first_idx]]
-    counts = np.diff(np.r_[first_idx, len(kept)]) + 1
-    offsets = np.r_[0, np.cumsum(counts)].astype(np.int64)
+    offsets = np.empty(n_chain + 1, np.int64)
+    offsets[0] = 0
+    offsets[1:-1] = first_idx[1:] + np.arange(1, n_chain)  # each chain: its runs + 1 points
+    offsets[-1] = n_pts
     kind = runs.kind[run[first_idx]]
     return Strokes.build(points, surface, face, offsets, kind, camera=camera, frame=frame, period_px=options.period_px)
