@@ -114,28 +114,39 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     as a mesh silhouette edge gets none. `with_lift`: also give the mesh edges their occlusion-ray
     lift (lines.surface_lift) when no other part brings one."""
     static = static_feature_mask(scene, options) if static is None else static
-    kind = _static_kinds(scene, static).copy()
-    if "silhouette" in options.kinds and options.contours == "mesh":
-        kind[np.flatnonzero(silhouette_mask(scene, camera))] = KIND_INDEX["silhouette"]
+    static_kind = _static_kinds(scene, static)
+    mesh_silhouettes = "silhouette" in options.kinds and options.contours == "mesh"
     smooth = None
     if wants_smooth_contours(options):
+        kind = static_kind.copy()
+        if mesh_silhouettes:
+            kind[np.flatnonzero(silhouette_mask(scene, camera))] = KIND_INDEX["silhouette"]
         smooth, whole = smooth_contours(scene, camera, crease_angle_deg=options.crease_angle_deg,
                                         occlusion_offset=options.occlusion_offset)
         # The contour takes the whole edge from the lower kinds (as a mesh silhouette does; a mesh
         # silhouette drawn beside smooth contours keeps its edge).
         kind[whole] = np.where(kind[whole] == KIND_INDEX["silhouette"], kind[whole], -1)
-    sel = np.flatnonzero(kind >= 0)
+        sel = np.flatnonzero(kind >= 0)
+        kind_sel = kind[sel]
+    elif mesh_silhouettes:
+        # Silhouette over the static kinds, without writing an array of every edge.
+        sil_mask = silhouette_mask(scene, camera)
+        sel = np.flatnonzero(sil_mask | (static_kind >= 0))
+        kind_sel = np.where(sil_mask[sel], np.int8(KIND_INDEX["silhouette"]), static_kind[sel])
+    else:
+        sel = np.flatnonzero(static_kind >= 0)
+        kind_sel = static_kind[sel]
     e = np.take(scene.edges, sel, axis=0)
     # The face on the front side carries the surface point of a silhouette; the first face otherwise.
     ef = np.take(scene.edge_faces, sel, axis=0)
     face = ef[:, 0].copy()
-    sil = kind[sel] == KIND_INDEX["silhouette"]
+    sil = kind_sel == KIND_INDEX["silhouette"]
     if sil.any():
         ff = front_facing(scene, camera)
         second_front = ff[ef[sil, 1]]
         face[sil] = np.where(second_front, ef[sil, 1], ef[sil, 0])
     v = scene.vertices
-    mesh = FeatureEdges(a=np.take(v, e[:, 0], axis=0), b=np.take(v, e[:, 1], axis=0), kind=kind[sel], va=e[:, 0].astype(np.int64),
+    mesh = FeatureEdges(a=np.take(v, e[:, 0], axis=0), b=np.take(v, e[:, 1], axis=0), kind=kind_sel, va=e[:, 0].astype(np.int64),
                         vb=e[:, 1].astype(np.int64), face=face)
     parts = [mesh]
     if smooth is not None:

@@ -276,40 +276,50 @@ class Occluder:
             vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
         return vis
 
-    def visible_rows_lean(self, P: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
-                          scale: np.ndarray, retest_front_hits: bool = True) -> np.ndarray:
-        """visible_rows with the rays built in fewer passes (the draft preset's path): the same
-        rays up to float64 rounding, so the same answers but for rays that graze a triangle
-        edge within float32 rounding. The ray from origin O = X + e1 u to target T = eye - e2 u
-        (u the unit direction from the lifted point X to the eye, at distance r) is X + e1/r d
-        with direction d (1 - (e1 + e2)/r), d = eye - X."""
-        c = P - self._origin_col
-        eps = offset * np.maximum(np.sqrt(_einsum_sq(c)), scale)
-        eye = np.asarray(camera.eye, float)
-        eye_eps = offset * np.linalg.norm(eye - self.origin)
-        eye = eye[:, None]
+    def visible_local(self, P: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
+                      scale: np.ndarray, retest_front_hits: bool = True) -> np.ndarray:
+        """visible_rows (the draft preset's path) with points P, lifts and local sizes already in
+        the Embree frame (centred on the scene, unit radius) as float32 (3, N) rows: the rays are
+        built in the precision Embree takes them in, in fewer passes, so the answers are the
+        same but for rays that graze a triangle edge within float32 rounding. The ray from
+        X + e1 u to eye - e2 u (X the lifted point, u the unit direction to the eye at distance
+        r, d = eye - X) starts at X + (e1 / r) d with direction d (r - e1 - e2) / r."""
+        eye = ((np.asarray(camera.eye, float) - self.origin) * self.inv_scale).astype(np.float32)[:, None]
+        eye_eps = np.float32(offset * float(np.sqrt((eye * eye).sum())))
+        offset = np.float32(offset)
+        eps = offset * np.maximum(np.sqrt((P * P).sum(axis=0)), scale)
         lifted = P + lift
         d = eye - lifted
-        dist = np.sqrt(_einsum_sq(d))
-        e1 = np.minimum(eps, 0.5 * dist)
-        seg_len = dist - e1 - np.minimum(np.maximum(eps, eye_eps), 0.25 * dist)
-        inv = 1.0 / np.where(dist > 0, dist, 1.0)
-        k = self.inv_scale
+        dist = np.sqrt((d * d).sum(axis=0))
+        e1 = np.minimum(eps, np.float32(0.5) * dist)
+        seg_len = dist - e1 - np.minimum(np.maximum(eps, eye_eps), np.float32(0.25) * dist)
+        inv = np.float32(1.0) / np.where(dist > 0, dist, np.float32(1.0))
         rays = np.empty((P.shape[1], 6), np.float32)
-        rays[:, :3] = ((lifted - self._origin_col) * k + d * (e1 * inv * k)).T
-        rays[:, 3:] = (d * (seg_len * inv * k)).T
+        rays[:, :3] = (lifted + d * (e1 * inv)).T
+        rays[:, 3:] = (d * (seg_len * inv)).T
         r = self._rs.cast_rays(self._o3c.Tensor(rays))
         f = r["t_hit"].numpy()
         vis = ~(f <= 1.0)
-        # Hit distance along the ray (world units) against the reach of the contact re-test.
-        reach = 100.0 * np.sqrt(_norm_sq(lift)) + eps
+        reach = np.float32(100.0) * np.sqrt((lift * lift).sum(axis=0)) + eps
         again = np.flatnonzero(~vis & (f * seg_len <= reach))
         if not retest_front_hits and len(again):
             tri = r["primitive_ids"].numpy().take(again).astype(np.int64)
             n = np.take(self.scene.face_normals, tri, axis=0)
-            again = again[np.einsum("ij,ji->i", n, d[:, again]) >= 0.0]
+            again = again[np.einsum("ij,ji->i", n, d[:, again].astype(float)) >= 0.0]
         if len(again):
-            vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
+            # The plain rays (no lift), from the same points.
+            Pa = P[:, again]
+            d = eye - Pa
+            dist = np.sqrt((d * d).sum(axis=0))
+            ea = eps[again]
+            e1 = np.minimum(ea, np.float32(0.5) * dist)
+            seg_len = dist - e1 - np.minimum(np.maximum(ea, eye_eps), np.float32(0.25) * dist)
+            inv = np.float32(1.0) / np.where(dist > 0, dist, np.float32(1.0))
+            rays = np.empty((len(again), 6), np.float32)
+            rays[:, :3] = (Pa + d * (e1 * inv)).T
+            rays[:, 3:] = (d * (seg_len * inv)).T
+            hit = self._rs.test_occlusions(self._o3c.Tensor(rays), tnear=0.0, tfar=1.0)
+            vis[again] = ~hit.numpy().astype(bool)
         return vis
 
     def eye_enclosed(self, camera: Camera, n: int = 64) -> bool:
@@ -558,22 +568,38 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
 def _visible_runs_grid(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
                        near: float) -> VisibleRuns:
     """visible_runs with `bisection_grid` (the draft preset) for a perspective camera, the open3d
-    backend and lifted rays: the same samples, rays and runs, in fewer numpy passes. Segments
-    shorter than `whole_edge_px` (most of a draft frame) are one ray each and, when visible, one
-    run whose ends are the clipped segment's ends, taken as they are (no re-projection); only the
-    longer segments go through sampling, the grid search and run assembly."""
+    backend and lifted rays: the same samples and runs, in fewer numpy passes. Segments whose
+    ends project inside the image are not clipped; segments shorter than `whole_edge_px` (most
+    of a draft frame) are one ray each and, when visible, one run whose ends are the segment's
+    ends, taken as they are (no re-projection); only the longer segments go through sampling,
+    the grid search and run assembly. The rays are built in float32 in the Embree frame
+    (Occluder.visible_local), where the float64 path rounds them in the end."""
     a, b = features.a, features.b
-    t0, t1 = clip_segments(a, b, camera, near)
+    N = len(a)
+    W, H = camera.width, camera.height
+    p, z = camera.project(np.concatenate([a, b]))
+    with np.errstate(invalid="ignore"):
+        ok = (z >= near) & (p[:, 0] >= 0.0) & (p[:, 0] <= W) & (p[:, 1] >= 0.0) & (p[:, 1] <= H)
+    out = np.flatnonzero(~(ok[:N] & ok[N:]))
+    t0, t1 = np.zeros(N), np.ones(N)
+    A, B = a, b
+    pa, pb, za, zb = p[:N], p[N:], z[:N], z[N:]
+    if len(out):  # clip the others (Cyrus-Beck) and project their clipped ends
+        t0o, t1o = clip_segments(a[out], b[out], camera, near)
+        t0[out], t1[out] = t0o, t1o
+        ab_o = b[out] - a[out]
+        A, B = a.copy(), b.copy()
+        A[out] = a[out] + t0o[:, None] * ab_o
+        B[out] = a[out] + t1o[:, None] * ab_o
+        po, zo = camera.project(np.concatenate([A[out], B[out]]))
+        pa, pb, za, zb = pa.copy(), pb.copy(), za.copy(), zb.copy()
+        pa[out], pb[out], za[out], zb[out] = po[:len(out)], po[len(out):], zo[:len(out)], zo[len(out):]
     idx = np.flatnonzero(t1 > t0)
-    n = len(idx)
-    a_i = np.take(a, idx, axis=0)
-    ab = np.take(b, idx, axis=0) - a_i
-    t0_i, t1_i = t0[idx], t1[idx]
-    A = a_i + t0_i[:, None] * ab
-    D = (t1_i - t0_i)[:, None] * ab  # B - A
-    B = A + D
-    p, z = camera.project(np.concatenate([A, B]))
-    pa, pb, za, zb = p[:n], p[n:], z[:n], z[n:]
+    lift = features.lift
+    if len(idx) < N:
+        A, B, pa, pb, za, zb = A[idx], B[idx], pa[idx], pb[idx], za[idx], zb[idx]
+        a, b, lift = a[idx], b[idx], lift[idx]
+    D = B - A
     L = row_norm(pb - pa)
     whole = L < options.whole_edge_px
     w_seg = np.flatnonzero(whole)
@@ -587,9 +613,12 @@ def _visible_runs_grid(features: FeatureEdges, camera: Camera, occluder: Occlude
     s_l = (np.arange(len(seg_l)) - np.repeat(starts, counts)) / np.repeat(n_int, counts)
     seg = np.concatenate([w_seg, seg_l])
     s = np.concatenate([np.full(nw, 0.5), s_l])
-    At, Dt = A.T.copy(), D.T.copy()
-    liftT = np.take(features.lift, idx, axis=0).T.copy()
-    size = row_norm(ab)  # local size for the ray offset (see Occluder.visible)
+    # Per segment, in the Embree frame (float32): start, direction, lift, local size.
+    k = occluder.inv_scale
+    At = ((A - occluder.origin) * k).T.astype(np.float32)
+    Dt = (D * k).T.astype(np.float32)
+    liftT = (lift * k).T.astype(np.float32)
+    size = (row_norm(b - a) * k).astype(np.float32)  # the segment's world length (Occluder.visible)
     offset, retest = options.occlusion_offset, options.retest_front_hits
 
     def lam_at(seg_i, s_i):
@@ -597,8 +626,9 @@ def _visible_runs_grid(features: FeatureEdges, camera: Camera, occluder: Occlude
         return s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
 
     def visible_at(seg_i, s_i):
-        P = At.take(seg_i, axis=1) + lam_at(seg_i, s_i) * Dt.take(seg_i, axis=1)
-        return occluder.visible_rows_lean(P, camera, offset, liftT.take(seg_i, axis=1), size.take(seg_i), retest)
+        lam = lam_at(seg_i, s_i).astype(np.float32)
+        P = At.take(seg_i, axis=1) + lam * Dt.take(seg_i, axis=1)
+        return occluder.visible_local(P, camera, offset, liftT.take(seg_i, axis=1), size.take(seg_i), retest)
 
     vis = visible_at(seg, s)
     runs_w = w_seg[vis[:nw]]
@@ -625,8 +655,9 @@ def _visible_runs_grid(features: FeatureEdges, camera: Camera, occluder: Occlude
     assert np.array_equal(run_l, off_seg[o_off]), "visibility events must pair up"
     good = s1_l >= s0_l
     run_l, s0_l, s1_l = run_l[good], s0_l[good], s1_l[good]
-    X0_l = (At.take(run_l, axis=1) + lam_at(run_l, s0_l) * Dt.take(run_l, axis=1)).T
-    X1_l = (At.take(run_l, axis=1) + lam_at(run_l, s1_l) * Dt.take(run_l, axis=1)).T
+    A_l, D_l = np.take(A, run_l, axis=0), np.take(D, run_l, axis=0)
+    X0_l = A_l + lam_at(run_l, s0_l)[:, None] * D_l
+    X1_l = A_l + lam_at(run_l, s1_l)[:, None] * D_l
     m = len(run_l)
     p_l, _ = camera.project(np.concatenate([X0_l, X1_l]))
     # Both kinds of runs, in segment order (a long segment's runs are in order along it).
