@@ -11,12 +11,14 @@ from .model import KINDS
 #: Accuracy knobs per preset. whole_edge_px: edges shorter than this on screen get one
 #: visibility ray at their middle and are drawn whole or not at all (0: none);
 #: sample_spacing_px: distance between visibility samples along an edge on screen;
-#: bisection_tol_px: where visibility changes, the split point is located to this; supersample:
-#: raster masks; simplify_tol_px: polyline simplification (0 = none); doubled_px and
-#: merge_overlaps: the cleanup of lines drawn twice (draft previews keep them).
+#: bisection_tol_px: where visibility changes, the split point is located to this (draft does not
+#: bisect, bisect_changes False: its changes lie in the middle of a 2 px bracket, within 1 px);
+#: retest_front_hits: see LineOptions; supersample: raster masks; simplify_tol_px: polyline
+#: simplification (0 = none); doubled_px and merge_overlaps: the cleanup of lines drawn twice
+#: (draft previews keep them).
 QUALITY_PRESETS: dict[str, dict] = {
-    "draft": {"whole_edge_px": 8.0, "sample_spacing_px": 8.0, "bisection_tol_px": 0.5, "supersample": 1,
-              "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False, "bisection_grid": True,
+    "draft": {"whole_edge_px": 8.0, "sample_spacing_px": 2.0, "bisection_tol_px": 1.0, "supersample": 1,
+              "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False, "bisect_changes": False,
               "retest_front_hits": False},
     "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "simplify_tol_px": 0.0},
     "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "simplify_tol_px": 0.0},
@@ -49,10 +51,10 @@ class LineOptions:
     whole_edge_px: float = 0.0
     sample_spacing_px: float = 4.0
     bisection_tol_px: float = 0.01
-    # Locate each visibility change with one batch of rays on an even grid (spacing <= the
-    # tolerance) instead of halving its bracket: one occlusion call instead of one per halving,
-    # more rays (the draft preset; visibility.visible_runs).
-    bisection_grid: bool = False
+    # False: visibility changes are not bisected; each is placed in the middle of the bracket
+    # between its two samples, within sample_spacing_px / 2 (bisection_tol_px is not used), and
+    # every sample goes in one occlusion call (the draft preset; visibility.visible_runs).
+    bisect_changes: bool = True
     # False: skip the plain-ray re-test of samples whose lifted ray is stopped near its start by
     # the front side of a triangle (Occluder.visible_rows; the draft preset).
     retest_front_hits: bool = True

@@ -404,33 +404,6 @@ def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> 
     return t0, t1
 
 
-def _grid_search(cs: np.ndarray, lo: np.ndarray, hi: np.ndarray, vis_lo: np.ndarray, width_px: np.ndarray,
-                 tol_px: float, visible_at) -> tuple[np.ndarray, np.ndarray]:
-    """Narrow each bracket [lo, hi] (parameters along segments cs, a visibility change inside,
-    vis_lo the visibility at lo) to one cell of an even grid spaced at most tol_px on screen,
-    tested in one batch: the first cell whose ends differ. The same tolerance as halving with
-    one occlusion call instead of log2(width / tol), for more rays (the draft preset, whose
-    frames are small enough that the calls cost more than the rays)."""
-    n = np.maximum(np.ceil(width_px / tol_px).astype(np.int64) - 1, 0)  # inner grid points
-    if not n.any():
-        return lo, hi
-    cell = (hi - lo) / (n + 1)
-    br = np.repeat(np.arange(len(cs)), n)
-    j = np.arange(len(br)) - np.repeat(np.cumsum(n) - n, n) + 1  # 1..n within each bracket
-    vis = visible_at(cs[br], lo[br] + j * cell[br])
-    # First grid point whose visibility differs from lo's; none: the change is in the last cell.
-    first = n + 1
-    diff = np.flatnonzero(vis != vis_lo[br])
-    if len(diff):
-        b = br[diff]
-        lead = np.r_[True, b[1:] != b[:-1]]
-        first = first.copy()
-        first[b[lead]] = j[diff[lead]]
-    new_lo = np.where(first > 1, lo + (first - 1) * cell, lo)
-    new_hi = np.where(first <= n, lo + first * cell, hi)
-    return new_lo, new_hi
-
-
 def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
                  scene_radius: float) -> VisibleRuns:
     """Clip, sample every `sample_spacing_px` on screen, test occlusion, bisect each change to
@@ -438,9 +411,9 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     screen are tested at their middle only and kept whole or dropped."""
     a, b = features.a, features.b
     near = camera.near_distance(scene_radius)
-    if (options.bisection_grid and features.lift is not None and not camera.is_ortho
+    if (not options.bisect_changes and features.lift is not None and not camera.is_ortho
             and occluder.backend == "open3d"):
-        return _visible_runs_grid(features, camera, occluder, options, near)
+        return _visible_runs_sampled(features, camera, occluder, options, near)
     t0, t1 = clip_segments(a, b, camera, near)
     keep = t1 > t0 + 0.0
     # A segment clipped to a single point still counts when it is not degenerate in 3D.
@@ -516,8 +489,8 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         # Each bracket halves until it is within the tolerance: short edges' brackets need fewer
         # steps. Sorted by their number of steps, the brackets still open are a prefix.
         width_px = (hi - lo) * L[cs]
-        if options.bisection_grid:
-            lo, hi = _grid_search(cs, lo, hi, vis_lo, width_px, options.bisection_tol_px, visible_at)
+        if not options.bisect_changes:  # the middle of the bracket
+            lo = hi = 0.5 * (lo + hi)
         else:
             steps = np.ceil(np.log2(np.maximum(width_px, 1e-300) / options.bisection_tol_px))
             steps = np.maximum(steps, 0).astype(np.int64)
@@ -565,15 +538,17 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
                        face=features.face[fe])
 
 
-def _visible_runs_grid(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
-                       near: float) -> VisibleRuns:
-    """visible_runs with `bisection_grid` (the draft preset) for a perspective camera, the open3d
-    backend and lifted rays: the same samples and runs, in fewer numpy passes. Segments whose
-    ends project inside the image are not clipped; segments shorter than `whole_edge_px` (most
-    of a draft frame) are one ray each and, when visible, one run whose ends are the segment's
-    ends, taken as they are (no re-projection); only the longer segments go through sampling,
-    the grid search and run assembly. The rays are built in float32 in the Embree frame
-    (Occluder.visible_local), where the float64 path rounds them in the end."""
+def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
+                          near: float) -> VisibleRuns:
+    """visible_runs without bisection (`bisect_changes` False, the draft preset) for a
+    perspective camera, the open3d backend and lifted rays: every sample in one Embree call, and
+    each visibility change placed in the middle of the bracket between its two samples (within
+    sample_spacing_px / 2 of the change). Segments whose ends project inside the image are not
+    clipped; segments shorter than `whole_edge_px` (most of a draft frame) are one ray each and,
+    when visible, one run whose ends are the segment's ends, taken as they are (no
+    re-projection); only the longer segments go through sampling and run assembly. The rays are
+    built in float32 in the Embree frame (Occluder.visible_local), where the float64 path rounds
+    them in the end."""
     a, b = features.a, features.b
     N = len(a)
     W, H = camera.width, camera.height
@@ -625,24 +600,17 @@ def _visible_runs_grid(features: FeatureEdges, camera: Camera, occluder: Occlude
         z0, z1 = za.take(seg_i), zb.take(seg_i)
         return s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
 
-    def visible_at(seg_i, s_i):
-        lam = lam_at(seg_i, s_i).astype(np.float32)
-        P = At.take(seg_i, axis=1) + lam * Dt.take(seg_i, axis=1)
-        return occluder.visible_local(P, camera, offset, liftT.take(seg_i, axis=1), size.take(seg_i), retest)
-
-    vis = visible_at(seg, s)
+    lam = lam_at(seg, s).astype(np.float32)
+    P = At.take(seg, axis=1) + lam * Dt.take(seg, axis=1)
+    vis = occluder.visible_local(P, camera, offset, liftT.take(seg, axis=1), size.take(seg), retest)
     runs_w = w_seg[vis[:nw]]
     vis_l = vis[nw:]
-    # Long segments: changes between consecutive samples, narrowed on the grid.
+    # Long segments: a change between consecutive samples is placed between them.
     same = seg_l[1:] == seg_l[:-1]
     change = np.flatnonzero(same & (vis_l[1:] != vis_l[:-1]))
     cs = seg_l[change]
-    lo, hi = s_l[change], s_l[change + 1]
-    vis_lo = vis_l[change]
-    if len(change):
-        lo, hi = _grid_search(cs, lo, hi, vis_lo, (hi - lo) * L[cs], options.bisection_tol_px, visible_at)
-    s_change = np.where(vis_lo, lo, hi)
-    rising = ~vis_lo
+    s_change = 0.5 * (s_l[change] + s_l[change + 1])
+    rising = ~vis_l[change]
     first_vis, last_vis = vis_l[starts], vis_l[starts + counts - 1]
     on_seg = np.concatenate([l_seg[first_vis], cs[rising]])
     on_s = np.concatenate([np.zeros(int(first_vis.sum())), s_change[rising]])
