@@ -30,6 +30,8 @@ class LineRenderer:
     def __post_init__(self):
         self.occluder = Occluder(self.scene, self.backend)
         self.static = static_feature_mask(self.scene, self.options)
+        if not self.options.retest_front_hits and self.occluder.backend == "open3d":
+            self.occluder.face_normals32()  # built with the scene, not by the first frame
 
     def check_camera(self, camera: Camera, frame: int = 0) -> None:
         if self.occluder.eye_enclosed(camera):
