@@ -23,7 +23,7 @@ def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float,
     partner = np.full(m, -1, np.int64)
     if m == 0:
         return partner
-    order = np.argsort(node, kind="stable")
+    order = np.argsort(node)  # the pairs found do not depend on the order within a node
     ns = node[order]
     new = np.empty(m, bool)
     new[0] = True
@@ -46,6 +46,24 @@ def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float,
     partner[e0[ok]] = e1[ok]
     partner[e1[ok]] = e0[ok]
     return partner
+
+
+def _heads(partner: np.ndarray, items: np.ndarray, rounds: int):
+    """Pointer jumping toward the head of each directed chain: (head, rank along the chain) of
+    every directed item, or (None, None) when a chain is closed (a cycle has no head). Paths
+    reach their heads within `rounds` = ceil(log2(2R)) doublings."""
+    pred = np.where(partner >= 0, partner ^ 1, -1)
+    ptr = np.where(pred >= 0, pred, items)
+    rank = (pred >= 0).astype(np.int64)
+    for _ in range(rounds + 1):
+        nxt = ptr[ptr]
+        if np.array_equal(nxt, ptr):
+            break
+        rank = rank + rank[ptr]  # a head has rank 0 and points to itself
+        ptr = nxt
+    if (pred[ptr] >= 0).any():  # an item that never reached a head lies on a cycle
+        return None, None
+    return ptr, rank
 
 
 def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int = 0) -> Strokes:
@@ -71,36 +89,28 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     # Directed items: d = 2r + dir; item d enters at end d and leaves at end d ^ 1.
     items = np.arange(2 * R)
 
-    # Closed chains (components of the run graph with no free end) are cut at their smallest
-    # run's start end. Every run has at most two links, so a component is a path or a cycle:
-    # pointer jumping backward along the directed chains for ceil(log2(2R)) rounds brings every
-    # item of a path to its head (an item without predecessor) and gives every item of a cycle
-    # the smallest run of the whole cycle.
-    pred = np.where(partner >= 0, partner ^ 1, -1)
-    ptr = np.where(pred >= 0, pred, items)
-    low = items // 2
-    for _ in range(max(1, int(2 * R - 1).bit_length())):
-        low = np.minimum(low, low[ptr])
-        ptr = ptr[ptr]
-    on_cycle = pred[ptr] >= 0
-    if on_cycle.any():
+    rounds = max(1, int(2 * R - 1).bit_length())
+    head, rank = _heads(partner, items, rounds)
+    if head is None:
+        # Closed chains (components of the run graph with no free end) are cut at their smallest
+        # run's start end. Every run has at most two links, so a component is a path or a cycle:
+        # pointer jumping backward along the directed chains for ceil(log2(2R)) rounds brings every
+        # item of a path to its head (an item without predecessor) and gives every item of a cycle
+        # the smallest run of the whole cycle.
+        pred = np.where(partner >= 0, partner ^ 1, -1)
+        ptr = np.where(pred >= 0, pred, items)
+        low = items // 2
+        for _ in range(rounds):
+            low = np.minimum(low, low[ptr])
+            ptr = ptr[ptr]
+        on_cycle = pred[ptr] >= 0
         is_cut = np.zeros(R, bool)
         is_cut[low[on_cycle]] = True
         cut = 2 * np.flatnonzero(is_cut)
         partner[partner[cut]] = -1
         partner[cut] = -1
+        head, rank = _heads(partner, items, rounds)
     succ = partner[items ^ 1]
-    pred = np.where(partner >= 0, partner ^ 1, -1)
-    # Pointer jumping toward the head of each directed chain.
-    ptr = np.where(pred >= 0, pred, items)
-    rank = (pred >= 0).astype(np.int64)
-    while True:
-        nxt = ptr[ptr]
-        if np.array_equal(nxt, ptr):
-            break
-        rank = rank + rank[ptr]  # a head has rank 0 and points to itself
-        ptr = nxt
-    head = ptr
     # Keep one direction per chain: the one whose head run is the smaller (forward on ties).
     # The opposite direction's head is the reverse of this direction's last item.
     is_last = succ < 0
