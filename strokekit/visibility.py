@@ -354,11 +354,15 @@ def _project(camera: Camera, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """camera.project for a perspective camera in fewer passes (one product with the camera
     axes): the same pixels up to float64 rounding. The draft path's projection."""
     right, up, fwd = camera.basis
-    C = (X - np.asarray(camera.eye, float)) @ np.stack([right, -up, fwd], axis=1)
-    z = C[:, 2]
+    M = np.stack([right, -up, fwd], axis=1)
+    C = X @ M  # then minus the eye's coordinates, column by column (no (N, 3) broadcast)
+    e = np.asarray(camera.eye, float) @ M
+    z = C[:, 2] - e[2]
     with np.errstate(divide="ignore", invalid="ignore"):
-        xy = C[:, :2] * (camera.focal_px / z)[:, None]
-    xy += (camera.width / 2.0, camera.height / 2.0)
+        s = camera.focal_px / z
+    xy = np.empty((len(X), 2))
+    xy[:, 0] = (C[:, 0] - e[0]) * s + camera.width / 2.0
+    xy[:, 1] = (C[:, 1] - e[1]) * s + camera.height / 2.0
     return xy, z
 
 
@@ -622,7 +626,7 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     s = np.concatenate([np.full(nw, 0.5), s_l])
     # Per segment, in the Embree frame (float32): start, direction, lift, local size.
     k = occluder.inv_scale
-    At = ((A - occluder.origin) * k).T.astype(np.float32)
+    At = ((A.T - occluder.origin[:, None]) * k).astype(np.float32)
     Dt = (D * k).T.astype(np.float32)
     liftT = (lift * k).T.astype(np.float32)
     size = (row_norm(b - a) * k).astype(np.float32)  # the segment's world length (Occluder.visible)
