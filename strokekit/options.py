@@ -17,7 +17,7 @@ from .model import KINDS
 #: simplification (0 = none); doubled_px and merge_overlaps: the cleanup of lines drawn twice
 #: (draft previews keep them).
 QUALITY_PRESETS: dict[str, dict] = {
-    "draft": {"whole_edge_px": 8.0, "sample_spacing_px": 2.0, "bisection_tol_px": 1.0, "supersample": 1,
+    "draft": {"whole_edge_px": 12.0, "sample_spacing_px": 2.0, "bisection_tol_px": 1.0, "supersample": 1,
               "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False, "bisect_changes": False,
               "retest_front_hits": False},
     "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "simplify_tol_px": 0.0},

@@ -160,7 +160,7 @@ def inner_top_pts(st) -> list[float]:
 
 
 def test_short_edges_keep_or_drop_whole_with_whole_edge_px():
-    """whole_edge_px (the draft preset's 8 px): an edge shorter than that on screen gets one ray
+    """whole_edge_px (the draft preset's 12 px): an edge shorter than that on screen gets one ray
     at its middle, so it is drawn end to end or not at all; the bar's top edge (400 px), hidden
     at its middle by the post, is dropped whole once the threshold exceeds its length and split
     below it, while the post's own edges are drawn end to end."""
@@ -277,3 +277,29 @@ def test_fallback_backend_draws_the_same_lines(backend):
     a = accuracy([alt], [ref], tols=(0.02,), step_px=0.01)  # compared every 0.01 px
     assert a.precision[0.02] > 0.999 and a.recall[0.02] > 0.999
     assert abs(alt.lengths.sum() - ref.lengths.sum()) < 0.05 and a.drawn_length > 1000
+
+
+def test_draft_splits_partly_hidden_long_edges_within_1px():
+    """The draft preset does not bisect (bisect_changes False), but it still splits an edge that
+    goes behind an occluder: edges of 12 px and more are sampled every 2 px and each change is
+    placed between two samples, so every stroke end lies within 1 px of the default preset's
+    (bisected to 0.01 px), and the drawings agree at 1 px. Perspective camera: the draft's own
+    visibility path (visibility._visible_runs_sampled)."""
+    from strokekit.accuracy import frame_accuracy
+
+    vb, fb = box_mesh([-2, -0.1, -1], [2, 0.1, -0.9])
+    vf, ff = box_mesh([-0.2, -1, 0], [0.2, 1, 0.2])
+    scene = build_scene(np.r_[vb, vf], np.r_[fb, ff + len(vb)], np.r_[np.zeros(12), np.ones(12)])
+    cam = Camera(eye=(0.3, 0.4, 5), target=(0, 0, 0), fov_y=50.0, width=500, height=500)
+    default = LineRenderer(scene, LineOptions.preset("default")).render(cam)
+    draft = LineRenderer(scene, LineOptions.preset("draft")).render(cam)
+
+    def ends(st):
+        return np.r_[st.points[st.offsets[:-1]], st.points[st.offsets[1:] - 1]]
+
+    # The post hides the middle of the bar's long edges: both drawings end strokes there.
+    d = np.linalg.norm(ends(default)[:, None] - ends(draft)[None], axis=2)
+    assert len(default) == len(draft) >= 4
+    assert d.min(axis=1).max() <= 1.0 and d.min(axis=0).max() <= 1.0
+    a = frame_accuracy(draft, default, tols=(1.0,))
+    assert a.precision[1.0] >= 0.999 and a.recall[1.0] >= 0.999

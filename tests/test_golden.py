@@ -22,3 +22,19 @@ def test_sample_matches_golden_svgs(tmp_path, capsys):
         main(["diff", str(GOLDEN), str(out), "--tol", "0.05", "--png", str(tmp_path / "diff")])
     report = capsys.readouterr().out
     assert e.value.code == 0, report
+
+
+def test_round_list_is_pythons_round():
+    """The JSON writer rounds lengths in numpy (writers.strokes_json.round_list); the bytes must
+    stay those of Python's round(), ties and near-ties included."""
+    import numpy as np
+
+    from strokekit.writers.strokes_json import round_list
+
+    rng = np.random.default_rng(7)
+    for nd in (4, 5, 6):
+        x = np.r_[rng.uniform(0, 3000, 20000), rng.uniform(-1, 1, 2000),
+                  (rng.integers(0, 10**7, 5000) + 0.5) / 10.0**nd, rng.integers(0, 10**7, 5000) / 10.0**(nd + 1),
+                  [0.0, -0.0, 2.675, 1.00005, 0.00015, 1e-9, -1e-9, 1e20, np.inf, -np.inf]]
+        got, want = round_list(x, nd), [round(v, nd) for v in x.tolist()]
+        assert [repr(v) for v in got] == [repr(v) for v in want]

@@ -46,7 +46,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--crease-angle", type=FINITE, default=None, help="Crease threshold in degrees [60].")
 @click.option("--whole-edge", "whole_edge", type=FINITE, default=None,
               help="Edges shorter than N px get one visibility ray and are drawn whole or not at all "
-                   "(draft: 8; default 0: every edge is split where its visibility changes) (overrides --quality).")
+                   "(draft: 12; default 0: every edge is split where its visibility changes) (overrides --quality).")
 @click.option("--sample-spacing", type=FINITE, default=None, help="Visibility samples every N px (overrides --quality).")
 @click.option("--bisection-tol", type=FINITE, default=None, help="Visibility change located to N px (overrides --quality).")
 @click.option("--split-angle", type=FINITE, default=None, help="Split strokes at turns sharper than N degrees [90].")
