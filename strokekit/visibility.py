@@ -441,6 +441,24 @@ def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> 
     return t0, t1
 
 
+def _runs_from_changes(start_visible: np.ndarray, end_visible: np.ndarray, cs: np.ndarray, s_change: np.ndarray,
+                       rising: np.ndarray):
+    """Visible runs (segment, s0, s1), sorted by segment and s0, from the segments visible at their
+    start (start_visible) and at their end (end_visible) and the changes of visibility: segment
+    cs at parameter s_change, hidden -> visible where `rising`. Runs of zero length are kept."""
+    on_seg = np.concatenate([start_visible, cs[rising]])
+    on_s = np.concatenate([np.zeros(len(start_visible)), s_change[rising]])
+    off_seg = np.concatenate([end_visible, cs[~rising]])
+    off_s = np.concatenate([np.ones(len(end_visible)), s_change[~rising]])
+    o_on = np.lexsort((on_s, on_seg))
+    o_off = np.lexsort((off_s, off_seg))
+    run_seg = on_seg[o_on]
+    s0, s1 = on_s[o_on], off_s[o_off]
+    assert np.array_equal(run_seg, off_seg[o_off]), "visibility events must pair up"
+    good = s1 >= s0
+    return run_seg[good], s0[good], s1[good]
+
+
 def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
                  scene_radius: float) -> VisibleRuns:
     """Clip, sample every `sample_spacing_px` on screen, test occlusion, bisect each change to
@@ -547,20 +565,9 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         cs = np.zeros(0, np.int64)
         s_change = np.zeros(0)
         rising = np.zeros(0, bool)
-    first = starts
-    last = starts + counts - 1
     seg_ids = np.arange(len(idx))
-    on_seg = np.r_[seg_ids[vis[first]], cs[rising]]
-    on_s = np.r_[np.zeros(int(vis[first].sum())), s_change[rising]]
-    off_seg = np.r_[seg_ids[vis[last]], cs[~rising]]
-    off_s = np.r_[np.ones(int(vis[last].sum())), s_change[~rising]]
-    o_on = np.lexsort((on_s, on_seg))
-    o_off = np.lexsort((off_s, off_seg))
-    run_seg = on_seg[o_on]
-    s0, s1 = on_s[o_on], off_s[o_off]
-    assert np.array_equal(run_seg, off_seg[o_off]), "visibility events must pair up"
-    good = s1 >= s0
-    run_seg, s0, s1 = run_seg[good], s0[good], s1[good]
+    run_seg, s0, s1 = _runs_from_changes(seg_ids[vis[starts]], seg_ids[vis[starts + counts - 1]], cs, s_change,
+                                         rising)
     X0, X1 = world_at(run_seg, s0), world_at(run_seg, s1)
     p0, _ = camera.project(X0)
     p1, _ = camera.project(X1)
@@ -660,18 +667,8 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     cs = seg_l[change]
     s_change = 0.5 * (s_l[change] + s_l[change + 1])
     rising = ~vis_l[change]
-    first_vis, last_vis = vis_l[starts], vis_l[starts + counts - 1]
-    on_seg = np.concatenate([l_seg[first_vis], cs[rising]])
-    on_s = np.concatenate([np.zeros(int(first_vis.sum())), s_change[rising]])
-    off_seg = np.concatenate([l_seg[last_vis], cs[~rising]])
-    off_s = np.concatenate([np.ones(int(last_vis.sum())), s_change[~rising]])
-    o_on = np.lexsort((on_s, on_seg))
-    o_off = np.lexsort((off_s, off_seg))
-    run_l = on_seg[o_on]
-    s0_l, s1_l = on_s[o_on], off_s[o_off]
-    assert np.array_equal(run_l, off_seg[o_off]), "visibility events must pair up"
-    good = s1_l >= s0_l
-    run_l, s0_l, s1_l = run_l[good], s0_l[good], s1_l[good]
+    run_l, s0_l, s1_l = _runs_from_changes(l_seg[vis_l[starts]], l_seg[vis_l[starts + counts - 1]], cs, s_change,
+                                           rising)
     A_l, D_l = np.take(A, run_l, axis=0), np.take(D, run_l, axis=0)
     X0_l = A_l + lam_at(run_l, s0_l)[:, None] * D_l
     X1_l = A_l + lam_at(run_l, s1_l)[:, None] * D_l

@@ -63,19 +63,23 @@ def test_aggregate_weights_frames_by_length_and_handles_empty_frames():
     assert empty_vs_line.recall[1.0] == 0.0 and empty_vs_line.precision[1.0] == 0.0
 
 
+def _preset_against_exact(path, quality: str):
+    """Accuracy at 1 px of `quality` against `exact` over an 8-frame orbit at 1024 x 1024 (BRIEF 2)."""
+    scene = load_scene(path)
+    cams = orbit_path(scene.center, scene.radius, 8, width=1024, height=1024).cameras
+    exact = LineRenderer(scene, LineOptions.preset("exact"))
+    drawn = LineRenderer(scene, LineOptions.preset(quality))
+    return accuracy([drawn.render(c, k + 1) for k, c in enumerate(cams)],
+                    [exact.render(c, k + 1) for k, c in enumerate(cams)], tols=(1.0,))
+
+
 @pytest.mark.parametrize("name", ["suzanne.obj", "spot.obj", "fandisk.obj", "teapot.obj", "beetle.obj",
                                   "CesiumMilkTruck.glb"])
 def test_default_preset_matches_exact_at_1px(name):
     path = MODELS / name
     if not path.exists():
         pytest.skip(f"shared model {path} not present")
-    scene = load_scene(path)
-    cams = orbit_path(scene.center, scene.radius, 8, width=1024, height=1024).cameras
-    exact = LineRenderer(scene, LineOptions.preset("exact"))
-    default = LineRenderer(scene, LineOptions.preset("default"))
-    ref = [exact.render(c, k + 1) for k, c in enumerate(cams)]
-    drawn = [default.render(c, k + 1) for k, c in enumerate(cams)]
-    a = accuracy(drawn, ref, tols=(1.0,))
+    a = _preset_against_exact(path, "default")
     assert a.ref_length > 1000.0  # the orbit really draws lines
     assert a.precision[1.0] >= 0.999, a.to_json()
     assert a.recall[1.0] >= 0.999, a.to_json()
@@ -90,12 +94,7 @@ def test_draft_preset_stays_a_useful_preview(name):
     path = MODELS / name
     if not path.exists():
         pytest.skip(f"shared model {path} not present")
-    scene = load_scene(path)
-    cams = orbit_path(scene.center, scene.radius, 8, width=1024, height=1024).cameras
-    exact = LineRenderer(scene, LineOptions.preset("exact"))
-    draft = LineRenderer(scene, LineOptions.preset("draft"))
-    a = accuracy([draft.render(c, k + 1) for k, c in enumerate(cams)],
-                 [exact.render(c, k + 1) for k, c in enumerate(cams)], tols=(1.0,))
+    a = _preset_against_exact(path, "draft")
     assert a.ref_length > 500.0
     assert a.precision[1.0] >= 0.99, a.to_json()
     assert a.recall[1.0] >= 0.99, a.to_json()
