@@ -93,7 +93,9 @@ def speed_table(args) -> list[dict]:
 
 def accuracy_table(args) -> list[dict]:
     print(f"\nAccuracy: {args.quality} vs exact, precision / recall at 1 px, 1024 x 1024, {args.frames}-frame orbit")
-    head = f"{'model':<24} {'faces':>7} {'P@1':>8} {'R@1':>8} {'P@0.5':>8} {'R@0.5':>8} {'ok':>4}"
+    # The bar each preset promises at 1 px: default 0.999 (issue 2), draft 0.99 (a preview).
+    bar = 0.99 if args.quality == "draft" else 0.999
+    head = f"{'model':<24} {'faces':>7} {'P@1':>8} {'R@1':>8} {'P@0.5':>8} {'R@0.5':>8} {'>=' + format(bar, 'g'):>7}"
     print(head + "\n" + "-" * len(head))
     out = []
     for p in sorted(args.models.iterdir()):
@@ -110,10 +112,10 @@ def accuracy_table(args) -> list[dict]:
         ref = [ex.render(c, k + 1) for k, c in enumerate(cams)]
         drawn = [df.render(c, k + 1) for k, c in enumerate(cams)]
         a = accuracy(drawn, ref, tols=(0.5, 1.0))
-        ok = min(a.precision[1.0], a.recall[1.0]) >= 0.999
+        ok = min(a.precision[1.0], a.recall[1.0]) >= bar
         print(f"{p.name:<24} {len(sc.faces):>7} {a.precision[1.0]:>8.5f} {a.recall[1.0]:>8.5f} "
-              f"{a.precision[0.5]:>8.5f} {a.recall[0.5]:>8.5f} {'yes' if ok else 'NO':>4}", flush=True)
-        out.append({"model": p.name, "faces": int(len(sc.faces)), **a.to_json(), "meets_0.999": ok})
+              f"{a.precision[0.5]:>8.5f} {a.recall[0.5]:>8.5f} {'yes' if ok else 'NO':>7}", flush=True)
+        out.append({"model": p.name, "faces": int(len(sc.faces)), **a.to_json(), "bar": bar, "meets_bar": ok})
     return out
 
 
