@@ -135,6 +135,7 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
     (["--stroke-width", "-1"], "--stroke-width"),
     (["--bands", "3", "--band-thresholds", "0.2,0.5,0.7"], "--bands 3 but --band-thresholds gives 4 bands"),
     (["--no-svg", "--no-json"], "nothing to write"),
+    (["--out", ""], "--out needs a folder name"),
     (["--size", "big"], "bad --size"),
     (["--quality", "perfect"], "perfect"),
 ])

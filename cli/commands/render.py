@@ -114,6 +114,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     if not (stroke_width > 0 and math.isfinite(stroke_width)):
         raise UsageError(f"--stroke-width must be a finite number > 0 px, got {stroke_width}")
     # Outputs that cannot be written are said now, not after every frame has been rendered.
+    if not str(out_dir).strip():
+        raise UsageError("--out needs a folder name (use --out . for the current folder)")
     check_output_folder(out_dir)
     if report_path is not None:
         if not report_path.strip():
