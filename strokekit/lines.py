@@ -105,9 +105,9 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
         ef = np.take(scene.edge_faces, pos, axis=0)
     ff = front_facing(scene, camera)
     if edge_faces is not None and all_mesh:
-        lift = _lift_rows(scene, fe, ef, ff, fraction)
-        if lift is not None:
-            return lift
+        rows = _lift_rows(scene, fe, ef, ff, fraction)
+        if rows is not None:
+            return rows
     n = scene.face_normals
     has1 = ef[:, 1] >= 0
     f1 = np.maximum(ef[:, 1], 0)

@@ -358,6 +358,28 @@ def test_non_manifold_spine_is_drawn_whole_as_its_own_kind():
     assert_same_drawing(nm, projected_segments(cam, [[v[0], v[1]]]), tol=0.5)
 
 
+@pytest.mark.parametrize("quality", ["default", "exact", "draft"])
+def test_folded_fin_seen_edge_on(quality):
+    # Two faces folded flat onto each other (plane y = 0) share one edge, and their normals
+    # cancel: that edge has no surface normal to lift its rays along. Seen edge-on (eye at
+    # y = 0; beetle.obj has three such folds under an orthographic camera), every frame must
+    # still render: the fold gets no lift, and what is drawn lies on the mesh's edges.
+    v = np.array([[0, 0, 0], [1, 0, 0], [0.5, 0, 1], [0.5, 0, 0.5], [3, -1, 3], [4, -1, 3], [3.5, 1, 3]], float)
+    sc = build_scene(v, [[0, 1, 2], [1, 0, 3], [4, 5, 6]])
+    assert sc.center[1] == 0.0
+    all_edges = sc.vertices[sc.edges]
+    drawn_px = 0.0
+    for az in range(0, 360, 45):
+        cam = _orbit_cam(sc.center, 3 * sc.radius, float(az), 0.0)
+        s = render(sc, cam, quality)
+        assert np.isfinite(s.points).all()
+        if s.lengths.sum() > 0:
+            p, _ = pr(s, projected_segments(cam, all_edges), 0.5)
+            assert p >= 0.999, az
+        drawn_px += s.lengths.sum()
+    assert drawn_px > 100
+
+
 def test_joined_tetrahedra_non_manifold_edges():
     sc = load_scene(model("joined_tetrahedra.obj"))
     assert sc.is_nonmanifold.sum() == 3
