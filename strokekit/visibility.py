@@ -269,8 +269,8 @@ class Occluder:
         reach = 100.0 * np.sqrt(_norm_sq(lift)) + eps
         again = np.flatnonzero(~vis & (hit_at <= reach))
         if not retest_front_hits and len(again):
-            # Back side: the triangle's normal points along the ray (toward the eye); zero-area
-            # triangles have no normal and keep their re-test.
+            # Back side: the triangle's normal points along the ray (toward the eye). A normal
+            # perpendicular to the ray (dot 0) keeps its re-test too.
             n = np.take(self.scene.face_normals, tri.take(again).astype(np.int64), axis=0)
             again = again[np.einsum("ij,ji->i", n, d[:, again]) >= 0.0]
         if len(again):
@@ -287,22 +287,20 @@ class Occluder:
     def visible_local(self, P: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
                       scale: np.ndarray, retest_front_hits: bool = True) -> np.ndarray:
         """visible_rows (the draft preset's path) with points P, lifts and local sizes already in
-        the Embree frame (centred on the scene, unit radius) as float32 (3, N) rows: the rays are
-        built in the precision Embree takes them in, in fewer passes, so the answers are the
-        same but for rays that graze a triangle edge within float32 rounding. The ray from
+        the Embree frame (centred on the scene, unit radius) as float64 (3, N) rows: the rays
+        are built in fewer passes and rounded to float32 (what Embree takes) once. The ray from
         X + e1 u to eye - e2 u (X the lifted point, u the unit direction to the eye at distance
         r, d = eye - X) starts at X + (e1 / r) d with direction d (r - e1 - e2) / r."""
         eye_w = np.asarray(camera.eye, float)
-        eye = ((eye_w - self.origin) * self.inv_scale).astype(np.float32)[:, None]
-        eye_eps = np.float32(offset * math.dist(eye_w, self.origin) * self.inv_scale)
-        offset = np.float32(offset)
+        eye = ((eye_w - self.origin) * self.inv_scale)[:, None]
+        eye_eps = offset * math.dist(eye_w, self.origin) * self.inv_scale
         eps = offset * np.maximum(np.sqrt(_sq3(P)), scale)
         lifted = P + lift
         d = eye - lifted
         dist = np.sqrt(_sq3(d))  # > 0: the near plane keeps points off the eye
-        e1 = np.minimum(eps, np.float32(0.5) * dist)
-        seg_len = dist - e1 - np.minimum(np.maximum(eps, eye_eps), np.float32(0.25) * dist)
-        inv = np.float32(1.0) / dist
+        e1 = np.minimum(eps, 0.5 * dist)
+        seg_len = dist - e1 - np.minimum(np.maximum(eps, eye_eps), 0.25 * dist)
+        inv = 1.0 / dist
         rays = np.empty((P.shape[1], 6), np.float32)
         rays[:, :3] = (lifted + d * (e1 * inv)).T
         rays[:, 3:] = (d * (seg_len * inv)).T
@@ -312,7 +310,7 @@ class Occluder:
         vis = np.ones(len(f), bool)
         vis[hidden] = False
         # The contact re-test: only where the hit is near the start (world reach, Embree frame).
-        reach = np.float32(100.0) * np.sqrt(_sq3(lift[:, hidden])) + eps[hidden]
+        reach = 100.0 * np.sqrt(_sq3(lift[:, hidden])) + eps[hidden]
         again = hidden[f[hidden] * seg_len[hidden] <= reach]
         if not retest_front_hits and len(again):
             tri = r["primitive_ids"].numpy().take(again)
@@ -323,9 +321,9 @@ class Occluder:
             d = eye - Pa
             dist = np.sqrt(_sq3(d))
             ea = eps[again]
-            e1 = np.minimum(ea, np.float32(0.5) * dist)
-            seg_len = dist - e1 - np.minimum(np.maximum(ea, eye_eps), np.float32(0.25) * dist)
-            inv = np.float32(1.0) / np.where(dist > 0, dist, np.float32(1.0))
+            e1 = np.minimum(ea, 0.5 * dist)
+            seg_len = dist - e1 - np.minimum(np.maximum(ea, eye_eps), 0.25 * dist)
+            inv = 1.0 / np.where(dist > 0, dist, 1.0)
             rays = np.empty((len(again), 6), np.float32)
             rays[:, :3] = (Pa + d * (e1 * inv)).T
             rays[:, 3:] = (d * (seg_len * inv)).T
@@ -591,8 +589,9 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     clipped; segments shorter than `whole_edge_px` (most of a draft frame) are one ray each and,
     when visible, one run whose ends are the segment's ends, taken as they are (no
     re-projection); only the longer segments go through sampling and run assembly. The rays are
-    built in float32 in the Embree frame (Occluder.visible_local), where the float64 path rounds
-    them in the end."""
+    built in the Embree frame (Occluder.visible_local), in float64 and rounded to float32 once at
+    the end, as the other path does: built in float32, a ray from an edge resting on a floor, seen
+    at a grazing angle, started inside the floor."""
     a, b = features.a, features.b
     N = len(a)
     W, H = camera.width, camera.height
@@ -632,19 +631,19 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     s_l = (np.arange(len(seg_l)) - np.repeat(starts, counts)) / np.repeat(n_int, counts)
     seg = np.concatenate([w_seg, seg_l])
     s = np.concatenate([np.full(nw, 0.5), s_l])
-    # Per segment, in the Embree frame (float32): start, direction, lift, local size.
+    # Per segment, in the Embree frame: start, direction, lift, local size.
     k = occluder.inv_scale
-    At = ((A.T - occluder.origin[:, None]) * k).astype(np.float32)
-    Dt = (D * k).T.astype(np.float32)
-    liftT = (lift * k).T.astype(np.float32)
-    size = (row_norm(b - a) * k).astype(np.float32)  # the segment's world length (Occluder.visible)
+    At = (A.T - occluder.origin[:, None]) * k
+    Dt = (D * k).T
+    liftT = (lift * k).T
+    size = row_norm(b - a) * k  # the segment's world length (Occluder.visible)
     offset, retest = options.occlusion_offset, options.retest_front_hits
 
     def lam_at(seg_i, s_i):
         z0, z1 = za.take(seg_i), zb.take(seg_i)
         return s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
 
-    lam = lam_at(seg, s).astype(np.float32)
+    lam = lam_at(seg, s)
     P = At.take(seg, axis=1) + lam * Dt.take(seg, axis=1)
     vis = occluder.visible_local(P, camera, offset, liftT.take(seg, axis=1), size.take(seg), retest)
     runs_w = w_seg[vis[:nw]]
