@@ -105,7 +105,10 @@ class LineOptions:
             raise UsageError(f"unknown quality {quality!r} (known: {', '.join(QUALITY_PRESETS)})")
         names = {f.name for f in fields(LineOptions)}
         base = {k: v for k, v in QUALITY_PRESETS[quality].items() if k in names}
-        base.update({k: v for k, v in overrides.items() if v is not None})
+        given = {k: v for k, v in overrides.items() if v is not None}
+        base.update(given)
+        if "bisection_tol_px" in given and "bisect_changes" not in given:
+            base["bisect_changes"] = True  # a tolerance asked for is a bisection asked for (draft has none)
         return LineOptions(**base)
 
     def to_json(self) -> dict:

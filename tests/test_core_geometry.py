@@ -69,14 +69,17 @@ def test_sphere_silhouette_is_circle_of_known_radius():
     assert np.diff(np.r_[ang, ang[0] + 2 * math.pi]).max() < 0.05
 
 
-def test_box_behind_box_split_point_is_exact():
+@pytest.mark.parametrize("options", [LineOptions(), LineOptions.preset("draft", bisection_tol_px=0.01)],
+                         ids=["default", "draft --bisection-tol 0.01"])
+def test_box_behind_box_split_point_is_exact(options):
     """The front box hides part of the back box's top edge; the visible piece ends where the front
-    box's silhouette crosses it on screen, within 0.01 px."""
+    box's silhouette crosses it on screen, within 0.01 px. The draft preset does not bisect, but
+    asked for a tolerance (--bisection-tol) it does."""
     vb, fb = box_mesh([-1, -1, -2], [1, 1, -1])
     vf, ff = box_mesh([0.2, -3, 0], [3, 3, 1])
     scene = build_scene(np.r_[vb, vf], np.r_[fb, ff + len(vb)], np.r_[np.zeros(12), np.ones(12)])
     cam = Camera(eye=(0.3, 0.4, 6.0), target=(0.0, 0.0, 0.0), fov_y=50.0, width=1000, height=800)
-    st = LineRenderer(scene, LineOptions()).render(cam)
+    st = LineRenderer(scene, options).render(cam)
     # Analytic: the front box's left silhouette edge x=0.2, z=1 projects to a line; intersect with
     # the projection of the back box's top front edge y=1, z=-1.
     occ, _ = cam.project(np.array([[0.2, -3, 1], [0.2, 3, 1]]))
