@@ -51,7 +51,8 @@ def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
         formats[n] = " ".join([f"%.{decimals}f %.{decimals}f"] * n)
     template = "\0".join([formats[n] for n in counts])
     if len(formats) > 4096:  # a frame with unusually many distinct lengths: do not keep them all
-        formats.clear()
+        # A new cache rather than clearing this one: another thread may be reading it.
+        _POINT_FORMATS[decimals] = {}
     return (template % tuple(r)).split("\0")
 
 
