@@ -479,6 +479,108 @@ def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: 
     return group, rev, pos
 
 
+def _close_pairs(pt: np.ndarray, r: float) -> np.ndarray:
+    """(K, 2) index pairs i < j of the points pt (N, 2) at most r apart: the pairs of
+    cKDTree(pt).query_pairs(r) (same test, dx * dx + dy * dy <= r * r), in another order. For a
+    few hundred stroke ends a sweep along x is ~4x cheaper than building a tree: neighbours in x
+    order within r (plus a margin, the test decides) are the candidates."""
+    n = len(pt)
+    o = np.argsort(pt[:, 0], kind="stable")
+    x = pt[o, 0]
+    ar = np.arange(n)
+    cnt = np.searchsorted(x, x + (r + 1e-6), side="right") - ar - 1
+    csum = np.cumsum(cnt)
+    i = np.repeat(ar, cnt)
+    j = i + 1 + (np.arange(int(csum[-1]) if n else 0) - np.repeat(csum - cnt, cnt))
+    a, b = o[i], o[j]
+    dx = pt[a, 0] - pt[b, 0]
+    dy = pt[a, 1] - pt[b, 1]
+    keep = dx * dx + dy * dy <= r * r
+    a, b = a[keep], b[keep]
+    return np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+
+
+def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
+    """_join_segments(strokes, arange(S), zeros(S), lengths, zeros(S), ones(S), tol_px, angle_deg,
+    straightest_first=True), the call chain_touching makes, specialized (same group, rev, pos): every
+    run is a whole stroke, all labels agree and all signs are +1, so the label healing is moot, the
+    ends are the open strokes' first and last points and a path is reversed when most of its
+    strokes are entered at their end. The tracker runs it on every frame (~200 strokes): the
+    per-member bookkeeping of the walk is done with numpy after a bare Python walk."""
+    S = len(strokes)
+    group = np.arange(S)
+    rev = np.zeros(S, bool)
+    pos = np.zeros(S, np.int64)
+    P = strokes.points
+    first, last = strokes.offsets[:-1], strokes.offsets[1:] - 1
+    dc = P[first] - P[last]
+    closed = np.sqrt(dc[:, 0] * dc[:, 0] + dc[:, 1] * dc[:, 1]) < 1e-6  # as np.linalg.norm(axis=1)
+    op = np.flatnonzero(~closed)
+    n = len(op)
+    if 2 * n < 2:
+        return group, rev, pos
+    # Nodes: starts of the open strokes, then their ends (the order _join_segments uses).
+    e_run = _cat(op, op)
+    fo, lo = first[op], last[op]
+    e_pt = _cat(fo, lo)
+    nb = _cat(np.minimum(fo + 1, lo), np.maximum(lo - 1, fo))
+    pt = P[e_pt]
+    d = P[nb] - pt  # direction away from the end, into the stroke
+    d = d / np.maximum(np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]), 1e-12)[:, None]
+    pairs = _close_pairs(pt, tol_px)
+    if len(pairs) == 0:
+        return group, rev, pos
+    a, b = pairs[:, 0], pairs[:, 1]
+    ok = (e_run[a] != e_run[b]) & (strokes.kind[e_run[a]] == strokes.kind[e_run[b]])
+    straight = -(d[a, 0] * d[b, 0] + d[a, 1] * d[b, 1])  # cosine of the turn at the joint
+    ok &= straight >= np.cos(np.radians(angle_deg))
+    if not ok.any():
+        return group, rev, pos
+    a, b, straight = a[ok], b[ok], straight[ok]
+    # Greedy links in the order of _join_segments (straightest first; the pairs come in another
+    # order than the k-d tree's, the sort decides). A node's code is 2 * stroke + end.
+    o = np.lexsort((e_run[b], e_run[a], -np.round(straight, 9)))
+    code = (2 * e_run + (np.arange(2 * n) >= n)).tolist()
+    partner = [-1] * (2 * n)
+    for x, y in zip(a[o].tolist(), b[o].tolist()):
+        if partner[x] >= 0 or partner[y] >= 0:
+            continue
+        partner[x], partner[y] = code[y], code[x]
+    # nxt[c]: code of the end linked to end c (-1: free); entering at c, one leaves at c ^ 1.
+    nxt = np.full(2 * S, -1, np.int64)
+    nxt[code] = partner
+    linked = (nxt >= 0).reshape(S, 2)
+    runs = np.flatnonzero(linked[:, 0] | linked[:, 1])
+    one = runs[linked[runs, 0] != linked[runs, 1]]
+    # Path starts: strokes with one linked end, entered through the free end; then rings, entered
+    # through their start.
+    entry = _cat(2 * one + linked[one, 0], 2 * runs).tolist()
+    nxt = nxt.tolist()
+    seen = [False] * S
+    walk, heads = [], []
+    for c in entry:
+        if seen[c >> 1]:
+            continue
+        heads.append(len(walk))
+        while not seen[c >> 1]:
+            seen[c >> 1] = True
+            walk.append(c)
+            c = nxt[c ^ 1]
+            if c < 0:
+                break
+    walk, heads = np.array(walk, np.int64), np.array(heads, np.int64)
+    lens = np.diff(_cat(heads, len(walk)))
+    path = np.repeat(np.arange(len(heads)), lens)
+    k = np.arange(len(walk)) - heads[path]
+    r, back = walk >> 1, (walk & 1).astype(bool)
+    # A path goes backwards when more of its strokes are entered at their end (sum of signs < 0).
+    flip = (2 * np.add.reduceat(walk & 1, heads) > lens)[path]
+    group[r] = np.minimum.reduceat(r, heads)[path]
+    rev[r] = back ^ flip
+    pos[r] = np.where(flip, lens[path] - 1 - k, k)
+    return group, rev, pos
+
+
 def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes:
     """Strokes of the same kind whose ends meet (within tol_px, turning by at most angle_deg)
     concatenated into one path (straightest continuation first where three ends meet), so that
@@ -487,9 +589,7 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
     S = len(strokes)
     if S < 2 or tol_px <= 0:
         return strokes
-    L = strokes.lengths
-    group, rev, pos = _join_segments(strokes, np.arange(S), np.zeros(S), L, np.zeros(S, np.int64),
-                                     np.ones(S), tol_px, angle_deg, straightest_first=True)
+    group, rev, pos = _touching_paths(strokes, tol_px, angle_deg)
     if np.array_equal(group, np.arange(S)):
         return strokes
     # Gather the points of each path in order (reversed strokes backwards); a joint point that

@@ -444,3 +444,39 @@ def test_metric_match_finds_the_nearest_agreeing_sample_behind_a_crowd():
     # The metrics use it: the line is not counted as popping, only the crossing strokes are.
     m = pair_metrics(a, b)
     assert m.unmatched_px <= b.lengths[1:].sum() + 0.01 * a.lengths.sum()
+
+
+def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
+    """chain_touching's specialized linking (_touching_paths, _close_pairs) gives exactly what the
+    general _join_segments gives for its call, on random strokes with shared ends, rings, closed
+    strokes and near-tolerance gaps."""
+    from strokekit.tracking import _close_pairs, _join_segments, _touching_paths
+
+    rng = np.random.default_rng(1)
+    linked = 0
+    for trial in range(200):
+        S = int(rng.integers(2, 40))
+        ends = rng.integers(0, 6, (S, 2, 2)).astype(float) * 3
+        pts, off = [], [0]
+        for k in range(S):
+            n = int(rng.integers(2, 5))
+            p = np.linspace(ends[k, 0], ends[k, 1], n) + rng.normal(0, 0.3, (n, 2)) * (rng.random() < 0.5)
+            if rng.random() < 0.1:
+                p[-1] = p[0]
+            pts.append(p)
+            off.append(off[-1] + n)
+        P = np.concatenate(pts)
+        f = Strokes.build(P, np.zeros((len(P), 3)), np.zeros(len(P)), off, rng.integers(0, 2, S))
+        for tol, ang in ((2.0, 90.0), (1.0, 170.0)):
+            want = _join_segments(f, np.arange(S), np.zeros(S), f.lengths, np.zeros(S, np.int64), np.ones(S),
+                                  tol, ang, straightest_first=True)
+            got = _touching_paths(f, tol, ang)
+            for w, g in zip(want, got):
+                assert g.dtype == w.dtype and np.array_equal(g, w)
+            linked += int((want[0] != np.arange(S)).sum())
+        # The sweep finds the k-d tree's pairs, boundary cases included (exactly r apart).
+        q = np.round(P)
+        q = np.concatenate([q, q + [2.0, 0.0], q + [1.2, 1.6]])
+        want = {tuple(x) for x in cKDTree(q).query_pairs(2.0, output_type="ndarray").tolist()}
+        assert {tuple(x) for x in _close_pairs(q, 2.0).tolist()} == want
+    assert linked > 100  # the cases did join strokes
