@@ -86,13 +86,15 @@ def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarra
     X = strokes.surface
     cam = strokes.camera
     a = np.asarray(a, float)
+    Xi, Xj = X[i], X[j]  # gathered once for the depths and the interpolation
     if cam is not None and not cam.is_ortho and len(i):
         _, _, fwd, eye, _ = _frame_of(cam)
-        zi, zj = (X[i] - eye) @ fwd, (X[j] - eye) @ fwd
+        zi, zj = (Xi - eye) @ fwd, (Xj - eye) @ fwd
         ok = (zi > 0) & (zj > 0)
-        den = (1 - a) * np.where(ok, zj, 1.0) + a * np.where(ok, zi, 1.0)
-        a = np.where(ok & (den > 0), a * np.where(ok, zi, 1.0) / np.where(den > 0, den, 1.0), a)
-    return X[i] * (1 - a)[:, None] + X[j] * a[:, None]
+        zi = np.where(ok, zi, 1.0)
+        den = (1 - a) * np.where(ok, zj, 1.0) + a * zi
+        a = np.where(ok & (den > 0), a * zi / np.where(den > 0, den, 1.0), a)
+    return Xi * (1 - a)[:, None] + Xj * a[:, None]
 
 
 def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool = True) -> Samples:
@@ -124,16 +126,19 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     single = last == first  # one-point stroke
     j = np.where(single, first, j)
     i = np.where(single, first, i)
-    d = G[j] - G[i]
-    a = np.where(d > 0, (g - G[i]) / np.where(d > 0, d, 1.0), 0.0)
+    Gi = G[i]
+    d = G[j] - Gi
+    a = np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0)
     a = np.clip(a, 0.0, 1.0)
     P, U = strokes.points, strokes.u
-    p = P[i] * (1 - a)[:, None] + P[j] * a[:, None]
     Xs = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
     u = U[i] * (1 - a) + U[j] * a
-    t = P[j] - P[i]
-    tn = np.linalg.norm(t, axis=1)
-    t = np.where(tn[:, None] > 0, t / np.where(tn > 0, tn, 1.0)[:, None], 0.0)
+    Pi, Pj = P[i], P[j]  # gathered once for the position and the tangent
+    t = Pj - Pi
+    tn = np.sqrt(t[:, 0] * t[:, 0] + t[:, 1] * t[:, 1])  # np.linalg.norm(t, axis=1), without its overhead
+    pos = tn > 0
+    t = np.where(pos[:, None], t / np.where(pos, tn, 1.0)[:, None], 0.0)
+    p = Pi * (1 - a)[:, None] + Pj * a[:, None]
     return Samples(p=p, X=Xs, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
 
 

@@ -165,8 +165,9 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
         j = np.clip(np.searchsorted(G, g, side="right"), first + 1, np.maximum(last, first + 1))
         j = np.minimum(j, len(G) - 1)
         i = np.maximum(j - 1, first)
-        d = G[j] - G[i]
-        a = np.clip(np.where(d > 0, (g - G[i]) / np.where(d > 0, d, 1.0), 0.0), 0, 1)
+        Gi = G[i]
+        d = G[j] - Gi
+        a = np.clip(np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0), 0, 1)
         p = strokes.points[i] * (1 - a)[:, None] + strokes.points[j] * a[:, None]
         X = surface_between(strokes, i, j, a)
         f = np.where(a < 0.5, strokes.face[i], strokes.face[j])
