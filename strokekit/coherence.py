@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import InputError
-from .model import Strokes
+from .model import Strokes, row_norm
 
 #: BRIEF 3 constants.
 MATCH_RADIUS_PX = 6.0
@@ -135,7 +135,7 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     u = U[i] * (1 - a) + U[j] * a
     Pi, Pj = P[i], P[j]  # gathered once for the position and the tangent
     t = Pj - Pi
-    tn = np.sqrt(t[:, 0] * t[:, 0] + t[:, 1] * t[:, 1])  # np.linalg.norm(t, axis=1), without its overhead
+    tn = row_norm(t)  # np.linalg.norm(t, axis=1) without its overhead
     pos = tn > 0
     t = np.where(pos[:, None], t / np.where(pos, tn, 1.0)[:, None], 0.0)
     p = Pi * (1 - a)[:, None] + Pj * a[:, None]
@@ -162,7 +162,7 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     if len(src) == 0 or len(dst) == 0:
         return (out, np.full((len(src), 2), np.nan)) if return_projected else out
     q, z = project(camera, src.X)
-    ok = np.all(np.isfinite(q), axis=1) & ((z > 0) | camera.is_ortho)
+    ok = np.isfinite(q).all(axis=1) & ((z > 0) | camera.is_ortho)
     if not ok.any():
         return (out, q) if return_projected else out
     tree = dst_tree if dst_tree is not None else cKDTree(dst.p)
@@ -175,21 +175,25 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     safe = np.where(valid, idx, 0)
     st = src.t if every else src.t[ok]
     if piece_distance:
-        # One gather of (t, p, w/2) rows instead of three.
-        D = np.concatenate([dst.t, dst.p, 0.5 * dst.w[:, None]], axis=1)[safe]
-        T = D[..., :2]
+        # One gather of the planes t_x, t_y, p_x, p_y, w/2 instead of three gathers: (5, n, k),
+        # each plane contiguous for the arithmetic below.
+        D = np.concatenate([dst.t, dst.p, 0.5 * dst.w[:, None]], axis=1).T.take(safe, axis=1)
+        T0, T1 = D[0], D[1]
     else:
         T = dst.t[safe]
-    dots = np.abs(T[..., 0] * st[:, None, 0] + T[..., 1] * st[:, None, 1])
+        T0, T1 = T[..., 0], T[..., 1]
+    dots = np.abs(T0 * st[:, None, 0] + T1 * st[:, None, 1])
     good = valid & (dots >= min_tangent_dot)
     has = good.any(axis=1)
     if piece_distance:
         # Squared distance to the piece: across the line, plus beyond the piece's ends along it.
+        # (Where no neighbour was found dist is inf and so is the cost; `good` masks it anyway.)
         qq = q if every else q[ok]
-        along = (qq[:, None, 0] - D[..., 2]) * T[..., 0] + (qq[:, None, 1] - D[..., 3]) * T[..., 1]
-        d2 = np.where(valid, dist * dist, 0.0)
-        beyond = np.maximum(np.abs(along) - D[..., 4], 0.0)
-        first = np.argmin(np.where(good, np.maximum(d2 - along * along, 0.0) + beyond * beyond, np.inf), axis=1)
+        along = (qq[:, None, 0] - D[2]) * T0 + (qq[:, None, 1] - D[3]) * T1
+        beyond = np.maximum(np.abs(along) - D[4], 0.0)
+        cost = np.maximum(dist * dist - along * along, 0.0) + beyond * beyond
+        cost[~good] = np.inf
+        first = np.argmin(cost, axis=1)
     else:
         # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.
         first = np.argmax(good, axis=1)

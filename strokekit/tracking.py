@@ -62,7 +62,7 @@ import numpy as np
 
 from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
-from .model import Strokes
+from .model import Strokes, row_norm
 from .options import _FLAGS, _flag
 from .strokeops import _cat, _replace, _tree, cut_pieces
 
@@ -205,7 +205,7 @@ def _turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.nda
         return cur, dense, vm
     first, last = cur.offsets[:-1], cur.offsets[1:] - 1
     L = cur.lengths
-    closed = (L > 0) & (np.linalg.norm(cur.points[first] - cur.points[last], axis=1) < 1e-6)
+    closed = (L > 0) & (row_norm(cur.points[first] - cur.points[last]) < 1e-6)
     if not closed.any():
         return cur, dense, vm
     vst, vs = dense.stroke[vm], dense.s[vm]
@@ -383,7 +383,7 @@ def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: 
         return group, rev, pos
     L = cur.lengths
     first, last = cur.offsets[:-1], cur.offsets[1:] - 1
-    closed = np.linalg.norm(cur.points[first] - cur.points[last], axis=1) < 1e-6
+    closed = row_norm(cur.points[first] - cur.points[last]) < 1e-6
     at_start = (r_s0 <= 1e-9) & ~closed[r_stroke]
     at_end = (r_s1 >= L[r_stroke] - 1e-9) & ~closed[r_stroke]
     # Ends of strokes that a labelled segment reaches: (run, 0 = stroke start | 1 = stroke end).
@@ -395,7 +395,7 @@ def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: 
     pt = np.where(e_end[:, None] == 0, cur.points[first[sk]], cur.points[last[sk]])
     nb = np.where(e_end == 0, np.minimum(first[sk] + 1, last[sk]), np.maximum(last[sk] - 1, first[sk]))
     d = cur.points[nb] - pt  # direction away from the end, into the stroke
-    d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-12)[:, None]
+    d = d / np.maximum(row_norm(d), 1e-12)[:, None]
     if tol_px < 1e-3:
         # Ends at the same point: equal after rounding to the tolerance (sort, compare neighbours).
         key = np.round(pt / max(tol_px, 1e-9)).astype(np.int64)
@@ -513,8 +513,7 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     pos = np.zeros(S, np.int64)
     P = strokes.points
     first, last = strokes.offsets[:-1], strokes.offsets[1:] - 1
-    dc = P[first] - P[last]
-    closed = np.sqrt(dc[:, 0] * dc[:, 0] + dc[:, 1] * dc[:, 1]) < 1e-6  # as np.linalg.norm(axis=1)
+    closed = row_norm(P[first] - P[last]) < 1e-6
     op = np.flatnonzero(~closed)
     n = len(op)
     if 2 * n < 2:
@@ -526,7 +525,7 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     nb = _cat(np.minimum(fo + 1, lo), np.maximum(lo - 1, fo))
     pt = P[e_pt]
     d = P[nb] - pt  # direction away from the end, into the stroke
-    d = d / np.maximum(np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]), 1e-12)[:, None]
+    d = d / np.maximum(row_norm(d), 1e-12)[:, None]
     pairs = _close_pairs(pt, tol_px)
     if len(pairs) == 0:
         return group, rev, pos
@@ -605,7 +604,7 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
     joint = (csum - counts)[~new_g]
     keep = np.ones(len(src), bool)
     P = strokes.points
-    keep[joint[np.linalg.norm(P[src[joint]] - P[src[joint - 1]], axis=1) < 1e-9]] = False
+    keep[joint[row_norm(P[src[joint]] - P[src[joint - 1]]) < 1e-9]] = False
     src = src[keep]
     owner = np.repeat(np.cumsum(new_g) - 1, counts)[keep]
     first = order[new_g]
@@ -629,7 +628,7 @@ def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
     keep = np.ones(len(pieces.points), bool)
     cont = np.flatnonzero(~new_g)
     head = pieces.offsets[:-1][cont]
-    same = np.linalg.norm(pieces.points[head] - pieces.points[head - 1], axis=1) < 1e-9
+    same = row_norm(pieces.points[head] - pieces.points[head - 1]) < 1e-9
     keep[head[same]] = False
     owner = (np.cumsum(new_g) - 1)[pieces.stroke_of_point][keep]
     counts = np.bincount(owner, minlength=int(new_g.sum()))
@@ -700,7 +699,7 @@ def _end_samples(prev: Strokes) -> Samples:
     e_pt = _cat(first, last)
     e_nb = _cat(np.minimum(first + 1, last), np.maximum(last - 1, first))
     t = P[e_nb] - P[e_pt]
-    t = t / np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
+    t = t / np.maximum(row_norm(t), 1e-12)[:, None]
     n = len(e_pt)
     return Samples(p=P[e_pt], X=X[e_pt], u=np.zeros(n), t=t, ids=_cat(prev.ids, prev.ids),
                    stroke=np.zeros(n, np.int64), s=np.zeros(n), w=np.ones(n))
@@ -1060,7 +1059,7 @@ class Tracker:
             st0 = prev.offsets[:-1][carried]
             X0 = prev.surface[st0]
             d0 = prev.points[np.minimum(st0 + 1, prev.offsets[1:][carried] - 1)] - prev.points[st0]
-            d0 = d0 / np.maximum(np.linalg.norm(d0, axis=1), 1e-12)[:, None]
+            d0 = d0 / np.maximum(row_norm(d0), 1e-12)[:, None]
             q, z = cur.camera.project(X0)
             tree = cKDTree(dense.p)
             kk = min(16, len(dense))
