@@ -164,11 +164,12 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     X = np.concatenate([strokes.surface, surface_between(strokes, i, j, a[:, 0])])
     F = np.concatenate([strokes.face, np.where(a[:, 0] < 0.5, strokes.face[i], strokes.face[j])])
     U = np.concatenate([strokes.u, strokes.u[i] * (1 - a[:, 0]) + strokes.u[j] * a[:, 0]])
-    # Sort by (stroke, arc); an old point precedes a new point at the same place.
+    # Sort by (stroke, arc); an old point precedes a new point at the same place. The global arc
+    # coordinate alone orders the strokes (a 1 px gap between them), and old points come first in
+    # allg: a stable sort of allg is that order (~4x cheaper than the 3-key lexsort it replaces).
     allg = _cat(G, g)
-    owner = _cat(strokes.stroke_of_point, stroke)
-    order = np.lexsort((_cat(np.zeros(len(G)), np.ones(len(g))), allg, owner))
-    counts = np.bincount(owner, minlength=len(strokes))
+    order = np.argsort(allg, kind="stable")
+    counts = np.bincount(_cat(strokes.stroke_of_point, stroke), minlength=len(strokes))
     return _replace(strokes, points=P[order], surface=X[order], face=F[order], u=U[order],
                    offsets=_cat(0, np.cumsum(counts)).astype(np.int64))
 
@@ -777,8 +778,14 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         # Rounded: a sum's last bits depend on the order of the votes, a tie must not.
         kw = np.round(np.bincount(inv.ravel(), weights=w), 9)
         ks, ki = key // M, key % M
-        o = np.lexsort((-ki, kw, ks))  # per sample by weight, the last write wins
-        label[ks[o]] = ki[o]
+        # Per sample the most weight, ties to the lower id: keys come sorted by (sample, id), so
+        # that is the first key of its sample holding the sample's maximum (no sort needed; a
+        # 3-key lexsort of ~1000 keys cost ~50 us).
+        new_s = _cat(True, ks[1:] != ks[:-1])
+        top = np.maximum.reduceat(kw, np.flatnonzero(new_s))[np.cumsum(new_s) - 1]
+        cand = np.flatnonzero(kw == top)
+        win = cand[_cat(True, ks[cand][1:] != ks[cand][:-1])]
+        label[ks[win]] = ki[win]
     idx = np.arange(D)
     stroke, s = dense.stroke, dense.s
 
