@@ -157,12 +157,13 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     first = strokes.offsets[:-1][stroke]
     last = strokes.offsets[1:][stroke] - 1
     # Interior original points: G strictly inside (g0, g1).
-    lo = np.maximum(np.searchsorted(G, g0, side="right"), first)
+    r0 = np.searchsorted(G, g0, side="right")  # also where at(g0) starts its search
+    lo = np.maximum(r0, first)
     hi = np.minimum(np.searchsorted(G, g1, side="left"), last + 1)
     n_in = np.maximum(hi - lo, 0)
 
-    def at(g):
-        j = np.clip(np.searchsorted(G, g, side="right"), first + 1, np.maximum(last, first + 1))
+    def at(g, r, first, last):
+        j = np.clip(r, first + 1, np.maximum(last, first + 1))
         j = np.minimum(j, len(G) - 1)
         i = np.maximum(j - 1, first)
         Gi = G[i]
@@ -173,8 +174,15 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
         f = np.where(a < 0.5, strokes.face[i], strokes.face[j])
         return p, X, f
 
-    pa, Xa, fa = at(g0)
-    pb, Xb, fb = at(g1)
+    if K >= 2:
+        # Both ends in one pass (half the calls). Not for K = 1: numpy projects a single point
+        # (a 1-row matrix product) with other rounding than rows of a longer batch.
+        p, X, f = at(_cat(g0, g1), _cat(r0, np.searchsorted(G, g1, side="right")), _cat(first, first),
+                     _cat(last, last))
+        pa, Xa, fa, pb, Xb, fb = p[:K], X[:K], f[:K], p[K:], X[K:], f[K:]
+    else:
+        pa, Xa, fa = at(g0, r0, first, last)
+        pb, Xb, fb = at(g1, np.searchsorted(G, g1, side="right"), first, last)
     counts = n_in + 2
     offsets = _cat(0, np.cumsum(counts)).astype(np.int64)
     N = int(offsets[-1])

@@ -989,12 +989,14 @@ class Tracker:
             gw = np.bincount(ginv, weights=w)
         else:
             gkeys, ginv, gw = np.zeros((0, 2), np.int64), np.zeros(0, np.int64), np.zeros(0)
-        # Primary group per stroke: most matched length, ties to the lower id (gkeys sorted).
-        order = np.lexsort((gkeys[:, 1], -gw, gkeys[:, 0])) if len(gw) else np.zeros(0, np.int64)
+        # Primary group per stroke: most matched length, ties to the lower id. gkeys come sorted
+        # by (stroke, id): the first group of a stroke holding the stroke's maximum (no sort).
         primary = np.zeros(len(gw), bool)
-        if len(order):
-            gs = gkeys[order, 0]
-            primary[order[_cat(True, gs[1:] != gs[:-1])]] = True
+        if len(gw):
+            gs = gkeys[:, 0]
+            new_s = _cat(True, gs[1:] != gs[:-1])
+            cand = np.flatnonzero(gw == np.maximum.reduceat(gw, np.flatnonzero(new_s))[np.cumsum(new_s) - 1])
+            primary[cand[_cat(True, gs[cand][1:] != gs[cand][:-1])]] = True
         b0 = 1.0 / P
         lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
 
