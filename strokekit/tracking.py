@@ -160,7 +160,9 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     if len(i) == 0:
         return strokes
     a = ((g - G[i]) / (G[j] - G[i]))[:, None]
-    P = np.concatenate([strokes.points, strokes.points[i] * (1 - a) + strokes.points[j] * a])
+    # take(axis=0) for row gathers: numpy's fancy indexing of (N, 2) / (N, 3) rows is ~8x slower
+    # on arrays of a frame's size (same values).
+    P = np.concatenate([strokes.points, strokes.points.take(i, axis=0) * (1 - a) + strokes.points.take(j, axis=0) * a])
     X = np.concatenate([strokes.surface, surface_between(strokes, i, j, a[:, 0])])
     F = np.concatenate([strokes.face, np.where(a[:, 0] < 0.5, strokes.face[i], strokes.face[j])])
     U = np.concatenate([strokes.u, strokes.u[i] * (1 - a[:, 0]) + strokes.u[j] * a[:, 0]])
@@ -170,7 +172,7 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     allg = _cat(G, g)
     order = np.argsort(allg, kind="stable")
     counts = np.bincount(_cat(strokes.stroke_of_point, stroke), minlength=len(strokes))
-    return _replace(strokes, points=P[order], surface=X[order], face=F[order], u=U[order],
+    return _replace(strokes, points=P.take(order, axis=0), surface=X.take(order, axis=0), face=F[order], u=U[order],
                    offsets=_cat(0, np.cumsum(counts)).astype(np.int64))
 
 
@@ -487,15 +489,16 @@ def _close_pairs(pt: np.ndarray, r: float) -> np.ndarray:
     order within r (plus a margin, the test decides) are the candidates."""
     n = len(pt)
     o = np.argsort(pt[:, 0], kind="stable")
-    x = pt[o, 0]
+    x = pt[:, 0][o]
     ar = np.arange(n)
     cnt = np.searchsorted(x, x + (r + 1e-6), side="right") - ar - 1
     csum = np.cumsum(cnt)
     i = np.repeat(ar, cnt)
     j = i + 1 + (np.arange(int(csum[-1]) if n else 0) - np.repeat(csum - cnt, cnt))
     a, b = o[i], o[j]
-    dx = pt[a, 0] - pt[b, 0]
-    dy = pt[a, 1] - pt[b, 1]
+    px, py = pt[:, 0], pt[:, 1]  # (px[a], not pt[a, 0]: the 2-index form is several times slower)
+    dx = px[a] - px[b]
+    dy = py[a] - py[b]
     keep = dx * dx + dy * dy <= r * r
     a, b = a[keep], b[keep]
     return np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
@@ -514,7 +517,7 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     pos = np.zeros(S, np.int64)
     P = strokes.points
     first, last = strokes.offsets[:-1], strokes.offsets[1:] - 1
-    closed = row_norm(P[first] - P[last]) < 1e-6
+    closed = row_norm(P.take(first, axis=0) - P.take(last, axis=0)) < 1e-6
     op = np.flatnonzero(~closed)
     n = len(op)
     if 2 * n < 2:
@@ -524,15 +527,16 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     fo, lo = first[op], last[op]
     e_pt = _cat(fo, lo)
     nb = _cat(np.minimum(fo + 1, lo), np.maximum(lo - 1, fo))
-    pt = P[e_pt]
-    d = P[nb] - pt  # direction away from the end, into the stroke
+    pt = P.take(e_pt, axis=0)
+    d = P.take(nb, axis=0) - pt  # direction away from the end, into the stroke
     d = d / np.maximum(row_norm(d), 1e-12)[:, None]
     pairs = _close_pairs(pt, tol_px)
     if len(pairs) == 0:
         return group, rev, pos
     a, b = pairs[:, 0], pairs[:, 1]
     ok = (e_run[a] != e_run[b]) & (strokes.kind[e_run[a]] == strokes.kind[e_run[b]])
-    straight = -(d[a, 0] * d[b, 0] + d[a, 1] * d[b, 1])  # cosine of the turn at the joint
+    dx, dy = d[:, 0], d[:, 1]
+    straight = -(dx[a] * dx[b] + dy[a] * dy[b])  # cosine of the turn at the joint
     ok &= straight >= np.cos(np.radians(angle_deg))
     if not ok.any():
         return group, rev, pos
@@ -550,11 +554,12 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     nxt = np.full(2 * S, -1, np.int64)
     nxt[code] = partner
     linked = (nxt >= 0).reshape(S, 2)
-    runs = np.flatnonzero(linked[:, 0] | linked[:, 1])
-    one = runs[linked[runs, 0] != linked[runs, 1]]
+    l0, l1 = linked[:, 0], linked[:, 1]
+    runs = np.flatnonzero(l0 | l1)
+    one = runs[l0[runs] != l1[runs]]
     # Path starts: strokes with one linked end, entered through the free end; then rings, entered
     # through their start.
-    entry = _cat(2 * one + linked[one, 0], 2 * runs).tolist()
+    entry = _cat(2 * one + l0[one], 2 * runs).tolist()
     nxt = nxt.tolist()
     seen = [False] * S
     walk, heads = [], []
@@ -605,11 +610,11 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
     joint = (csum - counts)[~new_g]
     keep = np.ones(len(src), bool)
     P = strokes.points
-    keep[joint[row_norm(P[src[joint]] - P[src[joint - 1]]) < 1e-9]] = False
+    keep[joint[row_norm(P.take(src[joint], axis=0) - P.take(src[joint - 1], axis=0)) < 1e-9]] = False
     src = src[keep]
     owner = np.repeat(np.cumsum(new_g) - 1, counts)[keep]
     first = order[new_g]
-    out = Strokes(points=P[src], surface=strokes.surface[src], face=strokes.face[src],
+    out = Strokes(points=P.take(src, axis=0), surface=strokes.surface.take(src, axis=0), face=strokes.face[src],
                   offsets=_cat(0, np.cumsum(np.bincount(owner, minlength=len(first)))).astype(np.int64),
                   kind=strokes.kind[first], ids=np.arange(len(first), dtype=np.int64), u=np.zeros(len(src)),
                   level=strokes.level[first], level_weight=strokes.level_weight[first], camera=strokes.camera,
@@ -699,10 +704,10 @@ def _end_samples(prev: Strokes) -> Samples:
     P, X = prev.points, prev.surface
     e_pt = _cat(first, last)
     e_nb = _cat(np.minimum(first + 1, last), np.maximum(last - 1, first))
-    t = P[e_nb] - P[e_pt]
+    t = P.take(e_nb, axis=0) - P.take(e_pt, axis=0)
     t = t / np.maximum(row_norm(t), 1e-12)[:, None]
     n = len(e_pt)
-    return Samples(p=P[e_pt], X=X[e_pt], u=np.zeros(n), t=t, ids=_cat(prev.ids, prev.ids),
+    return Samples(p=P.take(e_pt, axis=0), X=X.take(e_pt, axis=0), u=np.zeros(n), t=t, ids=_cat(prev.ids, prev.ids),
                    stroke=np.zeros(n, np.int64), s=np.zeros(n), w=np.ones(n))
 
 
@@ -728,7 +733,7 @@ def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1,
     if len(hit) == 0:
         return r_s0, r_s1
     mh = m[hit]
-    es = dense.s[mh] + np.clip(np.einsum("ij,ij->i", q[hit] - dense.p[mh], dense.t[mh]),
+    es = dense.s[mh] + np.clip(np.einsum("ij,ij->i", q.take(hit, axis=0) - dense.p.take(mh, axis=0), dense.t.take(mh, axis=0)),
                                -0.5 * dense.w[mh], 0.5 * dense.w[mh])
     est, eid = dense.stroke[mh], ends.ids[hit]
     M = int(max(eid.max(), r_label.max())) + 1
@@ -908,12 +913,15 @@ class Tracker:
         vm = m[hit]
         # Where along the new stroke each vote falls, finer than the sample spacing: the
         # projection of the voter on the matched sample's tangent (within its piece).
-        ds = np.einsum("ij,ij->i", q[hit] - dense.p[vm], dense.t[vm])
+        # (take(axis=0) for row gathers: fancy indexing of rows is several times slower)
+        dtv = dense.t.take(vm, axis=0)
+        hi = np.flatnonzero(hit)  # rows by index: a boolean row mask is ~5x slower than take
+        ds = np.einsum("ij,ij->i", q.take(hi, axis=0) - dense.p.take(vm, axis=0), dtv)
         ds = np.clip(ds, -0.5 * dense.w[vm], 0.5 * dense.w[vm])
         u = votes.u[hit]
         vid = votes.ids[hit]
         w = votes.w[hit]
-        sign = np.sign(np.einsum("ij,ij->i", votes.t[hit], dense.t[vm]))
+        sign = np.sign(np.einsum("ij,ij->i", votes.t.take(hi, axis=0), dtv))
         if o.reverse_votes and len(votes) and len(dense):
             # The other way too (as the metrics do): every new sample looks back for the nearest
             # old sample of the previous frame and takes its u (refined along the old tangent).
@@ -923,14 +931,15 @@ class Tracker:
             rh = np.flatnonzero(rm >= 0)
             src = rm[rh]
             slope = _local_slope(votes)
-            off = np.clip(np.einsum("ij,ij->i", rq[rh] - votes.p[src], votes.t[src]),
+            vts = votes.t.take(src, axis=0)
+            off = np.clip(np.einsum("ij,ij->i", rq.take(rh, axis=0) - votes.p.take(src, axis=0), vts),
                           -0.5 * votes.w[src], 0.5 * votes.w[src])
             vm = _cat(vm, rh)
             ds = _cat(ds, np.zeros(len(rh)))
             u = _cat(u, votes.u[src] + off * slope[src])
             vid = _cat(vid, votes.ids[src])
             w = _cat(w, dense.w[rh])
-            sign = _cat(sign, np.sign(np.einsum("ij,ij->i", votes.t[src], dense.t[rh])))
+            sign = _cat(sign, np.sign(np.einsum("ij,ij->i", vts, dense.t.take(rh, axis=0))))
         # Closed strokes (contour loops) start anywhere the chaining happened to start: turn them
         # so that they start at the old seam, where the carried u jumps by a whole loop.
         dense0 = dense
