@@ -199,7 +199,7 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     else:
         # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.
         first = np.argmax(good, axis=1)
-    m = np.where(has, safe[np.arange(len(safe)), first], -1)
+    m = np.where(has, safe.ravel()[np.arange(len(safe)) * kk + first], -1)  # safe[row, first], flat (cheaper)
     if exact and not piece_distance:
         redo = np.flatnonzero(~has & valid[:, -1])
         if len(redo):
