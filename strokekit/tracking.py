@@ -650,6 +650,9 @@ def _segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
     return [np.bincount(idx, weights=w, minlength=n) for w in weights]
 
 
+_INT64_MAX = int(np.iinfo(np.int64).max)  # (np.iinfo costs ~5 us a call)
+
+
 def assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, cand_w: np.ndarray,
                next_id: int, min_w: float = 0.0) -> tuple[np.ndarray, int]:
     """Greedy one-to-one assignment of previous ids to new strokes by matched length: the
@@ -670,7 +673,7 @@ def assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, can
     n_ids = int(cinv.max()) + 1 if len(cinv) else 0
     used_s = np.zeros(n_strokes, bool)
     used_i = np.zeros(n_ids, bool)
-    big = np.iinfo(np.int64).max
+    big = _INT64_MAX
     # Pairs that come first for both their stroke and their id are exactly the ones the greedy
     # pass takes; take them all, drop what they exclude, repeat (a few rounds, all vectorized).
     while alive.any():
@@ -991,10 +994,13 @@ class Tracker:
         s = np.clip(s, 0, L[st])
         # Vote groups: (stroke, carried id).
         if len(st):
-            key = st.astype(np.int64) * (int(vid.max()) + 1) + vid  # (stroke, id) as one integer
+            M = int(vid.max()) + 1
+            key = st.astype(np.int64) * M + vid  # (stroke, id) as one integer
             ukey, ginv = np.unique(key, return_inverse=True)
             ginv = ginv.ravel()
-            gkeys = np.stack([ukey // (int(vid.max()) + 1), ukey % (int(vid.max()) + 1)], axis=1)
+            gkeys = np.empty((len(ukey), 2), np.int64)
+            np.floor_divide(ukey, M, out=gkeys[:, 0])
+            np.remainder(ukey, M, out=gkeys[:, 1])
             gw = np.bincount(ginv, weights=w)
         else:
             gkeys, ginv, gw = np.zeros((0, 2), np.int64), np.zeros(0, np.int64), np.zeros(0)
