@@ -208,7 +208,7 @@ def _turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.nda
         return cur, dense, vm
     first, last = cur.offsets[:-1], cur.offsets[1:] - 1
     L = cur.lengths
-    closed = (L > 0) & (row_norm(cur.points[first] - cur.points[last]) < 1e-6)
+    closed = (L > 0) & (row_norm(cur.points.take(first, axis=0) - cur.points.take(last, axis=0)) < 1e-6)
     if not closed.any():
         return cur, dense, vm
     vst, vs = dense.stroke[vm], dense.s[vm]
@@ -801,11 +801,12 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         known = lab >= 0
         f = np.maximum.accumulate(np.where(known, idx, -1))
         b = np.minimum.accumulate(np.where(known, idx, D)[::-1])[::-1]
-        fok = (f >= 0) & (stroke[np.maximum(f, 0)] == stroke)
-        bok = (b < D) & (stroke[np.minimum(b, D - 1)] == stroke)
-        df = np.where(fok, s - s[np.maximum(f, 0)], np.inf)
-        db = np.where(bok, s[np.minimum(b, D - 1)] - s, np.inf)
-        out = np.where(df <= db, lab[np.maximum(f, 0)], lab[np.minimum(b, D - 1)])
+        f0, b0 = np.maximum(f, 0), np.minimum(b, D - 1)  # clamped once, used thrice
+        fok = (f >= 0) & (stroke[f0] == stroke)
+        bok = (b < D) & (stroke[b0] == stroke)
+        df = np.where(fok, s - s[f0], np.inf)
+        db = np.where(bok, s[b0] - s, np.inf)
+        out = np.where(df <= db, lab[f0], lab[b0])
         return np.where(fok | bok, out, -1)
 
     def runs(lab):
