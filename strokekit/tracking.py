@@ -744,18 +744,25 @@ def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1,
     o = np.argsort(ekey, kind="stable")
     ekey, es = ekey[o], es[o]
     cut = r_s1[inner]
-    acc, cnt = np.zeros(len(inner)), np.zeros(len(inner))
-    for lab in (r_label[inner], r_label[inner + 1]):
-        key = r_stroke[inner].astype(np.int64) * M + lab
-        lo = np.searchsorted(ekey, key, "left")
-        hi = np.searchsorted(ekey, key, "right")
-        for k in range(2):  # an old stroke has two ends: at most two candidates per key
-            j = lo + k
-            ok = j < hi
-            jj = np.minimum(j, len(es) - 1)
-            ok &= np.abs(es[jj] - cut) <= tol_px
-            acc += np.where(ok, es[jj], 0.0)
-            cnt += ok
+    # Both labels of every cut searched at once (keys of the left run, then of the right run).
+    n = len(inner)
+    sk = r_stroke[inner].astype(np.int64) * M
+    key = _cat(sk + r_label[inner], sk + r_label[inner + 1])
+    lo = np.searchsorted(ekey, key, "left")
+    hi = np.searchsorted(ekey, key, "right")
+    cut2 = _cat(cut, cut)
+    val, hit2 = [], []
+    for k in range(2):  # an old stroke has two ends: at most two candidates per key
+        j = lo + k
+        ok = j < hi
+        jj = np.minimum(j, len(es) - 1)
+        ok &= np.abs(es[jj] - cut2) <= tol_px
+        val.append(np.where(ok, es[jj], 0.0))
+        hit2.append(ok)
+    # Summed in the order of one label at a time, candidate 0 then 1 (es >= +0, so the sum from
+    # zero starts exactly at the first term).
+    acc = ((val[0][:n] + val[1][:n]) + val[0][n:]) + val[1][n:]
+    cnt = ((hit2[0][:n].astype(float) + hit2[1][:n]) + hit2[0][n:]) + hit2[1][n:]
     new = np.where(cnt > 0, acc / np.maximum(cnt, 1), cut)
     # Keep both runs non-empty.
     new = np.clip(new, r_s0[inner] + 1e-3, r_s1[inner + 1] - 1e-3)
