@@ -544,12 +544,22 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     # Greedy links in the order of _join_segments (straightest first; the pairs come in another
     # order than the k-d tree's, the sort decides). A node's code is 2 * stroke + end.
     o = np.lexsort((e_run[b], e_run[a], -np.round(straight, 9)))
-    code = (2 * e_run + (np.arange(2 * n) >= n)).tolist()
-    partner = [-1] * (2 * n)
-    for x, y in zip(a[o].tolist(), b[o].tolist()):
-        if partner[x] >= 0 or partner[y] >= 0:
-            continue
-        partner[x], partner[y] = code[y], code[x]
+    a, b = a[o], b[o]
+    code = 2 * e_run + (np.arange(2 * n) >= n)
+    partner = np.full(2 * n, -1, np.int64)
+    # A link whose two ends are in no other candidate link is taken whatever the order (most of
+    # them): set at once; only links at junctions of 3+ ends go through the greedy pass.
+    deg = np.bincount(_cat(a, b), minlength=2 * n)
+    solo = (deg[a] == 1) & (deg[b] == 1)
+    partner[a[solo]] = code[b[solo]]
+    partner[b[solo]] = code[a[solo]]
+    if not solo.all():
+        code_l, pl = code.tolist(), partner.tolist()
+        for x, y in zip(a[~solo].tolist(), b[~solo].tolist()):
+            if pl[x] >= 0 or pl[y] >= 0:
+                continue
+            pl[x], pl[y] = code_l[y], code_l[x]
+        partner = np.array(pl, np.int64)
     # nxt[c]: code of the end linked to end c (-1: free); entering at c, one leaves at c ^ 1.
     nxt = np.full(2 * S, -1, np.int64)
     nxt[code] = partner
