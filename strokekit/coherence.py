@@ -129,8 +129,9 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     j = np.minimum(j, len(G) - 1)
     i = np.maximum(j - 1, first)
     single = last == first  # one-point stroke
-    j = np.where(single, first, j)
-    i = np.where(single, first, i)
+    if single.any():
+        j = np.where(single, first, j)
+        i = np.where(single, first, i)
     Gi = G[i]
     d = G[j] - Gi
     a = np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0)

@@ -480,3 +480,16 @@ def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
         want = {tuple(x) for x in cKDTree(q).query_pairs(2.0, output_type="ndarray").tolist()}
         assert {tuple(x) for x in _close_pairs(q, 2.0).tolist()} == want
     assert linked > 100  # the cases did join strokes
+
+
+def test_unique_inverse_is_np_unique():
+    from strokekit.tracking import _unique_inverse
+
+    rng = np.random.default_rng(2)
+    for n in (0, 1, 2, 7, 300, 2000):
+        x = rng.integers(0, max(n // 3, 1) * 1000003, n)  # repeats, large keys
+        x[: n // 4] = x[n // 4: 2 * (n // 4)]
+        want_u, want_inv = np.unique(x, return_inverse=True)
+        got_u, got_inv = _unique_inverse(x)
+        assert np.array_equal(got_u, want_u) and np.array_equal(got_inv, want_inv.ravel())
+        assert np.array_equal(got_u[got_inv], x)
