@@ -109,13 +109,7 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
         if rows is not None:
             return rows
     n = scene.face_normals
-    has1 = ef[:, 1] >= 0
-    f1 = np.maximum(ef[:, 1], 0)
-    front0, front1 = ff[ef[:, 0]], has1 & ff[f1]
-    any_front = front0 | front1
-    # Eye-facing faces' normals; where no face faces the eye, the reverse of all of them.
-    w0 = np.where(any_front, front0, True).astype(float)
-    w1 = np.where(any_front, front1, has1).astype(float)
+    f1, any_front, w0, w1 = _lift_weights(ef, ff)
     m = w0[:, None] * np.take(n, ef[:, 0], axis=0) + w1[:, None] * np.take(n, f1, axis=0)
     m = np.where(any_front[:, None], m, -m)
     ln = row_norm(m)
@@ -137,18 +131,27 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     return lift
 
 
-def _lift_rows(scene: Scene, fe: FeatureEdges, ef: np.ndarray, ff: np.ndarray, fraction: float) -> np.ndarray | None:
-    """surface_lift for mesh edges with their faces `ef`, computed on (3, N) rows: the same float64
-    operations element by element (the same bits), without broadcasting (N, 3) arrays against
-    (N, 1) or (3,) ones, whose 3-long inner loops cost more than the arithmetic. None where an
-    edge's faces have no usable normal (the caller's general path handles it)."""
-    nT = _face_normal_rows(scene)
+def _lift_weights(ef: np.ndarray, ff: np.ndarray):
+    """For edges with faces ef (N, 2) (-1: none) and the faces' front-facing flags ff: the second
+    face (0 where none), whether any face faces the eye, and the weights (N,) of the two faces'
+    normals in the lift direction: the eye-facing faces', or where none faces the eye, all of
+    them (the caller then reverses the sum)."""
     has1 = ef[:, 1] >= 0
     f1 = np.maximum(ef[:, 1], 0)
     front0, front1 = ff[ef[:, 0]], has1 & ff[f1]
     any_front = front0 | front1
     w0 = np.where(any_front, front0, True).astype(float)
     w1 = np.where(any_front, front1, has1).astype(float)
+    return f1, any_front, w0, w1
+
+
+def _lift_rows(scene: Scene, fe: FeatureEdges, ef: np.ndarray, ff: np.ndarray, fraction: float) -> np.ndarray | None:
+    """surface_lift for mesh edges with their faces `ef`, computed on (3, N) rows: the same float64
+    operations element by element (the same bits), without broadcasting (N, 3) arrays against
+    (N, 1) or (3,) ones, whose 3-long inner loops cost more than the arithmetic. None where an
+    edge's faces have no usable normal (the caller's general path handles it)."""
+    nT = _face_normal_rows(scene)
+    f1, any_front, w0, w1 = _lift_weights(ef, ff)
     m = w0 * nT.take(ef[:, 0], axis=1) + w1 * nT.take(f1, axis=1)
     m = np.where(any_front, m, -m)
     ln = np.sqrt((m[0] * m[0] + m[1] * m[1]) + m[2] * m[2])  # row_norm's order
