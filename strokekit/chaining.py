@@ -14,11 +14,11 @@ from .model import KINDS, Strokes, VisibleRuns, row_norm
 from .options import LineOptions
 
 
-def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float,
-              zero: np.ndarray | None = None) -> np.ndarray:
+def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float, zero: np.ndarray) -> np.ndarray:
     """For 2R run ends with node ids and unit directions pointing away from the node into the run:
     the other end at the same node when exactly two ends meet and the turn is gentle enough, else -1.
-    `zero` (R,), if given, is True where run r's direction (ends 2r, 2r + 1) is all zeros."""
+    `zero` (R,) is True where run r's direction (ends 2r, 2r + 1) is all zeros: such a run (no
+    length on screen) links whatever the turn."""
     m = len(node)
     partner = np.full(m, -1, np.int64)
     if m == 0:
@@ -38,10 +38,7 @@ def _partners(node: np.ndarray, direction: np.ndarray, cos_split: float,
     # angle between -d0 and d1. Split when turn > split angle, i.e. -d0.d1 < cos(split).
     d0, d1 = np.take(direction, e0, axis=0), np.take(direction, e1, axis=0)
     turn_cos = -np.einsum("ij,ij->i", d0, d1)
-    if zero is not None:
-        degenerate = zero[e0 >> 1] | zero[e1 >> 1]
-    else:
-        degenerate = (np.abs(d0).sum(axis=1) == 0) | (np.abs(d1).sum(axis=1) == 0)
+    degenerate = zero[e0 >> 1] | zero[e1 >> 1]
     ok = (turn_cos >= cos_split) | degenerate
     partner[e0[ok]] = e1[ok]
     partner[e1[ok]] = e0[ok]

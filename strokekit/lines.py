@@ -31,7 +31,7 @@ class LineRenderer:
         self.occluder = Occluder(self.scene, self.backend)
         self.static = static_feature_mask(self.scene, self.options)
         if not self.options.retest_front_hits and self.occluder.backend == "open3d":
-            self.occluder.face_normals32()  # built with the scene, not by the first frame
+            self.scene.face_normal_rows  # built with the scene, not by the first frame
 
     def check_camera(self, camera: Camera, frame: int = 0) -> None:
         if self.occluder.eye_enclosed(camera):
@@ -150,7 +150,7 @@ def _lift_rows(scene: Scene, fe: FeatureEdges, ef: np.ndarray, ff: np.ndarray, f
     operations element by element (the same bits), without broadcasting (N, 3) arrays against
     (N, 1) or (3,) ones, whose 3-long inner loops cost more than the arithmetic. None where an
     edge's faces have no usable normal (the caller's general path handles it)."""
-    nT = _face_normal_rows(scene)
+    nT = scene.face_normal_rows
     f1, any_front, w0, w1 = _lift_weights(ef, ff)
     m = w0 * nT.take(ef[:, 0], axis=1) + w1 * nT.take(f1, axis=1)
     m = np.where(any_front, m, -m)
@@ -168,17 +168,6 @@ def _lift_rows(scene: Scene, fe: FeatureEdges, ef: np.ndarray, ff: np.ndarray, f
     lift = np.ascontiguousarray((m / ln * size).T)
     lift[fe.kind == KIND_INDEX["nonmanifold"]] = 0.0
     return lift
-
-
-def _face_normal_rows(scene: Scene) -> np.ndarray:
-    """(3, F) scene.face_normals as contiguous rows, kept with the scene."""
-    from .contours import scene_cache
-
-    c = scene_cache(scene)
-    nT = c.get("face_normal_rows")
-    if nT is None:
-        nT = c["face_normal_rows"] = np.ascontiguousarray(scene.face_normals.T)
-    return nT
 
 
 class _Clock:

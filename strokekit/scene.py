@@ -70,6 +70,11 @@ class Scene:
         return n / np.linalg.norm(n, axis=1, keepdims=True)
 
     @cached_property
+    def face_normal_rows(self) -> np.ndarray:
+        """(3, F) face_normals as contiguous rows (for column-wise arithmetic on (3, N) arrays)."""
+        return np.ascontiguousarray(self.face_normals.T)
+
+    @cached_property
     def face_offsets(self) -> np.ndarray:
         """(F,) plane offsets n.P for the face centroid: facing(eye) = sign(n.eye - offset)."""
         c = self.vertices[self.faces].mean(axis=1)

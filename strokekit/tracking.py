@@ -673,6 +673,16 @@ def _unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return aux[mask], inv
 
 
+def _first_max_per_group(group: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """For entries sorted by `group` (runs of equal values, non-empty): the index of the first
+    entry of each group holding the group's maximum weight (ties: the earliest), in group order.
+    The sorted-input form of a (group, -weight, position) lexsort, without the sort."""
+    new = _cat(True, group[1:] != group[:-1])
+    top = np.maximum.reduceat(weight, np.flatnonzero(new))[np.cumsum(new) - 1]
+    cand = np.flatnonzero(weight == top)
+    return cand[_cat(True, group[cand][1:] != group[cand][:-1])]
+
+
 _INT64_MAX = int(np.iinfo(np.int64).max)  # (np.iinfo costs ~5 us a call)
 
 
@@ -818,10 +828,7 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         # Per sample the most weight, ties to the lower id: keys come sorted by (sample, id), so
         # that is the first key of its sample holding the sample's maximum (no sort needed; a
         # 3-key lexsort of ~1000 keys cost ~50 us).
-        new_s = _cat(True, ks[1:] != ks[:-1])
-        top = np.maximum.reduceat(kw, np.flatnonzero(new_s))[np.cumsum(new_s) - 1]
-        cand = np.flatnonzero(kw == top)
-        win = cand[_cat(True, ks[cand][1:] != ks[cand][:-1])]
+        win = _first_max_per_group(ks, kw)
         label[ks[win]] = ki[win]
     idx = np.arange(D)
     stroke, s = dense.stroke, dense.s
@@ -1037,10 +1044,7 @@ class Tracker:
         # by (stroke, id): the first group of a stroke holding the stroke's maximum (no sort).
         primary = np.zeros(len(gw), bool)
         if len(gw):
-            gs = gkeys[:, 0]
-            new_s = _cat(True, gs[1:] != gs[:-1])
-            cand = np.flatnonzero(gw == np.maximum.reduceat(gw, np.flatnonzero(new_s))[np.cumsum(new_s) - 1])
-            primary[cand[_cat(True, gs[cand][1:] != gs[cand][:-1])]] = True
+            primary[_first_max_per_group(gkeys[:, 0], gw)] = True
         b0 = 1.0 / P
         lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
 

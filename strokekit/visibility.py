@@ -277,13 +277,6 @@ class Occluder:
             vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
         return vis
 
-    def face_normals32(self) -> np.ndarray:
-        """(3, F) float32 face normals, built once (the draft path's back-side test)."""
-        n = getattr(self, "_face_normals32", None)
-        if n is None:
-            n = self._face_normals32 = np.ascontiguousarray(self.scene.face_normals.T, np.float32)
-        return n
-
     def visible_local(self, P: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
                       scale: np.ndarray, retest_front_hits: bool = True) -> np.ndarray:
         """visible_rows (the draft preset's path) with points P, lifts and local sizes already in
@@ -314,7 +307,7 @@ class Occluder:
         again = hidden[f[hidden] * seg_len[hidden] <= reach]
         if not retest_front_hits and len(again):
             tri = r["primitive_ids"].numpy().take(again)
-            again = again[_dot3(self.face_normals32().take(tri, axis=1), d[:, again]) >= 0.0]
+            again = again[_dot3(self.scene.face_normal_rows.take(tri, axis=1), d[:, again]) >= 0.0]
         if len(again):
             # The plain rays (no lift), from the same points.
             Pa = P[:, again]
@@ -541,10 +534,10 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         vis_lo = vis[change]
         # Each bracket halves until it is within the tolerance: short edges' brackets need fewer
         # steps. Sorted by their number of steps, the brackets still open are a prefix.
-        width_px = (hi - lo) * L[cs]
         if not options.bisect_changes:  # the middle of the bracket
             lo = hi = 0.5 * (lo + hi)
         else:
+            width_px = (hi - lo) * L[cs]
             steps = np.ceil(np.log2(np.maximum(width_px, 1e-300) / options.bisection_tol_px))
             steps = np.maximum(steps, 0).astype(np.int64)
             order = np.argsort(-steps, kind="stable")
@@ -569,13 +562,19 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     X0, X1 = world_at(run_seg, s0), world_at(run_seg, s1)
     p0, _ = camera.project(X0)
     p1, _ = camera.project(X1)
-    fe = idx[run_seg]
-    n = len(fe)
-    unique_key = -(np.arange(2 * n, dtype=np.int64) + 1)
-    start_on_vertex = (s0 == 0.0) & (t0[fe] == 0.0) & (features.va[fe] >= 0)
-    end_on_vertex = (s1 == 1.0) & (t1[fe] == 1.0) & (features.vb[fe] >= 0)
-    key0 = np.where(start_on_vertex, features.va[fe], unique_key[0::2])
-    key1 = np.where(end_on_vertex, features.vb[fe], unique_key[1::2])
+    return _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
+
+
+def _visible_runs_of(features: FeatureEdges, fe, t0, t1, s0, s1, X0, X1, p0, p1) -> VisibleRuns:
+    """VisibleRuns of the runs on feature edges fe, each from parameter s0 to s1 of its clipped
+    segment (t0, t1: the clip of every feature edge). A run end keys on its mesh vertex where it
+    is the unclipped edge end (so chaining links runs through shared vertices), on a fresh
+    negative key otherwise."""
+    r = len(fe)
+    unique_key = -(np.arange(2 * r, dtype=np.int64) + 1)
+    va, vb = features.va[fe], features.vb[fe]
+    key0 = np.where((s0 == 0.0) & (t0[fe] == 0.0) & (va >= 0), va, unique_key[0::2])
+    key1 = np.where((s1 == 1.0) & (t1[fe] == 1.0) & (vb >= 0), vb, unique_key[1::2])
     return VisibleRuns(edge=fe, X0=X0, X1=X1, p0=p0, p1=p1, key0=key0, key1=key1, kind=features.kind[fe],
                        face=features.face[fe])
 
@@ -683,11 +682,4 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     X1 = np.concatenate([np.take(B, runs_w, axis=0), X1_l])[order]
     p0 = np.concatenate([np.take(pa, runs_w, axis=0), p_l[:m]])[order]
     p1 = np.concatenate([np.take(pb, runs_w, axis=0), p_l[m:]])[order]
-    fe = idx[run_seg]
-    r = len(fe)
-    unique_key = -(np.arange(2 * r, dtype=np.int64) + 1)
-    va, vb = features.va[fe], features.vb[fe]
-    key0 = np.where((s0 == 0.0) & (t0[fe] == 0.0) & (va >= 0), va, unique_key[0::2])
-    key1 = np.where((s1 == 1.0) & (t1[fe] == 1.0) & (vb >= 0), vb, unique_key[1::2])
-    return VisibleRuns(edge=fe, X0=X0, X1=X1, p0=p0, p1=p1, key0=key0, key1=key1, kind=features.kind[fe],
-                       face=features.face[fe])
+    return _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
