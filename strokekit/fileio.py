@@ -107,7 +107,9 @@ def _folder_problem(p: Path) -> str | None:
 def check_output_folder(path: str | Path) -> None:
     """Raise InputError, naming `path`, unless files can be written in folder `path` (created
     later if missing). Leaves nothing behind, so a run refused for another reason leaves no
-    empty folder."""
+    empty folder. An empty name is a UsageError (it would mean the current folder)."""
+    if not str(path).strip():
+        raise UsageError("an output folder name is empty")
     why = _folder_problem(Path(path).absolute())
     if why is not None:
         raise InputError(why, path)

@@ -391,6 +391,16 @@ def test_a_failed_atomic_write_names_the_file_not_its_temporary(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]  # and the check leaves nothing behind
 
 
+def test_empty_output_names_are_usage_errors_in_the_library_too():
+    # An empty name would mean the current folder: the checks refuse it before any work.
+    from strokekit.errors import UsageError
+    from strokekit.fileio import check_output_file, check_output_folder
+
+    for check in (check_output_folder, check_output_file):
+        with pytest.raises(UsageError):
+            check("  ")
+
+
 def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatch):
     """click turns a KeyboardInterrupt into an empty line and 'Aborted!'; the user gets one line."""
     import cli.commands.info as info
