@@ -12,7 +12,10 @@ frame against the lines-only time per frame (process CPU time, medians over fram
 `--repeat` runs: the machine is shared, CPU time is steadier than wall time).
 
     python benchmarks/bench_coherence.py [--frames 120] [--models spot,fandisk,bunny] [--json out.json]
-        [--methods none,seed,kalnins,kalnins-raw]
+        [--methods none,seed,kalnins,kalnins-raw] [--doubled 1]
+
+`--doubled PX` renders the lines with LineOptions(doubled_px=PX) (kalnins-raw keeps 0): the trade-off
+between steadier ids and drawing every visible contour edge (README, coherence section).
 
 `strokes` is the mean number of strokes per tracked frame (the input lines: `strokes_in` in the JSON).
 """
@@ -76,6 +79,8 @@ def main() -> None:
     ap.add_argument("--models", default="spot,fandisk,bunny")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", default=None, help="also write the rows as JSON here")
+    ap.add_argument("--doubled", type=float, default=LineOptions.doubled_px,
+                    help="LineOptions.doubled_px of the line pass (the trade-off in the README's coherence section)")
     ap.add_argument("--methods", default=",".join(VARIANTS), help="rows: " + ", ".join(VARIANTS))
     a = ap.parse_args()
     rows = []
@@ -85,7 +90,7 @@ def main() -> None:
     print(head)
     for name in a.models.split(","):
         sc = load_scene(MODELS / FILES[name])
-        r = LineRenderer(sc, LineOptions())
+        r = LineRenderer(sc, LineOptions(doubled_px=a.doubled))
         orbit = orbit_path(sc.center, sc.radius, a.frames, degrees_per_frame=3.0, width=a.size, height=a.size)
         dolly = dolly_path(sc.center, sc.radius, a.frames, start=1.0, end=8.0, width=a.size, height=a.size)
         frames, t_lines = render(r, orbit)
