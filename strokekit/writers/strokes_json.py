@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 import orjson
 
@@ -27,9 +29,81 @@ def round_list(x: np.ndarray, ndigits: int) -> list[float]:
     return out
 
 
+_STROKE = (b'{"id":%d,"kind":"%s","points":[%s],"u":[%s],"surface":[%s],"face":[%s],'
+           b'"length_px":%s,"level":%s,"level_weight":%s}')
+_KIND_BYTES = [k.encode() for k in KINDS]
+_NP = orjson.OPT_SERIALIZE_NUMPY
+
+
 def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra: dict | None = None) -> bytes:
     """JSON bytes: frame, size, camera and every stroke with points (px, 4 decimals), u, surface
-    (world), face, length_px, self-similar level and weight. Deterministic."""
+    (world), face, length_px, self-similar level and weight. Deterministic.
+
+    The bytes of orjson.dumps of the document (see _strokes_json_nested), built without a numpy
+    view and an orjson array call per stroke and field: orjson writes each per-point array of the
+    frame once (the same number text), the text is cut at the stroke starts and the strokes are
+    assembled by one bytes %-operation (0.6 -> 0.25 ms per draft bunny frame of 310 strokes)."""
+    doc = {"frame": int(frame), "width": int(width), "height": int(height),
+           "camera": strokes.camera.to_json() if strokes.camera is not None else None,
+           "period_px": strokes.period_px}
+    if extra:
+        if "strokes" in extra:  # the key would sit where extra puts it
+            return _strokes_json_nested(strokes, width, height, frame, extra=extra)
+        doc.update(extra)
+    doc["strokes"] = []
+    head = orjson.dumps(doc, option=_NP)
+    if len(strokes) == 0:
+        return head + b"\n"
+    cuts = _stroke_cuts(strokes)
+    if cuts is None:  # unusual arrays (empty strokes, shapes that do not match): the plain way
+        return _strokes_json_nested(strokes, width, height, frame, extra=extra)
+    n = len(strokes)
+    kinds = [_KIND_BYTES[k] for k in strokes.kind.tolist()]
+    args = tuple(chain.from_iterable(zip(strokes.ids.tolist(), kinds, *cuts, _number_texts(strokes.lengths, 4, n),
+                                         _number_texts(strokes.level, 6, n), _number_texts(strokes.level_weight, 6, n))))
+    return b"".join((head[:-2], b",".join([_STROKE] * n) % args, b"]}\n"))
+
+
+def _number_texts(x: np.ndarray, ndigits: int, n: int) -> list[bytes]:
+    """orjson's text of each of round_list(x, ndigits) (n values); one text n times when x is
+    constant, bit for bit (the level and weight of untracked strokes; -0.0 is not 0.0)."""
+    if n > 1 and x.dtype == np.float64 and x.shape == (n,) and (x.view(np.int64) == x.view(np.int64)[0]).all():
+        return [orjson.dumps(round_list(x[:1], ndigits)[0])] * n
+    return orjson.dumps(round_list(x, ndigits))[1:-1].split(b",")
+
+
+def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
+    """Each stroke's points, u, surface and face as the JSON text between the brackets of its
+    arrays: orjson's text of the frame's whole array, cut at the stroke starts. None when a stroke
+    is empty, the arrays are not the (N, 2), (N,), (N, 3), (N,) of the offsets or the ids are not
+    integers (%d would write them differently)."""
+    off = strokes.offsets
+    n = len(strokes.points)
+    counts = np.diff(off)
+    if (off[0] != 0 or off[-1] != n or not (counts > 0).all() or strokes.ids.dtype.kind not in "iu"
+            or strokes.points.ndim != 2
+            or strokes.surface.ndim != 2 or strokes.u.ndim != 1 or strokes.face.ndim != 1
+            or not len(strokes.surface) == len(strokes.u) == len(strokes.face) == n):
+        return None
+    out = []
+    for arr in (np.round(strokes.points, 4) + 0.0, np.round(strokes.u, 5) + 0.0, strokes.surface, strokes.face):
+        text = orjson.dumps(arr, option=_NP)
+        b = np.frombuffer(text, np.uint8)
+        # [[x,y],[x,y]]: rows start at '['; [a,b,c]: elements after the commas. The comma before
+        # each stroke's first row or element becomes NUL (never in orjson's text of numbers) and
+        # the text between the outer brackets splits there.
+        seps = np.flatnonzero(b == 91)[2:] - 1 if arr.ndim == 2 else np.flatnonzero(b == 44)
+        if len(seps) != n - 1:
+            return None
+        b = b.copy()
+        b[seps.take(off[1:-1] - 1)] = 0
+        out.append(b[1:-1].tobytes().split(b"\0"))
+    return out
+
+
+def _strokes_json_nested(strokes: Strokes, width: int, height: int, frame: int, *,
+                         extra: dict | None = None) -> bytes:
+    """strokes_json by orjson.dumps of the nested document (a numpy view per stroke and field)."""
     pts = np.round(strokes.points, 4) + 0.0
     u = np.round(strokes.u, 5) + 0.0
     surface, face = strokes.surface, strokes.face

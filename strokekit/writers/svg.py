@@ -38,11 +38,19 @@ def path_data(points: np.ndarray, decimals: int = 2) -> str:
 
 def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
     """Each stroke's points as 'x y x y ...' (the text after "M" of its path). The same strings as
-    joining point_strings per stroke, formatted by one %-operation over all points (no per-point
-    Python work)."""
+    joining point_strings per stroke, written by numpy digit arithmetic on all points at once
+    (no per-number Python formatting); frames with numbers beyond its range go through one
+    %-operation over all points."""
     counts = np.diff(strokes.offsets).tolist()
     if not counts:
         return []
+    v = np.asarray(strokes.points).ravel()
+    if 0 <= decimals <= 9 and v.dtype == np.float64 and len(v) == 2 * strokes.offsets[-1] and min(counts) > 0:
+        sep = np.full(len(v), 32, np.uint8)  # ' ' between numbers, NUL after each stroke's last
+        sep[2 * strokes.offsets[1:] - 1] = 0
+        text = _fixed_point_text(v, decimals, sep)
+        if text is not None:
+            return text[:-1].decode("ascii").split("\0")
     r = (np.round(strokes.points, decimals) + 0.0).ravel().tolist()  # + 0.0 turns -0.0 into 0.0
     # Strokes separated by NUL, which the formatted numbers never contain; one template per
     # point count.
@@ -54,6 +62,51 @@ def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
         # A new cache rather than clearing this one: another thread may be reading it.
         _POINT_FORMATS[decimals] = {}
     return (template % tuple(r)).split("\0")
+
+
+def _fixed_point_text(v: np.ndarray, decimals: int, sep: np.ndarray) -> bytes | None:
+    """The text of f"%.{decimals}f" % x for each x of np.round(v, decimals) + 0.0 (float64 (M,)),
+    each followed by its byte of `sep`; None when a value is not finite or not below 1e15 once
+    scaled. np.round is rint(v 10^d) / 10^d, and %.df of that double is the integer
+    k = rint(v 10^d) written with d decimals (the double is within 1e-3 units of k 10^-d), -0
+    written as 0: so the digits of k, by integer arithmetic, are the text."""
+    t = v * (10.0 ** decimals)
+    with np.errstate(invalid="ignore"):
+        if not (np.abs(t) < 1e15).all():
+            return None
+    k = np.rint(t).astype(np.int64)
+    neg = k < 0
+    a = np.abs(k)
+    ndig = max(decimals + 1, len(str(int(a.max()))))
+    cols = ndig + (decimals > 0) + 2  # sign, digits, point, separator
+    # Right-aligned in a (M, cols) byte table; 0xFF fills the left of each number and is deleted
+    # from the bytes at the end.
+    m = np.empty((len(k), cols), np.uint8)
+    m[:, -1] = sep
+    m[:, 0] = 255
+    c = cols - 2
+    for j in range(ndig):
+        if j == decimals and decimals > 0:
+            m[:, c] = 46  # '.'
+            c -= 1
+        q = a // 10
+        if j <= decimals:
+            m[:, c] = a - 10 * q + 48
+        else:  # a digit left of the first: 255 where a == 0 (no more digits)
+            m[:, c] = _DIGIT_OR_FILL.take(a - 10 * q + 10 * (a == 0))
+        a = q
+        c -= 1
+    if neg.any():  # '-' just left of the first digit
+        rows = np.flatnonzero(neg)
+        first = np.full(len(rows), cols - 2 - decimals - (decimals > 0))  # column of the ones digit
+        a = np.abs(k.take(rows))
+        for j in range(decimals + 1, ndig):
+            first -= a >= 10 ** j
+        m[rows, first - 1] = 45
+    return m.tobytes().translate(None, b"\xff")
+
+
+_DIGIT_OR_FILL = np.array([48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 255], np.uint8)
 
 
 _POINT_FORMATS: dict[int, dict[int, str]] = {}
