@@ -131,20 +131,19 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     # Ends of run r: index r (start) and R + r (end) into the stacked ends.
     entry = np.where(fwd, run, run + R)
     exit_ = np.where(fwd, run + R, run)
-    ends_p = np.concatenate([runs.p0, runs.p1])
-    ends_X = np.concatenate([runs.X0, runs.X1])
-    entry_p, exit_p = np.take(ends_p, entry, axis=0), np.take(ends_p, exit_, axis=0)
-    entry_X, exit_X = np.take(ends_X, entry, axis=0), np.take(ends_X, exit_, axis=0)
     # Points: entry of each chain's first run, then the exit of every run.
     first_idx = np.flatnonzero(chain_start)
     n_pts = len(kept) + n_chain
     pos_exit = np.arange(len(kept)) + np.cumsum(chain_start)
     pos_entry = pos_exit[first_idx] - 1
-    points = np.empty((n_pts, 2))
-    surface = np.empty((n_pts, 3))
-    face = np.empty(n_pts, np.int64)
-    points[pos_exit], surface[pos_exit], face[pos_exit] = exit_p, exit_X, runs.face[run]
-    points[pos_entry], surface[pos_entry], face[pos_entry] = entry_p[first_idx], entry_X[first_idx], runs.face[run[first_idx]]
+    # Every point is a run's exit (at pos_exit) or a chain's entry (at pos_entry): its row of the
+    # stacked ends, gathered once (row scatters cost several times a take).
+    src = np.empty(n_pts, np.int64)
+    src[pos_exit] = exit_
+    src[pos_entry] = entry.take(first_idx)
+    points = np.concatenate([runs.p0, runs.p1]).take(src, axis=0)
+    surface = np.concatenate([runs.X0, runs.X1]).take(src, axis=0)
+    face = runs.face.take(np.where(src >= R, src - R, src))
     offsets = np.empty(n_chain + 1, np.int64)
     offsets[0] = 0
     offsets[1:-1] = first_idx[1:] + np.arange(1, n_chain)  # each chain: its runs + 1 points

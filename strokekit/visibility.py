@@ -303,14 +303,14 @@ class Occluder:
         vis = np.ones(len(f), bool)
         vis[hidden] = False
         # The contact re-test: only where the hit is near the start (world reach, Embree frame).
-        reach = 100.0 * np.sqrt(_sq3(lift[:, hidden])) + eps[hidden]
+        reach = 100.0 * np.sqrt(_sq3(lift.take(hidden, axis=1))) + eps[hidden]
         again = hidden[f[hidden] * seg_len[hidden] <= reach]
         if not retest_front_hits and len(again):
             tri = r["primitive_ids"].numpy().take(again)
-            again = again[_dot3(self.scene.face_normal_rows.take(tri, axis=1), d[:, again]) >= 0.0]
+            again = again[_dot3(self.scene.face_normal_rows.take(tri, axis=1), d.take(again, axis=1)) >= 0.0]
         if len(again):
             # The plain rays (no lift), from the same points.
-            Pa = P[:, again]
+            Pa = P.take(again, axis=1)
             d = eye - Pa
             dist = np.sqrt(_sq3(d))
             ea = eps[again]
@@ -602,20 +602,21 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     A, B = a, b
     pa, pb, za, zb = p[:N], p[N:], z[:N], z[N:]
     if len(out):  # clip the others (Cyrus-Beck) and project their clipped ends
-        t0o, t1o = clip_segments(a[out], b[out], camera, near)
+        a_o, b_o = a.take(out, axis=0), b.take(out, axis=0)
+        t0o, t1o = clip_segments(a_o, b_o, camera, near)
         t0[out], t1[out] = t0o, t1o
-        ab_o = b[out] - a[out]
+        ab_o = b_o - a_o
         A, B = a.copy(), b.copy()
-        A[out] = a[out] + t0o[:, None] * ab_o
-        B[out] = a[out] + t1o[:, None] * ab_o
-        po, zo = _project(camera, np.concatenate([A[out], B[out]]))
+        A_o, B_o = a_o + t0o[:, None] * ab_o, a_o + t1o[:, None] * ab_o
+        A[out], B[out] = A_o, B_o
+        po, zo = _project(camera, np.concatenate([A_o, B_o]))
         pa, pb, za, zb = pa.copy(), pb.copy(), za.copy(), zb.copy()
         pa[out], pb[out], za[out], zb[out] = po[:len(out)], po[len(out):], zo[:len(out)], zo[len(out):]
     idx = np.flatnonzero(t1 > t0)
     lift = features.lift
     if len(idx) < N:
-        A, B, pa, pb, za, zb = A[idx], B[idx], pa[idx], pb[idx], za[idx], zb[idx]
-        a, b, lift = a[idx], b[idx], lift[idx]
+        A, B, pa, pb = A.take(idx, axis=0), B.take(idx, axis=0), pa.take(idx, axis=0), pb.take(idx, axis=0)
+        za, zb, a, b, lift = za[idx], zb[idx], a.take(idx, axis=0), b.take(idx, axis=0), lift.take(idx, axis=0)
     D = B - A
     L = row_norm(pb - pa)
     whole = L < options.whole_edge_px
@@ -678,8 +679,8 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     run_seg = run_seg[order]
     s0 = np.concatenate([np.zeros(len(runs_w)), s0_l])[order]
     s1 = np.concatenate([np.ones(len(runs_w)), s1_l])[order]
-    X0 = np.concatenate([np.take(A, runs_w, axis=0), X0_l])[order]
-    X1 = np.concatenate([np.take(B, runs_w, axis=0), X1_l])[order]
-    p0 = np.concatenate([np.take(pa, runs_w, axis=0), p_l[:m]])[order]
-    p1 = np.concatenate([np.take(pb, runs_w, axis=0), p_l[m:]])[order]
+    X0 = np.concatenate([np.take(A, runs_w, axis=0), X0_l]).take(order, axis=0)
+    X1 = np.concatenate([np.take(B, runs_w, axis=0), X1_l]).take(order, axis=0)
+    p0 = np.concatenate([np.take(pa, runs_w, axis=0), p_l[:m]]).take(order, axis=0)
+    p1 = np.concatenate([np.take(pb, runs_w, axis=0), p_l[m:]]).take(order, axis=0)
     return _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
