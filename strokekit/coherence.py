@@ -176,14 +176,18 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     tree = dst_tree if dst_tree is not None else cKDTree(dst.p)
     kk = min(k, len(dst))
     every = ok.all()  # the usual case: no copies, no scatter
-    dist, idx = tree.query(q if every else q[ok], k=kk, distance_upper_bound=radius_px)
-    dist = dist.reshape(len(dist), kk)
-    idx = idx.reshape(len(idx), kk)
-    valid = np.isfinite(dist)
-    safe = np.where(valid, idx, 0)
+    qq = q if every else q[ok]
     st = src.t if every else src.t[ok]
+    dist, idx = tree.query(qq, k=kk, distance_upper_bound=radius_px)
+    n = len(qq)
     if piece_distance:
-        # One gather of the planes t_x, t_y, p_x, p_y, w/2 instead of three gathers: (5, n, k),
+        # Neighbour by neighbour: (kk, n) planes, so that every operation below runs along rows
+        # of n (the (n, kk) layout makes numpy loop n times over rows of kk: several times
+        # slower). Same operations on the same values, elementwise.
+        dist = dist.reshape(n, kk).T.copy()
+        valid = dist < np.inf  # (the tree marks "not found" with inf)
+        safe = np.where(valid, idx.reshape(n, kk).T, 0)
+        # One gather of the planes t_x, t_y, p_x, p_y, w/2 instead of three gathers: (5, kk, n),
         # each plane contiguous for the arithmetic below.
         planes = np.empty((5, len(dst)))
         planes[0:2] = dst.t.T
@@ -191,31 +195,41 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
         np.multiply(dst.w, 0.5, out=planes[4])
         D = planes.take(safe, axis=1)
         T0, T1 = D[0], D[1]
-    else:
-        T = dst.t[safe]
-        T0, T1 = T[..., 0], T[..., 1]
-    dots = np.abs(T0 * st[:, None, 0] + T1 * st[:, None, 1])
-    good = valid & (dots >= min_tangent_dot)
-    has = good[:, 0].copy()  # good.any(axis=1), by columns (see above)
-    for c in range(1, kk):
-        has |= good[:, c]
-    if piece_distance:
+        good = valid & (np.abs(T0 * st[:, 0] + T1 * st[:, 1]) >= min_tangent_dot)
         # Squared distance to the piece: across the line, plus beyond the piece's ends along it.
         # (Where no neighbour was found dist is inf and so is the cost; `good` masks it anyway.)
-        qq = q if every else q[ok]
-        along = (qq[:, None, 0] - D[2]) * T0 + (qq[:, None, 1] - D[3]) * T1
+        along = (qq[:, 0] - D[2]) * T0 + (qq[:, 1] - D[3]) * T1
         beyond = np.maximum(np.abs(along) - D[4], 0.0)
         cost = np.maximum(dist * dist - along * along, 0.0) + beyond * beyond
-        cost[~good] = np.inf
-        first = np.argmin(cost, axis=1)
+        # Per query the first neighbour of least cost among the good ones (np.argmin's rule),
+        # by rows: a strict < keeps the earlier neighbour on ties.
+        has = good[0].copy()
+        best = np.where(has, cost[0], np.inf)
+        first = np.zeros(n, np.int64)
+        for c in range(1, kk):
+            better = good[c] & (cost[c] < best)
+            first[better] = c
+            best = np.where(better, cost[c], best)
+            has |= good[c]
+        m = np.where(has, safe.ravel()[first * n + np.arange(n)], -1)  # safe[first, col], flat
     else:
+        dist = dist.reshape(n, kk)
+        idx = idx.reshape(n, kk)
+        valid = np.isfinite(dist)
+        safe = np.where(valid, idx, 0)
+        T = dst.t[safe]
+        dots = np.abs(T[..., 0] * st[:, None, 0] + T[..., 1] * st[:, None, 1])
+        good = valid & (dots >= min_tangent_dot)
+        has = good[:, 0].copy()  # good.any(axis=1), by columns (numpy's reductions along a short axis cost ~10 us)
+        for c in range(1, kk):
+            has |= good[:, c]
         # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.
         first = np.argmax(good, axis=1)
-    m = np.where(has, safe.ravel()[np.arange(len(safe)) * kk + first], -1)  # safe[row, first], flat (cheaper)
+        m = np.where(has, safe.ravel()[np.arange(n) * kk + first], -1)  # safe[row, first], flat (cheaper)
     if exact and not piece_distance:
         redo = np.flatnonzero(~has & valid[:, -1])
         if len(redo):
-            m[redo] = _nearest_agreeing(tree, (q if every else q[ok])[redo], st[redo], dst.t, radius_px,
+            m[redo] = _nearest_agreeing(tree, qq[redo], st[redo], dst.t, radius_px,
                                         min_tangent_dot)
     if every:
         out = m
