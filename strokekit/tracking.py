@@ -275,48 +275,61 @@ class PiecewiseU:
         return knots[k] * (1 - a) + knots[k + 1] * a
 
     @staticmethod
-    def _terms(nk, cols, vals, y):
+    def _terms(nk, cols, vals, y, rows):
         """Normal-equation terms of residuals sum_a vals[a] x[cols[a]] - y (weights already in
-        vals and y), in the order they are added: [(band row or 3 for rhs, (nk,) array)]."""
-        out = []
+        vals and y), appended to rows[band row] (rows[3]: the right-hand side) in the order they
+        are added; y None: a zero right-hand side (its terms are +0.0 everywhere: adding them
+        changes nothing, they are left out)."""
         m = len(cols)
         for a_ in range(m):
-            out.append((0, np.bincount(cols[a_], vals[a_] * vals[a_], minlength=nk)))
-            out.append((3, np.bincount(cols[a_], vals[a_] * y, minlength=nk)))
+            rows[0].append(np.bincount(cols[a_], vals[a_] * vals[a_], minlength=nk))
+            if y is not None:
+                rows[3].append(np.bincount(cols[a_], vals[a_] * y, minlength=nk))
             for b_ in range(a_ + 1, m):
-                out.append((b_ - a_, np.bincount(cols[a_], vals[a_] * vals[b_], minlength=nk)))
-        return out
+                rows[b_ - a_].append(np.bincount(cols[a_], vals[a_] * vals[b_], minlength=nk))
+        return rows
+
+    #: Terms the votes add to each band row (0, 1, 2) and to the right-hand side (3), first.
+    _VOTE_TERMS = (2, 1, 0, 2)
 
     def _fixed_terms(self, prior_a, prior_b, b0, stretch_weight, bend_weight):
         """The terms that do not depend on the votes (stretch, bend, anchor), cached for the
-        same arguments (the tracker fits twice with the same prior, dropping outliers)."""
+        same arguments (the tracker fits twice with the same prior, dropping outliers): per band
+        row and right-hand side a (vote terms + fixed terms, nk) buffer whose first rows the
+        fit fills with its vote terms (see fit)."""
         key = (prior_a, prior_b, b0, stretch_weight, bend_weight)
         c = self.__dict__.get("_fixed")
         if c is not None and all(x is y or (not isinstance(x, np.ndarray) and x == y) for x, y in zip(c[0], key)):
             return c[1]
         nk = int(self.base[-1])
         S = len(self.L)
-        terms = []
+        rows = ([], [], [], [])
         # stretch, per interval
         js = np.repeat(np.arange(S), self.n)
         kk = self.base[js] + (np.arange(self.n.sum()) - np.repeat(_cat(0, np.cumsum(self.n)[:-1]), self.n))
         hh = np.maximum(self.h[js], 1.0)
         ws = np.sqrt(stretch_weight / hh)
-        terms += self._terms(nk, [kk, kk + 1], [-ws, ws], ws * self.h[js] * b0)
+        self._terms(nk, [kk, kk + 1], [-ws, ws], ws * self.h[js] * b0, rows)
         # bend, per inner knot (strokes with >= 2 intervals)
         inner = np.flatnonzero(self.n[js] >= 2)
         jb = kk[inner]
         last_interval = jb + 1 >= self.base[js[inner]] + self.n[js[inner]]
         jb, sb = jb[~last_interval], js[inner][~last_interval]
         wb = np.sqrt(bend_weight * np.maximum(self.L[sb], 1.0))
-        terms += self._terms(nk, [jb, jb + 1, jb + 2], [wb, -2 * wb, wb], np.zeros(len(jb)))
+        self._terms(nk, [jb, jb + 1, jb + 2], [wb, -2 * wb, wb], None, rows)
         # weak anchor to the line fit
         ks = np.repeat(np.arange(S), self.n + 1)
         sk = (np.arange(nk) - self.base[ks]) * self.h[ks]
         we = 1e-3
-        terms += self._terms(nk, [np.arange(nk)], [np.full(nk, we)], we * (prior_a[ks] + prior_b[ks] * sk))
-        self._fixed = (key, terms)
-        return terms
+        self._terms(nk, [np.arange(nk)], [np.full(nk, we)], we * (prior_a[ks] + prior_b[ks] * sk), rows)
+        bufs = []
+        for r, nv in zip(rows, self._VOTE_TERMS):
+            buf = np.empty((nv + len(r), nk))
+            for i, t in enumerate(r):
+                buf[nv + i] = t
+            bufs.append(buf)
+        self._fixed = (key, bufs)
+        return bufs
 
     def fit(self, st, s, u, w, prior_a, prior_b, b0, stretch_weight, bend_weight) -> np.ndarray:
         """Knot values minimizing sum w (u(s) - u)^2 (votes) + stretch_weight / h (du - h b0)^2
@@ -326,17 +339,18 @@ class PiecewiseU:
         nk = int(self.base[-1])
         # Normal equations accumulated straight into the 3 lower bands of a symmetric banded
         # matrix (every residual touches at most 3 consecutive knots of one stroke), in a fixed
-        # order: votes, stretch, bend, anchor.
-        band = np.zeros((3, nk))
-        rhs = np.zeros(nk)
+        # order: votes, stretch, bend, anchor. Each band row is the sum of its terms in that
+        # order: the terms stacked in one buffer and summed along it (np.add.reduce over the
+        # first axis adds the rows one after the other, elementwise: the same sums as adding
+        # the terms one by one into zeros, whose first addition is exact).
         k, a = self._interval(st, s)
         sw = np.sqrt(w)
-        terms = self._terms(nk, [k, k + 1], [sw * (1 - a), sw * a], sw * u)
-        for row, t in terms + self._fixed_terms(prior_a, prior_b, b0, stretch_weight, bend_weight):
-            if row == 3:
-                rhs += t
-            else:
-                band[row] += t
+        votes = self._terms(nk, [k, k + 1], [sw * (1 - a), sw * a], sw * u, ([], [], [], []))
+        bufs = self._fixed_terms(prior_a, prior_b, b0, stretch_weight, bend_weight)
+        band = np.empty((3, nk))
+        for r in range(3):  # (every buffer holds 1+ terms: each term is added for every stroke)
+            np.add.reduce(_fill_rows(bufs[r], votes[r]), axis=0, out=band[r])
+        rhs = np.add.reduce(_fill_rows(bufs[3], votes[3]), axis=0)
         band[1, -1:] = 0.0
         band[2, -2:] = 0.0
         if nk == 0:
@@ -354,6 +368,13 @@ class PiecewiseU:
         if info < 0:
             raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
         return x
+
+
+def _fill_rows(buf: np.ndarray, rows: list) -> np.ndarray:
+    """buf with its first len(rows) rows set to `rows`."""
+    for i, t in enumerate(rows):
+        buf[i] = t
+    return buf
 
 
 def _local_slope(smp: Samples) -> np.ndarray:
