@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import InputError
-from .model import Strokes, row_norm
+from .model import Strokes, row_norm, uclip
 
 #: BRIEF 3 constants.
 MATCH_RADIUS_PX = 6.0
@@ -113,19 +113,20 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     L = strokes.lengths
     S = len(strokes)
     n = np.maximum(1, np.ceil(L / step_px - 1e-9)).astype(np.int64)
-    stroke = np.repeat(np.arange(S), n)
-    cn = np.cumsum(n)
-    k = np.arange(cn[-1]) - np.repeat(cn - n, n)
+    stroke = np.arange(S).repeat(n)
+    cn = n.cumsum()
+    k = np.arange(cn[-1]) - (cn - n).repeat(n)
     w = (L / n)[stroke]
     s = (k + 0.5) * w
     # A global, strictly increasing arc coordinate: stroke s starts at base[s] (1 px gap between
     # strokes so that a search never crosses a stroke boundary).
-    base = np.concatenate([[0.0], np.cumsum(L[:-1] + 1.0)])
-    G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
+    base = np.concatenate(((0.0,), (L[:-1] + 1.0).cumsum()))
+    offsets = strokes.offsets
+    G = strokes.arc_length + base.repeat(offsets[1:] - offsets[:-1])
     g = s + base[stroke]
-    first = strokes.offsets[:-1][stroke]
-    last = strokes.offsets[1:][stroke] - 1
-    j = np.clip(np.searchsorted(G, g, side="right"), first + 1, np.maximum(last, first + 1))
+    first = offsets[:-1][stroke]
+    last = offsets[1:][stroke] - 1
+    j = uclip(G.searchsorted(g, side="right"), first + 1, np.maximum(last, first + 1))
     j = np.minimum(j, len(G) - 1)
     i = np.maximum(j - 1, first)
     single = last == first  # one-point stroke
@@ -135,7 +136,7 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     Gi = G[i]
     d = G[j] - Gi
     a = np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0)
-    a = np.clip(a, 0.0, 1.0)
+    a = uclip(a, 0.0, 1.0)
     P, U = strokes.points, strokes.u
     Xs = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
     u = U[i] * (1 - a) + U[j] * a

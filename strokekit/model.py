@@ -18,6 +18,12 @@ KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmani
 KIND_INDEX = {k: i for i, k in enumerate(KINDS)}
 
 
+try:  # the clip ufunc itself: np.clip(a, lo, hi) with both bounds given is this call, behind ~1 us
+    from numpy._core.umath import clip as uclip  # of Python-level wrapping (numpy >= 2)
+except ImportError:  # pragma: no cover
+    from numpy.core.umath import clip as uclip
+
+
 def row_norm(x: np.ndarray) -> np.ndarray:
     """np.linalg.norm(x, axis=1) of an (N, 2) or (N, 3) float64 array, the same bits
     (sqrt((x0 x0 + x1 x1) + x2 x2), the order of numpy's reduction) without the generic
@@ -126,16 +132,17 @@ class Strokes:
         """(N,) length in px of the segment ending at each point (0 at each stroke's first point)."""
         d = np.zeros(len(self.points))
         if len(self.points) > 1:
-            d[1:] = row_norm(np.diff(self.points, axis=0))
+            P = np.asarray(self.points)
+            d[1:] = row_norm(P[1:] - P[:-1])  # (np.diff's values, without its wrapping)
         d[self.offsets[:-1]] = 0.0
         return d
 
     @cached_property
     def arc_length(self) -> np.ndarray:
         """(N,) cumulative arc length in px from each stroke's start."""
-        c = np.cumsum(self.segment_lengths)
-        start = np.repeat(c[self.offsets[:-1]], np.diff(self.offsets))
-        return c - start
+        c = self.segment_lengths.cumsum()
+        o = self.offsets
+        return c - c[o[:-1]].repeat(o[1:] - o[:-1])
 
     @cached_property
     def lengths(self) -> np.ndarray:
@@ -146,7 +153,8 @@ class Strokes:
 
     @cached_property
     def stroke_of_point(self) -> np.ndarray:
-        return np.repeat(np.arange(len(self)), np.diff(self.offsets))
+        o = self.offsets
+        return np.arange(len(self)).repeat(o[1:] - o[:-1])
 
     def stroke(self, s: int) -> slice:
         return slice(int(self.offsets[s]), int(self.offsets[s + 1]))

@@ -4,12 +4,12 @@ pieces out of strokes, simplify. All vectorized over points."""
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
 from .coherence import resample_strokes, surface_between
-from .model import KIND_INDEX, Strokes
+from .model import KIND_INDEX, Strokes, uclip
 
 
 def split_max_length(strokes: Strokes, max_length_px: float) -> Strokes:
@@ -105,23 +105,37 @@ CONTOUR_KINDS = ("silhouette", "smooth_contour")
 def _cat(*parts) -> np.ndarray:
     """np.r_ for scalars and arrays along the first axis (np.r_ costs ~10 us a call; the tracker
     makes dozens of these per frame on small arrays)."""
-    return np.concatenate([p if type(p) is np.ndarray and p.ndim else (p,) for p in parts])
+    for p in parts:
+        if type(p) is not np.ndarray or not p.ndim:
+            return np.concatenate([p if type(p) is np.ndarray and p.ndim else (p,) for p in parts])
+    return np.concatenate(parts)  # (all arrays: as they are)
 
 
 #: Cached properties of Strokes that depend on the points and offsets only.
 _GEOMETRY_CACHE = ("segment_lengths", "arc_length", "lengths")
 
 
+_STROKES_FIELDS = tuple(f.name for f in fields(Strokes))  # (in order: the same __dict__ as __init__ makes)
+_STROKES_FIELD_SET = frozenset(_STROKES_FIELDS)
+
+
 def _replace(strokes: Strokes, **changes) -> Strokes:
     """dataclasses.replace that keeps the cached arc lengths (and stroke_of_point) of `strokes`
     when the new strokes share its points (and offsets) arrays: they would be recomputed
-    identically (each costs ~0.1-0.3 ms a frame and the tracker replaces strokes a dozen times)."""
-    out = replace(strokes, **changes)
-    old, new = strokes.__dict__, out.__dict__
-    if out.offsets is strokes.offsets:
+    identically (each costs ~0.1-0.3 ms a frame and the tracker replaces strokes a dozen times).
+    Strokes has no __post_init__: its fields are copied into a new instance directly (what
+    dataclasses.replace's call of __init__ amounts to, ~4x cheaper)."""
+    if not changes.keys() <= _STROKES_FIELD_SET:
+        return replace(strokes, **changes)  # (its error)
+    old = strokes.__dict__
+    out = object.__new__(Strokes)
+    new = out.__dict__
+    for k in _STROKES_FIELDS:
+        new[k] = changes[k] if k in changes else old[k]
+    if new["offsets"] is old["offsets"]:
         if "stroke_of_point" in old:
             new["stroke_of_point"] = old["stroke_of_point"]
-        if out.points is strokes.points:
+        if new["points"] is old["points"]:
             for k in _GEOMETRY_CACHE:
                 if k in old:
                     new[k] = old[k]
@@ -150,25 +164,27 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
         return Strokes.empty(strokes.camera, strokes.frame, strokes.period_px)
     rev = np.zeros(K, bool) if reverse is None else np.asarray(reverse, bool)
     L = strokes.lengths
-    base = _cat(0.0, np.cumsum(L[:-1] + 1.0))
-    G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
-    g0 = base[stroke] + np.asarray(s0, float)
-    g1 = base[stroke] + np.asarray(s1, float)
-    first = strokes.offsets[:-1][stroke]
-    last = strokes.offsets[1:][stroke] - 1
+    offsets = strokes.offsets
+    base = np.concatenate(((0.0,), (L[:-1] + 1.0).cumsum()))
+    G = strokes.arc_length + base.repeat(offsets[1:] - offsets[:-1])
+    bs = base[stroke]
+    g0 = bs + np.asarray(s0, float)
+    g1 = bs + np.asarray(s1, float)
+    first = offsets[:-1][stroke]
+    last = offsets[1:][stroke] - 1
     # Interior original points: G strictly inside (g0, g1).
-    r0 = np.searchsorted(G, g0, side="right")  # also where at(g0) starts its search
+    r0 = G.searchsorted(g0, side="right")  # also where at(g0) starts its search
     lo = np.maximum(r0, first)
-    hi = np.minimum(np.searchsorted(G, g1, side="left"), last + 1)
+    hi = np.minimum(G.searchsorted(g1, side="left"), last + 1)
     n_in = np.maximum(hi - lo, 0)
 
     def at(g, r, first, last):
-        j = np.clip(r, first + 1, np.maximum(last, first + 1))
+        j = uclip(r, first + 1, np.maximum(last, first + 1))
         j = np.minimum(j, len(G) - 1)
         i = np.maximum(j - 1, first)
         Gi = G[i]
         d = G[j] - Gi
-        a = np.clip(np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0), 0, 1)
+        a = uclip(np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0), 0, 1)
         p = strokes.points.take(i, axis=0) * (1 - a)[:, None] + strokes.points.take(j, axis=0) * a[:, None]
         X = surface_between(strokes, i, j, a)
         f = np.where(a < 0.5, strokes.face[i], strokes.face[j])
@@ -177,36 +193,38 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     if K >= 2:
         # Both ends in one pass (half the calls). Not for K = 1: numpy projects a single point
         # (a 1-row matrix product) with other rounding than rows of a longer batch.
-        p, X, f = at(_cat(g0, g1), _cat(r0, np.searchsorted(G, g1, side="right")), _cat(first, first),
-                     _cat(last, last))
+        p, X, f = at(np.concatenate((g0, g1)), np.concatenate((r0, G.searchsorted(g1, side="right"))),
+                     np.concatenate((first, first)), np.concatenate((last, last)))
         pa, Xa, fa, pb, Xb, fb = p[:K], X[:K], f[:K], p[K:], X[K:], f[K:]
     else:
         pa, Xa, fa = at(g0, r0, first, last)
         pb, Xb, fb = at(g1, np.searchsorted(G, g1, side="right"), first, last)
     counts = n_in + 2
-    offsets = _cat(0, np.cumsum(counts)).astype(np.int64)
+    offsets = np.concatenate(((0,), counts.cumsum())).astype(np.int64)
     N = int(offsets[-1])
-    piece = np.repeat(np.arange(K), counts)
-    pos = np.arange(N) - offsets[:-1][piece]  # position within the piece, 0..count-1
-    src = lo[piece] + pos - 1  # original point index for interior positions
-    interior = (pos > 0) & (pos < counts[piece] - 1)
-    src = np.where(interior, src, 0)
+    start = offsets[:-1]
+    # Gathered once, in the final order: position t of piece k (start s, c points) shows point
+    # t of the piece, or point s + c - 1 - (t - s) of it where the piece is reversed; point
+    # p of the piece is original point lo - 1 + (p - s) (interior ones; its two ends are the
+    # interpolated pa, pb, set below: mode="clip" keeps the indices of those two slots in range).
+    t = np.arange(N)
+    if rev.any():
+        order = np.where(rev.repeat(counts), (2 * start + counts - 1).repeat(counts) - t, t)
+    else:
+        order = t
+    src = order + (lo - 1 - start).repeat(counts)
     # take(axis=0) for row gathers: numpy's fancy indexing of (N, 2) / (N, 3) rows is ~8x slower
     # on arrays of a frame's size (same values).
-    points = strokes.points.take(src, axis=0)
-    surface = strokes.surface.take(src, axis=0)
-    face = strokes.face[src].copy()
-    head, tail = offsets[:-1], offsets[1:] - 1
-    points[head], surface[head], face[head] = pa, Xa, fa
-    points[tail], surface[tail], face[tail] = pb, Xb, fb
-    if rev.any():
-        # Reverse the point order inside reversed pieces.
-        order = np.where(rev[piece], offsets[:-1][piece] + counts[piece] - 1 - pos, np.arange(N))
-        points, surface, face = points.take(order, axis=0), surface.take(order, axis=0), face[order]
-    src_s = stroke
-    out = Strokes(points=points, surface=surface, face=face, offsets=offsets, kind=strokes.kind[src_s],
-                  ids=np.arange(K, dtype=np.int64), u=np.zeros(N), level=strokes.level[src_s],
-                  level_weight=strokes.level_weight[src_s], camera=strokes.camera, frame=strokes.frame,
+    points = strokes.points.take(src, axis=0, mode="clip")
+    surface = strokes.surface.take(src, axis=0, mode="clip")
+    face = strokes.face.take(src, mode="clip")
+    head, tail = start, offsets[1:] - 1
+    r2 = rev[:, None]
+    points[head], surface[head], face[head] = np.where(r2, pb, pa), np.where(r2, Xb, Xa), np.where(rev, fb, fa)
+    points[tail], surface[tail], face[tail] = np.where(r2, pa, pb), np.where(r2, Xa, Xb), np.where(rev, fa, fb)
+    out = Strokes(points=points, surface=surface, face=face, offsets=offsets, kind=strokes.kind[stroke],
+                  ids=np.arange(K, dtype=np.int64), u=None, level=strokes.level[stroke],
+                  level_weight=strokes.level_weight[stroke], camera=strokes.camera, frame=strokes.frame,
                   period_px=strokes.period_px)
     return _replace(out, u=out.arc_length / out.period_px)
 

@@ -62,7 +62,7 @@ import numpy as np
 
 from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
-from .model import Strokes, row_norm
+from .model import Strokes, row_norm, uclip
 from .options import _FLAGS, _flag
 from .strokeops import _cat, _replace, _tree, cut_pieces
 
@@ -146,20 +146,21 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     if len(stroke) == 0:
         return strokes
     L = strokes.lengths
-    base = _cat(0.0, np.cumsum(L[:-1] + 1.0))
-    G = strokes.arc_length + np.repeat(base, np.diff(strokes.offsets))
+    offsets = strokes.offsets
+    base = np.concatenate(((0.0,), (L[:-1] + 1.0).cumsum()))
+    G = strokes.arc_length + base.repeat(offsets[1:] - offsets[:-1])
     g = base[stroke] + np.asarray(s, float)
-    first = strokes.offsets[:-1][stroke]
-    last = strokes.offsets[1:][stroke] - 1
-    j = np.clip(np.searchsorted(G, g, side="right"), first + 1, np.maximum(last, first + 1))
+    first = offsets[:-1][stroke]
+    last = offsets[1:][stroke] - 1
+    j = uclip(G.searchsorted(g, side="right"), first + 1, np.maximum(last, first + 1))
     j = np.minimum(j, len(G) - 1)
     i = np.maximum(j - 1, first)
-    d = G[j] - G[i]
-    keep = (d > 0) & (g - G[i] > 1e-6) & (G[j] - g > 1e-6)
-    i, j, g, stroke = i[keep], j[keep], g[keep], stroke[keep]
+    Gi, Gj = G[i], G[j]
+    keep = ((Gj - Gi > 0) & (g - Gi > 1e-6) & (Gj - g > 1e-6)).nonzero()[0]
+    i, j, g, stroke, Gi, Gj = i[keep], j[keep], g[keep], stroke[keep], Gi[keep], Gj[keep]
     if len(i) == 0:
         return strokes
-    a = ((g - G[i]) / (G[j] - G[i]))[:, None]
+    a = ((g - Gi) / (Gj - Gi))[:, None]
     # take(axis=0) for row gathers: numpy's fancy indexing of (N, 2) / (N, 3) rows is ~8x slower
     # on arrays of a frame's size (same values).
     P = np.concatenate([strokes.points, strokes.points.take(i, axis=0) * (1 - a) + strokes.points.take(j, axis=0) * a])
@@ -169,11 +170,11 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     # Sort by (stroke, arc); an old point precedes a new point at the same place. The global arc
     # coordinate alone orders the strokes (a 1 px gap between them), and old points come first in
     # allg: a stable sort of allg is that order (~4x cheaper than the 3-key lexsort it replaces).
-    allg = _cat(G, g)
-    order = np.argsort(allg, kind="stable")
-    counts = np.bincount(_cat(strokes.stroke_of_point, stroke), minlength=len(strokes))
+    order = np.concatenate((G, g)).argsort(kind="stable")
+    # Points per stroke: the old counts plus the new points of each stroke.
+    counts = (offsets[1:] - offsets[:-1]) + np.bincount(stroke, minlength=len(strokes))
     return _replace(strokes, points=P.take(order, axis=0), surface=X.take(order, axis=0), face=F[order], u=U[order],
-                   offsets=_cat(0, np.cumsum(counts)).astype(np.int64))
+                   offsets=np.concatenate(((0,), counts.cumsum())).astype(np.int64))
 
 
 def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> Strokes:
@@ -264,9 +265,10 @@ class PiecewiseU:
         if c is not None and c[0] is st and c[1] is s:
             return c[2], c[3]
         h = self.h[st]
-        x = np.where(h > 0, s / np.where(h > 0, h, 1.0), 0.0)
-        j = np.clip(np.floor(x), 0, self.n[st] - 1).astype(np.int64)
-        k, a = self.base[st] + j, np.clip(x - j, 0.0, 1.0)
+        hp = h > 0
+        x = np.where(hp, s / np.where(hp, h, 1.0), 0.0)
+        j = uclip(np.floor(x), 0, self.n[st] - 1).astype(np.int64)
+        k, a = self.base[st] + j, uclip(x - j, 0.0, 1.0)
         self._iv = (st, s, k, a)
         return k, a
 
@@ -303,31 +305,48 @@ class PiecewiseU:
             return c[1]
         nk = int(self.base[-1])
         S = len(self.L)
-        rows = ([], [], [], [])
+        # Each term adds at distinct knots (the intervals, inner knots and knots are distinct):
+        # its np.bincount is its values set at those knots over zeros (the one difference, a
+        # -0.0 product, adds to a sum that never is -0.0, as it starts with a vote term:
+        # nothing changes). Written straight into the buffers, in _terms' order:
+        # row 0: stretch aa, bb, bend aa, bb, cc, anchor; row 1: stretch ab, bend ab, bc;
+        # row 2: bend ac; right-hand side: stretch ay, by, anchor (bend: zero, left out).
+        nv0, nv1, nv2, nv3 = self._VOTE_TERMS
+        b0_, b1_, b2_, b3_ = (np.zeros((nv0 + 6, nk)), np.zeros((nv1 + 3, nk)), np.zeros((nv2 + 1, nk)),
+                              np.zeros((nv3 + 3, nk)))
         # stretch, per interval
-        js = np.repeat(np.arange(S), self.n)
-        kk = self.base[js] + (np.arange(self.n.sum()) - np.repeat(_cat(0, np.cumsum(self.n)[:-1]), self.n))
-        hh = np.maximum(self.h[js], 1.0)
+        js = np.arange(S).repeat(self.n)
+        cn = self.n.cumsum()
+        kk = self.base[js] + (np.arange(cn[-1] if S else 0) - (cn - self.n).repeat(self.n))
+        hs = self.h[js]
+        hh = np.maximum(hs, 1.0)
         ws = np.sqrt(stretch_weight / hh)
-        self._terms(nk, [kk, kk + 1], [-ws, ws], ws * self.h[js] * b0, rows)
+        va, vb, y = -ws, ws, ws * hs * b0
+        b0_[nv0, kk] = va * va
+        b3_[nv3, kk] = va * y
+        b1_[nv1, kk] = va * vb
+        b0_[nv0 + 1, kk + 1] = vb * vb
+        b3_[nv3 + 1, kk + 1] = vb * y
         # bend, per inner knot (strokes with >= 2 intervals)
         inner = np.flatnonzero(self.n[js] >= 2)
         jb = kk[inner]
         last_interval = jb + 1 >= self.base[js[inner]] + self.n[js[inner]]
         jb, sb = jb[~last_interval], js[inner][~last_interval]
         wb = np.sqrt(bend_weight * np.maximum(self.L[sb], 1.0))
-        self._terms(nk, [jb, jb + 1, jb + 2], [wb, -2 * wb, wb], None, rows)
+        va, vb, vc = wb, -2 * wb, wb
+        b0_[nv0 + 2, jb] = va * va
+        b1_[nv1 + 1, jb] = va * vb
+        b2_[nv2, jb] = va * vc
+        b0_[nv0 + 3, jb + 1] = vb * vb
+        b1_[nv1 + 2, jb + 1] = vb * vc
+        b0_[nv0 + 4, jb + 2] = vc * vc
         # weak anchor to the line fit
-        ks = np.repeat(np.arange(S), self.n + 1)
+        ks = np.arange(S).repeat(self.n + 1)
         sk = (np.arange(nk) - self.base[ks]) * self.h[ks]
-        we = 1e-3
-        self._terms(nk, [np.arange(nk)], [np.full(nk, we)], we * (prior_a[ks] + prior_b[ks] * sk), rows)
-        bufs = []
-        for r, nv in zip(rows, self._VOTE_TERMS):
-            buf = np.empty((nv + len(r), nk))
-            for i, t in enumerate(r):
-                buf[nv + i] = t
-            bufs.append(buf)
+        we = np.full(nk, 1e-3)
+        b0_[nv0 + 5] = we * we
+        b3_[nv3 + 2] = we * (1e-3 * (prior_a[ks] + prior_b[ks] * sk))
+        bufs = [b0_, b1_, b2_, b3_]
         self._fixed = (key, bufs)
         return bufs
 
@@ -382,10 +401,11 @@ def _local_slope(smp: Samples) -> np.ndarray:
     n = len(smp)
     if n < 2:
         return np.zeros(n)
-    nxt = _cat(np.arange(1, n), n - 1)
-    prv = _cat(0, np.arange(n - 1))
-    nxt = np.where(smp.stroke[nxt] == smp.stroke, nxt, np.arange(n))
-    prv = np.where(smp.stroke[prv] == smp.stroke, prv, np.arange(n))
+    # The next (previous) sample where it is on the same stroke, else the sample itself.
+    same = smp.stroke[1:] == smp.stroke[:-1]
+    ar = np.arange(n)
+    nxt = ar + np.concatenate((same, (False,)))
+    prv = ar - np.concatenate(((False,), same))
     ds = smp.s[nxt] - smp.s[prv]
     return np.where(ds > 0, (smp.u[nxt] - smp.u[prv]) / np.where(ds > 0, ds, 1.0), 0.0)
 
@@ -508,21 +528,40 @@ def _close_pairs(pt: np.ndarray, r: float) -> np.ndarray:
     cKDTree(pt).query_pairs(r) (same test, dx * dx + dy * dy <= r * r), in another order. For a
     few hundred stroke ends a sweep along x is ~4x cheaper than building a tree: neighbours in x
     order within r (plus a margin, the test decides) are the candidates."""
+    lo, hi = _close_pair_arrays(pt, r)
+    return np.stack([lo, hi], axis=1)
+
+
+def _close_pair_arrays(pt: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """_close_pairs as its two columns (lower index, higher index), same pairs in the same order."""
     n = len(pt)
-    o = np.argsort(pt[:, 0], kind="stable")
-    x = pt[:, 0][o]
+    px, py = pt[:, 0].copy(), pt[:, 1].copy()  # contiguous columns for the gathers below
+    o = px.argsort(kind="stable")
+    x = px[o]
     ar = np.arange(n)
-    cnt = np.searchsorted(x, x + (r + 1e-6), side="right") - ar - 1
-    csum = np.cumsum(cnt)
-    i = np.repeat(ar, cnt)
-    j = i + 1 + (np.arange(int(csum[-1]) if n else 0) - np.repeat(csum - cnt, cnt))
-    a, b = o[i], o[j]
-    px, py = pt[:, 0], pt[:, 1]  # (px[a], not pt[a, 0]: the 2-index form is several times slower)
+    cnt = x.searchsorted(x + (r + 1e-6), side="right") - ar - 1
+    csum = cnt.cumsum()
+    # Candidate t of sorted point i (t counted over all candidates) is sorted point
+    # i + 1 + (t - first candidate of i): one repeat of the per-point shift.
+    a = o.repeat(cnt)
+    b = o[np.arange(int(csum[-1]) if n else 0) + (ar + 1 - (csum - cnt)).repeat(cnt)]
     dx = px[a] - px[b]
     dy = py[a] - py[b]
-    keep = dx * dx + dy * dy <= r * r
+    keep = (dx * dx + dy * dy <= r * r).nonzero()[0]
     a, b = a[keep], b[keep]
-    return np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1)
+    return np.minimum(a, b), np.maximum(a, b)
+
+
+def _straightest_order(straight: np.ndarray, ra: np.ndarray, rb: np.ndarray, S: int) -> np.ndarray:
+    """np.lexsort((rb, ra, -np.round(straight, 9))) (ra, rb in [0, S)): the same permutation, by one
+    stable sort of an integer key where it fits in 63 bits. np.round(x, 9) is rint(x * 1e9) / 1e9,
+    whose order (ties included) is that of the integer rint(x * 1e9) (|x| <= ~1: distinct integers
+    stay distinct after the division)."""
+    r9 = np.rint(straight * 1e9)
+    if S >= 40000 or not (np.abs(r9) <= 1.5e9).all():  # (3e9 S^2 < 2^63)
+        return np.lexsort((rb, ra, -np.round(straight, 9)))
+    t = (1_500_000_000 - r9).astype(np.int64)  # ascending -round(straight, 9), >= 0
+    return ((t * S + ra) * S + rb).argsort(kind="stable")
 
 
 def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
@@ -551,10 +590,9 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     pt = P.take(e_pt, axis=0)
     d = P.take(nb, axis=0) - pt  # direction away from the end, into the stroke
     d = d / np.maximum(row_norm(d), 1e-12)[:, None]
-    pairs = _close_pairs(pt, tol_px)
-    if len(pairs) == 0:
+    a, b = _close_pair_arrays(pt, tol_px)
+    if len(a) == 0:
         return group, rev, pos
-    a, b = pairs[:, 0], pairs[:, 1]
     ok = (e_run[a] != e_run[b]) & (strokes.kind[e_run[a]] == strokes.kind[e_run[b]])
     dx, dy = d[:, 0], d[:, 1]
     straight = -(dx[a] * dx[b] + dy[a] * dy[b])  # cosine of the turn at the joint
@@ -564,7 +602,7 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     a, b, straight = a[ok], b[ok], straight[ok]
     # Greedy links in the order of _join_segments (straightest first; the pairs come in another
     # order than the k-d tree's, the sort decides). A node's code is 2 * stroke + end.
-    o = np.lexsort((e_run[b], e_run[a], -np.round(straight, 9)))
+    o = _straightest_order(straight, e_run[a], e_run[b], S)
     a, b = a[o], b[o]
     code = 2 * e_run + (np.arange(2 * n) >= n)
     partner = np.full(2 * n, -1, np.int64)
@@ -575,12 +613,18 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     partner[a[solo]] = code[b[solo]]
     partner[b[solo]] = code[a[solo]]
     if not solo.all():
-        code_l, pl = code.tolist(), partner.tolist()
+        # (The ends of these links are in no solo link: a set of the ends taken so far is all
+        # the greedy pass needs.)
+        taken, xs, ys = set(), [], []
         for x, y in zip(a[~solo].tolist(), b[~solo].tolist()):
-            if pl[x] >= 0 or pl[y] >= 0:
+            if x in taken or y in taken:
                 continue
-            pl[x], pl[y] = code_l[y], code_l[x]
-        partner = np.array(pl, np.int64)
+            taken.add(x)
+            taken.add(y)
+            xs.append(x)
+            ys.append(y)
+        partner[xs] = code[ys]
+        partner[ys] = code[xs]
     # nxt[c]: code of the end linked to end c (-1: free); entering at c, one leaves at c ^ 1.
     nxt = np.full(2 * S, -1, np.int64)
     nxt[code] = partner
@@ -588,22 +632,27 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     l0, l1 = linked[:, 0], linked[:, 1]
     runs = np.flatnonzero(l0 | l1)
     one = runs[l0[runs] != l1[runs]]
-    # Path starts: strokes with one linked end, entered through the free end; then rings, entered
-    # through their start.
-    entry = _cat(2 * one + l0[one], 2 * runs).tolist()
     nxt = nxt.tolist()
     seen = [False] * S
     walk, heads = [], []
-    for c in entry:
-        if seen[c >> 1]:
-            continue
-        heads.append(len(walk))
-        while not seen[c >> 1]:
-            seen[c >> 1] = True
-            walk.append(c)
-            c = nxt[c ^ 1]
-            if c < 0:
-                break
+
+    def walk_from(entry):
+        for c in entry:
+            if seen[c >> 1]:
+                continue
+            heads.append(len(walk))
+            while not seen[c >> 1]:
+                seen[c >> 1] = True
+                walk.append(c)
+                c = nxt[c ^ 1]
+                if c < 0:
+                    break
+
+    # Path starts: strokes with one linked end, entered through the free end; then rings, entered
+    # through their start (only when the paths left linked strokes unwalked: those are rings).
+    walk_from((2 * one + l0[one]).tolist())
+    if len(walk) < len(runs):
+        walk_from((2 * runs).tolist())
     walk, heads = np.array(walk, np.int64), np.array(heads, np.int64)
     lens = np.diff(_cat(heads, len(walk)))
     path = np.repeat(np.arange(len(heads)), lens)
@@ -684,13 +733,13 @@ def _segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
 def _unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """np.unique(x, return_inverse=True) of a 1-D integer array (same sort, same results) without
     np.unique's generic wrapping (~10 us a call; the tracker makes three a frame)."""
-    perm = x.argsort()
-    aux = x[perm]
+    perm = x.argsort(kind="stable")  # (any order of equal keys gives the same result; timsort is
+    aux = x[perm]                    # cheaper on these partly ordered keys)
     mask = np.empty(len(aux), bool)
     mask[:1] = True
-    mask[1:] = aux[1:] != aux[:-1]
+    np.not_equal(aux[1:], aux[:-1], out=mask[1:])
     inv = np.empty(len(aux), np.intp)
-    inv[perm] = np.cumsum(mask) - 1
+    inv[perm] = mask.cumsum() - 1
     return aux[mask], inv
 
 
