@@ -25,7 +25,6 @@ from __future__ import annotations
 import re
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -60,11 +59,22 @@ class Samples:
         return len(self.p)
 
 
-@lru_cache(maxsize=64)
+_FRAMES: dict = {}  # id(camera) -> (camera, frame): the last cameras seen, by identity
+
+
 def _frame_of(camera) -> tuple:
-    """(right, up', fwd, eye, f) of a camera, computed once (Camera.basis is not cached)."""
+    """(right, up', fwd, eye, f) of a camera, computed once per camera object (kept for the last
+    64 cameras; looked up by identity: hashing a Camera, a dataclass of tuples, and comparing it
+    cost more than the lookup saved)."""
+    hit = _FRAMES.get(id(camera))
+    if hit is not None and hit[0] is camera:
+        return hit[1]
     right, up, fwd = camera.basis
-    return right, up, fwd, np.asarray(camera.eye, float), camera.focal_px
+    frame = (right, up, fwd, np.asarray(camera.eye, float), camera.focal_px)
+    if len(_FRAMES) >= 64:
+        _FRAMES.pop(next(iter(_FRAMES)))  # the oldest
+    _FRAMES[id(camera)] = (camera, frame)
+    return frame
 
 
 def project(camera, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -96,9 +106,14 @@ def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarra
         _, _, fwd, eye, _ = _frame_of(cam)
         zi, zj = (Xi - eye) @ fwd, (Xj - eye) @ fwd
         ok = (zi > 0) & (zj > 0)
-        zi = np.where(ok, zi, 1.0)
-        den = (1 - a) * np.where(ok, zj, 1.0) + a * zi
-        a = np.where(ok & (den > 0), a * zi / np.where(den > 0, den, 1.0), a)
+        if ok.all():  # the usual case: the np.where below pass zi, zj through
+            den = (1 - a) * zj + a * zi
+            dp = den > 0
+            a = a * zi / den if dp.all() else np.where(dp, a * zi / np.where(dp, den, 1.0), a)
+        else:
+            zi = np.where(ok, zi, 1.0)
+            den = (1 - a) * np.where(ok, zj, 1.0) + a * zi
+            a = np.where(ok & (den > 0), a * zi / np.where(den > 0, den, 1.0), a)
     return Xi * (1 - a)[:, None] + Xj * a[:, None]
 
 
@@ -135,7 +150,8 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
         i = np.where(single, first, i)
     Gi = G[i]
     d = G[j] - Gi
-    a = np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0)
+    dp = d > 0
+    a = (g - Gi) / d if dp.all() else np.where(dp, (g - Gi) / np.where(dp, d, 1.0), 0.0)
     a = uclip(a, 0.0, 1.0)
     P, U = strokes.points, strokes.u
     Xs = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
@@ -144,7 +160,7 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     t = Pj - Pi
     tn = row_norm(t)  # np.linalg.norm(t, axis=1) without its overhead
     pos = tn > 0
-    t = np.where(pos[:, None], t / np.where(pos, tn, 1.0)[:, None], 0.0)
+    t = t / tn[:, None] if pos.all() else np.where(pos[:, None], t / np.where(pos, tn, 1.0)[:, None], 0.0)
     p = Pi * (1 - a)[:, None] + Pj * a[:, None]
     return Samples(p=p, X=Xs, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
 

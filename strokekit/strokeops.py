@@ -184,7 +184,8 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
         i = np.maximum(j - 1, first)
         Gi = G[i]
         d = G[j] - Gi
-        a = uclip(np.where(d > 0, (g - Gi) / np.where(d > 0, d, 1.0), 0.0), 0, 1)
+        dp = d > 0
+        a = uclip((g - Gi) / d if dp.all() else np.where(dp, (g - Gi) / np.where(dp, d, 1.0), 0.0), 0, 1)
         p = strokes.points.take(i, axis=0) * (1 - a)[:, None] + strokes.points.take(j, axis=0) * a[:, None]
         X = surface_between(strokes, i, j, a)
         f = np.where(a < 0.5, strokes.face[i], strokes.face[j])

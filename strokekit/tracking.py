@@ -679,24 +679,33 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
         return strokes
     # Gather the points of each path in order (reversed strokes backwards); a joint point that
     # repeats the previous one is dropped (a bridge, when the ends were apart, is kept).
-    order = np.lexsort((pos, group))
-    counts = np.diff(strokes.offsets)[order]
-    csum = np.cumsum(counts)
-    within = np.arange(int(csum[-1])) - np.repeat(csum - counts, counts)
-    src = np.repeat(strokes.offsets[:-1][order], counts) + np.where(
-        np.repeat(rev[order], counts), np.repeat(counts, counts) - 1 - within, within)
+    # (group, pos) pairs are distinct: one stable sort of group * S + pos is lexsort((pos, group)).
+    order = (group * S + pos).argsort(kind="stable")
+    offs = strokes.offsets
+    start, counts = offs[:-1][order], (offs[1:] - offs[:-1])[order]
+    csum = counts.cumsum()
+    c0 = csum - counts  # where each stroke's points start in the gathered order
+    # Point t of the gathered order: start + (t - c0), or start + count - 1 - (t - c0) reversed.
+    t = np.arange(int(csum[-1]))
+    ro = rev[order]
+    src = np.where(ro.repeat(counts), (start + counts - 1 + c0).repeat(counts) - t, t + (start - c0).repeat(counts))
     g = group[order]
-    new_g = _cat(True, g[1:] != g[:-1])
-    joint = (csum - counts)[~new_g]
-    keep = np.ones(len(src), bool)
+    new_g = np.concatenate(((True,), g[1:] != g[:-1]))
+    joint = c0[~new_g]
     P = strokes.points
-    keep[joint[row_norm(P.take(src[joint], axis=0) - P.take(src[joint - 1], axis=0)) < 1e-9]] = False
-    src = src[keep]
-    owner = np.repeat(np.cumsum(new_g) - 1, counts)[keep]
+    drop = joint[row_norm(P.take(src[joint], axis=0) - P.take(src[joint - 1], axis=0)) < 1e-9]
+    path = new_g.cumsum() - 1
     first = order[new_g]
+    # Points per path: its strokes' points less the dropped joint points.
+    n_path = np.bincount(path, weights=counts, minlength=len(first)).astype(np.int64) - np.bincount(
+        path[c0.searchsorted(drop, side="right") - 1], minlength=len(first))
+    if len(drop):
+        keep = np.ones(len(src), bool)
+        keep[drop] = False
+        src = src[keep]
     out = Strokes(points=P.take(src, axis=0), surface=strokes.surface.take(src, axis=0), face=strokes.face[src],
-                  offsets=_cat(0, np.cumsum(np.bincount(owner, minlength=len(first)))).astype(np.int64),
-                  kind=strokes.kind[first], ids=np.arange(len(first), dtype=np.int64), u=np.zeros(len(src)),
+                  offsets=np.concatenate(((0,), n_path.cumsum())).astype(np.int64),
+                  kind=strokes.kind[first], ids=np.arange(len(first), dtype=np.int64), u=None,
                   level=strokes.level[first], level_weight=strokes.level_weight[first], camera=strokes.camera,
                   frame=strokes.frame, period_px=strokes.period_px)
     return _replace(out, u=out.arc_length / out.period_px)
