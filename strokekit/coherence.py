@@ -203,7 +203,9 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
         # slower). Same operations on the same values, elementwise.
         dist = dist.reshape(n, kk).T.copy()
         valid = dist < np.inf  # (the tree marks "not found" with inf)
-        safe = np.where(valid, idx.reshape(n, kk).T, 0)
+        every_valid = valid.all()
+        idx = idx.reshape(n, kk).T
+        safe = idx.copy() if every_valid else np.where(valid, idx, 0)
         # One gather of the planes t_x, t_y, p_x, p_y, w/2 instead of three gathers: (5, kk, n),
         # each plane contiguous for the arithmetic below.
         planes = np.empty((5, len(dst)))
@@ -212,12 +214,26 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
         np.multiply(dst.w, 0.5, out=planes[4])
         D = planes.take(safe, axis=1)
         T0, T1 = D[0], D[1]
-        good = valid & (np.abs(T0 * st[:, 0] + T1 * st[:, 1]) >= min_tangent_dot)
+        # (In place where a temporary can take the result: the same operations, fewer arrays.)
+        dots = T0 * st[:, 0]
+        dots += T1 * st[:, 1]
+        good = np.abs(dots, out=dots) >= min_tangent_dot
+        if not every_valid:
+            good &= valid
         # Squared distance to the piece: across the line, plus beyond the piece's ends along it.
         # (Where no neighbour was found dist is inf and so is the cost; `good` masks it anyway.)
-        along = (qq[:, 0] - D[2]) * T0 + (qq[:, 1] - D[3]) * T1
-        beyond = np.maximum(np.abs(along) - D[4], 0.0)
-        cost = np.maximum(dist * dist - along * along, 0.0) + beyond * beyond
+        along = qq[:, 0] - D[2]
+        along *= T0
+        a1 = qq[:, 1] - D[3]
+        a1 *= T1
+        along += a1
+        beyond = np.abs(along)
+        beyond -= D[4]
+        np.maximum(beyond, 0.0, out=beyond)
+        cost = dist * dist
+        cost -= np.multiply(along, along, out=a1)
+        np.maximum(cost, 0.0, out=cost)
+        cost += np.multiply(beyond, beyond, out=beyond)
         # Per query the first neighbour of least cost among the good ones (np.argmin's rule),
         # by rows: a strict < keeps the earlier neighbour on ties.
         has = good[0].copy()

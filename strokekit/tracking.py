@@ -633,11 +633,28 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     runs = np.flatnonzero(l0 | l1)
     one = runs[l0[runs] != l1[runs]]
     nxt = nxt.tolist()
-    seen = [False] * S
     walk, heads = [], []
-
-    def walk_from(entry):
-        for c in entry:
+    # Path starts: strokes with one linked end, entered through the free end, in stroke order. A
+    # path (the links make paths and rings) runs from its start to its other end stroke, which
+    # is the one start left to skip.
+    done = set()
+    for c in (2 * one + l0[one]).tolist():
+        if c >> 1 in done:
+            continue
+        heads.append(len(walk))
+        while True:
+            walk.append(c)
+            nc = nxt[c ^ 1]
+            if nc < 0:
+                break
+            c = nc
+        done.add(c >> 1)
+    if len(walk) < len(runs):
+        # Rings (linked strokes no path reached), entered through their start.
+        seen = [False] * S
+        for c in walk:
+            seen[c >> 1] = True
+        for c in (2 * runs).tolist():
             if seen[c >> 1]:
                 continue
             heads.append(len(walk))
@@ -647,12 +664,6 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
                 c = nxt[c ^ 1]
                 if c < 0:
                     break
-
-    # Path starts: strokes with one linked end, entered through the free end; then rings, entered
-    # through their start (only when the paths left linked strokes unwalked: those are rings).
-    walk_from((2 * one + l0[one]).tolist())
-    if len(walk) < len(runs):
-        walk_from((2 * runs).tolist())
     walk, heads = np.array(walk, np.int64), np.array(heads, np.int64)
     lens = np.diff(_cat(heads, len(walk)))
     path = np.repeat(np.arange(len(heads)), lens)
