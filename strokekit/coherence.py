@@ -72,7 +72,7 @@ def _frame_of(camera) -> tuple:
     right, up, fwd = camera.basis
     frame = (right, up, fwd, np.asarray(camera.eye, float), camera.focal_px)
     if len(_FRAMES) >= 64:
-        _FRAMES.pop(next(iter(_FRAMES)))  # the oldest
+        _FRAMES.pop(next(iter(_FRAMES)), None)  # the oldest
     _FRAMES[id(camera)] = (camera, frame)
     return frame
 

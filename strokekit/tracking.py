@@ -115,11 +115,11 @@ class TrackingOptions:
     min_carry_px: float = 10.0
     seed_search_px: float = 12.0
     seed_angle_penalty_px: float = 10.0
-    min_segment_px: float = 6.0
+    min_segment_px: float = 7.0
     knot_spacing_px: float = 24.0
     join_tol_px: float = 2.0
     join_angle_deg: float = 90.0
-    dense_spacing_px: float = 3.0
+    dense_spacing_px: float = 5.0
     reverse_votes: bool = True
     bend_weight: float = 0.01
     snap_boundaries: bool = True
