@@ -324,6 +324,8 @@ class Workers:
         this process runs the others one by one, so frames get done while the workers are
         still starting (a spawned worker needs seconds of imports and scene loading; a short
         run ends before they are up) and no worker idles."""
+        if self.main_helps and self.executor is not None:
+            return self._map_helping(tasks, handle)
         pending = tasks if isinstance(tasks, deque) else deque(tasks)
         running: set = set()
         go = True
@@ -345,14 +347,106 @@ class Workers:
             elif running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 go = collect(done)
-        # Stopped early: tasks already running finish (they may be writing files) and their
-        # results are handled (the files they wrote are reported); queued ones are dropped.
-        for fut in running:
-            fut.cancel()
-        wait(running)
-        for fut in running:
-            if not fut.cancelled() and fut.exception() is None:
-                handle(fut.result())
+        _stop(running, handle)
+
+    def _map_helping(self, tasks, handle: Callable[[dict], bool]) -> None:
+        """map() beside a local pool that this process helps. A worker's next task is sent the
+        moment its result arrives (by the pool's result thread, in a done-callback), not when
+        this process has finished the frame it is rendering and handled the results (with
+        tracking, the tracking pass too): so a worker does not wait for this process. Measured,
+        warm 48-frame bunny orbit with tracking, 2 workers against 1: 1.41x -> 1.69x (the worker
+        starved while this process rendered and tracked); without tracking unchanged (1.7x).
+
+        A worker gets a second task queued (to cover the round trip) only while more than two
+        tasks per worker remain; near the end it gets one at a time and this process takes the
+        rest, so a worker is not left with a queued frame while this process has nothing to do.
+        Results are still handled here, in this thread."""
+        import threading
+
+        pending = tasks if isinstance(tasks, deque) else deque(tasks)
+        lock = threading.RLock()
+        running: set = set()  # submitted, result not yet handled here
+        # busy: submitted and not finished; feeding: feed() is running (in the thread holding
+        # `lock`: a future already done when its callback is added calls it right there).
+        state = {"stop": False, "busy": 0, "feeding": False}
+
+        def capacity() -> int:
+            # Two tasks per started worker; one each once no more than two per worker remain for
+            # the workers and this process to share.
+            n = self.started.value
+            return 2 * n if len(pending) > 2 * n else n
+
+        def feed() -> None:
+            """Top the pool up from `pending` (holding `lock`)."""
+            state["feeding"] = True
+            try:
+                while not state["stop"] and pending and state["busy"] < capacity():
+                    item = pending.popleft()
+                    try:
+                        fut = self.executor.submit(item[0], *item[1:])
+                    except Exception:
+                        pending.appendleft(item)  # the pool is closed or broken: this thread runs it
+                        state["stop"] = True
+                        return
+                    state["busy"] += 1
+                    running.add(fut)
+                    fut.add_done_callback(finished)
+            finally:
+                state["feeding"] = False
+
+        def finished(fut) -> None:  # in the pool's result thread (or in feed(), if already done)
+            with lock:
+                state["busy"] -= 1
+                if not state["feeding"]:
+                    feed()
+
+        def handled(r: dict) -> bool:
+            if handle(r):
+                return True
+            with lock:
+                state["stop"] = True  # fail-fast: no more tasks go to the pool
+            return False
+
+        def collect() -> bool:
+            with lock:
+                done = [f for f in running if f.done()]
+            for f in done:
+                with lock:
+                    running.discard(f)
+                if not handled(f.result()):
+                    return False
+            return True
+
+        try:
+            go = True
+            while go:
+                with lock:
+                    feed()
+                    item = pending.popleft() if pending else None
+                    waiting = list(running)
+                if item is not None:
+                    go = handled(item[0](*item[1:])) and collect()
+                elif waiting:
+                    wait(waiting, return_when=FIRST_COMPLETED)
+                    go = collect()
+                else:
+                    break
+        finally:
+            with lock:
+                state["stop"] = True
+                left = list(running)
+        _stop(left, handle)
+
+
+def _stop(running, handle: Callable[[dict], bool]) -> None:
+    """Stopped early (or done): tasks already running finish (they may be writing files) and
+    their results are handled (the files they wrote are reported); queued ones are dropped."""
+    for fut in running:
+        fut.cancel()
+    wait(running)
+    for fut in running:
+        if not fut.cancelled() and fut.exception() is None:
+            handle(fut.result())
 
 
 def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:

@@ -186,6 +186,68 @@ def test_main_process_shares_the_frames_and_feeds_only_started_workers():
     assert sorted(ran) == sorted(executed) and len(ran) >= 1
 
 
+def test_main_process_helping_feeds_the_pool_as_results_arrive():
+    """Beside a local pool, a worker's next task is sent from the pool's result callback, not
+    when this process has finished its own task: while this process is busy with one long
+    task, the pool runs the others, never more than two queued; near the end it gets one at a
+    time. A pool whose futures are done before submit returns (the callback then runs in the
+    submitting thread) does not deadlock."""
+    import threading
+    from concurrent.futures import Future, ThreadPoolExecutor
+    from types import SimpleNamespace
+
+    from strokekit.pipeline import Workers
+
+    where = {}
+    pool_may_go = threading.Event()
+
+    def task(k):
+        if threading.current_thread() is threading.main_thread():
+            # This process's task: the pool does the rest meanwhile (fed from its callbacks).
+            pool_may_go.set()
+            deadline = time.monotonic() + 10
+            while len(where) < 9 and time.monotonic() < deadline:
+                time.sleep(0.005)
+        else:
+            pool_may_go.wait(10)
+        where[k] = threading.current_thread() is threading.main_thread()
+        return {"k": k}
+
+    class CountingPool:
+        def __init__(self):
+            self.ex, self.lock, self.outstanding, self.max_outstanding = ThreadPoolExecutor(1), threading.Lock(), 0, 0
+
+        def submit(self, fn, *args):
+            with self.lock:
+                self.outstanding += 1
+                self.max_outstanding = max(self.max_outstanding, self.outstanding)
+
+            def run():
+                try:
+                    return fn(*args)
+                finally:
+                    with self.lock:
+                        self.outstanding -= 1
+            return self.ex.submit(run)
+
+    pool, ran = CountingPool(), []
+    Workers(pool, lambda: None, started=SimpleNamespace(value=1)).map(
+        [(task, k) for k in range(10)], lambda r: ran.append(r["k"]) or True)
+    assert sorted(ran) == list(range(10)) and pool.max_outstanding <= 2
+    assert sum(where.values()) == 1  # this process ran one task, the pool the other nine
+
+    class DoneAtOnce:  # runs the task inside submit
+        def submit(self, fn, *args):
+            fut = Future()
+            fut.set_result(fn(*args))
+            return fut
+
+    ran.clear()
+    Workers(DoneAtOnce(), lambda: None, started=SimpleNamespace(value=1)).map(
+        [(lambda k: {"k": k}, k) for k in range(10)], lambda r: ran.append(r["k"]) or True)
+    assert sorted(ran) == list(range(10))
+
+
 def test_a_run_given_the_loaded_scene_reports_its_load_and_start_time(tmp_path):
     """The command loads the scene and starts the pool before run(): the report's load stage
     and wall time still count them."""
