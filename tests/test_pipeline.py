@@ -124,35 +124,40 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
     assert complete and all(before[n] == (part / n).stat().st_mtime_ns for n in complete)
 
 
+class CountingPool:
+    """A one-worker "pool" (a thread) that records the tasks submitted and how many wait in it."""
+
+    def __init__(self):
+        import threading
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.ex, self.lock = ThreadPoolExecutor(1), threading.Lock()
+        self.outstanding = self.max_outstanding = 0
+        self.submitted = []
+
+    def submit(self, fn, *args):
+        with self.lock:
+            self.outstanding += 1
+            self.max_outstanding = max(self.max_outstanding, self.outstanding)
+            self.submitted.append(args[0])
+
+        def run():
+            try:
+                return fn(*args)
+            finally:
+                with self.lock:
+                    self.outstanding -= 1
+        return self.ex.submit(run)
+
+
 def test_main_process_shares_the_frames_and_feeds_only_started_workers():
     """With a local pool, this process renders frames too; the pool gets at most two queued
     tasks per worker that has started, so a short run never waits for workers still importing;
     every task runs exactly once; fail-fast stops the rest."""
     import threading
-    from concurrent.futures import ThreadPoolExecutor
     from types import SimpleNamespace
 
     from strokekit.pipeline import Workers
-
-    class CountingPool:  # a one-worker "pool" that records how many tasks wait in it
-        def __init__(self):
-            self.ex, self.lock = ThreadPoolExecutor(1), threading.Lock()
-            self.outstanding = self.max_outstanding = 0
-            self.submitted = []
-
-        def submit(self, fn, *args):
-            with self.lock:
-                self.outstanding += 1
-                self.max_outstanding = max(self.max_outstanding, self.outstanding)
-                self.submitted.append(args[0])
-
-            def run():
-                try:
-                    return fn(*args)
-                finally:
-                    with self.lock:
-                        self.outstanding -= 1
-            return self.ex.submit(run)
 
     executed = []
 
@@ -193,7 +198,7 @@ def test_main_process_helping_feeds_the_pool_as_results_arrive():
     time. A pool whose futures are done before submit returns (the callback then runs in the
     submitting thread) does not deadlock."""
     import threading
-    from concurrent.futures import Future, ThreadPoolExecutor
+    from concurrent.futures import Future
     from types import SimpleNamespace
 
     from strokekit.pipeline import Workers
@@ -212,23 +217,6 @@ def test_main_process_helping_feeds_the_pool_as_results_arrive():
             pool_may_go.wait(10)
         where[k] = threading.current_thread() is threading.main_thread()
         return {"k": k}
-
-    class CountingPool:
-        def __init__(self):
-            self.ex, self.lock, self.outstanding, self.max_outstanding = ThreadPoolExecutor(1), threading.Lock(), 0, 0
-
-        def submit(self, fn, *args):
-            with self.lock:
-                self.outstanding += 1
-                self.max_outstanding = max(self.max_outstanding, self.outstanding)
-
-            def run():
-                try:
-                    return fn(*args)
-                finally:
-                    with self.lock:
-                        self.outstanding -= 1
-            return self.ex.submit(run)
 
     pool, ran = CountingPool(), []
     Workers(pool, lambda: None, started=SimpleNamespace(value=1)).map(
