@@ -23,3 +23,35 @@ class UsageError(StrokekitError):
     """An impossible combination of options."""
 
     exit_code = 2
+
+
+class hold_interrupts:
+    """Ctrl-C during the block is held until the block ends, then raised as KeyboardInterrupt.
+    For code that would swallow or transform it: trimesh catches BaseException around its optional
+    imports and between loaders (the interrupt would be lost and an optional module marked
+    missing); open3d's module init turns it into ImportError("initialization failed") (the
+    Occluder would fall back to embreex, other bytes, and the run would go on). Only in the main
+    thread (where Python runs signal handlers) and only when Ctrl-C raises KeyboardInterrupt
+    (Python's default handler: not when SIGINT is ignored, as in a background job)."""
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        self.pressed, self.previous = False, None
+        if threading.current_thread() is threading.main_thread() \
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self.previous = signal.signal(signal.SIGINT, self._hold)
+        return self
+
+    def _hold(self, signum, frame):
+        self.pressed = True
+
+    def __exit__(self, *exc):
+        import signal
+
+        if self.previous is not None:
+            signal.signal(signal.SIGINT, self.previous)
+        if self.pressed:
+            raise KeyboardInterrupt
+        return False

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import re
-import signal
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, hold_interrupts
 
 SUPPORTED = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
 
@@ -424,21 +423,9 @@ def _nodes_in_stable_order(loaded) -> list[tuple]:
 
 
 def _load_holding_interrupts(path: Path):
-    """Import trimesh and load `path` with Ctrl-C held until done: trimesh catches BaseException
-    around its optional imports and between loaders, which would swallow a KeyboardInterrupt
-    (and could leave an optional module marked missing). A held interrupt is raised right after.
-    Only the main thread can hold it (Python runs signal handlers there)."""
-    held: list[int] = []
-    try:
-        previous = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
-    except ValueError:  # not the main thread
-        previous = None
-    try:
+    """Import trimesh and load `path` with Ctrl-C held until done (hold_interrupts: trimesh
+    catches BaseException around its optional imports and between loaders)."""
+    with hold_interrupts():
         import trimesh
 
         return trimesh.load(str(path), force="scene", process=False)
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
-            if held:
-                raise KeyboardInterrupt

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from .camera import Camera
+from .errors import hold_interrupts
 from .model import FeatureEdges, VisibleRuns, row_norm
 from .options import LineOptions
 from .scene import Scene
@@ -39,7 +40,10 @@ def import_open3d():
         stand_in = types.ModuleType(name)
         stand_in.get_plotly_fig = stand_in.draw_plotly = stand_in.draw_plotly_server = unavailable
         sys.modules[name] = stand_in
-    import open3d
+    if "open3d" in sys.modules:
+        return sys.modules["open3d"]
+    with hold_interrupts():  # open3d's init turns Ctrl-C into ImportError (see hold_interrupts)
+        import open3d
 
     return open3d
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -335,6 +336,44 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
     try:
         with pytest.raises(KeyboardInterrupt):
             load_scene(p)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+def test_ctrl_c_while_open3d_loads_stops_the_run_and_keeps_the_ray_tracer(monkeypatch):
+    """open3d's module init turns a Ctrl-C into ImportError("initialization failed"); the
+    Occluder used to take that for "no open3d", fall back to embreex (other bytes) and go on
+    rendering as if nothing had been pressed. The interrupt is held during the import and raised
+    after it."""
+    import importlib.abc
+    import importlib.machinery
+    import signal
+
+    from strokekit.scene import build_scene
+    from strokekit.visibility import Occluder
+
+    class InterruptedInit(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+        def find_spec(self, name, path, target=None):
+            return importlib.machinery.ModuleSpec(name, self) if name == "open3d" else None
+
+        def create_module(self, spec):
+            return None
+
+        def exec_module(self, module):
+            try:
+                signal.raise_signal(signal.SIGINT)  # the user presses Ctrl-C during the import
+            except KeyboardInterrupt:
+                raise ImportError("initialization failed") from None  # what pybind11 makes of it
+            raise ImportError("this stand-in open3d never loads")
+
+    monkeypatch.delitem(sys.modules, "open3d", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [InterruptedInit(), *sys.meta_path])
+    sc = build_scene(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]), np.array([[0, 1, 2]]))
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            Occluder(sc)
         assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     finally:
         signal.signal(signal.SIGINT, before)
