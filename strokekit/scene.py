@@ -376,8 +376,8 @@ def _cache_read(f: Path | None) -> tuple | None:
             objects = tuple(json.loads(str(z["objects"])))
             materials = tuple(Material(m[0], tuple(m[1])) for m in json.loads(str(z["materials"])))
             return (z["vertices"], z["faces"], z["face_object"], z["face_material"], objects, materials)
-    except (OSError, KeyError, ValueError):  # absent, unreadable or from another layout: read the file
-        return None
+    except Exception:  # absent, unreadable, truncated (BadZipFile, EOFError, zlib.error) or from
+        return None  # another layout: a cache never breaks a load, the file is read again
 
 
 def _cache_write(f: Path | None, parts: tuple) -> None:

@@ -257,6 +257,26 @@ def test_scene_cache_gives_the_same_scene_without_reading_the_file_again(tmp_pat
         load_scene(src)
 
 
+def test_a_truncated_scene_cache_file_is_read_past(tmp_path, monkeypatch):
+    """A cache file cut short (disk full, a killed copy) made every later load of that scene fail
+    with an internal BadZipFile error; the scene is read from its file again and the cache
+    rewritten."""
+    from strokekit.scene import load_scene
+
+    monkeypatch.setenv("STROKEKIT_CACHE", "1")
+    monkeypatch.setenv("STROKEKIT_CACHE_DIR", str(tmp_path / "cache"))
+    src = tmp_path / "two.obj"
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n")
+    first = load_scene(src)
+    (cached,) = (tmp_path / "cache" / "scenes").glob("*.npz")
+    whole = cached.read_bytes()
+    for cut in (len(whole) // 2, 30):
+        cached.write_bytes(whole[:cut])
+        again = load_scene(src)
+        assert again.content_hash == first.content_hash and np.array_equal(again.faces, first.faces)
+        assert cached.read_bytes() == whole  # rewritten whole
+
+
 @pytest.mark.parametrize("backend", ["embreex"])
 def test_fallback_backend_draws_the_same_lines(backend):
     """Without open3d, occlusion goes through embreex (trimesh's intersector): the drawing of a
