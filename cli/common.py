@@ -11,12 +11,13 @@ import click
 from strokekit.errors import UsageError
 
 
-def split_list(value: str | None) -> tuple[str, ...] | None:
+def split_list(value: str | None, option: str = "the list") -> tuple[str, ...] | None:
+    """'a, b,c' -> ('a', 'b', 'c'); None stays None; an empty list is a usage error naming `option`."""
     if value is None:
         return None
     items = tuple(v.strip() for v in value.split(",") if v.strip())
     if not items:
-        raise UsageError("empty list")
+        raise UsageError(f"{option} needs at least one name, got {value!r}")
     return items
 
 

@@ -141,7 +141,7 @@ def load_brush(path: str | Path, tex_head: float = _HEAD, tex_tail: float = _TAI
 
     p = Path(path)
     if not p.is_file():
-        raise InputError("brush image not found", p)
+        raise InputError(f"brush image not found (bundled brushes: {', '.join(BUNDLED)}; or give a PNG path)", p)
     try:
         im = Image.open(p)
         im.load()

@@ -436,7 +436,8 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
     glob = re.sub(r"\{frame[^}]*\}", "*", pattern) + ".json"
     files = sorted(d.glob(glob))
     if len(files) < 2:
-        raise InputError(f"needs at least 2 {glob} files to compare, found {len(files)}", d)
+        hint = " (its frames have no JSON: render without --no-json)" if not files and any(d.glob(glob[:-5] + ".svg")) else ""
+        raise InputError(f"needs at least 2 {glob} files to compare, found {len(files)}{hint}", d)
     return files
 
 

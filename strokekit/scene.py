@@ -289,6 +289,14 @@ def load_scene(path: str | Path) -> Scene:
 def _read_parts(p: Path) -> tuple:
     """(vertices, faces, face_object, face_material, objects, materials) of a mesh file, world
     space, through trimesh."""
+    if p.suffix.lower() == ".gltf":
+        # trimesh reads broken glTF JSON as a path to look up ("FileNotFoundError: model.gltf").
+        import json
+
+        try:
+            json.loads(p.read_bytes())
+        except ValueError as e:
+            raise InputError(f"not a glTF file: its JSON does not parse ({e})", p) from None
     try:
         loaded = _load_holding_interrupts(p)
     except Exception as e:  # trimesh raises many kinds on bad files

@@ -76,10 +76,13 @@ def test_empty_frame_still_gets_files(cube, tmp_path, capsys):
     assert json.loads((tmp_path / "o" / "frame_0001.json").read_text())["strokes"] == []
 
 
-@pytest.mark.parametrize("case", ["missing", "unknown_ext", "empty", "point_cloud", "nan", "directory"])
+@pytest.mark.parametrize("case", ["missing", "unknown_ext", "empty", "point_cloud", "nan", "directory", "gltf_cut"])
 def test_bad_scene_gives_one_line_and_exit_1(case, tmp_path, capsys):
     p = {"missing": tmp_path / "nope.obj", "unknown_ext": tmp_path / "scene.xyz", "empty": tmp_path / "empty.obj",
-         "point_cloud": tmp_path / "cloud.ply", "nan": tmp_path / "nan.obj", "directory": tmp_path}[case]
+         "point_cloud": tmp_path / "cloud.ply", "nan": tmp_path / "nan.obj", "directory": tmp_path,
+         "gltf_cut": tmp_path / "cut.gltf"}[case]
+    if case == "gltf_cut":  # trimesh took it for a path: "cannot read mesh (FileNotFoundError: model.gltf)"
+        p.write_text('{"asset":')
     if case == "unknown_ext":
         p.write_text("hello")
     elif case == "empty":
@@ -97,6 +100,26 @@ def test_bad_scene_gives_one_line_and_exit_1(case, tmp_path, capsys):
     assert str(p.name) in lines[0] or str(p) in lines[0]
     assert "Traceback" not in err
     assert not out.exists() or not any(out.iterdir())
+    if case == "gltf_cut":
+        assert "JSON does not parse" in lines[0]
+
+
+@pytest.mark.parametrize("args,code,needle", [
+    (["render", "{cube}", "--kinds", " , ", "--out", "{tmp}/o"], 2, "--kinds needs at least one name"),
+    (["render", "{cube}", "--gltf", "--brush", "{tmp}/no.png", "--out", "{tmp}/o"], 1, "bundled brushes: plain, ink, dry"),
+])
+def test_option_errors_name_the_option_and_the_way_out(args, code, needle, cube, tmp_path, capsys):
+    got, _, err = run_cli([a.format(cube=cube, tmp=tmp_path) for a in args], capsys)
+    lines = err.strip().splitlines()
+    assert got == code and len(lines) == 1 and needle in lines[0], err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def test_coherence_of_frames_rendered_without_json_says_how_to_get_them(cube, tmp_path, capsys):
+    code, _, err = run_cli(["render", cube, "--orbit", "2", "--no-json", "--out", tmp_path / "o", "-q"], capsys)
+    assert code == 0, err
+    code, _, err = run_cli(["coherence", tmp_path / "o"], capsys)
+    assert code == 1 and "render without --no-json" in err and len(err.strip().splitlines()) == 1
 
 
 def test_shared_empty_obj_is_a_clear_error(capsys):

@@ -121,7 +121,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         if not report_path.strip():
             raise UsageError("--report needs a file name")
         check_output_file(report_path)
-    lines = LineOptions.preset(quality, kinds=split_list(kinds), contours=contours, crease_angle_deg=crease_angle,
+    lines = LineOptions.preset(quality, kinds=split_list(kinds, "--kinds"), contours=contours, crease_angle_deg=crease_angle,
                                whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
                                bisection_tol_px=bisection_tol,
                                split_angle_deg=split_angle, max_length_px=max_length, min_length_px=min_length,
