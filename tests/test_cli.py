@@ -107,6 +107,7 @@ def test_bad_scene_gives_one_line_and_exit_1(case, tmp_path, capsys):
 @pytest.mark.parametrize("args,code,needle", [
     (["render", "{cube}", "--kinds", " , ", "--out", "{tmp}/o"], 2, "--kinds needs at least one name"),
     (["render", "{cube}", "--gltf", "--brush", "{tmp}/no.png", "--out", "{tmp}/o"], 1, "bundled brushes: plain, ink, dry"),
+    (["render", "{cube}", "--gltf-sequence", "--no-gltf", "--out", "{tmp}/o"], 2, "cannot go with --no-gltf"),
 ])
 def test_option_errors_name_the_option_and_the_way_out(args, code, needle, cube, tmp_path, capsys):
     got, _, err = run_cli([a.format(cube=cube, tmp=tmp_path) for a in args], capsys)

@@ -93,6 +93,9 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     130 interrupted by Ctrl-C (the frames written so far stay, whole; --report lists them)."""
     if camera_file and orbit:
         raise UsageError("give either --camera or --orbit, not both")
+    if extra.get("gltf_sequence") and extra.get("gltf") is False \
+            and click.get_current_context().get_parameter_source("gltf") == click.core.ParameterSource.COMMANDLINE:
+        raise UsageError("--gltf-sequence writes glTF: it cannot go with --no-gltf")
     if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
         raise UsageError("nothing to write: every output is turned off")
     try:
