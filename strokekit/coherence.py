@@ -434,7 +434,7 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
     if not d.is_dir():
         raise InputError("not a folder", d)
     glob = re.sub(r"\{frame[^}]*\}", "*", pattern) + ".json"
-    files = sorted(d.glob(glob))
+    files = sorted(p for p in d.glob(glob) if not p.name.startswith("."))  # not render's .strokekit-run.json
     if len(files) < 2:
         hint = " (its frames have no JSON: render without --no-json)" if not files and any(d.glob(glob[:-5] + ".svg")) else ""
         raise InputError(f"needs at least 2 {glob} files to compare, found {len(files)}{hint}", d)

@@ -8,12 +8,14 @@ each worker loads the scene and builds its BVH once (cached per process).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import platform
 import time
 import traceback
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -78,7 +80,7 @@ class RunSpec:
     tracking: object | None = None  # strokekit.tracking.TrackingOptions; None: no tracking
     workers: int = 1
     scheduler: str | None = None
-    skip_existing: bool = False
+    skip_existing: bool = False  # resume: see run(); frames of another scene or options are a UsageError
     fail_fast: bool = False
 
 
@@ -514,6 +516,109 @@ def _once(fn: Callable[[], None]) -> Callable[[], None]:
     return call_once
 
 
+# --- the run manifest ----------------------------------------------------------------------------------
+
+#: The output folder's record of what its frame files were rendered from (a dotfile: not a frame file).
+RUN_MANIFEST = ".strokekit-run.json"
+
+
+def _canon(v):
+    """`v` as plain JSON values, deterministically (dataclasses field by field, tuples as lists)."""
+    if is_dataclass(v) and not isinstance(v, type):
+        return {f.name: _canon(getattr(v, f.name)) for f in fields(v)}
+    if isinstance(v, (list, tuple)):
+        return [_canon(x) for x in v]
+    if isinstance(v, dict):
+        return {str(k): _canon(x) for k, x in v.items()}
+    if isinstance(v, Path):
+        return str(v)
+    if v is None or isinstance(v, (bool, int, float, str)):
+        return v
+    if hasattr(v, "item"):  # a numpy scalar
+        return v.item()
+    raise TypeError(f"cannot digest a {type(v).__name__} in the run options")
+
+
+def _digest(v) -> str:
+    text = json.dumps(_canon(v), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def run_manifest(spec: RunSpec, scene: Scene, tracking_on: bool) -> dict:
+    """What determines the bytes of the run's frame files: `scene` and `options` digests (the
+    set of frames aside) and per frame a digest of its camera. With tracking a frame's lines
+    also depend on every frame tracked before it in the run, so its digest chains theirs: a
+    longer range of the same path (1-10, then 1-20) keeps the digests of the frames they share."""
+    scene_d = _digest({"content_hash": scene.content_hash, "objects": len(scene.objects),
+                       "materials": [m.base_color for m in scene.materials]})
+    o = spec.outputs
+    outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"}
+    brush = getattr(o.gltf_options, "brush", None)
+    if o.gltf and brush is not None:
+        from .brushes import BUNDLED
+
+        if brush not in BUNDLED:  # a user's image: its bytes go into every GLB
+            try:
+                outputs["brush_sha256"] = hashlib.sha256(Path(brush).read_bytes()).hexdigest()
+            except OSError:
+                pass  # the run reports it
+    options_d = _digest({"lines": spec.lines.to_json(), "outputs": outputs,
+                         "tracking": spec.tracking if tracking_on else None})
+    frames, chain = {}, ""
+    for f, cam in spec.cameras:
+        d = _digest(cam.to_json())
+        if tracking_on:
+            d = chain = _digest([chain, f, d])
+        frames[f] = d
+    return {"strokekit_run": 1, "run": _digest([scene_d, options_d]), "scene": scene_d, "options": options_d,
+            "frames": frames}
+
+
+def read_run_manifest(out_dir: Path) -> dict | None:
+    """The manifest in `out_dir`, frames keyed by int; None when missing or unreadable."""
+    try:
+        d = json.loads((Path(out_dir) / RUN_MANIFEST).read_text())
+        d["frames"] = {int(k): str(v) for k, v in d["frames"].items()}
+        if d.get("strokekit_run") != 1 or not all(isinstance(d.get(k), str) for k in ("run", "scene", "options")):
+            return None
+        return d
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
+def write_run_manifest(out_dir: Path, manifest: dict, frames: dict[int, str]) -> Path:
+    d = {k: manifest[k] for k in ("strokekit_run", "run", "scene", "options")}
+    d["frames"] = {str(f): frames[f] for f in sorted(frames)}
+    return atomic_write_bytes(Path(out_dir) / RUN_MANIFEST, (json.dumps(d, indent=1) + "\n").encode())
+
+
+def _frame_ranges(frames) -> str:
+    """[1, 2, 3, 7] -> '1-3, 7'."""
+    out: list[list[int]] = []
+    for f in sorted(frames):
+        if out and f == out[-1][1] + 1:
+            out[-1][1] = f
+        else:
+            out.append([f, f])
+    return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in out)
+
+
+def _not_a_resume(out_dir: Path, old: dict | None, new: dict, present: set[int]) -> str:
+    """The one line saying why --skip-existing cannot skip the frames `present` in `out_dir`."""
+    where = f"{out_dir}/"
+    fix = "remove them or render without --skip-existing"
+    if old is None:
+        return (f"--skip-existing: {where} holds frames but no readable {RUN_MANIFEST} to tell what they were "
+                f"rendered from; {fix}")
+    parts = [p for p in ("scene", "options") if old[p] != new[p]]
+    cams = [f for f in present if f in old["frames"] and old["frames"][f] != new["frames"][f]]
+    if cams:
+        parts.append(f"cameras of frames {_frame_ranges(cams)}")
+    what = " or ".join(x for x, p in (("another scene", "scene"), ("other options", "options")) if p in parts)
+    what = what or "another run"  # a run digest that its parts do not explain: an edited file
+    return (f"--skip-existing: {where} holds frames of {what} ({RUN_MANIFEST} differs: {', '.join(parts)}); {fix}")
+
+
 # --- the run -------------------------------------------------------------------------------------------
 
 def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, load_seconds: float = 0.0):
@@ -537,7 +642,12 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
     `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
     load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
-    (the report's wall time counts from there: the pool start and the load are part of it)."""
+    (the report's wall time counts from there: the pool start and the load are part of it).
+
+    The output folder's RUN_MANIFEST is written before the first frame file (see run_manifest).
+    With spec.skip_existing a frame is skipped when its files exist and the manifest has this run's
+    scene and options digests and this frame's camera digest; frame files there with a manifest
+    of another scene or options, or none, raise UsageError before any frame is rendered."""
     t_start = time.perf_counter() if started_at is None else started_at
     res = RunResult()
     # Workers start first: their imports and scene load overlap the main process's own load.
@@ -556,13 +666,41 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         cams = dict(spec.cameras)
         tracking_on = stage["tracking"].ran
 
-        # Resume: frames whose every file exists are not written again. With tracking their lines are
+        # Resume: frames whose every file exists, rendered by this run's scene and options with this
+        # frame's camera (the manifest says so), are not written again. With tracking their lines are
         # still computed (the tracker's state depends on every earlier frame), so a resumed run gives
         # the same bytes as an uninterrupted one.
+        manifest = run_manifest(spec, scene, tracking_on)
+        old = read_run_manifest(out.out_dir)
+        same_run = old is not None and old["run"] == manifest["run"]
+        on_disk = {f: [p.exists() for p in out.frame_files(f)] for f in frames}
         done_before = set()
         if spec.skip_existing:
-            done_before = {f for f in frames if all(p.exists() for p in out.frame_files(f))}
+            present = {f for f in frames if all(on_disk[f])}
+            if present and not same_run:
+                raise UsageError(_not_a_resume(out.out_dir, old, manifest, present))
+            done_before = {f for f in present if old["frames"].get(f) == manifest["frames"][f]}
         res.frames_skipped = sorted(done_before)
+        # The manifest is written before any frame file: the same run's entries are kept (merged),
+        # another run's replaced. A frame of this run is entered now unless files of it from
+        # something else are there (they stay until rewritten): it is entered once written, so
+        # a run stopped before that never leaves such a file looking like this run's.
+        entries = dict(old["frames"]) if same_run else {}
+        enter_later: set[int] = set()
+        for f in frames:
+            new = manifest["frames"][f]
+            if entries.get(f) == new or not any(on_disk[f]):
+                entries[f] = new
+            else:
+                entries.pop(f, None)
+                enter_later.add(f)
+        res.outputs.append(str(write_run_manifest(out.out_dir, manifest, entries)))
+
+        def enter_written() -> None:
+            done = enter_later.intersection(res.frames_ok)
+            if done:
+                entries.update((f, manifest["frames"][f]) for f in done)
+                write_run_manifest(out.out_dir, manifest, entries)
         need_lines = [f for f in frames if f not in done_before or tracking_on]
 
         lines_results: dict[int, Strokes] = {}
@@ -663,7 +801,10 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
                 lines_done(r)
             return not (spec.fail_fast and ("error" in r or "error" in r.get("written", ())))
 
-        workers.map(pending, handle)
+        try:
+            workers.map(pending, handle)
+        finally:
+            enter_written()
         if out.gltf and out.gltf_sequence and ordered:
             from .writers.gltf import glb_for_sequence
 
@@ -720,8 +861,6 @@ def _add_timings(stage: dict, timings: dict) -> None:
 
 def run_report(spec: RunSpec, res: RunResult) -> dict:
     """The JSON run report: versions, input hashes, per-frame status, outputs, timings, stages."""
-    import hashlib
-
     def versions():
         from importlib.metadata import PackageNotFoundError, version
 

@@ -45,7 +45,7 @@ def test_render_writes_svg_and_json_per_frame_with_brief_names(cube, tmp_path, c
     code, _, err = run_cli(["render", cube, "--orbit", "3", "--out", tmp_path / "o", "--size", "320x240"], capsys)
     assert code == 0, err
     names = sorted(p.name for p in (tmp_path / "o").iterdir())
-    assert names == [f"frame_000{i}.{e}" for i in (1, 2, 3) for e in ("json", "svg")]
+    assert names == [".strokekit-run.json"] + [f"frame_000{i}.{e}" for i in (1, 2, 3) for e in ("json", "svg")]
     svg = (tmp_path / "o" / "frame_0001.svg").read_text()
     assert 'viewBox="0 0 320 240"' in svg and 'width="320px"' in svg
     assert 'inkscape:label="silhouette"' in svg and 'id="layer-silhouette"' in svg
@@ -330,7 +330,7 @@ def test_dotted_pattern_keeps_the_frame_number(cube, tmp_path, capsys):
                             "--gltf", "--out", tmp_path / "o"], capsys)
     assert code == 0, err
     names = sorted(p.name for p in (tmp_path / "o").iterdir())
-    assert names == [f"shot.000{i}.{e}" for i in (1, 2) for e in ("glb", "json", "svg")]
+    assert names == [".strokekit-run.json"] + [f"shot.000{i}.{e}" for i in (1, 2) for e in ("glb", "json", "svg")]
 
 
 def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):

@@ -55,14 +55,15 @@ def test_failed_frame_does_not_lose_the_others(tmp_path, capsys):
     assert code == 3
     assert "frame 2" in err and "inside the mesh" in err
     names = sorted(p.name for p in (tmp_path / "o").iterdir())
-    assert names == ["frame_0001.json", "frame_0001.svg", "frame_0003.json", "frame_0003.svg"]
+    assert names == [".strokekit-run.json", "frame_0001.json", "frame_0001.svg", "frame_0003.json", "frame_0003.svg"]
     rep = json.loads((tmp_path / "run.json").read_text())
     assert rep["frames"]["2"]["status"] == "failed" and rep["frames"]["1"]["status"] == "ok"
     assert rep["exit_code"] == 3 and list(rep["failures"]) == ["2"]
     # --fail-fast stops at the failure and still reports it.
     code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "ff", "--fail-fast"], capsys)
     assert code == 3 and "stopped at frame 2 (--fail-fast), 1 not run" in err
-    assert sorted(p.name for p in (tmp_path / "ff").iterdir()) == ["frame_0001.json", "frame_0001.svg"]
+    assert sorted(p.name for p in (tmp_path / "ff").iterdir()) == [".strokekit-run.json", "frame_0001.json",
+                                                                   "frame_0001.svg"]
 
 
 def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
@@ -334,7 +335,7 @@ def test_interrupted_run_keeps_what_it_wrote_and_says_so(tmp_path):
     res = e.value.result
     assert isinstance(e.value, KeyboardInterrupt)
     assert res.interrupted and res.exit_code == 130 and res.frames_ok == [1, 2]
-    assert sorted(p.name for p in out.iterdir()) == [foreign.name, "frame_0001.json", "frame_0001.svg",
+    assert sorted(p.name for p in out.iterdir()) == [foreign.name, ".strokekit-run.json", "frame_0001.json", "frame_0001.svg",
                                                      "frame_0002.json", "frame_0002.svg"]
     rep = run_report(spec, res)
     assert rep["status"] == "interrupted" and rep["exit_code"] == 130
@@ -378,7 +379,7 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     # had not come back yet: it is whole, but not counted).
     done = sorted(int(f) for f, v in rep["frames"].items() if v["status"] == "ok")
     assert len(done) < 1000 and f" {len(done)} of 1000 frame(s) written" in lines[0]
-    assert not list(out.glob(".*"))  # no temporary file
+    assert not list(out.glob(".*.part"))  # no temporary file
     for f in done:  # the report's frames are there in full
         assert (out / f"frame_{f:04d}.svg").exists() and (out / f"frame_{f:04d}.json").exists()
     for p in out.glob("frame_*.svg"):  # and every file there is whole
@@ -387,3 +388,138 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
         json.loads(p.read_text())
     alive = psutil.wait_procs(children, timeout=10)[1]
     assert children and not alive, "worker processes outlived the run"
+
+
+# --- --skip-existing and the run manifest (.strokekit-run.json) ---------------------------------------
+
+def _scenes(tmp_path: Path) -> tuple[Path, Path]:
+    import trimesh
+
+    other = tmp_path / "cylinder.obj"
+    trimesh.creation.cylinder(radius=1.0, height=2.0, sections=12).export(other)
+    return _cube(tmp_path), other
+
+
+def _stamps(d: Path) -> dict[str, int]:
+    return {p.name: p.stat().st_mtime_ns for p in d.iterdir()}
+
+
+SMALL = ["--size", "64x64", "--workers", "1"]
+
+
+@pytest.mark.parametrize("change,part", [
+    ("scene", "scene"), (["--kinds", "silhouette"], "options"), (["--stroke-width", "2"], "options"),
+    (["--quality", "draft"], "options"), (["--pattern", "f{frame:03d}", "--no-svg"], None)])
+def test_skip_existing_refuses_frames_of_another_run(tmp_path, capsys, change, part):
+    """The user trial: spot then cow into the same folder with --skip-existing said '4 already
+    there, skipped' and left spot's frames. Now: exit 2, one line saying what differs, nothing
+    touched. (Another --pattern names other files: nothing to skip, nothing refused.)"""
+    cube, other = _scenes(tmp_path)
+    out = tmp_path / "o"
+    assert run_cli(["render", cube, "--orbit", "3", "--out", out, "-q"] + SMALL, capsys)[0] == 0
+    before, stamps = tree_bytes(out), _stamps(out)
+    args = ["render", other if change == "scene" else cube, "--orbit", "3", "--out", out, "--skip-existing"] + SMALL
+    code, _, err = run_cli(args + ([] if change == "scene" else change), capsys)
+    if part is None:
+        assert code == 0, err
+        return
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "--skip-existing" in err and f".strokekit-run.json differs: {part}" in err, err
+    assert "remove them or render without --skip-existing" in err
+    assert tree_bytes(out) == before and _stamps(out) == stamps
+    # Without --skip-existing the run overwrites them and records itself.
+    assert run_cli(args[:-len(SMALL) - 1] + SMALL + ([] if change == "scene" else change) + ["-q"], capsys)[0] == 0
+    assert tree_bytes(out) != before
+
+
+def test_skip_existing_refuses_frames_without_a_manifest(tmp_path, capsys):
+    cube, _ = _scenes(tmp_path)
+    out = tmp_path / "o"
+    assert run_cli(["render", cube, "--orbit", "2", "--out", out, "-q"] + SMALL, capsys)[0] == 0
+    (out / ".strokekit-run.json").unlink()
+    before = tree_bytes(out)
+    code, _, err = run_cli(["render", cube, "--orbit", "2", "--out", out, "--skip-existing"] + SMALL, capsys)
+    assert code == 2 and "no readable .strokekit-run.json" in err and len(err.strip().splitlines()) == 1, err
+    assert tree_bytes(out) == before
+
+
+def test_skip_existing_resumes_the_same_run_and_extends_its_frame_range(tmp_path, capsys):
+    """The same run again skips every frame (same bytes, not rewritten); a longer range of the
+    same orbit (tracking on: a frame's digest chains the frames before it) renders only the new
+    frames, and the folder, manifest included, equals one uninterrupted run."""
+    cube, _ = _scenes(tmp_path)
+    base = ["render", cube, "--orbit", "5"] + SMALL
+    assert run_cli(base + ["--out", tmp_path / "full", "-q"], capsys)[0] == 0
+    part = tmp_path / "part"
+    assert run_cli(base + ["--out", part, "--frames", "1-3", "-q"], capsys)[0] == 0
+    before, stamps = tree_bytes(part), _stamps(part)
+    code, _, err = run_cli(base + ["--out", part, "--frames", "1-3", "--skip-existing"], capsys)
+    assert code == 0 and "wrote 0 frame(s)" in err and "(3 already there, skipped)" in err, err
+    assert tree_bytes(part) == before
+    assert all(_stamps(part)[n] == t for n, t in stamps.items() if not n.startswith("."))
+    code, _, err = run_cli(base + ["--out", part, "--skip-existing", "--report", tmp_path / "r.json"], capsys)
+    assert code == 0 and "wrote 2 frame(s)" in err and "(3 already there, skipped)" in err, err
+    assert all(_stamps(part)[n] == t for n, t in stamps.items() if not n.startswith("."))
+    assert tree_bytes(part) == tree_bytes(tmp_path / "full")
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert Path(rep["outputs"][0]).name == ".strokekit-run.json"  # the report lists the manifest it wrote
+    # Starting the tracked range later changes what frames 3-5 hold: they are rendered again, not skipped.
+    code, _, err = run_cli(base + ["--out", part, "--frames", "3-5", "--skip-existing"], capsys)
+    assert code == 0 and "wrote 3 frame(s)" in err and "skipped" not in err, err
+
+
+def test_skip_existing_renders_frames_whose_camera_changed(tmp_path, capsys):
+    cube, _ = _scenes(tmp_path)
+    base = ["render", cube, "--orbit", "3", "--no-coherence"] + SMALL
+    assert run_cli(base + ["--out", tmp_path / "o", "-q"], capsys)[0] == 0
+    assert run_cli(base + ["--out", tmp_path / "high", "--elevation", "40", "-q"], capsys)[0] == 0
+    code, _, err = run_cli(base + ["--out", tmp_path / "o", "--elevation", "40", "--skip-existing"], capsys)
+    assert code == 0 and "wrote 3 frame(s)" in err and "skipped" not in err, err
+    assert tree_bytes(tmp_path / "o") == tree_bytes(tmp_path / "high")
+
+
+def test_stopped_rerun_with_new_cameras_never_leaves_an_old_frame_looking_done(tmp_path):
+    """Same options, other cameras, no --skip-existing, stopped after two frames: the frames
+    not rewritten yet still hold the old cameras' drawings, so the manifest (written before the
+    first frame) must not claim them; a resume then renders them and matches a fresh run."""
+    from strokekit.camera import orbit_path
+    from strokekit.options import LineOptions
+    from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, read_run_manifest, run
+
+    cube, _ = _scenes(tmp_path)
+    s = load_scene(cube)
+
+    def spec(out, elevation, **kw):
+        cams = orbit_path(s.center, s.radius, 4, elevation=elevation, width=64, height=64).select([1, 2, 3, 4])
+        return RunSpec(scene_path=str(cube), cameras=tuple(cams), lines=LineOptions(),
+                       outputs=OutputOptions(out_dir=out), **kw)
+
+    out = tmp_path / "o"
+    run(spec(out, 15.0))
+    old = read_run_manifest(out)["frames"]
+
+    def stop(phase, done, total):
+        if phase == "write" and done == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(RunInterrupted):
+        run(spec(out, 40.0), stop)
+    run(spec(tmp_path / "fresh", 40.0))
+    new = read_run_manifest(tmp_path / "fresh")["frames"]
+    got = read_run_manifest(out)["frames"]
+    assert got == {1: new[1], 2: new[2]} and all(old[f] != new[f] for f in (3, 4))
+    res = run(spec(out, 40.0, skip_existing=True))
+    assert res.frames_skipped == [1, 2] and res.frames_ok == [3, 4]
+    assert tree_bytes(out) == tree_bytes(tmp_path / "fresh")
+
+
+def test_coherence_metrics_ignore_the_run_manifest(tmp_path, capsys):
+    """A --pattern like {frame:04d} makes the frame glob *.json, which matches the dotfile too."""
+    from strokekit.coherence import frame_files
+
+    cube, _ = _scenes(tmp_path)
+    out = tmp_path / "o"
+    assert run_cli(["render", cube, "--orbit", "2", "--out", out, "--pattern", "{frame:04d}", "-q"] + SMALL,
+                   capsys)[0] == 0
+    assert [p.name for p in frame_files(out, "{frame:04d}")] == ["0001.json", "0002.json"]

@@ -74,7 +74,9 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
               help="Processes rendering frames: this one and N-1 started beside it (default: the machine's "
                    "cores for 8 frames or more, else 1).")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address, e.g. tcp://host:8786.")
-@click.option("--skip-existing", is_flag=True, help="Resume: do not rewrite frames whose files all exist.")
+@click.option("--skip-existing", is_flag=True, help="Resume: do not rewrite frames whose files all exist and were rendered from the same scene, options "
+                   "and camera (OUT/.strokekit-run.json says so); frames of another scene or other options "
+                   "are a usage error.")
 @click.option("--fail-fast", is_flag=True,
               help="Stop at the first failed frame (frames already written stay; the run streams them out in order).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress and no summary.")
