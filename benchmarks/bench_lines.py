@@ -9,6 +9,11 @@
 
     python benchmarks/bench_lines.py [--repeats 5] [--quality default] [--skip-speed] [--skip-accuracy]
                                      [--no-subdivide] [--models DIR] [--json out.json]
+                                     [--doubled PX] [--reference-doubled PX]
+
+--doubled / --reference-doubled set LineOptions.doubled_px of the measured preset and of the exact
+reference: `--skip-speed --doubled 3 --reference-doubled 0` gives what dropping contour shingles
+within 3 px costs against every visible feature edge (README, coherence section).
 """
 
 from __future__ import annotations
@@ -107,8 +112,8 @@ def accuracy_table(args) -> list[dict]:
             print(f"{p.name:<24} skipped: {e}")
             continue
         cams = default_cameras(sc, args.frames)
-        ex = LineRenderer(sc, LineOptions.preset("exact"))
-        df = LineRenderer(sc, LineOptions.preset(args.quality))
+        ex = LineRenderer(sc, LineOptions.preset("exact", doubled_px=args.reference_doubled))
+        df = LineRenderer(sc, LineOptions.preset(args.quality, doubled_px=args.doubled))
         ref = [ex.render(c, k + 1) for k, c in enumerate(cams)]
         drawn = [df.render(c, k + 1) for k, c in enumerate(cams)]
         a = accuracy(drawn, ref, tols=(0.5, 1.0))
@@ -129,6 +134,9 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-accuracy", action="store_true")
     ap.add_argument("--no-subdivide", action="store_true", help="time the bunny only")
     ap.add_argument("--json", type=Path, default=None, help="also write the results as JSON")
+    ap.add_argument("--doubled", type=float, default=None, help="doubled_px of the preset measured (default: its own)")
+    ap.add_argument("--reference-doubled", type=float, default=None,
+                    help="doubled_px of the exact reference (0: every visible contour edge, BRIEF 2 to the letter)")
     args = ap.parse_args(argv)
     if not args.models.is_dir():
         print(f"models folder {args.models} not found", file=sys.stderr)

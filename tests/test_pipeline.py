@@ -237,6 +237,56 @@ def test_main_process_helping_feeds_the_pool_as_results_arrive():
     assert sorted(ran) == list(range(10))
 
 
+def test_a_dead_worker_ends_the_run_with_an_error_not_a_hang():
+    """When a pool worker dies (segfault, OOM kill), Python >= 3.12 completes the pool's futures
+    while holding the executor's _shutdown_lock, which submit() needs too. The done-callback that
+    feeds the pool used to call submit() there: the pool's thread deadlocked on itself and the run
+    hung for good. This stand-in pool breaks the same way on any Python; the run must raise."""
+    import threading
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+    from types import SimpleNamespace
+
+    from strokekit.pipeline import Workers
+
+    class BreakingPool:
+        def __init__(self):
+            self._shutdown_lock, self.futures = threading.Lock(), []
+
+        def submit(self, fn, *args):
+            with self._shutdown_lock:
+                fut = Future()
+                self.futures.append(fut)
+                if len(self.futures) == 2:  # both queued tasks' worker dies
+                    threading.Thread(target=self._break, daemon=True).start()
+                return fut
+
+        def _break(self):
+            time.sleep(0.05)
+            with self._shutdown_lock:  # as CPython >= 3.12's terminate_broken
+                for f in self.futures:
+                    f.set_exception(BrokenProcessPool("a worker died"))
+
+    def task(k):
+        time.sleep(0.01)
+        return {"k": k}
+
+    raised = []
+
+    def go():
+        try:
+            Workers(BreakingPool(), lambda: None, started=SimpleNamespace(value=1)).map(
+                [(task, k) for k in range(200)], lambda r: True)
+        except BaseException as e:  # noqa: BLE001 (what the run raises is the point)
+            raised.append(e)
+
+    t = threading.Thread(target=go, daemon=True)
+    t.start()
+    t.join(20)
+    assert not t.is_alive(), "the run hung after a worker died"
+    assert raised and isinstance(raised[0], BrokenProcessPool)
+
+
 def test_a_run_given_the_loaded_scene_reports_its_load_and_start_time(tmp_path):
     """The command loads the scene and starts the pool before run(): the report's load stage
     and wall time still count them."""
