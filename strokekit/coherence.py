@@ -63,8 +63,8 @@ _FRAMES: dict = {}  # id(camera) -> (camera, frame): the last cameras seen, by i
 
 
 def _frame_of(camera) -> tuple:
-    """(right, up', fwd, eye, f) of a camera, computed once per camera object (kept for the last
-    64 cameras; looked up by identity: hashing a Camera, a dataclass of tuples, and comparing it
+    """(right, up', fwd, eye, f) of a camera, computed once per camera object (up to 64 cameras
+    kept; looked up by identity: hashing a Camera, a dataclass of tuples, and comparing it
     cost more than the lookup saved)."""
     hit = _FRAMES.get(id(camera))
     if hit is not None and hit[0] is camera:
@@ -72,7 +72,7 @@ def _frame_of(camera) -> tuple:
     right, up, fwd = camera.basis
     frame = (right, up, fwd, np.asarray(camera.eye, float), camera.focal_px)
     if len(_FRAMES) >= 64:
-        _FRAMES.pop(next(iter(_FRAMES)), None)  # the oldest
+        _FRAMES.clear()  # (atomic: safe if trackers run in threads; refilled in a frame or two)
     _FRAMES[id(camera)] = (camera, frame)
     return frame
 

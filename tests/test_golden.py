@@ -82,6 +82,17 @@ def test_writers_fast_paths_write_the_plain_bytes():
         for d in (0, 2, 3):
             want = [" ".join(point_strings(s.points[a:b], d)) for a, b in zip(s.offsets[:-1], s.offsets[1:])]
             assert stroke_path_data(s, d) == want
+    # Strided surface / face arrays (views of wider ones), one point per stroke: orjson refuses
+    # strided arrays, the nested path never saw one whole.
+    from dataclasses import replace
+
+    one = _random_strokes(rng, 6)
+    one = Strokes.build(one.points[one.offsets[:-1]], one.surface[one.offsets[:-1]], one.face[one.offsets[:-1]],
+                        np.arange(7), one.kind, ids=one.ids)
+    strided = replace(one, surface=np.c_[one.surface, one.surface][:, :3],
+                      face=np.repeat(one.face, 2)[::2])
+    assert not strided.surface.flags.c_contiguous and not strided.face.flags.c_contiguous
+    assert strokes_json(strided, 64, 64, 1) == _strokes_json_nested(one, 64, 64, 1)
     empty = Strokes.empty()
     assert strokes_json(empty, 8, 8, 1) == _strokes_json_nested(empty, 8, 8, 1)
     assert stroke_path_data(empty) == []

@@ -87,7 +87,7 @@ def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
         return None
     out = []
     for arr in (np.round(strokes.points, 4) + 0.0, np.round(strokes.u, 5) + 0.0, strokes.surface, strokes.face):
-        text = orjson.dumps(arr, option=_NP)
+        text = orjson.dumps(np.ascontiguousarray(arr), option=_NP)  # orjson refuses strided arrays
         b = np.frombuffer(text, np.uint8)
         # [[x,y],[x,y]]: rows start at '['; [a,b,c]: elements after the commas. The comma before
         # each stroke's first row or element becomes NUL (never in orjson's text of numbers) and

@@ -45,7 +45,8 @@ def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
     if not counts:
         return []
     v = np.asarray(strokes.points).ravel()
-    if 0 <= decimals <= 9 and v.dtype == np.float64 and len(v) == 2 * strokes.offsets[-1] and min(counts) > 0:
+    if 0 <= decimals <= 9 and v.dtype == np.float64 and strokes.offsets[0] == 0 \
+            and len(v) == 2 * strokes.offsets[-1] and min(counts) > 0:
         sep = np.full(len(v), 32, np.uint8)  # ' ' between numbers, NUL after each stroke's last
         sep[2 * strokes.offsets[1:] - 1] = 0
         text = _fixed_point_text(v, decimals, sep)
