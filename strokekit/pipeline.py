@@ -655,6 +655,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     scene and options digests and this frame's camera digest; frame files there with a manifest
     of another scene or options, or none, raise UsageError before any frame is rendered."""
     t_start = time.perf_counter() if started_at is None else started_at
+    t_wall = time.time()  # file times are wall-clock: what this run wrote is newer than this
     res = RunResult()
     # Workers start first: their imports and scene load overlap the main process's own load.
     own = workers is None
@@ -825,6 +826,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         # are removed; every file left is complete (written whole, then renamed).
         workers.close()
         remove_temp_files(spec)
+        _frames_found_whole(spec, res, t_wall)
         res.interrupted = True
         _finish(res, t_start)
         raise RunInterrupted(res) from None
@@ -832,6 +834,27 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         if own:
             workers.close()
     return _finish(res, t_start)
+
+
+def _frames_found_whole(spec: RunSpec, res: RunResult, since: float) -> None:
+    """After Ctrl-C: frames whose every file this run wrote (all there, none older than `since`,
+    time.time() at the run's start) count as written, though their results never came back (the
+    interrupt fell between the last rename and the report of a worker, or of this process)."""
+    import math
+
+    floor = math.floor(since)  # file systems that keep whole seconds
+    known = set(res.frames_ok) | set(res.failures) | set(res.frames_skipped)
+    listed = set(res.outputs)
+    for f, _ in spec.cameras:
+        if f in known:
+            continue
+        paths = spec.outputs.frame_files(f)
+        try:
+            if paths and all(p.stat().st_mtime >= floor for p in paths):
+                res.frames_ok.append(f)
+                res.outputs += [str(p) for p in paths if str(p) not in listed]
+        except OSError:  # a file is missing: the frame is not whole
+            continue
 
 
 def _finish(res: RunResult, t_start: float) -> RunResult:

@@ -394,6 +394,43 @@ def test_interrupted_run_keeps_what_it_wrote_and_says_so(tmp_path):
     assert run_report(spec, run(spec))["status"] == "ok"
 
 
+def test_a_frame_written_whole_just_before_ctrl_c_counts_as_written(tmp_path, monkeypatch):
+    """Ctrl-C between a frame's last file landing and its result coming back (a user trial saw
+    every file of frame 1 on disk and 'interrupted: 0 of 20 frame(s) written', the report saying
+    'not run'): the frame is whole and this run wrote it, so it counts as written and its files
+    are listed; a frame with a file missing is not."""
+    import strokekit.pipeline as pl
+    from strokekit.camera import orbit_path
+    from strokekit.options import LineOptions
+    from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, run, run_report
+
+    cube = _cube(tmp_path)
+    s = load_scene(cube)
+    out = tmp_path / "o"
+    spec = RunSpec(scene_path=str(cube), cameras=tuple(orbit_path(s.center, s.radius, 4, width=64, height=64)
+                                                        .select([1, 2, 3, 4])),
+                   lines=LineOptions(), outputs=OutputOptions(out_dir=out))
+    (out / "frame_0004.svg").parent.mkdir(parents=True)
+    (out / "frame_0004.svg").write_text("<svg/>")  # frame 4: one file of an earlier run, not whole
+    real = pl.frame_task
+
+    def interrupted_after_writing(*args):
+        r = real(*args)
+        if args[3] == 2:  # frame 2 is on disk, whole; Ctrl-C before its result is handled
+            raise KeyboardInterrupt
+        return r
+
+    monkeypatch.setattr(pl, "frame_task", interrupted_after_writing)
+    with pytest.raises(RunInterrupted) as e:
+        run(spec)
+    res = e.value.result
+    assert res.frames_ok == [1, 2]
+    assert sorted(Path(p).name for p in res.outputs) == [".strokekit-run.json", "frame_0001.json", "frame_0001.svg",
+                                                         "frame_0002.json", "frame_0002.svg"]
+    rep = run_report(spec, res)
+    assert [rep["frames"][k]["status"] for k in "1234"] == ["ok", "ok", "not run", "not run"]
+
+
 def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     """SIGINT to `strokekit render` with a pool once frames are coming out: exit 130, one line
     saying how many frames were written, the --report written with status 'interrupted', the
