@@ -105,6 +105,9 @@ class RunResult:
     scene_summary: dict = field(default_factory=dict)
     #: Stopped by Ctrl-C (KeyboardInterrupt): frames_ok are the frames written before it.
     interrupted: bool = False
+    #: The occlusion backends the frames' lines came from (Occluder.backend: 'open3d', or a
+    #: fallback whose drawing can differ in the last digits): one, unless processes differed.
+    ray_tracers: set = field(default_factory=set)
 
     @property
     def exit_code(self) -> int:
@@ -244,7 +247,7 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
                 files.append(str(atomic_write_bytes(f"{stem}_{suffix}.png", data)))
             timings["raster pass"] = time.perf_counter() - t1
         res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
-               "timings": timings, "underlays": underlays or None}
+               "timings": timings, "underlays": underlays or None, "ray_tracer": r.occluder.backend}
         if write is not None and strokes is not None:
             kinds, extra, keep_strokes = write
             res["written"] = write_task(strokes, frame, outputs, kinds, extra, res.pop("underlays"))
@@ -749,6 +752,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             else:
                 lines_results[f] = r["strokes"]
                 underlays[f] = r.get("underlays")
+                res.ray_tracers.add(r["ray_tracer"])
                 res.frame_seconds[f] = r["seconds"]
                 res.outputs += r["files"]
                 _add_timings(stage, r["timings"])
@@ -922,6 +926,7 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
         "options": {"lines": spec.lines.to_json(), "workers": spec.workers, "scheduler": spec.scheduler,
                     "tracking": getattr(spec.tracking, "method", None) if spec.tracking is not None else "none",
                     "contours": spec.lines.contours},
+        "ray_tracer": ", ".join(sorted(res.ray_tracers)) or None,
         "stages": [{"stage": s.name, "ran": s.ran, "why": s.why, "seconds": round(s.seconds, 6)} for s in res.stages],
         "frames": frames,
         "failures": {str(k): v for k, v in sorted(res.failures.items())},

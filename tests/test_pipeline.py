@@ -73,6 +73,10 @@ def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
     rep = json.loads((tmp_path / "r.json").read_text())
     assert rep["versions"]["strokekit"] and rep["versions"]["numpy"]
     assert len(rep["scene"]["sha256"]) == 64
+    # Which occlusion backend drew the lines (a fallback's last digits can differ).
+    from strokekit.visibility import Occluder
+
+    assert rep["ray_tracer"] == Occluder(load_scene(SAMPLES / "still_life.glb")).backend
     assert set(rep["frames"]) == {"1", "2"} and all(f["status"] == "ok" for f in rep["frames"].values())
     assert sorted(Path(p).name for p in rep["outputs"]) == sorted(p.name for p in (tmp_path / "o").iterdir())
 
