@@ -365,6 +365,25 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
         signal.signal(signal.SIGINT, before)
 
 
+def test_ctrl_c_while_the_scene_loads_still_writes_the_report(cube, tmp_path, capsys, monkeypatch):
+    """Ctrl-C before the run starts (the scene is loading): exit 130, one line, and --report is
+    written with status 'interrupted', as for a Ctrl-C during the frames."""
+    import cli.commands.render as render_cmd
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(render_cmd, "load_scene", interrupted)
+    cam = write_camera(tmp_path / "cams.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}] * 3)
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o", "--report",
+                            tmp_path / "r.json", "--workers", "1"], capsys)
+    assert code == 130 and err.strip().splitlines() == [
+        f"strokekit: interrupted: 0 of 3 frame(s) written to {tmp_path / 'o'}/; report in {tmp_path / 'r.json'}"]
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["status"] == "interrupted" and rep["exit_code"] == 130 and rep["outputs"] == []
+    assert [v["status"] for v in rep["frames"].values()] == ["not run"] * 3
+
+
 def test_ctrl_c_while_open3d_loads_stops_the_run_and_keeps_the_ray_tracer(monkeypatch):
     """open3d's module init turns a Ctrl-C into ImportError("initialization failed"); the
     Occluder used to take that for "no open3d", fall back to embreex (other bytes) and go on

@@ -15,7 +15,7 @@ from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder
 from strokekit.frames import parse_frames
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
-from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, make_executor, run, run_report
+from strokekit.pipeline import OutputOptions, RunInterrupted, RunResult, RunSpec, make_executor, run, run_report
 from strokekit.scene import load_scene
 
 from ..common import FINITE, FiniteFloatRange, is_interactive, split_list
@@ -152,6 +152,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
     t_start = time.perf_counter()
     pool = make_executor(workers, scheduler, warm=(str(scene), lines))
+    spec = None
     try:
         t_load = time.perf_counter()
         s = load_scene(scene)
@@ -173,13 +174,21 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
                                                        started_at=t_start))
         except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
             res = e.result
+    except KeyboardInterrupt:
+        if spec is not None:
+            raise
+        # Ctrl-C while the scene loads, before the run: nothing written; the report still says so.
+        res = RunResult(interrupted=True, wall_seconds=time.perf_counter() - t_start)
+        spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)) if path is not None else (),
+                       lines=lines, outputs=OutputOptions(out_dir=Path(out_dir), pattern=pattern), workers=workers,
+                       scheduler=scheduler)
     finally:
         pool.close()
     if report_path:
         atomic_write_text(report_path, json.dumps(run_report(spec, res), indent=1) + "\n")
     if res.interrupted:
         # Said even with --quiet: it explains the exit code.
-        msg = (f"strokekit: interrupted: {len(res.frames_ok)} of {len(spec.cameras)} frame(s) written to "
+        msg = (f"strokekit: interrupted: {len(res.frames_ok)} of {len(frames)} frame(s) written to "
                f"{Path(out_dir)}/")
         click.echo(msg + (f"; report in {report_path}" if report_path else ""), err=True)
         return res.exit_code
