@@ -44,10 +44,12 @@ class FiniteFloat(click.types.FloatParamType):
 
 
 class FiniteFloatRange(click.FloatRange):
-    """click.FloatRange that refuses nan (which every range comparison lets through) and inf."""
+    """click.FloatRange that refuses nan (which every range comparison lets through) and inf,
+    saying "finite" (checked before the range)."""
 
     def convert(self, value, param, ctx):
-        return _check_finite(self, super().convert(value, param, ctx), value, param, ctx)
+        _check_finite(self, click.types.FloatParamType.convert(self, value, param, ctx), value, param, ctx)
+        return super().convert(value, param, ctx)
 
 
 #: The type of every float option: `type=FINITE` instead of `type=float`.

@@ -50,6 +50,8 @@ class Camera:
             raise InputError(f"camera fov_y must be in (0, 180) degrees, got {self.fov_y!r}")
         if self.projection == "orthographic" and not (math.isfinite(self.ortho_height) and self.ortho_height > 0):
             raise InputError(f"camera ortho_height must be > 0, got {self.ortho_height!r}")
+        if self.near is not None and not (math.isfinite(self.near) and self.near > 0):
+            raise InputError(f"camera near must be a distance > 0, got {self.near!r}")
         if int(self.width) <= 0 or int(self.height) <= 0:
             raise InputError(f"image size must be positive, got {self.width} x {self.height}")
         if np.linalg.norm(np.subtract(self.target, self.eye)) == 0.0:
@@ -232,6 +234,10 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str)
     for key in ("eye", "target"):
         if key not in d:
             raise InputError(f"{where} has no '{key}'", source)
+    if d.get("projection") == "orthographic" and "ortho_height" not in d:
+        # (it would silently be 1 world unit: the size of the drawing would be a guess)
+        raise InputError(f"{where}: an orthographic camera needs 'ortho_height' (world units across the image height)",
+                         source)
     try:
         cam = Camera(eye=tuple(d["eye"]), target=tuple(d["target"]), up=tuple(d.get("up", (0.0, 1.0, 0.0))),
                      fov_y=float(d.get("fov_y", 40.0)), width=int(d.get("width", width)),
@@ -286,6 +292,10 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
             if not isinstance(k, dict) or "frame" not in k:
                 raise InputError(f"keyframe {i + 1} has no 'frame'", source)
             parsed.append((int(k["frame"]), _camera_from_dict(k, width, height, f"keyframe {i + 1}", source)))
+        seen = [f for f, _ in parsed]
+        if len(set(seen)) < len(seen):
+            dup = sorted(f for f in set(seen) if seen.count(f) > 1)
+            raise InputError(f"two keyframes for frame {dup[0]}", source)
         count = int(data["frame_count"])
         if count <= 0:
             raise InputError("frame_count must be positive", source)

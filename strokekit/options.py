@@ -30,7 +30,8 @@ DEFAULT_KINDS = ("silhouette", "border", "crease", "material", "nonmanifold")
 _FLAGS = {"sample_spacing_px": "--sample-spacing", "bisection_tol_px": "--bisection-tol", "period_px": "--period",
           "max_length_px": "--max-length", "min_length_px": "--min-length", "simplify_tol_px": "--simplify",
           "doubled_px": "--doubled", "whole_edge_px": "--whole-edge", "max_growth_px": "--max-growth",
-          "min_carry_px": "--min-carry"}
+          "min_carry_px": "--min-carry", "suggestive_derivative_threshold": "--suggestive-threshold",
+          "suggestive_kr_threshold": "--suggestive-kr-threshold"}
 
 
 def _flag(field_name: str) -> str:
@@ -97,6 +98,10 @@ class LineOptions:
             raise UsageError(f"--split-angle must be in (0, 180] degrees, got {self.split_angle_deg}")
         if self.contours not in ("mesh", "smooth"):
             raise UsageError(f"contours must be 'mesh' or 'smooth', got {self.contours!r}")
+        for name in ("suggestive_derivative_threshold", "suggestive_kr_threshold"):  # thresholds on magnitudes
+            v = getattr(self, name)
+            if not (v >= 0 and math.isfinite(v)):
+                raise UsageError(f"{_flag(name)} must be a finite number >= 0, got {v}")
 
     @staticmethod
     def preset(quality: str = "default", **overrides) -> "LineOptions":

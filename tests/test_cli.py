@@ -108,6 +108,8 @@ def test_bad_scene_gives_one_line_and_exit_1(case, tmp_path, capsys):
     (["render", "{cube}", "--kinds", " , ", "--out", "{tmp}/o"], 2, "--kinds needs at least one name"),
     (["render", "{cube}", "--gltf", "--brush", "{tmp}/no.png", "--out", "{tmp}/o"], 1, "bundled brushes: plain, ink, dry"),
     (["render", "{cube}", "--gltf-sequence", "--no-gltf", "--out", "{tmp}/o"], 2, "cannot go with --no-gltf"),
+    (["render", "{cube}", "--elevation", "1000", "--out", "{tmp}/o"], 2, "-90<=x<=90"),
+    (["render", "{cube}", "--suggestive-threshold", "-1", "--out", "{tmp}/o"], 2, "--suggestive-threshold"),
 ])
 def test_option_errors_name_the_option_and_the_way_out(args, code, needle, cube, tmp_path, capsys):
     got, _, err = run_cli([a.format(cube=cube, tmp=tmp_path) for a in args], capsys)
@@ -137,6 +139,10 @@ def test_shared_empty_obj_is_a_clear_error(capsys):
     ('{"keyframes": [{"frame": 0, "eye": [0,0,5], "target": [0,0,0]}]}', "frame_count"),
     ('{"frames": []}', "non-empty"),
     ('[1, 2]', "JSON object"),
+    ('{"frames": [{"eye": [0,0,5], "target": [0,0,0], "near": -1}]}', "near must be a distance > 0"),
+    ('{"frames": [{"eye": [0,0,5], "target": [0,0,0], "projection": "orthographic"}]}', "needs 'ortho_height'"),
+    ('{"frame_count": 4, "keyframes": [{"frame": 0, "eye": [0,0,5], "target": [0,0,0]}, '
+     '{"frame": 0, "eye": [5,0,0], "target": [0,0,0]}]}', "two keyframes for frame 0"),
 ])
 def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, content, needle):
     cam = tmp_path / "cam.json"

@@ -24,7 +24,7 @@ def _emit(path, out):
 _common = [
     click.argument("scene", type=click.Path()),
     click.option("--frames", type=click.IntRange(min=1), default=48, show_default=True, help="Number of frames."),
-    click.option("--elevation", type=FINITE, default=15.0, show_default=True, help="Degrees above the horizon."),
+    click.option("--elevation", type=FiniteFloatRange(-90, 90), default=15.0, show_default=True, help="Degrees above the horizon."),
     click.option("--fov", type=FiniteFloatRange(0.1, 179.9), default=40.0, show_default=True, help="Vertical field of view, degrees."),
     click.option("--width", type=click.IntRange(min=1), default=1024, show_default=True),
     click.option("--height", type=click.IntRange(min=1), default=1024, show_default=True),

@@ -28,7 +28,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
               help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node "
                    "(its animation, if any, sampled at 24 fps).")
 @click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")
-@click.option("--elevation", type=FINITE, default=15.0, show_default=True, help="Orbit elevation, degrees.")
+@click.option("--elevation", type=FiniteFloatRange(-90, 90), default=15.0, show_default=True, help="Orbit elevation, degrees.")
 @click.option("--fov", type=FiniteFloatRange(0.1, 179.9), default=40.0, show_default=True, help="Orbit field of view, degrees.")
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="Orbit up axis.")
 @click.option("--size", default=None, help="Image size WxH (overrides the camera file), e.g. 1024x1024.")
