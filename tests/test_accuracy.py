@@ -213,3 +213,11 @@ def test_bench_cli_json(tmp_path, capsys):
     assert doc["frames"] == 1 and doc["width"] == 200 and doc["height"] == 150
     assert [r["label"] for r in doc["rows"]] == ["draft", "default", "exact", "4"]
     assert doc["rows"][2]["accuracy"]["precision"]["1"] == 1.0 and doc["raster"] == []
+    # Piped (not a terminal): the table is the whole output, no progress lines on stderr.
+    try:
+        main(["bench", str(obj), "--camera", str(cam), "--frames", "1", "--repeats", "1", "--sweep", "4",
+              "--raster-frames", "0"])
+    except SystemExit as e:
+        assert e.code in (0, None)
+    out = capsys.readouterr()
+    assert "P@1" in out.out and out.err == ""

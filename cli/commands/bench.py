@@ -8,6 +8,8 @@ import click
 
 from strokekit.errors import UsageError
 
+from ..common import is_interactive
+
 
 @click.command("bench", short_help="What accuracy costs in time: presets and a sweep.")
 @click.argument("scene_path", metavar="SCENE", type=click.Path())
@@ -52,7 +54,8 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
         cams = list(load_camera_path(camera_path).cameras)[:frames]
     else:
         cams = default_cameras(scene, frames)
-    log = None if as_json else (lambda m: click.echo(m, err=True))
+    # Progress lines on a terminal only: piped, the table (or JSON) on stdout is the whole output.
+    log = (lambda m: click.echo(m, err=True)) if is_interactive(as_json) else None
     if raster_frames < 0:
         raise UsageError(f"--raster-frames must be >= 0, got {raster_frames}")
     result = run_bench(scene, cams, repeats=repeats, sweep=values, raster_frames=raster_frames, log=log)

@@ -193,7 +193,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         click.echo(msg + (f"; report in {report_path}" if report_path else ""), err=True)
         return res.exit_code
     if explain:
-        click.echo("stages:")
+        click.echo("stages (time summed over all frames and processes):")
         for st in res.stages:
             mark = "ran " if st.ran else "skip"
             t = f"{st.seconds * 1e3:9.1f} ms" if st.ran and not st.name.startswith(" ") else " " * 12
