@@ -339,6 +339,21 @@ def test_dotted_pattern_keeps_the_frame_number(cube, tmp_path, capsys):
     assert names == [".strokekit-run.json"] + [f"shot.000{i}.{e}" for i in (1, 2) for e in ("glb", "json", "svg")]
 
 
+def _interrupted_in_a_terminal(call):
+    """`call()` under Python's own Ctrl-C handler, as in a terminal (a run started in the
+    background inherits an ignored SIGINT, and then no Ctrl-C can reach it at all): it must raise
+    KeyboardInterrupt and leave that handler in place."""
+    import signal
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            call()
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
     """trimesh catches BaseException around optional imports and between loaders; a Ctrl-C that
     lands there must still stop the run (it used to be swallowed and the run went on)."""
@@ -360,15 +375,7 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
     monkeypatch.setattr(trimesh, "load", load_that_swallows)
     p = tmp_path / "cube.obj"
     p.write_text(CUBE_OBJ)
-    # Python's own Ctrl-C handler, as in a terminal (a run started in the background inherits an
-    # ignored SIGINT, and then no Ctrl-C can reach it at all).
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            load_scene(p)
-        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    finally:
-        signal.signal(signal.SIGINT, before)
+    _interrupted_in_a_terminal(lambda: load_scene(p))
 
 
 def test_ctrl_c_while_the_scene_loads_still_writes_the_report(cube, tmp_path, capsys, monkeypatch):
@@ -419,13 +426,7 @@ def test_ctrl_c_while_open3d_loads_stops_the_run_and_keeps_the_ray_tracer(monkey
     monkeypatch.delitem(sys.modules, "open3d", raising=False)
     monkeypatch.setattr(sys, "meta_path", [InterruptedInit(), *sys.meta_path])
     sc = build_scene(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]), np.array([[0, 1, 2]]))
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            Occluder(sc)
-        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    finally:
-        signal.signal(signal.SIGINT, before)
+    _interrupted_in_a_terminal(lambda: Occluder(sc))
 
 
 @pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc")
