@@ -31,7 +31,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import InputError
-from .model import Strokes, row_norm, uclip
+from .model import Strokes, bracket, row_norm, uclip
 
 #: BRIEF 3 constants.
 MATCH_RADIUS_PX = 6.0
@@ -133,17 +133,12 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     k = np.arange(cn[-1]) - (cn - n).repeat(n)
     w = (L / n)[stroke]
     s = (k + 0.5) * w
-    # A global, strictly increasing arc coordinate: stroke s starts at base[s] (1 px gap between
-    # strokes so that a search never crosses a stroke boundary).
-    base = np.concatenate(((0.0,), (L[:-1] + 1.0).cumsum()))
+    base, G = strokes.global_arc
     offsets = strokes.offsets
-    G = strokes.arc_length + base.repeat(offsets[1:] - offsets[:-1])
     g = s + base[stroke]
     first = offsets[:-1][stroke]
     last = offsets[1:][stroke] - 1
-    j = uclip(G.searchsorted(g, side="right"), first + 1, np.maximum(last, first + 1))
-    j = np.minimum(j, len(G) - 1)
-    i = np.maximum(j - 1, first)
+    i, j = bracket(G, G.searchsorted(g, side="right"), first, last)
     single = last == first  # one-point stroke
     if single.any():
         j = np.where(single, first, j)

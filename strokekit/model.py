@@ -24,6 +24,16 @@ except ImportError:  # pragma: no cover
     from numpy.core.umath import clip as uclip
 
 
+def bracket(G: np.ndarray, r: np.ndarray, first: np.ndarray, last: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j) point indices of the segment i -> j holding each global arc position (see
+    Strokes.global_arc), given r = G.searchsorted(position, side="right") and the first and last
+    point index of the position's stroke; clamped to the stroke's segments (a one-point stroke
+    has none: there j is first + 1, within the arrays, and callers that can meet one handle it)."""
+    j = uclip(r, first + 1, np.maximum(last, first + 1))
+    j = np.minimum(j, len(G) - 1)
+    return np.maximum(j - 1, first), j
+
+
 def row_norm(x: np.ndarray) -> np.ndarray:
     """np.linalg.norm(x, axis=1) of an (N, 2) or (N, 3) float64 array, the same bits
     (sqrt((x0 x0 + x1 x1) + x2 x2), the order of numpy's reduction) without the generic
@@ -150,6 +160,15 @@ class Strokes:
         if len(self) == 0:
             return np.zeros(0)
         return self.arc_length[self.offsets[1:] - 1]
+
+    @cached_property
+    def global_arc(self) -> tuple[np.ndarray, np.ndarray]:
+        """(base (S,), G (N,)): one strictly increasing arc coordinate over all strokes, stroke s
+        starting at base[s] with a 1 px gap between strokes (a search for a position on one
+        stroke never lands on another); G is each point's arc_length + its stroke's base."""
+        L, o = self.lengths, self.offsets
+        base = np.concatenate(((0.0,), (L[:-1] + 1.0).cumsum()))
+        return base, self.arc_length + base.repeat(o[1:] - o[:-1])
 
     @cached_property
     def stroke_of_point(self) -> np.ndarray:

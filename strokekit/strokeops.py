@@ -9,7 +9,7 @@ from dataclasses import fields, replace
 import numpy as np
 
 from .coherence import resample_strokes, surface_between
-from .model import KIND_INDEX, Strokes, uclip
+from .model import KIND_INDEX, Strokes, bracket, uclip
 
 
 def split_max_length(strokes: Strokes, max_length_px: float) -> Strokes:
@@ -163,10 +163,8 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     if K == 0:
         return Strokes.empty(strokes.camera, strokes.frame, strokes.period_px)
     rev = np.zeros(K, bool) if reverse is None else np.asarray(reverse, bool)
-    L = strokes.lengths
     offsets = strokes.offsets
-    base = np.concatenate(((0.0,), (L[:-1] + 1.0).cumsum()))
-    G = strokes.arc_length + base.repeat(offsets[1:] - offsets[:-1])
+    base, G = strokes.global_arc
     bs = base[stroke]
     g0 = bs + np.asarray(s0, float)
     g1 = bs + np.asarray(s1, float)
@@ -179,9 +177,7 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     n_in = np.maximum(hi - lo, 0)
 
     def at(g, r, first, last):
-        j = uclip(r, first + 1, np.maximum(last, first + 1))
-        j = np.minimum(j, len(G) - 1)
-        i = np.maximum(j - 1, first)
+        i, j = bracket(G, r, first, last)
         Gi = G[i]
         d = G[j] - Gi
         dp = d > 0

@@ -62,7 +62,7 @@ import numpy as np
 
 from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
-from .model import Strokes, row_norm, uclip
+from .model import Strokes, bracket, row_norm, uclip
 from .options import _FLAGS, _flag
 from .strokeops import _cat, _replace, _tree, cut_pieces
 
@@ -145,16 +145,12 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     point are not added."""
     if len(stroke) == 0:
         return strokes
-    L = strokes.lengths
     offsets = strokes.offsets
-    base = np.concatenate(((0.0,), (L[:-1] + 1.0).cumsum()))
-    G = strokes.arc_length + base.repeat(offsets[1:] - offsets[:-1])
+    base, G = strokes.global_arc
     g = base[stroke] + np.asarray(s, float)
     first = offsets[:-1][stroke]
     last = offsets[1:][stroke] - 1
-    j = uclip(G.searchsorted(g, side="right"), first + 1, np.maximum(last, first + 1))
-    j = np.minimum(j, len(G) - 1)
-    i = np.maximum(j - 1, first)
+    i, j = bracket(G, G.searchsorted(g, side="right"), first, last)
     Gi, Gj = G[i], G[j]
     keep = ((Gj - Gi > 0) & (g - Gi > 1e-6) & (Gj - g > 1e-6)).nonzero()[0]
     i, j, g, stroke, Gi, Gj = i[keep], j[keep], g[keep], stroke[keep], Gi[keep], Gj[keep]
