@@ -126,14 +126,17 @@ def test_bench_rows_table_json_and_plot(tmp_path):
     assert all(r.strokes_per_frame > 0 and r.ms_per_frame > 0 for r in res["rows"])
     assert res["rows"][3].options.sample_spacing_px == 1.0
     table = format_table(res)
-    assert "exact" in table and "P@0.5" in table and len(table.splitlines()) == 3 + len(res["rows"]) + 3 + 3
+    assert "exact" in table and "P@0.5" in table and len(table.splitlines()) == 3 + len(res["rows"]) + 3 + len(res["raster"])
     doc = json.loads(json.dumps(result_json(res)))
     assert doc["rows"][1]["knobs"]["sample_spacing_px"] == 4.0
-    # Raster section: supersample 1, 2, 4 against 4; the reference against itself is exact and a
-    # coarser raster is close to it but not equal on a curved object.
-    iou = {r["supersample"]: r["iou"] for r in doc["raster"]}
-    assert set(iou) == {1, 2, 4} and iou[4] == 1.0
-    assert 0.8 < iou[1] < 1.0 and 0.8 < iou[2] < 1.0
+    # Raster section: supersample 1, 2, 4 and render's default (2 with band-edge pixels resampled
+    # 4 x 4) against 4; the reference against itself is exact, a coarser raster is close to it
+    # but not equal on a curved object, and the edge resampling brings K = 2 to the README's
+    # figure (>= 0.999; its edge pixels use the reference's 4 x 4 grid).
+    iou = {r["label"]: r["iou"] for r in doc["raster"]}
+    assert list(iou) == ["1", "2", "2+4", "4"] and iou["4"] == 1.0
+    assert 0.8 < iou["1"] < 1.0 and 0.8 < iou["2"] < 0.999 <= iou["2+4"]
+    assert "2+4" in table and "render's default" in table
     assert "raster pass" in table
     png = tmp_path / "bench.png"
     plot_bench(res, png)
@@ -164,8 +167,10 @@ def test_bench_plot_labels_do_not_overlap():
     rows += [row("sample_spacing_px", v, ms, e05, e1) for v, ms, e05, e1 in
              (("0.5", 32.5, 9.3e-5, 4.7e-5), ("1", 19.6, 9.3e-5, 4.7e-5), ("2", 16.2, 4.8e-4, 6.4e-5),
               ("4", 15.0, 8.4e-4, 6.4e-5), ("8", 14.2, 1.5e-3, 4.1e-4), ("16", 14.1, 1.6e-3, 4.1e-4))]
-    raster = [{"supersample": k, "ms_per_frame": ms, "iou": iou, "reference": 4, "frames": 2}
-              for k, ms, iou in ((1, 221.0, 0.9787), (2, 642.0, 0.9927), (4, 3644.0, 1.0))]
+    raster = [{"supersample": k, "edge_supersample": r, "label": f"{k}+{r}" if r else f"{k}", "ms_per_frame": ms,
+               "iou": iou, "reference": 4, "frames": 2}
+              for k, r, ms, iou in ((1, 0, 189.0, 0.97910), (2, 0, 520.0, 0.99280), (2, 4, 697.0, 0.9999987),
+                                    (4, 0, 2742.0, 1.0))]
     fig = bench_figure({"scene": "bunny.obj", "tols": tols, "rows": rows, "raster": raster})
     try:
         fig.canvas.draw()

@@ -28,7 +28,8 @@ from ..common import is_interactive
 def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot_path, as_json):
     """Time every --quality preset and a sweep of the sample spacing on SCENE, with precision and
     recall at 0.5/1/2 px against the `exact` preset, and the raster pass at supersample 1, 2, 4
-    with its IoU against supersample 4."""
+    and at render's default (2, band-edge pixels resampled 4 x 4) with its IoU against
+    supersample 4."""
     from strokekit.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
     from strokekit.camera import load_camera_path
     from strokekit.scene import load_scene

@@ -60,9 +60,6 @@ _RASTER = [
     click.option("--band-polygons", is_flag=True, help="Also the bands as vector polygons in an SVG layer under the lines."),
 ]
 
-_RASTER_DEFAULTS = {"draft": (1, 0), "default": (2, 4), "exact": (4, 0)}
-
-
 def render_extra_options(f):
     for deco in reversed(_TRACKING + _GLTF + _RASTER):
         f = deco(f)
@@ -114,9 +111,9 @@ def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.
     wanted = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
     if not wanted:
         return None
-    from strokekit.bands import RasterOptions
+    from strokekit.bands import QUALITY_SAMPLING, RasterOptions
 
-    k_default, r_default = _RASTER_DEFAULTS[quality]
+    k_default, r_default = QUALITY_SAMPLING[quality]
     thresholds = _floats(extra["band_thresholds"], "--band-thresholds") if extra.get("band_thresholds") else ()
     if thresholds and extra.get("bands") and extra["bands"] != len(thresholds) + 1:
         raise UsageError(f"--bands {extra['bands']} but --band-thresholds gives {len(thresholds) + 1} bands "
