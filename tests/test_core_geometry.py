@@ -257,6 +257,39 @@ def test_scene_cache_gives_the_same_scene_without_reading_the_file_again(tmp_pat
         load_scene(src)
 
 
+def test_scene_cache_sees_edits_to_the_files_a_mesh_refers_to(tmp_path, monkeypatch):
+    """The cache key covers an OBJ's material library and a .gltf's external buffer: editing only
+    the .mtl or the .bin gives the new scene, not the cached one (it gave the old colours and the
+    old vertices until the mesh file itself changed)."""
+    import json
+
+    monkeypatch.setenv("STROKEKIT_CACHE", "1")
+    monkeypatch.setenv("STROKEKIT_CACHE_DIR", str(tmp_path / "cache"))
+    obj = tmp_path / "m.obj"
+    obj.write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nusemtl a\nf 1 2 3\nusemtl b\nf 2 4 3\n")
+    for kd in ("1 0 0", "0 0 1"):
+        (tmp_path / "m.mtl").write_text(f"newmtl a\nKd 1 0 0\nnewmtl b\nKd {kd}\n")
+        colours = {m.name: m.base_color[:3] for m in load_scene(obj).materials}
+        assert colours["b"] == tuple(float(c) for c in kd.split())
+
+    def write_gltf(scale):
+        v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32) * scale
+        blob = v.tobytes() + np.array([0, 1, 2], np.uint16).tobytes() + b"\0\0"
+        (tmp_path / "t.bin").write_bytes(blob)
+        doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+               "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+               "buffers": [{"uri": "t.bin", "byteLength": len(blob)}],
+               "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                               {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+               "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+                             {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}]}
+        (tmp_path / "t.gltf").write_text(json.dumps(doc))
+
+    for scale in (1.0, 5.0):
+        write_gltf(scale)
+        assert load_scene(tmp_path / "t.gltf").bounds[1].tolist() == [scale, scale, 0.0]
+
+
 def test_a_truncated_scene_cache_file_is_read_past(tmp_path, monkeypatch):
     """A cache file cut short (disk full, a killed copy) made every later load of that scene fail
     with an internal BadZipFile error; the scene is read from its file again and the cache
@@ -326,3 +359,45 @@ def test_draft_splits_partly_hidden_long_edges_within_1px():
     assert d.min(axis=1).max() <= 1.0 and d.min(axis=0).max() <= 1.0
     a = frame_accuracy(draft, default, tols=(1.0,))
     assert a.precision[1.0] >= 0.999 and a.recall[1.0] >= 0.999
+
+
+def test_a_mirroring_gltf_node_draws_like_the_whole_object(tmp_path, monkeypatch):
+    """A glTF node that mirrors (negative determinant) reverses the winding of its mesh: half a box
+    plus its mirror image must give the lines of the whole box. Keeping the winding made the
+    mirrored half face inward, so the seam of the two halves was drawn as a silhouette and counted
+    as creases."""
+    monkeypatch.setenv("STROKEKIT_CACHE", "0")
+    box = trimesh.creation.box(extents=[1, 2, 2])
+    box.apply_translation([0.5, 0, 0])
+    keep = ~np.isclose(box.triangles_center[:, 0], 0.0)
+    half = trimesh.Trimesh(box.vertices, box.faces[keep], process=False)
+    sc = trimesh.Scene()
+    sc.add_geometry(half, node_name="right", geom_name="half")
+    sc.add_geometry(half, node_name="left", geom_name="half", transform=np.diag([-1.0, 1, 1, 1]))
+    sc.export(tmp_path / "mirror.glb")
+    whole = tmp_path / "whole.obj"
+    trimesh.creation.box(extents=[2, 2, 2]).export(whole)
+    mirrored, ref = load_scene(tmp_path / "mirror.glb"), load_scene(whole)
+    def crease_length(scene):  # (the halves split the box's four long edges in two)
+        e = scene.edges[scene.crease_mask(60)]
+        return np.linalg.norm(scene.vertices[e[:, 0]] - scene.vertices[e[:, 1]], axis=1).sum()
+
+    assert crease_length(mirrored) == pytest.approx(crease_length(ref)) == 24.0
+    cam = Camera(eye=(0.3, 3.0, 4.0), target=(0, 0, 0), width=256, height=256)
+    a, b = LineRenderer(mirrored, LineOptions()).render(cam), LineRenderer(ref, LineOptions()).render(cam)
+    for kind in ("silhouette", "crease", "border"):
+        assert kind_strokes(a, kind).lengths.sum() == pytest.approx(kind_strokes(b, kind).lengths.sum(), abs=0.01), kind
+    assert kind_strokes(a, "silhouette").lengths.sum() > 100
+
+
+def test_material_colours_keep_their_value_near_zero(tmp_path, monkeypatch):
+    """trimesh gives glTF base colours back as uint8: they are divided by 255 whatever their size.
+    A near-black, near-clear colour (every channel <= 1 of 255) was taken as already in 0-1 and
+    became opaque red 1.0."""
+    monkeypatch.setenv("STROKEKIT_CACHE", "0")
+    mesh = trimesh.creation.box()
+    mesh.visual = trimesh.visual.TextureVisuals(
+        material=trimesh.visual.material.PBRMaterial(name="dark", baseColorFactor=[0.003, 0.0, 0.0, 0.003]))
+    mesh.export(tmp_path / "dark.glb")
+    (mat,) = load_scene(tmp_path / "dark.glb").materials
+    assert mat.base_color == pytest.approx((1 / 255, 0.0, 0.0, 1 / 255))
