@@ -253,9 +253,13 @@ def _material_of(geom) -> Material:
     for attr in ("baseColorFactor", "main_color", "diffuse"):
         c = getattr(mat, attr, None)
         if c is not None:
-            c = np.asarray(c, float).ravel()
+            c = np.asarray(c).ravel()
             if c.size >= 3:
-                if c.max() > 1.0:
+                # trimesh hands colours back as uint8 (0-255) whatever the file held; floats are
+                # taken as 0-1 unless they are out of that range.
+                integer = np.issubdtype(c.dtype, np.integer)
+                c = c.astype(float)
+                if integer or c.max() > 1.0:
                     c = c / 255.0
                 color = tuple(float(x) for x in (list(c[:3]) + [float(c[3]) if c.size > 3 else 1.0]))
                 break
@@ -313,15 +317,22 @@ def _read_parts(p: Path) -> tuple:
         if f is None or len(f) == 0:
             continue  # point clouds and paths have no faces
         v = np.asarray(geom.vertices, np.float64)
+        T = np.asarray(transform, float)
         with np.errstate(invalid="ignore", over="ignore"):  # non-finite input is reported below
-            v = v @ np.asarray(transform, float)[:3, :3].T + np.asarray(transform, float)[:3, 3]
+            v = v @ T[:3, :3].T + T[:3, 3]
+            mirrored = np.linalg.det(T[:3, :3]) < 0
+        f = np.asarray(f, np.int64)
+        if mirrored:
+            # A mirroring node turns the winding around (glTF 2.0, node transforms: the front
+            # face is then the clockwise one): facing, creases and welds come from the winding.
+            f = f[:, ::-1]
         mat = _material_of(geom)
         key = (mat.name, mat.base_color)
         if key not in mat_index:
             mat_index[key] = len(materials)
             materials.append(mat)
         verts.append(v)
-        faces.append(np.asarray(f, np.int64) + offset)
+        faces.append(f + offset)
         fobj.append(np.full(len(f), len(objects), np.int32))
         fmat.append(np.full(len(f), mat_index[key], np.int32))
         objects.append(name)
@@ -339,7 +350,7 @@ def _read_parts(p: Path) -> tuple:
 # code that read them: the same bytes give the same arrays, so outputs do not change.
 
 #: Bump when the reading of files changes (naming, ordering, materials).
-_CACHE_FORMAT = 1
+_CACHE_FORMAT = 2  # 2: mirroring nodes reverse the winding; uint8 colours always / 255
 
 
 def _cache_dir() -> Path | None:
@@ -356,8 +367,9 @@ def _cache_dir() -> Path | None:
 
 
 def _cache_file(p: Path) -> Path | None:
-    """The cache file of mesh file `p` (None: the cache is off): named by the hash of its bytes
-    and of the versions of the code that reads them."""
+    """The cache file of mesh file `p` (None: the cache is off): named by the hash of its bytes,
+    of the files it refers to (an OBJ's material libraries, a .gltf's external buffers and
+    images: editing one of them is a new scene) and of the versions of the code that reads them."""
     from importlib.metadata import PackageNotFoundError, version
 
     folder = _cache_dir()
@@ -368,10 +380,47 @@ def _cache_file(p: Path) -> Path | None:
     except PackageNotFoundError:
         return None
     h = hashlib.sha256(stamp.encode())
+    obj = p.suffix.lower() == ".obj"
+    names: list[bytes] = []
+    carry = b""
     with open(p, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
+            if obj:  # mtllib lines, whole lines only (a block may end inside one)
+                text = carry + block
+                cut = text.rfind(b"\n") + 1
+                if b"mtllib" in text[:cut]:  # (a plain search first: the regex is 4x slower)
+                    names += _MTLLIB.findall(text[:cut])
+                carry = text[cut:]
+    names += _MTLLIB.findall(carry) if obj else []
+    for ref in _referenced_files(p, names):
+        h.update(b"|" + str(ref.name).encode())
+        try:
+            h.update(hashlib.sha256(ref.read_bytes()).digest())
+        except OSError:
+            h.update(b"(missing)")
     return folder / "scenes" / f"{h.hexdigest()}.npz"
+
+
+_MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+([^\r\n]*?)[ \t]*\r?$", re.M)
+
+
+def _referenced_files(p: Path, mtllib: list[bytes]) -> list[Path]:
+    """The files that mesh file `p` refers to and trimesh reads with it: the material libraries of
+    an OBJ (`mtllib` lines), the external buffers and images of a .gltf."""
+    if p.suffix.lower() == ".obj":
+        return [p.parent / n.decode("utf-8", "replace") for n in mtllib if n]
+    if p.suffix.lower() != ".gltf":
+        return []
+    import json
+    from urllib.parse import unquote
+
+    try:
+        doc = json.loads(p.read_bytes())
+        uris = [x.get("uri") for key in ("buffers", "images") for x in doc.get(key) or [] if isinstance(x, dict)]
+    except (ValueError, AttributeError, TypeError):
+        return []  # not parsed here: the load reports it
+    return [p.parent / unquote(u) for u in uris if isinstance(u, str) and u and not u.startswith("data:")]
 
 
 def _cache_read(f: Path | None) -> tuple | None:

@@ -121,16 +121,45 @@ class Occluder:
         return t
 
     def first_hits(self, origins: np.ndarray, directions: np.ndarray) -> dict:
-        """Nearest hit per ray (world origins, unnormalized directions): 't_hit' (in units of the
-        direction), 'primitive_ids' (-1 none), 'primitive_uvs'. open3d only."""
+        """Nearest hit per ray (world origins, (N, 3) unnormalized directions): 't_hit' (N,) (in
+        units of the direction, inf for none), 'primitive_ids' (N,) (-1 none), 'primitive_uvs'
+        (N, 2) (barycentric weights of the triangle's 2nd and 3rd corners, as Embree's)."""
         if self.backend != "open3d":
-            raise RuntimeError("first_hits needs the open3d backend")
+            return self._first_hits_trimesh(origins, directions)
         rays = np.concatenate([(origins - self.origin) * self.inv_scale, directions * self.inv_scale],
                               axis=1).astype(np.float32)
         r = self._rs.cast_rays(self._o3c.Tensor(rays))
         ids = r["primitive_ids"].numpy().astype(np.int64)
         ids[ids == np.iinfo(np.uint32).max] = -1
         return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
+
+    def _first_hits_trimesh(self, origins: np.ndarray, directions: np.ndarray) -> dict:
+        """first_hits through trimesh's intersector (embreex, or its own triangle test)."""
+        n = len(origins)
+        o = ((origins - self.origin) * self.inv_scale).astype(np.float64)
+        d = (directions * self.inv_scale).astype(np.float64)
+        length = np.linalg.norm(d, axis=1)
+        unit = d / np.where(length > 0, length, 1)[:, None]
+        t = np.full(n, np.inf, np.float32)
+        ids = np.full(n, -1, np.int64)
+        uvs = np.zeros((n, 2), np.float32)
+        if n:
+            tri, ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False, return_locations=True)
+            if len(ray):
+                f = self.scene.faces[tri]
+                V = (self.scene.vertices - self.origin) * self.inv_scale
+                a, b, c = V[f[:, 0]], V[f[:, 1]], V[f[:, 2]]
+                # loc = a + u (b - a) + v (c - a): least squares on the two edge vectors.
+                e1, e2, w = b - a, c - a, loc - a
+                d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+                w1, w2 = (w * e1).sum(1), (w * e2).sum(1)
+                den = d11 * d22 - d12 * d12
+                den = np.where(den != 0, den, 1.0)
+                uvs[ray, 0] = (d22 * w1 - d12 * w2) / den
+                uvs[ray, 1] = (d11 * w2 - d12 * w1) / den
+                t[ray] = ((loc - o[ray]) * unit[ray]).sum(1) / np.where(length[ray] > 0, length[ray], 1)
+                ids[ray] = tri
+        return {"t_hit": t, "primitive_ids": ids, "primitive_uvs": uvs}
 
     def visible(self, points: np.ndarray, camera: Camera, offset: float = 1e-5,
                 lift: np.ndarray | None = None, scale: np.ndarray | None = None) -> np.ndarray:
