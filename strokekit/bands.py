@@ -13,7 +13,6 @@ elements]`, and the shortcut `raster_outputs(...)`.
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -21,7 +20,7 @@ import numpy as np
 
 from .camera import Camera
 from .errors import UsageError
-from .raster import RasterHits, box_filter, cast_pixels
+from .raster import RasterHits, box_filter, cast_pixels, raster_outputs  # noqa: F401 (the shortcut, re-exported)
 from .scene import Scene
 from .visibility import Occluder
 
@@ -107,31 +106,6 @@ class RasterOptions:
 
 
 # --- shading --------------------------------------------------------------------------------------
-
-_VERTEX_NORMALS: "weakref.WeakKeyDictionary[Scene, np.ndarray]" = weakref.WeakKeyDictionary()
-
-
-def vertex_normals(scene: Scene) -> np.ndarray:
-    """(V, 3) unit vertex normals: area-weighted sums of the face normals around each vertex
-    (the unnormalized cross product is area-weighted already). Isolated directions fall back to
-    +z rather than NaN. Cached per scene (scenes are immutable). Smooth shading no longer uses
-    them unless passed as `vnormals` (see `corner_shading`)."""
-    cached = _VERTEX_NORMALS.get(scene)
-    if cached is None:
-        cached = _VERTEX_NORMALS[scene] = _vertex_normals(scene)
-    return cached
-
-
-def _vertex_normals(scene: Scene) -> np.ndarray:
-    v, f = scene.vertices, scene.faces
-    a = v[f[:, 0]]
-    cross = np.cross(v[f[:, 1]] - a, v[f[:, 2]] - a)
-    idx = f.ravel()
-    n = np.stack([np.bincount(idx, np.repeat(cross[:, c], 3), minlength=len(v)) for c in range(3)], axis=1)
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    out = np.where(norm > 0, n / np.where(norm > 0, norm, 1), np.array([0.0, 0.0, 1.0]))
-    return out
-
 
 def light_direction(camera: Camera, options: RasterOptions) -> np.ndarray:
     """(3,) unit world vector toward the light."""
@@ -219,15 +193,6 @@ def hit_n_dot_l(scene: Scene, hits: RasterHits, light: np.ndarray, shading: str 
     d = sample_n_dot_l(scene, hits.camera, face[sel], hits.bary.reshape(-1, 2)[sel], hits.ray_dir_x[cols],
                        hits.ray_dir_y[rows], light, shading, vnormals, crease_angle_deg)
     return sel, d
-
-
-def n_dot_l(scene: Scene, hits: RasterHits, light: np.ndarray, shading: str = "flat",
-            vnormals: np.ndarray | None = None, crease_angle_deg: float = 60.0) -> np.ndarray:
-    """(HK, WK) float32 two-sided n.l per sample, NaN on background (see hit_n_dot_l)."""
-    sel, d = hit_n_dot_l(scene, hits, light, shading, vnormals, crease_angle_deg)
-    out = np.full(hits.face.size, np.nan, np.float32)
-    out[sel] = d
-    return out.reshape(hits.shape)
 
 
 def quantize_bands(ndl: np.ndarray, bands: int, thresholds: tuple[float, ...] = ()) -> np.ndarray:
@@ -771,11 +736,6 @@ def _thin_face_pixels(frame: RasterFrame, vnormals: np.ndarray | None) -> np.nda
     lm = np.take(lmin, inv)
     same = (lm == np.take(lmax, inv)) & (np.take(lo, fo) == lm) & (np.take(hi, fo) == lm)
     return pix[seen & ~same]
-
-
-def raster_outputs(scene: Scene, camera: Camera, occluder: Occluder, options: RasterOptions) -> dict[str, bytes]:
-    """{file suffix: PNG bytes} for one frame (write as frame_0001_<suffix>.png)."""
-    return render_raster(scene, camera, occluder, options).png_outputs()
 
 
 # --- measurement ----------------------------------------------------------------------------------

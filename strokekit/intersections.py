@@ -52,14 +52,13 @@ def candidate_pairs(scene: Scene, pad: float = 0.0) -> tuple[np.ndarray, np.ndar
     return i[~share], j[~share]
 
 
-def _plane_cut(T: np.ndarray, s: np.ndarray, fe_codes: np.ndarray, vert_codes: np.ndarray):
+def _plane_cut(T: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Cut of triangles T (N, 3, 3) by a plane with signed vertex distances s (N, 3), assuming
-    strict crossing (some s > 0 and some s < 0). Returns the two points (N, 2, 3) and their codes
-    (N, 2): an edge's code where the cut point is inside an edge, a vertex's where s == 0."""
+    strict crossing (some s > 0 and some s < 0): the two points (N, 2, 3), inside an edge or at
+    a vertex where s == 0."""
     N = len(T)
     cand_p = np.zeros((N, 6, 3))
     cand_ok = np.zeros((N, 6), bool)
-    cand_code = np.zeros((N, 6), np.int64)
     for k in range(3):
         k1 = (k + 1) % 3
         sk, sk1 = s[:, k], s[:, k1]
@@ -68,27 +67,17 @@ def _plane_cut(T: np.ndarray, s: np.ndarray, fe_codes: np.ndarray, vert_codes: n
             t = np.where(ok, sk / (sk - sk1), 0.0)
         cand_p[:, k] = T[:, k] + t[:, None] * (T[:, k1] - T[:, k])
         cand_ok[:, k] = ok
-        cand_code[:, k] = fe_codes[:, k]
         cand_p[:, 3 + k] = T[:, k]
         cand_ok[:, 3 + k] = sk == 0
-        cand_code[:, 3 + k] = vert_codes[:, k]
     # The valid candidates first (stable), exactly two of them under strict crossing.
     order = np.argsort(~cand_ok, axis=1, kind="stable")[:, :2]
-    pts = np.take_along_axis(cand_p, order[..., None], axis=1)
-    codes = np.take_along_axis(cand_code, order, axis=1)
-    return pts, codes
+    return np.take_along_axis(cand_p, order[..., None], axis=1)
 
 
 def triangle_intersections(scene: Scene, i: np.ndarray, j: np.ndarray):
     """Intersection segments of face pairs (i, j). Returns (keep (M,) bool over the pairs,
-    a (K, 3), b (K, 3), key_a (K,), key_b (K,)) for the K crossing pairs. Keys identify the
-    endpoint (an edge or vertex of one face where it meets the other face) so that the segments
-    of neighbouring pairs share them: V + (code * F + other face), code = edge index (E) or
-    E + vertex index."""
-    V, F, E = len(scene.vertices), len(scene.faces), len(scene.edges)
-    from .contours import face_edges
-
-    fe = face_edges(scene)
+    a (K, 3), b (K, 3)) for the K crossing pairs (world space). Chaining keys of the endpoints
+    come from their positions (merge_coincident_keys)."""
     P = scene.vertices - scene.center  # centred for precision
     f = scene.faces
     T1, T2 = P[f[i]], P[f[j]]
@@ -101,11 +90,8 @@ def triangle_intersections(scene: Scene, i: np.ndarray, j: np.ndarray):
     cross = ((s1.max(axis=1) > 0) & (s1.min(axis=1) < 0) & (s2.max(axis=1) > 0) & (s2.min(axis=1) < 0))
     idx = np.flatnonzero(cross)
     T1, T2, s1, s2 = T1[idx], T2[idx], s1[idx], s2[idx]
-    fi, fj = i[idx], j[idx]
-    p1, c1 = _plane_cut(T1, s1, fe[fi], E + f[fi])
-    p2, c2 = _plane_cut(T2, s2, fe[fj], E + f[fj])
-    k1 = V + c1 * F + fj[:, None]  # T1's edge meets face j
-    k2 = V + c2 * F + fi[:, None]
+    p1 = _plane_cut(T1, s1)
+    p2 = _plane_cut(T2, s2)
     D = np.cross(n1[idx], n2[idx])
     t1 = np.einsum("nkd,nd->nk", p1, D)
     t2 = np.einsum("nkd,nd->nk", p2, D)
@@ -113,20 +99,17 @@ def triangle_intersections(scene: Scene, i: np.ndarray, j: np.ndarray):
     sw1 = t1[:, 0] > t1[:, 1]
     sw2 = t2[:, 0] > t2[:, 1]
 
-    def order(p, c, t, sw):
+    def order(p, t, sw):
         p = np.where(sw[:, None, None], p[:, ::-1], p)
-        c = np.where(sw[:, None], c[:, ::-1], c)
         t = np.where(sw[:, None], t[:, ::-1], t)
-        return p, c, t
+        return p, t
 
-    p1, k1, t1 = order(p1, k1, t1, sw1)
-    p2, k2, t2 = order(p2, k2, t2, sw2)
+    p1, t1 = order(p1, t1, sw1)
+    p2, t2 = order(p2, t2, sw2)
     lo_from1 = t1[:, 0] >= t2[:, 0]
     hi_from1 = t1[:, 1] <= t2[:, 1]
     a = np.where(lo_from1[:, None], p1[:, 0], p2[:, 0])
     b = np.where(hi_from1[:, None], p1[:, 1], p2[:, 1])
-    ka = np.where(lo_from1, k1[:, 0], k2[:, 0])
-    kb = np.where(hi_from1, k1[:, 1], k2[:, 1])
     lo = np.maximum(t1[:, 0], t2[:, 0])
     hi = np.minimum(t1[:, 1], t2[:, 1])
     Dn = np.linalg.norm(D, axis=1)
@@ -135,7 +118,7 @@ def triangle_intersections(scene: Scene, i: np.ndarray, j: np.ndarray):
     keep = np.zeros(len(i), bool)
     keep[idx[good]] = True
     c = scene.center
-    return keep, a[good] + c, b[good] + c, ka[good], kb[good]
+    return keep, a[good] + c, b[good] + c
 
 
 def intersection_edges(scene: Scene) -> FeatureEdges:
@@ -144,7 +127,7 @@ def intersection_edges(scene: Scene) -> FeatureEdges:
     cache = scene_cache(scene)
     if "intersection_edges" not in cache:
         i, j = candidate_pairs(scene)
-        keep, a, b, ka, kb = triangle_intersections(scene, i, j)
+        keep, a, b = triangle_intersections(scene, i, j)
         ka, kb = merge_coincident_keys(len(scene.vertices), a, b, PLANE_TOL * scene.radius)
         face = i[keep]
         cache["intersection_edges"] = FeatureEdges(
@@ -155,10 +138,10 @@ def intersection_edges(scene: Scene) -> FeatureEdges:
 
 def merge_coincident_keys(V: int, a: np.ndarray, b: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """Chaining keys (V + group) for segment endpoints a, b (K, 3): endpoints closer than `tol`
-    share a key. The (edge, face) keys of `triangle_intersections` already agree in general
-    position; where an edge of one mesh crosses an edge of the other exactly (axis-aligned or
-    symmetric models), four triangle pairs meet at one point under different (edge, face) names,
-    and only their position tells that they are the same point."""
+    share a key. Naming an endpoint by (edge of one face, other face) would not do: where an edge
+    of one mesh crosses an edge of the other exactly (axis-aligned or symmetric models), four
+    triangle pairs meet at one point under different names, and only their position tells that
+    they are the same point."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree

@@ -37,7 +37,6 @@ class RasterHits:
     depth: np.ndarray
     camera: Camera
     supersample: int
-    ray_origin: np.ndarray  # (3,) world: the eye
     # Per column / row offsets of the sample rays along camera right / up': perspective ray
     # direction fwd + x right + y up (x, y per unit depth); orthographic ray origin eye + x right
     # + y up (world units) with direction fwd.
@@ -81,14 +80,6 @@ class RasterHits:
         eye = np.asarray(self.camera.eye, float)
         return (eye + a[..., None] * right + b[..., None] * up + c[..., None] * fwd)
 
-    def view_dirs(self) -> np.ndarray:
-        """(HK, WK, 3) unit world directions from the camera into the scene per sample."""
-        right, up, fwd = self.camera.basis
-        if self.camera.is_ortho:
-            return np.broadcast_to(fwd, self.shape + (3,))
-        d = fwd + self.ray_dir_x[None, :, None] * right + self.ray_dir_y[:, None, None] * up
-        return d / np.linalg.norm(d, axis=-1, keepdims=True)
-
 
 def cast_pixels(camera: Camera, occluder: Occluder, supersample: int = 1) -> RasterHits:
     """Cast one ray per supersampled pixel centre and return the first hits.
@@ -99,13 +90,11 @@ def cast_pixels(camera: Camera, occluder: Occluder, supersample: int = 1) -> Ras
         raise ValueError(f"supersample must be one of {SUPERSAMPLES}, got {supersample}")
     W, H = int(camera.width), int(camera.height)
     WK, HK = W * K, H * K
-    right, up, fwd = camera.basis
     f = camera.focal_px
     # Offsets of each sample centre from the image centre, in output pixels, then in camera units.
     px = (np.arange(WK) + 0.5) / K - W / 2.0
     py = H / 2.0 - (np.arange(HK) + 0.5) / K
     ax, ay = px / f, py / f
-    eye = np.asarray(camera.eye, float)
     near = 0.0 if camera.is_ortho else camera.near_distance(occluder.radius)
     # Only samples in blocks that some triangle's screen bounding box touches can hit anything;
     # the others are background without a ray (the cost is in the rays).
@@ -118,7 +107,7 @@ def cast_pixels(camera: Camera, occluder: Occluder, supersample: int = 1) -> Ras
         hits = cast_samples(camera, occluder, ax[cols], ay[rows])
         face[sel], bary[sel], depth[sel] = hits["face"], hits["bary"], hits["depth"]
     return RasterHits(face=face.reshape(HK, WK), bary=bary.reshape(HK, WK, 2), depth=depth.reshape(HK, WK),
-                      camera=camera, supersample=K, ray_origin=eye, ray_dir_x=ax, ray_dir_y=ay)
+                      camera=camera, supersample=K, ray_dir_x=ax, ray_dir_y=ay)
 
 
 def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndarray) -> dict:
@@ -229,7 +218,8 @@ def raster_file_suffixes(options) -> list[str]:
 
 
 def raster_outputs(scene, camera: Camera, occluder: Occluder, options) -> dict[str, bytes]:
-    """{file suffix: PNG bytes} of one frame for RasterOptions (see strokekit.bands)."""
+    """{file suffix: PNG bytes} of one frame for RasterOptions (see strokekit.bands; write them
+    as frame_0001_<suffix>.png)."""
     from .bands import render_raster
 
     return render_raster(scene, camera, occluder, options).png_outputs()
