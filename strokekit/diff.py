@@ -553,8 +553,15 @@ class DiffResult:
     viewbox_b: tuple | None = None
 
     @property
+    def same_canvas(self) -> bool:
+        """Both viewBoxes within tol of each other (a file without one is not compared): the same
+        strokes on another canvas (another --size, a shifted viewBox) are another picture."""
+        a, b = self.viewbox_a, self.viewbox_b
+        return a is None or b is None or all(abs(x - y) <= self.tol for x, y in zip(a, b))
+
+    @property
     def equal(self) -> bool:
-        return all(k.equal for k in self.kinds.values())
+        return self.same_canvas and all(k.equal for k in self.kinds.values())
 
     @property
     def regions(self) -> list[Region]:
@@ -570,8 +577,8 @@ class DiffResult:
     def notes(self) -> list[str]:
         """Information that does not make the drawings different."""
         out = []
-        if self.viewbox_a != self.viewbox_b:
-            out.append(f"viewBox differs: A {self.viewbox_a}, B {self.viewbox_b}")
+        if self.viewbox_a != self.viewbox_b and self.same_canvas:
+            out.append(f"viewBox differs within {self.tol:g} px: A {self.viewbox_a}, B {self.viewbox_b}")
         for k in self.kinds.values():
             if k.renamed:
                 ex = ", ".join(f"{ia}->{ib}" for ia, ib in k.renamed[:5])
@@ -582,7 +589,7 @@ class DiffResult:
     def to_dict(self) -> dict:
         return {"a": self.a, "b": self.b, "tol_px": self.tol, "equal": self.equal,
                 "viewbox_a": list(self.viewbox_a) if self.viewbox_a else None,
-                "viewbox_b": list(self.viewbox_b) if self.viewbox_b else None,
+                "viewbox_b": list(self.viewbox_b) if self.viewbox_b else None, "same_canvas": self.same_canvas,
                 "kinds": {k: v.to_dict() for k, v in self.kinds.items()}, "notes": self.notes}
 
     def summary(self, max_regions: int = 8) -> str:
@@ -595,6 +602,8 @@ class DiffResult:
             lines.append(f"equal within {self.tol:g} px: {self.a} vs {self.b} ({how})")
         else:
             lines.append(f"DIFFERENT at {self.tol:g} px: {self.a} (A) vs {self.b} (B)")
+            if not self.same_canvas:
+                lines.append(f"  canvas: viewBox A {_fmt_box(self.viewbox_a)}, B {_fmt_box(self.viewbox_b)}")
             for k in self.kinds.values():
                 if k.equal:
                     continue
@@ -619,6 +628,10 @@ class DiffResult:
                 lines.append(f"  equal: {', '.join(same)}")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
+
+
+def _fmt_box(box: tuple) -> str:
+    return " ".join(f"{v:g}" for v in box)
 
 
 @dataclass(eq=False)

@@ -4,6 +4,7 @@ tolerance, ignores stroke ids, reports what changed and where, and draws the dif
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -382,3 +383,24 @@ def test_assert_same_drawing_for_golden_tests(tmp_path):
     assert assert_same_drawing(a, b, 0.05).equal
     with pytest.raises(AssertionError, match=r"silhouette: .* only in A"):
         assert_same_drawing(a, b, 0.01)
+
+
+def test_the_same_strokes_on_another_canvas_are_different(tmp_path):
+    """A golden at another size (another viewBox) is another picture: `diff` said "equal" (exit 0)
+    and only --json mentioned the viewBox. A viewBox within tol, or a file without one, is not a
+    difference."""
+    a = write(tmp_path / "a.svg", BASE)
+    b = write(tmp_path / "b.svg", BASE, size=(2 * W, 2 * H))
+    r = diff_svgs(a, b, 0.05)
+    assert all(k.equal for k in r.kinds.values()) and not r.same_canvas and not r.equal
+    assert f"canvas: viewBox A 0 0 {W} {H}, B 0 0 {2 * W} {2 * H}" in r.summary()
+    assert r.to_dict()["equal"] is False
+    text = svg_text(BASE)
+    box = f'viewBox="0 0 {W} {H}"'
+    assert box in text
+    near = tmp_path / "c.svg"
+    near.write_text(text.replace(box, f'viewBox="0 0 {W} {H + 0.01}"'))
+    assert diff_svgs(a, near, 0.05).equal
+    bare = tmp_path / "d.svg"
+    bare.write_text(re.sub(r' (width|height|viewBox)="[^"]*"', "", text, count=3))
+    assert read_svg(bare).viewbox is None and diff_svgs(a, bare, 0.05).equal
