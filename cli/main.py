@@ -83,9 +83,9 @@ def main(argv: list[str] | None = None) -> None:
     except (KeyboardInterrupt, _Interrupted):
         click.echo("strokekit: interrupted", err=True)
         sys.exit(130)
-    except OSError as e:  # an output that cannot be written: not a folder, no permission, disk full
+    except OSError as e:  # a file that cannot be read or written: a folder, no permission, disk full
         where = f"{e.filename}: " if e.filename else ""
-        click.echo(f"strokekit: error: {where}cannot write: {e.strerror or e}", err=True)
+        click.echo(f"strokekit: error: {where}{e.strerror or e}", err=True)
         sys.exit(1)
     except Exception as e:  # never a traceback for the user
         if os.environ.get("STROKEKIT_DEBUG"):

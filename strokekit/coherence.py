@@ -423,6 +423,9 @@ def overall(pairs: list[PairMetrics]) -> dict:
 
 def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
     """The frame JSON files of a folder named by `pattern` (render --pattern), sorted by name."""
+    from .fileio import check_pattern
+
+    check_pattern(pattern)
     d = Path(out_dir)
     if not d.exists():
         raise InputError("folder not found", d)

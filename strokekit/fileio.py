@@ -126,3 +126,16 @@ def check_output_file(path: str | Path) -> None:
     why = _folder_problem(p.parent)
     if why is not None:
         raise InputError(f"cannot be written: its folder {p.parent} {why}", path)
+
+
+def check_pattern(pattern: str) -> None:
+    """UsageError unless `pattern` (a frame's file name without extension, `{frame}` in str.format
+    syntax) names frames apart, inside the output folder, not as dotfiles."""
+    try:
+        names = {pattern.format(frame=1), pattern.format(frame=2)}
+    except (KeyError, IndexError, ValueError, AttributeError):
+        raise UsageError(f"bad --pattern {pattern!r}: use {{frame}} e.g. frame_{{frame:04d}}") from None
+    if len(names) < 2:
+        raise UsageError(f"bad --pattern {pattern!r}: it must contain {{frame}}, or every frame gets the same name")
+    if any(sep in pattern for sep in ("/", "\\")) or any(n.startswith(".") for n in names):
+        raise UsageError(f"bad --pattern {pattern!r}: a file name inside --out, without folders")

@@ -22,7 +22,7 @@ from typing import Callable
 
 from .camera import Camera
 from .errors import InputError, StrokekitError, UsageError
-from .fileio import atomic_write_bytes, temp_file_target
+from .fileio import atomic_write_bytes, check_pattern, temp_file_target
 from .lines import LineRenderer
 from .model import Strokes
 from .options import LineOptions
@@ -46,6 +46,17 @@ class OutputOptions:
 
     def stem(self, frame: int) -> str:
         return self.pattern.format(frame=frame)
+
+    def check_names(self, frames) -> None:
+        """UsageError when the pattern gives two of `frames` the same name (a pattern such as
+        f_{frame:.0e} writes frames 10, 11 and 12 to one file: each would overwrite the last)."""
+        seen: dict[str, int] = {}
+        for f in frames:
+            name = self.stem(f)
+            if name in seen:
+                raise UsageError(f"--pattern {self.pattern!r} names frames {seen[name]} and {f} alike ({name!r}): "
+                                 "one would overwrite the other")
+            seen[name] = f
 
     def frame_file(self, frame: int, suffix: str) -> Path:
         """OUT/<pattern>.<suffix>: the suffix is appended, never replaces a dotted part of the
@@ -660,6 +671,13 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     t_start = time.perf_counter() if started_at is None else started_at
     t_wall = time.time()  # file times are wall-clock: what this run wrote is newer than this
     res = RunResult()
+    check_pattern(spec.outputs.pattern)
+    spec.outputs.check_names(f for f, _ in spec.cameras)
+    if spec.outputs.raster_options is not None:
+        from .raster import check_raster_fits
+
+        for w, h in sorted({(c.width, c.height) for _, c in spec.cameras}):
+            check_raster_fits(w, h, spec.outputs.raster_options.supersample)
     # Workers start first: their imports and scene load overlap the main process's own load.
     own = workers is None
     if own:

@@ -17,6 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from .camera import Camera
+from .errors import UsageError
 from .visibility import Occluder
 
 SUPERSAMPLES = (1, 2, 4, 8)
@@ -205,6 +206,30 @@ def box_filter(img: np.ndarray, k: int) -> np.ndarray:
 
 
 # --- entry points the pipeline imports from here (implemented in strokekit.bands) ------------------
+
+def raster_memory_bytes(width: int, height: int, supersample: int) -> int:
+    """About the peak memory (bytes) of one frame's raster pass at width x height px and
+    supersample K: per output pixel ~130 bytes (coverages, shades, PNG rows) plus ~55 per sample
+    (rays, hits). Measured with tracemalloc on spot, 512 and 1024 px, masks on: 193-207 bytes per
+    pixel at K = 1, 278 at K = 2 with edge resampling, 993 at K = 4."""
+    return int(width) * int(height) * (130 + 55 * int(supersample) ** 2)
+
+
+def check_raster_fits(width: int, height: int, supersample: int) -> None:
+    """UsageError when one frame's raster pass would need more memory than the machine has (a
+    --size of 100000x100000 with --bands failed at frame time with a 37 GiB MemoryError)."""
+    import os
+
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return  # not known here (not POSIX): the frame will say
+    need = raster_memory_bytes(width, height, supersample)
+    if need > total:
+        raise UsageError(f"the raster pass at {width}x{height} px, supersample {supersample}, needs about "
+                         f"{need / 2**30:.0f} GiB per frame; this machine has {total / 2**30:.0f} GiB "
+                         "(a smaller --size or --supersample)")
+
 
 def raster_file_suffixes(options) -> list[str]:
     """File suffixes (frame_0001_<suffix>.png) that `raster_outputs` writes for RasterOptions."""

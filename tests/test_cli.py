@@ -259,25 +259,39 @@ def test_outputs_are_readable_like_any_new_file(cube, tmp_path, capsys, monkeypa
 
 
 @pytest.mark.parametrize("pattern,needle", [("same", "must contain {frame}"), ("../up_{frame}", "without folders"),
-                                            ("sub/f_{frame}", "without folders")])
+                                            ("sub/f_{frame}", "without folders"),
+                                            ("f_{frame:.0e}", "names frames 10 and 11 alike ('f_1e+01')")])
 def test_pattern_that_would_lose_or_misplace_frames_is_a_usage_error(cube, tmp_path, capsys, pattern, needle):
-    code, _, err = run_cli(["render", cube, "--orbit", "2", "--pattern", pattern, "--out", tmp_path / "o"], capsys)
+    """Frames 1-12: a pattern that gives two frames one name (frames 10-12 as 1e+01) lost frames."""
+    code, _, err = run_cli(["render", cube, "--orbit", "12", "--pattern", pattern, "--out", tmp_path / "o"], capsys)
     assert code == 2 and needle in err
     assert not (tmp_path / "o").exists() and not list(tmp_path.glob("up_*"))
 
 
 def test_unwritable_output_is_one_line_before_any_work(cube, tmp_path, capsys):
-    """--out or --report below a file: one line naming the path, exit 1, no traceback, nothing
-    rendered (the report is checked before the frames, not after them)."""
+    """--out or --report below a file, --out naming a file, --report naming a folder: one line
+    naming the path, exit 1 as the README says of any unwritable output (click's own file/folder
+    checks gave 2 for two of them), no traceback, nothing rendered (the report is checked before
+    the frames, not after them)."""
     blocker = tmp_path / "file.txt"
     blocker.write_text("x")
-    # --out naming a file is refused by the option parser itself (usage, 2); the others are 1.
-    for args, expected in ((["--out", blocker / "sub"], 1), (["--out", blocker], 2),
-                           (["--out", tmp_path / "o", "--report", blocker / "r.json"], 1)):
+    folder = tmp_path / "dir.d"
+    folder.mkdir()
+    for args, name in ((["--out", blocker / "sub"], "file.txt"), (["--out", blocker], "file.txt"),
+                       (["--out", tmp_path / "o", "--report", blocker / "r.json"], "file.txt"),
+                       (["--out", tmp_path / "o", "--report", folder], "dir.d")):
         code, _, err = run_cli(["render", cube, "--orbit", "2", *args], capsys)
-        assert code == expected, err
-        assert len(err.strip().splitlines()) == 1 and "internal error" not in err and "file.txt" in err
+        assert code == 1, err
+        assert len(err.strip().splitlines()) == 1 and "internal error" not in err and name in err
         assert not (tmp_path / "o").exists()
+    assert blocker.read_text() == "x" and not any(folder.iterdir())
+
+
+def test_coherence_with_a_bad_pattern_is_a_usage_error(tmp_path, capsys):
+    """render refuses a --pattern without {frame}; coherence read it as a glob and said "found 0"
+    (exit 1): the same check now, exit 2."""
+    code, _, err = run_cli(["coherence", tmp_path, "--pattern", "shot_{fram}"], capsys)
+    assert code == 2 and "bad --pattern 'shot_{fram}'" in err and len(err.strip().splitlines()) == 1
 
 
 def test_a_frame_draws_the_same_lines_alone_and_in_a_sequence(tmp_path, capsys):
@@ -554,3 +568,15 @@ def test_help_reads_whole_at_80_columns(capsys, monkeypatch):
 
     bare = [line for line in out.splitlines() if re.match(r"^\s+-[^ ]+( [^ ]+)*\s{2,}\[default", line)]
     assert not bare, bare
+
+
+def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube, tmp_path, capsys):
+    """--size 100000x100000 with --bands needs terabytes per frame: one usage line before any work
+    (it failed at frame time with a MemoryError); lines alone at that size are vector output and run."""
+    out = tmp_path / "o"
+    code, _, err = run_cli(["render", cube, "--orbit", "1", "--size", "100000x100000", "--bands", "2", "--out", out],
+                           capsys)
+    assert code == 2 and "the raster pass at 100000x100000 px, supersample 2, needs about" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+    code, _, err = run_cli(["render", cube, "--orbit", "1", "--size", "100000x100000", "--out", out, "-q"], capsys)
+    assert code == 0 and (out / "frame_0001.svg").exists()

@@ -13,7 +13,7 @@ from ..common import is_interactive
 
 @click.command("bench", short_help="What accuracy costs in time: presets and a sweep.")
 @click.argument("scene_path", metavar="SCENE", type=click.Path())
-@click.option("--camera", "camera_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--camera", "camera_path", type=click.Path(), default=None,
               help="Camera path JSON (format: README, camera path files); default: an orbit around the scene.")
 @click.option("--frames", type=int, default=8, show_default=True,
               help="Orbit frames, or the first N frames of --camera.")
@@ -22,7 +22,7 @@ from ..common import is_interactive
               help="Comma-separated values of sample_spacing_px to sweep (default 0.5,1,2,4,8,16).")
 @click.option("--raster-frames", type=int, default=2, show_default=True,
               help="Frames for the raster section (IoU vs supersample 4); 0 skips it.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), default=None,
+@click.option("--plot", "plot_path", type=click.Path(), default=None,
               help="Write accuracy against time as a PNG (one curve per knob).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as JSON instead of a table.")
 def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot_path, as_json):

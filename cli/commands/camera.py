@@ -29,7 +29,7 @@ _common = [
     click.option("--width", type=click.IntRange(min=1), default=1024, show_default=True),
     click.option("--height", type=click.IntRange(min=1), default=1024, show_default=True),
     click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis."),
-    click.option("-o", "--out", type=click.Path(dir_okay=False), default=None, help="Write to a file instead of stdout."),
+    click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout."),
 ]
 
 

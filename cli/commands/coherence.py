@@ -16,7 +16,7 @@ _COLUMNS = [("frame", "pair", "{:d}"), ("M1", "M1 ids", "{:.3f}"), ("M2", "M2 po
 
 
 @click.command("coherence", short_help="Temporal coherence metrics of a rendered sequence.")
-@click.argument("out_dir", type=click.Path(file_okay=False))
+@click.argument("out_dir", type=click.Path())
 @click.option("--json", "as_json", is_flag=True, help="Print JSON (per pair and overall) instead of a table.")
 @click.option("--radius", type=FINITE, default=6.0, show_default=True, help="Match radius, px.")
 @click.option("--min-dot", type=FINITE, default=0.65, show_default=True, help="Minimum |t.t'| of a match.")

@@ -33,7 +33,8 @@ def command(scene: str, as_json: bool, crease_angle: float):
         ("faces", f"{d['faces']} (dropped: {d['dropped_degenerate_faces']} degenerate, "
                   f"{d['dropped_duplicate_faces']} duplicate)"),
         ("vertices", f"{d['vertices_welded']} welded by position ({d['vertices_in_file']} in file)"),
-        ("bounds", f"min {fmt(d['bounds_min'])}  max {fmt(d['bounds_max'])}"),
+        ("bounds", f"min {fmt(d['bounds_min'])}  max {fmt(d['bounds_max'])}  "
+                   f"size {fmt([b - a for a, b in zip(d['bounds_min'], d['bounds_max'])])}"),
         ("edges", f"{d['edges']}: {d['border_edges']} border, {d['nonmanifold_edges']} non-manifold, "
                   f"{d['crease_edges']} crease (> {crease_angle:g} deg), {d['material_boundary_edges']} material boundary"),
         ("line kinds", ", ".join(d["line_kinds"]) or "none"),
@@ -46,4 +47,6 @@ def command(scene: str, as_json: bool, crease_angle: float):
 
 
 def fmt(v) -> str:
-    return "(" + ", ".join(f"{x:.4g}" for x in v) + ")"
+    # 7 digits: a unit box 1e6 away from the origin reads (1000000, ...) to (1000001, ...), not
+    # 1e+06 at both ends.
+    return "(" + ", ".join(f"{x:.7g}" for x in v) + ")"

@@ -12,7 +12,7 @@ import click
 
 from strokekit.camera import load_camera_path, orbit_path
 from strokekit.errors import UsageError
-from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder
+from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
 from strokekit.frames import parse_frames
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
 from strokekit.pipeline import OutputOptions, RunInterrupted, RunResult, RunSpec, make_executor, run, run_report
@@ -24,7 +24,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 
 @click.command("render", short_help="Line drawings for every frame of a camera path.")
 @click.argument("scene", type=click.Path())
-@click.option("--camera", "camera_file", type=click.Path(dir_okay=False), default=None,
+@click.option("--camera", "camera_file", type=click.Path(), default=None,
               help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node "
                    "(its animation, if any, sampled at 24 fps).")
 @click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")
@@ -33,7 +33,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="Orbit up axis.")
 @click.option("--size", default=None, help="Image size WxH (overrides the camera file), e.g. 1024x1024.")
 @click.option("--frames", "frame_spec", default=None, help="Frames to render, 1-based: 1-24 or 1,3,5-9 (default all).")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="out", show_default=True,
+@click.option("--out", "out_dir", type=click.Path(), default="out", show_default=True,
               help="Folder for the frame files (created if missing).")
 @click.option("--pattern", default="frame_{frame:04d}", show_default=True, help="File name pattern (no extension).")
 @click.option("--kinds", default=", ".join(DEFAULT_KINDS), show_default=True,
@@ -80,7 +80,7 @@ from .render_options import gltf_options_from, raster_options_from, render_extra
 @click.option("--fail-fast", is_flag=True,
               help="Stop at the first failed frame (frames already written stay; the run streams them out in order).")
 @click.option("--quiet", "-q", is_flag=True, help="No progress and no summary.")
-@click.option("--report", "report_path", type=click.Path(dir_okay=False), default=None, help="Write a JSON run report.")
+@click.option("--report", "report_path", type=click.Path(), default=None, help="Write a JSON run report.")
 @click.option("--explain", is_flag=True, help="List the stages that ran, why, and their time.")
 @render_extra_options
 def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out_dir, pattern, kinds, contours, quality,
@@ -100,14 +100,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         raise UsageError("--gltf-sequence writes glTF: it cannot go with --no-gltf")
     if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
         raise UsageError("nothing to write: every output is turned off")
-    try:
-        names = {pattern.format(frame=1), pattern.format(frame=2)}
-    except (KeyError, IndexError, ValueError):
-        raise UsageError(f"bad --pattern {pattern!r}: use {{frame}} e.g. frame_{{frame:04d}}") from None
-    if len(names) < 2:
-        raise UsageError(f"bad --pattern {pattern!r}: it must contain {{frame}}, or every frame gets the same name")
-    if any(sep in pattern for sep in ("/", "\\")) or any(n.startswith(".") for n in names):
-        raise UsageError(f"bad --pattern {pattern!r}: a file name inside --out, without folders")
+    check_pattern(pattern)
     width = height = None
     if size:
         try:
