@@ -306,6 +306,13 @@ def test_band_polygons_svg_layer(sphere, sphere_occ):
     assert 'inkscape:label="bands"' in xml and 'id="layer-bands"' in xml
     assert xml.count("<path") == len(np.unique(fr.labels[fr.labels > 0]))
     assert 'id="b0-3"' in xml and 'fill="#e6331a"' in xml  # top band = the red base colour
+    # Each region is outlined in its own colour, 1 px wide, so that abutting anti-aliased regions
+    # overlap and no light seam of background shows between bands.
+    import re
+
+    assert 'stroke-width="1"' in xml and 'stroke="none"' not in xml
+    paths = re.findall(r"<path [^>]*>", xml)
+    assert paths and all(re.search(r'fill="(#\w+)"', p)[1] == re.search(r'stroke="(#\w+)"', p)[1] for p in paths)
 
 
 # --- lines and masks agree --------------------------------------------------------------------------
