@@ -17,6 +17,10 @@ import numpy as np
 from .errors import InputError, UsageError
 
 _FALLBACK_UPS = (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+# Limits of what a camera file (JSON or glTF) may ask for: beyond them a run would fail late (a
+# width of 1e30 px overflows the writers) or never end (a frame_count of 1e12).
+MAX_IMAGE_PX = 100_000  # per side
+MAX_PATH_FRAMES = 100_000
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -228,6 +232,23 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
 
 # --- camera path files ----------------------------------------------------------------------------
 
+def _whole_number(value, what: str) -> int:
+    """A whole number from a JSON value: an int, or a float with an integral value (3.0). Anything
+    else (2.7, "3", null, true, 1e400) is an InputError naming `what`; the caller adds the file."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{what} must be a whole number, got {json.dumps(value)}")
+    if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
+        raise InputError(f"{what} must be a whole number, got {value!r}")
+    return int(value)
+
+
+def _image_side(value, what: str) -> int:
+    n = _whole_number(value, what)
+    if not 0 < n <= MAX_IMAGE_PX:
+        raise InputError(f"image size must be positive and at most {MAX_IMAGE_PX} px, got {what} {n}")
+    return n
+
+
 def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str) -> Camera:
     if not isinstance(d, dict):
         raise InputError(f"{where} must be an object", source)
@@ -240,13 +261,14 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str)
                          source)
     try:
         cam = Camera(eye=tuple(d["eye"]), target=tuple(d["target"]), up=tuple(d.get("up", (0.0, 1.0, 0.0))),
-                     fov_y=float(d.get("fov_y", 40.0)), width=int(d.get("width", width)),
-                     height=int(d.get("height", height)), projection=d.get("projection", "perspective"),
+                     fov_y=float(d.get("fov_y", 40.0)), width=_image_side(d.get("width", width), "width"),
+                     height=_image_side(d.get("height", height), "height"),
+                     projection=d.get("projection", "perspective"),
                      ortho_height=float(d.get("ortho_height", 1.0)),
                      near=(float(d["near"]) if d.get("near") is not None else None))
     except InputError as e:
         raise InputError(f"{where}: {e}", source) from None
-    except (TypeError, ValueError) as e:
+    except (TypeError, ValueError, OverflowError) as e:  # OverflowError: an integer beyond float range
         raise InputError(f"{where}: bad value ({e})", source) from None
     return cam
 
@@ -264,12 +286,13 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
     if not isinstance(data, dict):
         raise InputError("camera file must hold a JSON object", source)
     try:
-        width, height = int(data.get("width", 1024)), int(data.get("height", 1024))
+        width = _image_side(data.get("width", 1024), "width")
+        height = _image_side(data.get("height", 1024), "height")
         fps = float(data.get("fps", 24))
-    except (TypeError, ValueError) as e:
-        raise InputError(f"bad width/height/fps ({e})", source) from None
-    if width <= 0 or height <= 0:
-        raise InputError(f"image size must be positive, got {width} x {height}", source)
+    except InputError as e:
+        raise InputError(str(e), source) from None
+    except (TypeError, ValueError, OverflowError) as e:
+        raise InputError(f"bad fps ({e})", source) from None
     if not (math.isfinite(fps) and fps > 0):
         raise InputError(f"fps must be a number > 0, got {fps:g}", source)
     # Entries are named as output frames are, from 1 (BRIEF 1.2: entry k is output frame k+1).
@@ -287,18 +310,27 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
         interp = data.get("interpolation", "linear")
         if interp not in ("linear", "smooth"):
             raise InputError(f"interpolation must be 'linear' or 'smooth', got {interp!r}", source)
+        try:
+            count = _whole_number(data["frame_count"], "frame_count")
+        except InputError as e:
+            raise InputError(str(e), source) from None
+        if not 0 < count <= MAX_PATH_FRAMES:
+            raise InputError(f"frame_count must be between 1 and {MAX_PATH_FRAMES}, got {count}", source)
         parsed = []
         for i, k in enumerate(keys):
             if not isinstance(k, dict) or "frame" not in k:
                 raise InputError(f"keyframe {i + 1} has no 'frame'", source)
-            parsed.append((int(k["frame"]), _camera_from_dict(k, width, height, f"keyframe {i + 1}", source)))
+            try:
+                frame = _whole_number(k["frame"], f"keyframe {i + 1}: 'frame'")
+            except InputError as e:
+                raise InputError(f"{e} (keyframes sit on output frames, counted from 0)", source) from None
+            if abs(frame) > 2 ** 53:
+                raise InputError(f"keyframe {i + 1}: 'frame' {frame} is out of range", source)
+            parsed.append((frame, _camera_from_dict(k, width, height, f"keyframe {i + 1}", source)))
         seen = [f for f, _ in parsed]
         if len(set(seen)) < len(seen):
             dup = sorted(f for f in set(seen) if seen.count(f) > 1)
             raise InputError(f"two keyframes for frame {dup[0]}", source)
-        count = int(data["frame_count"])
-        if count <= 0:
-            raise InputError("frame_count must be positive", source)
         cams = interpolate_keyframes(parsed, count, smooth=(interp == "smooth"))
     else:
         raise InputError("camera file needs 'frames' or 'keyframes'", source)
@@ -398,7 +430,7 @@ _GLTF_INDEX_TYPES = {5121: "<u1", 5123: "<u2", 5125: "<u4"}
 _GLTF_NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _GLTF_TRS = {"translation": 3, "rotation": 4, "scale": 3}
 _GLTF_INTERPOLATIONS = ("LINEAR", "STEP", "CUBICSPLINE")
-_GLTF_MAX_FRAMES = 100_000
+_GLTF_MAX_FRAMES = MAX_PATH_FRAMES
 
 
 def _field(obj, name, default=None):
@@ -587,9 +619,18 @@ def _sample_channel(keys: np.ndarray, values: np.ndarray, interp: str, rotation:
     return out
 
 
-def _node_matrix(n) -> np.ndarray | None:
+def _node_matrix(n, what: str, data: _GltfData) -> np.ndarray | None:
+    """The node's 4 x 4 matrix (column-major in the file), None when it has none."""
     m = _field(n, "matrix")
-    return np.array(m, float).reshape(4, 4).T if m else None
+    if not m:
+        return None
+    try:
+        a = np.array(m, float)
+    except (TypeError, ValueError, OverflowError):
+        a = np.zeros(0)
+    if a.shape != (16,):
+        raise data.error(f"{what} has a malformed matrix: glTF needs 16 numbers, got {json.dumps(m)[:80]}")
+    return a.reshape(4, 4).T
 
 
 def _trs_matrices(t: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -619,6 +660,14 @@ def _rest_trs(n, path: str, what: str, data: _GltfData) -> np.ndarray:
     return a
 
 
+def _gltf_width(height: int, aspect: float, what: str) -> int:
+    """Image width height x aspect of a glTF lens, refused outside 1..MAX_IMAGE_PX."""
+    w = height * aspect
+    if not 0.5 <= w < MAX_IMAGE_PX + 0.5:
+        raise InputError(f"{what} gives an image {w:.4g} x {height} px: the width must be 1 to {MAX_IMAGE_PX} px")
+    return int(round(w))
+
+
 def _camera_at(m: np.ndarray, cam, width: int | None, height: int | None) -> Camera:
     """The Camera of glTF camera object `cam` placed by world matrix m (local -Z forward, +Y up)."""
     rot = m[:3, :3]
@@ -631,15 +680,17 @@ def _camera_at(m: np.ndarray, cam, width: int | None, height: int | None) -> Cam
         if not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (xmag, ymag)):
             raise InputError(f"orthographic xmag and ymag must be > 0, got {xmag!r} and {ymag!r}")
         h = height or 1024
-        w = width or int(round(h * cam.orthographic.xmag / cam.orthographic.ymag))
+        w = width or _gltf_width(h, xmag / ymag, f"orthographic xmag / ymag ({xmag:g} / {ymag:g})")
         return Camera(eye=tuple(eye), target=tuple(eye + fwd), up=tuple(up), projection="orthographic",
                       ortho_height=2 * cam.orthographic.ymag, width=w, height=h)
     p = cam.perspective
     if p is not None and not (isinstance(p.yfov, (int, float)) and math.isfinite(p.yfov) and 0 < p.yfov < math.pi):
         raise InputError(f"perspective camera needs a yfov in (0, pi) radians, got {p.yfov!r}")
     h = height or 1024
-    aspect = (p.aspectRatio if p is not None and p.aspectRatio else 1.0)
-    w = width or int(round(h * aspect))
+    aspect = p.aspectRatio if p is not None and p.aspectRatio is not None else 1.0
+    if not (isinstance(aspect, (int, float)) and math.isfinite(aspect) and aspect > 0):
+        raise InputError(f"perspective aspectRatio must be a number > 0, got {aspect!r}")
+    w = width or _gltf_width(h, aspect, f"perspective aspectRatio {aspect:g}")
     return Camera(eye=tuple(eye), target=tuple(eye + fwd), up=tuple(up),
                   fov_y=math.degrees(p.yfov) if p is not None else 40.0, width=w, height=h,
                   near=(p.znear if p is not None and p.znear else None))
@@ -715,7 +766,7 @@ def gltf_camera_path(path: Path, width: int | None = None, height: int | None = 
         n = nodes[ni]
         what = f"node {ni}"
         animated = {p for (node, p) in channels if node == ni}
-        fixed = _node_matrix(n)
+        fixed = _node_matrix(n, what, data)
         if fixed is not None:
             if animated:
                 raise InputError(f"animation targets {what}, which has a matrix (glTF allows only TRS there)", path)

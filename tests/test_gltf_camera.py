@@ -7,6 +7,7 @@ from __future__ import annotations
 import base64
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -335,4 +336,44 @@ def test_degenerate_orthographic_lens_is_one_clear_error(tmp_path):
         xmag=1.0, ymag=0.0, znear=0.0, zfar=10.0))]
     doc.node(camera=0, translation=[0, 0, 5])
     with pytest.raises(InputError, match="xmag and ymag must be > 0"):
+        gltf_camera_path(doc.save(tmp_path / "o.glb"))
+
+
+@pytest.mark.parametrize("matrix", [[1.0] * 15, [1.0] * 17])
+def test_camera_node_matrix_of_the_wrong_size_is_one_clear_error(tmp_path, matrix):
+    """A node matrix that is not 16 numbers was an internal error (numpy's reshape ValueError)."""
+    doc = Glb()
+    doc.node(camera=0, matrix=matrix)
+    with pytest.raises(InputError, match=r"m\.glb: node 1 has a malformed matrix: glTF needs 16 numbers"):
+        gltf_camera_path(doc.save(tmp_path / "m.glb"))
+
+
+def test_camera_node_matrix_places_the_camera(tmp_path):
+    doc = Glb()
+    doc.node(camera=0, matrix=[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 2, 3, 5, 1])  # column-major: translation last
+    cam = gltf_camera_path(doc.save(tmp_path / "m.glb")).cameras[0]
+    assert np.allclose(cam.eye, [2, 3, 5]) and np.allclose(cam.basis[2], [0, 0, -1])
+
+
+@pytest.mark.parametrize("aspect,needle", [
+    (1e30, "aspectRatio 1e+30 gives an image 1.024e+33 x 1024 px: the width must be 1 to 100000 px"),
+    (1e-9, "aspectRatio 1e-09 gives an image"),
+    (-2.0, "aspectRatio must be a number > 0, got -2.0"),
+])
+def test_perspective_aspect_ratio_giving_no_usable_width_is_one_clear_error(tmp_path, aspect, needle):
+    """aspectRatio 1e30 was accepted and the frame failed later in the writers ('Integer exceeds
+    64-bit range'); a width of 0 or below was blamed on the image size, not the lens."""
+    doc = Glb()
+    doc.g.cameras[0].perspective.aspectRatio = aspect
+    doc.node(camera=0, translation=[0, 0, 5])
+    with pytest.raises(InputError, match=re.escape("a.glb: camera at node 1: perspective " + needle)):
+        gltf_camera_path(doc.save(tmp_path / "a.glb"))
+
+
+def test_orthographic_magnifications_giving_no_usable_width_are_one_clear_error(tmp_path):
+    doc = Glb()
+    doc.g.cameras = [pygltflib.Camera(type="orthographic", orthographic=pygltflib.Orthographic(
+        xmag=1e9, ymag=1.0, znear=0.0, zfar=10.0))]
+    doc.node(camera=0, translation=[0, 0, 5])
+    with pytest.raises(InputError, match="orthographic xmag / ymag .* the width must be 1 to 100000 px"):
         gltf_camera_path(doc.save(tmp_path / "o.glb"))

@@ -1,0 +1,102 @@
+"""Camera path files (BRIEF 1.2): what a bad value in them gives (one InputError naming the file and
+the field, one line and exit 1 from the CLI, never an internal error) and how keyframes become
+cameras."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli.main import main
+from strokekit.camera import MAX_IMAGE_PX, camera_path_from_json, load_camera_path
+from strokekit.errors import InputError
+
+KEY0 = {"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]}
+KEY2 = {"frame": 2, "eye": [0, 0, 6], "target": [0, 0, 0]}
+
+
+def keyed(keys=(KEY0, KEY2), **top) -> dict:
+    return {"width": 200, "height": 200, "frame_count": 3, "keyframes": list(keys), **top}
+
+
+def write(tmp_path: Path, data: dict, name: str = "cam.json") -> Path:
+    p = tmp_path / name
+    p.write_text(json.dumps(data))
+    return p
+
+
+def load_error(tmp_path: Path, data: dict) -> str:
+    with pytest.raises(InputError) as e:
+        load_camera_path(write(tmp_path, data))
+    msg = str(e.value)
+    assert msg.startswith(str(tmp_path / "cam.json") + ": ") and "\n" not in msg, msg
+    return msg
+
+
+# --- bad values: one InputError naming the file and the field ------------------------------------
+
+@pytest.mark.parametrize("data,needles", [
+    (keyed([dict(KEY0, frame="a")]), ["keyframe 1", "'frame' must be a whole number", '"a"']),
+    (keyed([dict(KEY0, frame=None)]), ["keyframe 1", "'frame' must be a whole number", "null"]),
+    (keyed([dict(KEY0, frame=True)]), ["keyframe 1", "'frame' must be a whole number", "true"]),
+    (keyed([KEY0, dict(KEY2, frame=10 ** 400)]), ["keyframe 2", "out of range"]),
+    (keyed(frame_count="x"), ["frame_count must be a whole number", '"x"']),
+    (keyed(frame_count=None), ["frame_count must be a whole number", "null"]),
+    (keyed(frame_count=0), ["frame_count must be between 1 and"]),
+    (keyed(frame_count=10 ** 12), ["frame_count must be between 1 and"]),
+    (keyed(frame_count=float("inf")), ["frame_count must be a whole number"]),
+    ({"width": float("inf"), "frames": [KEY0]}, ["width must be a whole number"]),
+    ({"width": 10 ** 400, "frames": [KEY0]}, ["image size", f"at most {MAX_IMAGE_PX} px", "width"]),
+    ({"height": 1e20, "frames": [KEY0]}, ["image size", "height"]),
+    ({"frames": [dict(KEY0, width=10 ** 20)]}, ["frame 1", "image size", "width"]),
+    ({"frames": [dict(KEY0, fov_y=10 ** 400)]}, ["frame 1", "bad value"]),
+    ({"frames": [dict(KEY0, near=10 ** 400)]}, ["frame 1", "bad value"]),
+    ({"fps": 10 ** 400, "frames": [KEY0]}, ["fps"]),
+])
+def test_bad_numbers_are_one_input_error_naming_the_file_and_field(tmp_path, data, needles):
+    """Strings, nulls, infinities and integers beyond float range where a number belongs were
+    internal errors (ValueError, TypeError, OverflowError) or, for a width of 1e20 px, failed late
+    in the writers: each is one line naming the file and the field."""
+    msg = load_error(tmp_path, data)
+    for n in needles:
+        assert n in msg, msg
+
+
+@pytest.mark.parametrize("data,needle", [
+    (keyed([dict(KEY0, frame="a")]), "'frame' must be a whole number"),
+    (keyed(frame_count="x"), "frame_count must be a whole number"),
+    ({"width": 1e400, "frames": [KEY0]}, "width must be a whole number"),
+])
+def test_cli_reports_bad_camera_numbers_in_one_line_exit_1(tmp_path, capsys, data, needle):
+    cam = write(tmp_path, data)
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(SystemExit) as e:
+        main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert e.value.code == 1 and len(err.strip().splitlines()) == 1, err
+    assert "cam.json" in err and needle in err and "internal error" not in err
+
+
+# --- frame numbers are whole numbers --------------------------------------------------------------
+
+@pytest.mark.parametrize("data,needle", [
+    (keyed(frame_count=2.7), "frame_count must be a whole number, got 2.7"),
+    (keyed([dict(KEY0, frame=0.5), dict(KEY2, frame=0.9)]), "keyframe 1: 'frame' must be a whole number, got 0.5"),
+    (keyed([KEY0, dict(KEY2, frame=1.5)]), "keyframe 2: 'frame' must be a whole number, got 1.5"),
+    ({"width": 200.5, "frames": [KEY0]}, "width must be a whole number, got 200.5"),
+])
+def test_fractional_frame_numbers_are_refused(tmp_path, data, needle):
+    """frame_count 2.7 silently became 2, and keyframes at 0.5 and 0.9 were reported as 'two
+    keyframes for frame 0': frames are whole numbers, a fraction is refused by name."""
+    assert needle in load_error(tmp_path, data)
+
+
+def test_integral_floats_count_as_whole_numbers():
+    path = camera_path_from_json(keyed([dict(KEY0, frame=0.0), dict(KEY2, frame=2.0)], frame_count=3.0,
+                                       width=200.0), "k.json")
+    assert len(path) == 3 and path.cameras[0].width == 200
+    assert np.allclose(path.cameras[2].eye, KEY2["eye"])
