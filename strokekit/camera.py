@@ -675,7 +675,7 @@ def _camera_at(m: np.ndarray, cam, width: int | None, height: int | None) -> Cam
     rot = rot / np.where(scale > 0, scale, 1)
     eye = m[:3, 3]
     fwd, up = -rot[:, 2], rot[:, 1]
-    if cam.type == "orthographic" and cam.orthographic is not None:
+    if cam.type == "orthographic":  # (gltf_camera_path checked that the block is there)
         xmag, ymag = cam.orthographic.xmag, cam.orthographic.ymag
         if not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (xmag, ymag)):
             raise InputError(f"orthographic xmag and ymag must be > 0, got {xmag!r} and {ymag!r}")
@@ -684,16 +684,15 @@ def _camera_at(m: np.ndarray, cam, width: int | None, height: int | None) -> Cam
         return Camera(eye=tuple(eye), target=tuple(eye + fwd), up=tuple(up), projection="orthographic",
                       ortho_height=2 * cam.orthographic.ymag, width=w, height=h)
     p = cam.perspective
-    if p is not None and not (isinstance(p.yfov, (int, float)) and math.isfinite(p.yfov) and 0 < p.yfov < math.pi):
+    if not (isinstance(p.yfov, (int, float)) and math.isfinite(p.yfov) and 0 < p.yfov < math.pi):
         raise InputError(f"perspective camera needs a yfov in (0, pi) radians, got {p.yfov!r}")
     h = height or 1024
-    aspect = p.aspectRatio if p is not None and p.aspectRatio is not None else 1.0
+    aspect = p.aspectRatio if p.aspectRatio is not None else 1.0
     if not (isinstance(aspect, (int, float)) and math.isfinite(aspect) and aspect > 0):
         raise InputError(f"perspective aspectRatio must be a number > 0, got {aspect!r}")
     w = width or _gltf_width(h, aspect, f"perspective aspectRatio {aspect:g}")
     return Camera(eye=tuple(eye), target=tuple(eye + fwd), up=tuple(up),
-                  fov_y=math.degrees(p.yfov) if p is not None else 40.0, width=w, height=h,
-                  near=(p.znear if p is not None and p.znear else None))
+                  fov_y=math.degrees(p.yfov), width=w, height=h, near=(p.znear or None))
 
 
 def gltf_camera_path(path: Path, width: int | None = None, height: int | None = None,
@@ -737,6 +736,15 @@ def gltf_camera_path(path: Path, width: int | None = None, height: int | None = 
     if cam_i is None:
         raise InputError("glTF file has cameras but no node uses one", path)
     cam_obj = data._item("cameras", nodes[cam_i].camera, f"node {cam_i}")
+    # The lens is the block named by the type; without it the camera would be a guess (an
+    # orthographic camera without one was drawn in perspective at 40 degrees).
+    kind = _field(cam_obj, "type")
+    if kind not in ("perspective", "orthographic"):
+        raise data.error(f"camera {nodes[cam_i].camera} has type {kind!r}: glTF cameras are 'perspective' or "
+                         f"'orthographic'")
+    if _field(cam_obj, kind) is None:
+        needs = "yfov" if kind == "perspective" else "xmag, ymag"
+        raise data.error(f"camera {nodes[cam_i].camera} is {kind} but has no '{kind}' block ({needs})")
     parents = {}
     for i, n in enumerate(nodes):
         for c in n.children or []:

@@ -377,3 +377,19 @@ def test_orthographic_magnifications_giving_no_usable_width_are_one_clear_error(
     doc.node(camera=0, translation=[0, 0, 5])
     with pytest.raises(InputError, match="orthographic xmag / ymag .* the width must be 1 to 100000 px"):
         gltf_camera_path(doc.save(tmp_path / "o.glb"))
+
+
+@pytest.mark.parametrize("kind,block,needle", [
+    ("orthographic", None, "camera 0 is orthographic but has no 'orthographic' block (xmag, ymag)"),
+    ("perspective", None, "camera 0 is perspective but has no 'perspective' block (yfov)"),
+    ("fisheye", "perspective", "camera 0 has type 'fisheye': glTF cameras are 'perspective' or 'orthographic'"),
+])
+def test_camera_without_the_lens_its_type_names_is_one_clear_error(tmp_path, kind, block, needle):
+    """An orthographic camera without its 'orthographic' block was drawn in perspective at 40
+    degrees (exit 0); likewise a perspective one without 'perspective', and an unknown type."""
+    doc = Glb()
+    lens = doc.g.cameras[0].perspective
+    doc.g.cameras = [pygltflib.Camera(type=kind, perspective=lens if block == "perspective" else None)]
+    doc.node(camera=0, translation=[0, 0, 5])
+    with pytest.raises(InputError, match=re.escape("l.glb: " + needle)):
+        gltf_camera_path(doc.save(tmp_path / "l.glb"))
