@@ -155,50 +155,54 @@ class CameraPath:
         return out
 
 
-# --- rotations: look-at frames slerped as quaternions -------------------------------------------
+# --- keyframes ----------------------------------------------------------------------------------
 
-def _matrix_to_quat(m: np.ndarray) -> np.ndarray:
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.array(q)
-    return q / np.linalg.norm(q)
+def _turn(u0: np.ndarray, u1: np.ndarray, t: float, spare_axis: np.ndarray) -> np.ndarray:
+    """The unit vector a fraction t of the way from unit u0 to unit u1 along the great circle
+    (slerp of directions). Opposite vectors turn about `spare_axis` (made perpendicular to u0)."""
+    axis = np.cross(u0, u1)
+    angle = math.atan2(np.linalg.norm(axis), float(u0 @ u1))
+    if np.linalg.norm(axis) < 1e-9:
+        if angle < 1.0:  # the same direction
+            return u0
+        axis = spare_axis - (spare_axis @ u0) * u0
+        if np.linalg.norm(axis) < 1e-9:
+            axis = np.cross(u0, _FALLBACK_UPS[0] if abs(u0[1]) < 0.9 else _FALLBACK_UPS[2])
+    k = axis / np.linalg.norm(axis)
+    a = t * angle  # Rodrigues; k is perpendicular to u0
+    return u0 * math.cos(a) + np.cross(k, u0) * math.sin(a)
 
 
-def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = q
-    return _quats_to_matrices(np.array([[x, y, z, w]], float))[0]
+def _key_up(cam: Camera) -> np.ndarray:
+    up = np.asarray(cam.up, float)
+    n = np.linalg.norm(up)
+    return up / n if n > 0 else cam.basis[1]
 
 
-def _slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
-    """Shortest-path slerp of two unit quaternions (any one component order) at fraction t."""
-    return _slerp_many(np.asarray(q0, float)[None], np.asarray(q1, float)[None], np.array([float(t)]))[0]
+def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smooth: bool = False,
+                          source: str = "") -> list[Camera]:
+    """Cameras for frames 0..frame_count-1 from (frame, camera) keyframes.
 
-
-def _lookat_quat(cam: Camera) -> np.ndarray:
-    right, up, fwd = cam.basis
-    return _matrix_to_quat(np.stack([right, up, -fwd], axis=1))
-
-
-def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smooth: bool = False) -> list[Camera]:
-    """Cameras for frames 0..frame_count-1 from (frame, camera) keyframes: eye linear or
-    Catmull-Rom (smooth), orientation by slerp of the look-at frames, target distance and fov linear."""
+    Keyframes give eye, target and up (BRIEF 1.2), and those are what is interpolated: eye and
+    target linearly, or along Catmull-Rom curves (smooth), so a target that two keys share stays at
+    the image centre between them; the up vector turns at an even rate from one key's to the
+    next's and the camera frame re-orthogonalizes it against the view direction (Camera.basis).
+    fov_y and ortho_height are linear. Before the first key and after the last the nearest key
+    holds; a keyframe's frame is that key's camera exactly."""
     keys = sorted(keys, key=lambda k: k[0])
     kf = np.array([k for k, _ in keys], float)
     eyes = np.array([c.eye for _, c in keys])
-    quats = [_lookat_quat(c) for _, c in keys]
-    dists = np.array([np.linalg.norm(np.subtract(c.target, c.eye)) for _, c in keys])
+    targets = np.array([c.target for _, c in keys])
+    ups = [_key_up(c) for _, c in keys]
+
+    def curve(p: np.ndarray, i: int, t: float) -> np.ndarray:
+        if not smooth:
+            return (1 - t) * p[i] + t * p[i + 1]
+        p0, p1, p2, p3 = p[max(i - 1, 0)], p[i], p[i + 1], p[min(i + 2, len(p) - 1)]
+        t2, t3 = t * t, t * t * t
+        return 0.5 * ((2 * p1) + (-p0 + p2) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t2
+                      + (-p0 + 3 * p1 - 3 * p2 + p3) * t3)
+
     out = []
     for f in range(frame_count):
         if f <= kf[0]:
@@ -213,20 +217,15 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
             out.append(a)
             continue
         b = keys[i + 1][1]
-        if smooth:
-            p0 = eyes[max(i - 1, 0)]
-            p1, p2 = eyes[i], eyes[i + 1]
-            p3 = eyes[min(i + 2, len(keys) - 1)]
-            t2, t3 = t * t, t * t * t
-            eye = 0.5 * ((2 * p1) + (-p0 + p2) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t2 + (-p0 + 3 * p1 - 3 * p2 + p3) * t3)
-        else:
-            eye = (1 - t) * eyes[i] + t * eyes[i + 1]
-        rot = _quat_to_matrix(_slerp(quats[i], quats[i + 1], t))
-        fwd, up = -rot[:, 2], rot[:, 1]
-        dist = (1 - t) * dists[i] + t * dists[i + 1]
-        out.append(replace(a, eye=tuple(eye), target=tuple(eye + dist * fwd), up=tuple(up),
-                           fov_y=(1 - t) * a.fov_y + t * b.fov_y,
-                           ortho_height=(1 - t) * a.ortho_height + t * b.ortho_height))
+        eye, target = curve(eyes, i, t), curve(targets, i, t)
+        up = _turn(ups[i], ups[i + 1], t, spare_axis=a.basis[2])
+        try:
+            out.append(replace(a, eye=tuple(eye), target=tuple(target), up=tuple(up),
+                               fov_y=(1 - t) * a.fov_y + t * b.fov_y,
+                               ortho_height=(1 - t) * a.ortho_height + t * b.ortho_height))
+        except InputError as e:  # the eye passes through the target
+            raise InputError(f"frame {f}, between the keyframes at frame {keys[i][0]} and frame {keys[i + 1][0]}: "
+                             f"{e}", source or None) from None
     return out
 
 
@@ -331,7 +330,7 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
         if len(set(seen)) < len(seen):
             dup = sorted(f for f in set(seen) if seen.count(f) > 1)
             raise InputError(f"two keyframes for frame {dup[0]}", source)
-        cams = interpolate_keyframes(parsed, count, smooth=(interp == "smooth"))
+        cams = interpolate_keyframes(parsed, count, smooth=(interp == "smooth"), source=source)
     else:
         raise InputError("camera file needs 'frames' or 'keyframes'", source)
     return CameraPath(cameras=tuple(cams), fps=fps, source=source)

@@ -100,3 +100,69 @@ def test_integral_floats_count_as_whole_numbers():
                                        width=200.0), "k.json")
     assert len(path) == 3 and path.cameras[0].width == 200
     assert np.allclose(path.cameras[2].eye, KEY2["eye"])
+
+
+# --- keyframe interpolation: eye, target and up ----------------------------------------------------
+
+def centre_of(cam, point) -> np.ndarray:
+    xy, z = cam.project(np.array([point], float))
+    assert z[0] > 0
+    return xy[0]
+
+
+@pytest.mark.parametrize("interpolation", ["linear", "smooth"])
+def test_a_target_shared_by_the_keyframes_stays_at_the_image_centre(interpolation):
+    """Keys eye (0,0,5) and eye (10,0,0), both looking at the origin: the origin is the image
+    centre in every frame between them. Slerping the orientation and rebuilding the target as
+    eye + distance x forward put it at x = 8.4 of 200 px in the middle frame."""
+    keys = [{"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]},
+            {"frame": 4, "eye": [10, 0, 0], "target": [0, 0, 0]},
+            {"frame": 8, "eye": [0, 3, -6], "target": [0, 0, 0]}]
+    path = camera_path_from_json(keyed(keys, frame_count=9, interpolation=interpolation), "k.json")
+    for f, cam in enumerate(path.cameras):
+        assert np.allclose(cam.target, 0.0), f
+        assert np.allclose(centre_of(cam, [0, 0, 0]), [100, 100]), f
+
+
+def test_a_moving_target_moves_on_the_line_between_the_keys():
+    keys = [{"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]},
+            {"frame": 4, "eye": [4, 0, 5], "target": [2, 1, 0]}]
+    path = camera_path_from_json(keyed(keys, frame_count=5), "k.json")
+    for f, cam in enumerate(path.cameras):
+        t = f / 4
+        assert np.allclose(cam.eye, [4 * t, 0, 5]) and np.allclose(cam.target, [2 * t, t, 0])
+        assert np.allclose(centre_of(cam, [2 * t, t, 0]), [100, 100])
+
+
+def roll_deg(cam) -> float:
+    """Angle of the camera's up' from +Y, about the view direction -Z (positive toward +X)."""
+    _, up, fwd = cam.basis
+    assert np.allclose(fwd, [0, 0, -1])
+    return float(np.degrees(np.arctan2(up[0], up[1])))
+
+
+def test_the_up_vector_turns_at_an_even_rate_between_the_keys():
+    keys = [{"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]},
+            {"frame": 4, "eye": [0, 0, 5], "target": [0, 0, 0], "up": [2, 0, 0]}]
+    path = camera_path_from_json(keyed(keys, frame_count=5), "k.json")
+    assert np.allclose([roll_deg(c) for c in path.cameras], [0, 22.5, 45, 67.5, 90])
+
+
+def test_keys_with_the_same_up_keep_it_as_given():
+    keys = [{"frame": 0, "eye": [0, 4, 5], "target": [0, 0, 0], "up": [0, 0, 1]},
+            {"frame": 2, "eye": [5, 4, 0], "target": [0, 0, 0], "up": [0, 0, 1]}]
+    assert camera_path_from_json(keyed(keys), "k.json").cameras[1].up == (0.0, 0.0, 1.0)
+
+
+def test_opposite_ups_roll_half_a_turn_through_a_sideways_up():
+    keys = [{"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, 1, 0]},
+            {"frame": 2, "eye": [0, 0, 5], "target": [0, 0, 0], "up": [0, -1, 0]}]
+    mid = camera_path_from_json(keyed(keys), "k.json").cameras[1]
+    assert abs(roll_deg(mid)) == pytest.approx(90.0)
+
+
+def test_an_eye_that_passes_through_the_target_is_one_clear_error(tmp_path):
+    keys = [{"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]},
+            {"frame": 2, "eye": [0, 0, -5], "target": [0, 0, 0]}]
+    msg = load_error(tmp_path, keyed(keys))
+    assert "frame 1, between the keyframes at frame 0 and frame 2" in msg and "target equals eye" in msg
