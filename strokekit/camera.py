@@ -187,9 +187,21 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
     target linearly, or along Catmull-Rom curves (smooth), so a target that two keys share stays at
     the image centre between them; the up vector turns at an even rate from one key's to the
     next's and the camera frame re-orthogonalizes it against the view direction (Camera.basis).
-    fov_y and ortho_height are linear. Before the first key and after the last the nearest key
-    holds; a keyframe's frame is that key's camera exactly."""
+    fov_y (perspective), ortho_height (orthographic) and near are linear. Before the first key and
+    after the last the nearest key holds; a keyframe's frame is that key's camera exactly.
+
+    Keys must all have one projection and give near all or none (an InputError naming `source`
+    and the two frames otherwise: a perspective-to-orthographic jump or a near plane that exists
+    on one side only has no in-between)."""
     keys = sorted(keys, key=lambda k: k[0])
+    for (fa, a), (fb, b) in zip(keys, keys[1:]):
+        if a.projection != b.projection:
+            raise InputError(f"keyframes at frame {fa} ({a.projection}) and frame {fb} ({b.projection}) mix "
+                             f"projections: every keyframe of a path needs the same one", source or None)
+        if (a.near is None) != (b.near is None):
+            has, hasnt = (fa, fb) if a.near is not None else (fb, fa)
+            raise InputError(f"the keyframe at frame {has} gives 'near' and the one at frame {hasnt} does not: "
+                             f"give 'near' on every keyframe or on none", source or None)
     kf = np.array([k for k, _ in keys], float)
     eyes = np.array([c.eye for _, c in keys])
     targets = np.array([c.target for _, c in keys])
@@ -219,10 +231,13 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
         b = keys[i + 1][1]
         eye, target = curve(eyes, i, t), curve(targets, i, t)
         up = _turn(ups[i], ups[i + 1], t, spare_axis=a.basis[2])
+        if a.is_ortho:  # (only the lens of the path's projection: the other is never checked)
+            lens = {"ortho_height": (1 - t) * a.ortho_height + t * b.ortho_height}
+        else:
+            lens = {"fov_y": (1 - t) * a.fov_y + t * b.fov_y}
+        near = None if a.near is None else (1 - t) * a.near + t * b.near
         try:
-            out.append(replace(a, eye=tuple(eye), target=tuple(target), up=tuple(up),
-                               fov_y=(1 - t) * a.fov_y + t * b.fov_y,
-                               ortho_height=(1 - t) * a.ortho_height + t * b.ortho_height))
+            out.append(replace(a, eye=tuple(eye), target=tuple(target), up=tuple(up), near=near, **lens))
         except InputError as e:  # the eye passes through the target
             raise InputError(f"frame {f}, between the keyframes at frame {keys[i][0]} and frame {keys[i + 1][0]}: "
                              f"{e}", source or None) from None

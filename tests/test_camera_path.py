@@ -166,3 +166,48 @@ def test_an_eye_that_passes_through_the_target_is_one_clear_error(tmp_path):
             {"frame": 2, "eye": [0, 0, -5], "target": [0, 0, 0]}]
     msg = load_error(tmp_path, keyed(keys))
     assert "frame 1, between the keyframes at frame 0 and frame 2" in msg and "target equals eye" in msg
+
+
+# --- keyframe lenses: one projection, near / fov / ortho_height interpolated ---------------------
+
+def test_keyframes_mixing_projections_are_refused_naming_the_file_and_frames(tmp_path):
+    """Key 0 perspective and key 2 orthographic gave a perspective frame 1 with key 0's lens and a
+    jump at frame 2: a projection has no in-between, so such a path is an input error."""
+    keys = [dict(KEY0), dict(KEY2, projection="orthographic", ortho_height=2)]
+    msg = load_error(tmp_path, keyed(keys))
+    assert "keyframes at frame 0 (perspective) and frame 2 (orthographic) mix projections" in msg
+
+
+def test_near_is_interpolated_between_keys():
+    """near came from the earlier key only (0.5 until the next key, then a jump to 2.5): it changes
+    linearly, and after the last key that key's near holds."""
+    keys = [dict(KEY0, near=0.5), dict(KEY0, frame=4, near=2.5)]
+    path = camera_path_from_json(keyed(keys, frame_count=6), "k.json")
+    assert [c.near for c in path.cameras] == pytest.approx([0.5, 1.0, 1.5, 2.0, 2.5, 2.5])
+
+
+def test_near_on_some_keyframes_only_is_refused(tmp_path):
+    keys = [dict(KEY0), dict(KEY2, near=0.5)]
+    msg = load_error(tmp_path, keyed(keys))
+    assert "the keyframe at frame 2 gives 'near' and the one at frame 0 does not" in msg
+
+
+def test_orthographic_keys_interpolate_ortho_height_and_perspective_keys_fov():
+    ortho = [dict(KEY0, projection="orthographic", ortho_height=2, near=1.0),
+             dict(KEY2, projection="orthographic", ortho_height=4, near=3.0)]
+    mid = camera_path_from_json(keyed(ortho), "k.json").cameras[1]
+    assert mid.is_ortho and mid.ortho_height == pytest.approx(3.0) and mid.near == pytest.approx(2.0)
+    persp = [dict(KEY0, fov_y=30), dict(KEY2, fov_y=50)]
+    mid = camera_path_from_json(keyed(persp), "k.json").cameras[1]
+    assert not mid.is_ortho and mid.fov_y == pytest.approx(40.0)
+
+
+def test_cli_refuses_a_mixed_projection_path_in_one_line(tmp_path, capsys):
+    cam = write(tmp_path, keyed([dict(KEY0), dict(KEY2, projection="orthographic", ortho_height=2)]))
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(SystemExit) as e:
+        main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert e.value.code == 1 and len(err.strip().splitlines()) == 1 and "cam.json" in err and "mix projections" in err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
