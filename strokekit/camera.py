@@ -357,10 +357,14 @@ def load_camera_path(path: str | Path) -> CameraPath:
     p = Path(path)
     if not p.exists():
         raise InputError("camera file not found", p)
+    if p.is_dir():
+        raise InputError("is a folder, not a camera file", p)
     if p.suffix.lower() in (".glb", ".gltf"):
         return gltf_camera_path(p)
     try:
         data = json.loads(p.read_text())
+    except OSError as e:
+        raise InputError(f"cannot read camera file ({e.strerror or e})", p) from None
     except UnicodeDecodeError:
         raise InputError("camera file is not text", p) from None
     except json.JSONDecodeError as e:

@@ -211,3 +211,10 @@ def test_cli_refuses_a_mixed_projection_path_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert e.value.code == 1 and len(err.strip().splitlines()) == 1 and "cam.json" in err and "mix projections" in err
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def test_a_folder_given_as_camera_file_is_named_as_such(tmp_path):
+    """--camera naming a folder said "cannot write: Is a directory" (an OSError caught as a write
+    failure); it is an input error that says what the path is."""
+    with pytest.raises(InputError, match="is a folder, not a camera file"):
+        load_camera_path(tmp_path)
