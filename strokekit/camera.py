@@ -198,6 +198,9 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
         if a.projection != b.projection:
             raise InputError(f"keyframes at frame {fa} ({a.projection}) and frame {fb} ({b.projection}) mix "
                              f"projections: every keyframe of a path needs the same one", source or None)
+        if (a.width, a.height) != (b.width, b.height):
+            raise InputError(f"keyframes at frame {fa} ({a.width} x {a.height} px) and frame {fb} ({b.width} x "
+                             f"{b.height} px) have different image sizes: a path has one size", source or None)
         if (a.near is None) != (b.near is None):
             has, hasnt = (fa, fb) if a.near is not None else (fb, fa)
             raise InputError(f"the keyframe at frame {has} gives 'near' and the one at frame {hasnt} does not: "
@@ -766,6 +769,9 @@ def gltf_camera_path(path: Path, width: int | None = None, height: int | None = 
     parents = {}
     for i, n in enumerate(nodes):
         for c in n.children or []:
+            if isinstance(c, bool) or not isinstance(c, int) or not 0 <= c < len(nodes):
+                raise data.error(f"node {i} has child {json.dumps(c)}, but there is no such node "
+                                 f"(the file has {len(nodes)})")
             parents[c] = i
     chain = [cam_i]  # camera node, its parent, ..., the root
     while chain[-1] in parents:

@@ -218,3 +218,13 @@ def test_a_folder_given_as_camera_file_is_named_as_such(tmp_path):
     failure); it is an input error that says what the path is."""
     with pytest.raises(InputError, match="is a folder, not a camera file"):
         load_camera_path(tmp_path)
+
+
+def test_keyframes_of_different_image_sizes_are_refused():
+    """Frames between two keys of different sizes took the earlier key's size, then jumped: a path
+    has one image size (an error naming both keyframes)."""
+    keys = [{"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]},
+            {"frame": 4, "eye": [4, 0, 5], "target": [0, 0, 0], "width": 300}]
+    with pytest.raises(InputError, match=r"k\.json: keyframes at frame 0 \(200 x 200 px\) and frame 4 "
+                                         r"\(300 x 200 px\) have different image sizes"):
+        camera_path_from_json(keyed(keys, frame_count=5), "k.json")

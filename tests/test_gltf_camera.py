@@ -389,3 +389,13 @@ def test_camera_without_the_lens_its_type_names_is_one_clear_error(tmp_path, kin
     doc.node(camera=0, translation=[0, 0, 5])
     with pytest.raises(InputError, match=re.escape("l.glb: " + needle)):
         gltf_camera_path(doc.save(tmp_path / "l.glb"))
+
+
+def test_a_child_index_naming_no_node_is_one_clear_error(tmp_path):
+    """A node whose children name a node the file does not have was accepted (the camera drawn as
+    if the child were not there); it is a broken file."""
+    doc = Glb()
+    cam = doc.node(camera=0, translation=[0, 0, 5])
+    doc.g.nodes[cam].children = [7]
+    with pytest.raises(InputError, match=r"c\.glb: node 1 has child 7, but there is no such node"):
+        gltf_camera_path(doc.save(tmp_path / "c.glb"))
