@@ -225,6 +225,19 @@ def test_info_reports_counts_and_kinds(capsys):
     assert {"silhouette", "border", "crease"} <= set(d["line_kinds"])
 
 
+def test_info_bounds_of_a_far_away_box_show_its_size(tmp_path, capsys):
+    """A unit box 1e6 from the origin printed min (1e+06, ...) max (1e+06, ...), as if it had no
+    size: the bounds keep 7 digits and the size is printed."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=[1, 2, 3])
+    box.apply_translation([1e6 + 0.5, 1, 1.5])
+    box.export(tmp_path / "far.stl")
+    code, out, err = run_cli(["info", tmp_path / "far.stl"], capsys)
+    assert code == 0, err
+    assert "min (1000000, 0, 0)  max (1000001, 2, 3)  size (1, 2, 3)" in out
+
+
 def test_glb_camera_node_is_a_camera_source(tmp_path, capsys):
     code, _, err = run_cli(["render", model_path("Duck.glb"), "--camera", model_path("Duck.glb"), "--out",
                             tmp_path / "o", "-q"], capsys)
