@@ -100,6 +100,9 @@ class SvgDrawing:
     path: str
     viewbox: tuple[float, float, float, float] | None
     layers: dict[str, Polylines]
+    #: kind -> the (stroke, stroke-width, fill) styles its drawn elements have (inherited from
+    #: their groups, `style=` over attributes); reported, never part of the comparison.
+    styles: dict[str, frozenset] = field(default_factory=dict)
 
 
 def _local(tag) -> str:
@@ -249,6 +252,26 @@ def _layer_name(el) -> str | None:
     return None
 
 
+_STYLE_KEYS = ("stroke", "stroke-width", "fill")
+
+
+def _own_style(el, inherited: tuple) -> tuple:
+    """(stroke, stroke-width, fill) of element `el` given its parent's: presentation attributes,
+    then `style=` declarations over them. Numbers in a normal form ('4px', '4.0' -> '4')."""
+    own = {k: el.get(k) for k in _STYLE_KEYS if el.get(k) is not None}
+    for decl in (el.get("style") or "").split(";"):
+        k, _, v = decl.partition(":")
+        if k.strip() in _STYLE_KEYS:
+            own[k.strip()] = v
+    out = list(inherited)
+    for i, k in enumerate(_STYLE_KEYS):
+        if k in own:
+            v = own[k].strip().lower()
+            n = _length_attr(v) if k == "stroke-width" else None
+            out[i] = format(n, "g") if n is not None else v
+    return tuple(out)
+
+
 def _length_attr(v: str | None) -> float | None:
     if not v:
         return None
@@ -289,8 +312,11 @@ def read_svg(path: str | Path) -> SvgDrawing:
 
     polys: dict[str, list[np.ndarray]] = {}
     ids: dict[str, list] = {}
+    styles: dict[str, set] = {}
 
-    def add(kind: str, arrays: list[np.ndarray], eid, m: np.ndarray):
+    def add(kind: str, arrays: list[np.ndarray], eid, m: np.ndarray, style: tuple):
+        if arrays:
+            styles.setdefault(kind, set()).add(style)
         for a in arrays:
             if len(a) == 0:
                 continue
@@ -301,12 +327,13 @@ def read_svg(path: str | Path) -> SvgDrawing:
             polys.setdefault(kind, []).append(a)
             ids.setdefault(kind, []).append(eid)
 
-    def walk(el, kind: str, m: np.ndarray):
+    def walk(el, kind: str, m: np.ndarray, style: tuple):
         for ch in el:
             name = _local(ch.tag)
             if name in _NOT_DRAWN or _hidden(ch):
                 continue
             eid = ch.get("id")
+            st = _own_style(ch, style)
             try:
                 cm = m @ parse_transform(ch.get("transform")) if ch.get("transform") else m
                 if name in ("g", "svg", "a", "switch"):
@@ -314,9 +341,9 @@ def read_svg(path: str | Path) -> SvgDrawing:
                     if layer is not None:
                         polys.setdefault(layer, [])  # an empty layer is still a kind of the file
                         ids.setdefault(layer, [])
-                    walk(ch, layer if layer is not None else kind, cm)
+                    walk(ch, layer if layer is not None else kind, cm, st)
                 elif name == "path":
-                    add(kind, parse_path_data(ch.get("d", "")), eid, cm)
+                    add(kind, parse_path_data(ch.get("d", "")), eid, cm, st)
                 elif name in ("polyline", "polygon"):
                     v = _numbers(ch.get("points", ""), "points")
                     if len(v) % 2:
@@ -324,17 +351,19 @@ def read_svg(path: str | Path) -> SvgDrawing:
                     a = np.array(v, float).reshape(-1, 2)
                     if name == "polygon" and len(a) > 1:
                         a = np.vstack([a, a[:1]])
-                    add(kind, [a], eid, cm)
+                    add(kind, [a], eid, cm, st)
                 elif name == "line":
                     v = [float(ch.get(k, "0")) for k in ("x1", "y1", "x2", "y2")]
-                    add(kind, [np.array(v).reshape(2, 2)], eid, cm)
+                    add(kind, [np.array(v).reshape(2, 2)], eid, cm, st)
             except ValueError as e:
                 what = f"<{name} id={eid!r}>" if eid else f"<{name}>"
                 raise InputError(f"unreadable {what}: {e}", path=p) from None
 
-    walk(root, NO_LAYER, parse_transform(root.get("transform")) if root.get("transform") else np.eye(3))
+    # SVG's initial values: stroke none, stroke-width 1, fill black.
+    walk(root, NO_LAYER, parse_transform(root.get("transform")) if root.get("transform") else np.eye(3),
+         _own_style(root, ("none", "1", "black")))
     layers = {k: Polylines.from_list(polys[k], ids[k]) for k in polys}
-    return SvgDrawing(str(p), viewbox, layers)
+    return SvgDrawing(str(p), viewbox, layers, {k: frozenset(v) for k, v in styles.items()})
 
 
 # ----------------------------------------------------------------------------------------------
@@ -551,6 +580,8 @@ class DiffResult:
     kinds: dict[str, KindDiff]
     viewbox_a: tuple | None = None
     viewbox_b: tuple | None = None
+    styles_a: dict = field(default_factory=dict)  # SvgDrawing.styles of A and B
+    styles_b: dict = field(default_factory=dict)
 
     @property
     def same_canvas(self) -> bool:
@@ -579,6 +610,11 @@ class DiffResult:
         out = []
         if self.viewbox_a != self.viewbox_b and self.same_canvas:
             out.append(f"viewBox differs within {self.tol:g} px: A {self.viewbox_a}, B {self.viewbox_b}")
+        for kind in self.kinds:
+            a, b = self.styles_a.get(kind), self.styles_b.get(kind)
+            if a and b and a != b:
+                out.append(f"{kind}: style differs (geometry is what is compared): A {_fmt_styles(a)}, "
+                           f"B {_fmt_styles(b)}")
         for k in self.kinds.values():
             if k.renamed:
                 ex = ", ".join(f"{ia}->{ib}" for ia, ib in k.renamed[:5])
@@ -628,6 +664,12 @@ class DiffResult:
                 lines.append(f"  equal: {', '.join(same)}")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
+
+
+def _fmt_styles(styles: frozenset) -> str:
+    shown = sorted(styles)[:3]
+    text = "; ".join(" ".join(f"{k} {v}" for k, v in zip(_STYLE_KEYS, st)) for st in shown)
+    return text + (f" (+{len(styles) - 3} more)" if len(styles) > 3 else "")
 
 
 def _fmt_box(box: tuple) -> str:
@@ -843,7 +885,7 @@ def diff_drawings(a: SvgDrawing, b: SvgDrawing, tol: float = 0.05) -> DiffResult
     empty = Polylines.from_list([], [])
     kinds = list(dict.fromkeys([*a.layers, *b.layers]))
     out = {k: diff_polylines(k, a.layers.get(k, empty), b.layers.get(k, empty), tol) for k in kinds}
-    return DiffResult(a.path, b.path, tol, out, a.viewbox, b.viewbox)
+    return DiffResult(a.path, b.path, tol, out, a.viewbox, b.viewbox, a.styles, b.styles)
 
 
 def diff_svgs(path_a: str | Path, path_b: str | Path, tol: float = 0.05, *, png: str | Path | None = None,

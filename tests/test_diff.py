@@ -404,3 +404,23 @@ def test_the_same_strokes_on_another_canvas_are_different(tmp_path):
     bare = tmp_path / "d.svg"
     bare.write_text(re.sub(r' (width|height|viewBox)="[^"]*"', "", text, count=3))
     assert read_svg(bare).viewbox is None and diff_svgs(a, bare, 0.05).equal
+
+
+def test_style_changes_are_noted_not_counted(tmp_path):
+    """diff compares geometry: the same strokes drawn 4 px wide are equal, and a note says the
+    style differs (it said nothing: a golden whose colours or widths changed passed silently).
+    The same style written as `style=` declarations instead of attributes (as Inkscape re-saves
+    it) is the same style: no note."""
+    text = svg_text(BASE)
+    assert 'stroke-width="1.5"' in text
+    a = write(tmp_path / "a.svg", BASE)
+    wide = tmp_path / "wide.svg"
+    wide.write_text(text.replace('stroke-width="1.5"', 'stroke-width="4"'))
+    r = diff_svgs(a, wide, 0.05)
+    assert r.equal
+    assert any(n.startswith("silhouette: style differs") and "stroke-width 1.5" in n and "stroke-width 4" in n
+               for n in r.notes), r.notes
+    restyled = tmp_path / "restyled.svg"
+    restyled.write_text(text.replace('stroke-width="1.5"', 'style="stroke-width:1.5px"'))
+    assert text != restyled.read_text()
+    assert not [n for n in diff_svgs(a, restyled, 0.05).notes if "style" in n]
