@@ -28,7 +28,9 @@ def split_max_length(strokes: Strokes, max_length_px: float) -> Strokes:
     if len(brk) == 0:
         return strokes
     src = np.insert(np.arange(len(arc)), brk, brk - 1)
-    starts = np.sort(np.r_[strokes.offsets[:-1], brk + np.arange(len(brk))])
+    # Every start moves down by the points inserted before it (a break is never a stroke's first point).
+    first = strokes.offsets[:-1]
+    starts = np.sort(np.r_[first + np.searchsorted(brk, first), brk + np.arange(len(brk))])
     stroke_src = np.r_[np.arange(len(strokes)), sop[brk]]
     stroke_src = np.sort(stroke_src, kind="stable")
     offsets = np.r_[starts, len(src)].astype(np.int64)

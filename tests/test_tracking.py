@@ -493,3 +493,22 @@ def test_unique_inverse_is_np_unique():
         got_u, got_inv = _unique_inverse(x)
         assert np.array_equal(got_u, want_u) and np.array_equal(got_inv, want_inv.ravel())
         assert np.array_equal(got_u[got_inv], x)
+
+
+def test_max_length_splits_each_stroke_and_keeps_the_others_whole():
+    """--max-length (seed 000 split criterion): a long stroke is cut into pieces of at most the
+    limit that share their end points, and the strokes after it keep their own points and kind.
+    The inserted end points were not counted in the later strokes' starts: after the first split
+    every later stroke took points of the one before (silhouette points in a crease stroke, an
+    empty path, jumps of 500 px drawn between strokes)."""
+    from strokekit.strokeops import split_max_length
+
+    p = np.array([[0, 0], [10, 0], [20, 0], [30, 0], [0, 50], [5, 50], [0, 80], [10, 80], [20, 80]], float)
+    st = Strokes.build(p, np.zeros((len(p), 3)), np.zeros(len(p)), [0, 4, 6, 9],
+                       [KIND_INDEX["silhouette"], KIND_INDEX["crease"], KIND_INDEX["border"]])
+    out = split_max_length(st, 15.0)
+    pieces = [(int(out.kind[s]), out.points[out.stroke(s)].tolist()) for s in range(len(out))]
+    sil, crease, border = KIND_INDEX["silhouette"], KIND_INDEX["crease"], KIND_INDEX["border"]
+    assert pieces == [(sil, [[0, 0], [10, 0]]), (sil, [[10, 0], [20, 0]]), (sil, [[20, 0], [30, 0]]),
+                      (crease, [[0, 50], [5, 50]]), (border, [[0, 80], [10, 80]]), (border, [[10, 80], [20, 80]])]
+    assert out.lengths.sum() == pytest.approx(st.lengths.sum())
