@@ -202,11 +202,20 @@ class Occluder:
         `first_hit`, instead the distance to the first hit along the ray (world units, inf where
         the ray reaches the eye)."""
         if camera.is_ortho:
+            # Parallel rays toward the camera, as far as the near plane: what lies before it is
+            # clipped out of the drawing (clip_segments) and hides nothing either (a section view,
+            # a camera placed inside the scene).
             _, _, fwd = camera.basis
             toward = np.broadcast_to(-fwd, points.shape)
-            origins = points + eps[:, None] * toward
-            far = 4.0 * self.radius + float(np.abs((points - self.origin) @ fwd).max(initial=0.0))
-            targets = origins + far * toward
+            reach = np.maximum((points - np.asarray(camera.eye, float)) @ fwd - camera.near_distance(self.radius), 0.0)
+            origins = points + np.minimum(eps, 0.5 * reach)[:, None] * toward
+            targets = points + reach[:, None] * toward
+            if not reach.all():  # a point on the near plane itself: no segment, nothing can hide it
+                on = reach > 0
+                out = np.full(len(points), np.inf) if first_hit else np.ones(len(points), bool)
+                if on.any():
+                    out[on] = self._visible_from(points[on], camera, eps[on], offset, first_hit)
+                return out
         else:
             eye = np.asarray(camera.eye, float)
             d = eye - points

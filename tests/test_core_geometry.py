@@ -401,3 +401,20 @@ def test_material_colours_keep_their_value_near_zero(tmp_path, monkeypatch):
     mesh.export(tmp_path / "dark.glb")
     (mat,) = load_scene(tmp_path / "dark.glb").materials
     assert mat.base_color == pytest.approx((1 / 255, 0.0, 0.0, 1 / 255))
+
+
+def test_orthographic_view_is_not_hidden_by_what_lies_behind_the_camera():
+    """An orthographic camera between two boxes, looking at one: the box behind it is clipped out
+    of the drawing and must hide nothing either. The visibility rays ran 4 scene radii past the
+    camera plane, so the box behind the eye hid the whole drawing (a blank frame)."""
+    va, fa = box_mesh([-0.5, -0.5, -0.5], [0.5, 0.5, 0.5])
+    vb, fb = box_mesh([-1, -1, 9], [1, 1, 11])
+    alone = build_scene(va, fa)
+    both = build_scene(np.r_[va, vb], np.r_[fa, fb + len(va)])
+    for projection in ("orthographic", "perspective"):
+        cam = Camera(eye=(0.3, 0.4, 5.0), target=(0.3, 0.4, 0.0), projection=projection, ortho_height=6.0,
+                     fov_y=50.0, width=256, height=256)
+        a = LineRenderer(alone, LineOptions()).render(cam)
+        b = LineRenderer(both, LineOptions()).render(cam)
+        assert a.lengths.sum() > 150, projection
+        assert b.lengths.sum() == pytest.approx(a.lengths.sum(), abs=0.01), projection
