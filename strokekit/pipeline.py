@@ -726,10 +726,19 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
 
         def enter_written() -> None:
             done = enter_later.intersection(res.frames_ok)
-            if done:
-                entries.update((f, manifest["frames"][f]) for f in done)
+            entries.update((f, manifest["frames"][f]) for f in done)
+            stale = []
+            if tracking_on and lines_failed:
+                # The frames after a frame whose lines failed were tracked without it: they are
+                # not what a run with it gives, so they leave the manifest and a resume renders
+                # them again (their digests chain through the failed frame).
+                first = frames.index(min(lines_failed, key=frames.index))
+                stale = [f for f in frames[first + 1:] if entries.pop(f, None) is not None]
+            if done or stale:
                 write_run_manifest(out.out_dir, manifest, entries)
-        need_lines = [f for f in frames if f not in done_before or tracking_on]
+        # The lines of frames kept from an earlier run are computed again (not written) when the
+        # tracker needs every frame, or when sequence.glb holds every frame of the run.
+        need_lines = [f for f in frames if f not in done_before or tracking_on or (out.gltf and out.gltf_sequence)]
 
         lines_results: dict[int, Strokes] = {}
         underlays: dict[int, list | None] = {}

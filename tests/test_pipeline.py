@@ -614,3 +614,43 @@ def test_coherence_metrics_ignore_the_run_manifest(tmp_path, capsys):
     assert run_cli(["render", cube, "--orbit", "2", "--out", out, "--pattern", "{frame:04d}", "-q"] + SMALL,
                    capsys)[0] == 0
     assert [p.name for p in frame_files(out, "{frame:04d}")] == ["0001.json", "0002.json"]
+
+
+def test_resume_after_a_failed_frame_with_tracking_gives_the_uninterrupted_bytes(tmp_path, capsys, monkeypatch):
+    """Frame 3 of a tracked run fails once: the frames after it were tracked without it, so the
+    resume must render them again (they stayed in the manifest as done and kept their wrong ids).
+    After the resume every file equals an uninterrupted run's."""
+    import strokekit.pipeline as pl
+
+    args = ["render", model_path("spot.obj"), "--orbit", "6", "--size", "160x160", "--workers", "1", "-q", "--no-svg"]
+    ref, part = tmp_path / "ref", tmp_path / "part"
+    assert run_cli([*args, "--out", ref], capsys)[0] == 0
+    real = pl.frame_task
+
+    def failing(scene_path, scene_hash, lines, frame, *a, **k):
+        if frame == 3:
+            return {"frame": frame, "error": "frame 3: simulated failure"}
+        return real(scene_path, scene_hash, lines, frame, *a, **k)
+
+    monkeypatch.setattr(pl, "frame_task", failing)
+    assert run_cli([*args, "--out", part], capsys)[0] == 3
+    monkeypatch.setattr(pl, "frame_task", real)
+    assert tree_bytes(part) != tree_bytes(ref)
+    assert run_cli([*args, "--out", part, "--skip-existing"], capsys)[0] == 0
+    assert tree_bytes(part) == tree_bytes(ref)
+
+
+def test_gltf_sequence_after_a_resume_holds_every_frame(tmp_path, capsys):
+    """Without tracking, a --skip-existing resume wrote sequence.glb from the re-rendered frames
+    only (one node), and none when every frame was there: it is always the whole run's."""
+    args = ["render", model_path("spot.obj"), "--orbit", "4", "--size", "160x160", "--workers", "1", "-q",
+            "--gltf-sequence", "--no-coherence"]
+    out = tmp_path / "o"
+    assert run_cli([*args, "--out", out], capsys)[0] == 0
+    whole = (out / "sequence.glb").read_bytes()
+    (out / "frame_0003.svg").unlink()
+    assert run_cli([*args, "--out", out, "--skip-existing"], capsys)[0] == 0
+    assert (out / "sequence.glb").read_bytes() == whole
+    (out / "sequence.glb").unlink()
+    assert run_cli([*args, "--out", out, "--skip-existing"], capsys)[0] == 0
+    assert (out / "sequence.glb").read_bytes() == whole
