@@ -128,11 +128,11 @@ class TrackingOptions:
     def __post_init__(self):
         if self.method not in METHODS:
             raise UsageError(f"unknown coherence method {self.method!r} (known: {', '.join(METHODS)})")
-        for name in ("period_px", "search_radius_px", "vote_spacing_px", "seed_search_px"):
+        for name in ("period_px", "search_radius_px", "vote_spacing_px", "seed_search_px", "dense_spacing_px"):
             if not getattr(self, name) > 0:
                 raise UsageError(f"{_field_name(name)} must be > 0, got {getattr(self, name)}")
         for name in ("stretch_weight", "outlier_px", "min_id_px", "max_growth_px", "min_carry_px",
-                     "seed_angle_penalty_px", "join_tol_px"):
+                     "seed_angle_penalty_px", "join_tol_px", "min_segment_px", "knot_spacing_px", "bend_weight"):
             if not getattr(self, name) >= 0:
                 raise UsageError(f"{_field_name(name)} must be >= 0, got {getattr(self, name)}")
         if not 0 <= self.min_tangent_dot <= 1:
