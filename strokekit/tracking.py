@@ -1204,6 +1204,9 @@ class Tracker:
             d0 = prev.points[np.minimum(st0 + 1, prev.offsets[1:][carried] - 1)] - prev.points[st0]
             d0 = d0 / np.maximum(row_norm(d0), 1e-12)[:, None]
             q, z = cur.camera.project(X0)
+            # A start now behind the camera projects mirrored to a finite pixel: it claims nothing.
+            behind = ~((z > 0) | cur.camera.is_ortho)
+            q = np.where(behind[:, None], np.nan, q)
             tree = cKDTree(dense.p)
             kk = min(16, len(dense))
             dist, idx = tree.query(np.nan_to_num(q, nan=-1e9, posinf=-1e9, neginf=-1e9), k=kk,

@@ -518,3 +518,26 @@ def test_max_length_splits_each_stroke_and_keeps_the_others_whole():
     assert pieces == [(sil, [[0, 0], [10, 0]]), (sil, [[10, 0], [20, 0]]), (sil, [[20, 0], [30, 0]]),
                       (crease, [[0, 50], [5, 50]]), (border, [[0, 80], [10, 80]]), (border, [[10, 80], [20, 80]])]
     assert out.lengths.sum() == pytest.approx(st.lengths.sum())
+
+
+@pytest.mark.parametrize("method", ["seed", "kalnins"])
+def test_a_line_the_camera_flew_past_hands_its_id_to_nobody(method):
+    """Line A is in front of the camera in frame 1 and behind it in frame 2, where an unrelated
+    line B is on screen. The seed baseline projected A's start anyway (mirrored to a finite pixel
+    near B) and gave B A's id."""
+    def line(cam, X, frame):
+        n = len(X)
+        p, _ = cam.project(X)
+        return Strokes(points=p, surface=X, face=np.full(n, -1), offsets=np.array([0, n]), kind=np.zeros(1, np.int8),
+                       ids=np.zeros(1, np.int64), u=np.zeros(n), level=np.zeros(1), level_weight=np.ones(1),
+                       camera=cam, frame=frame)
+
+    cam1 = Camera(eye=(0, 0, 10), target=(0, 0, 0), width=512, height=512)
+    cam2 = Camera(eye=(0, 0, 5), target=(0, 0, 0), width=512, height=512)
+    A = np.stack([np.full(50, 0.01), np.linspace(0.01, 0.5, 50), np.full(50, 5.5)], 1)
+    B = np.stack([np.full(50, -0.1), np.linspace(-0.3, 0.1, 50), np.zeros(50)], 1)
+    assert cam2.project(A[:1])[1][0] < 0
+    tr = Tracker(TrackingOptions(method=method))
+    a = tr.step(line(cam1, A, 1))
+    b = tr.step(line(cam2, B, 2))
+    assert a.ids[0] not in b.ids.tolist()
