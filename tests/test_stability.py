@@ -726,8 +726,13 @@ def _assert_renumbering_invariant(sc, seed, az, el):
                       objects=sc.objects, materials=sc.materials)
     cam = _orbit_cam(sc.center, 3.0 * sc.radius, az, el)
     a, b = render(sc, cam), render(sc2, cam)
-    assert segment_distance(a, b) < 1e-6
-    assert a.lengths.sum() == pytest.approx(b.lengths.sum(), rel=1e-9, abs=1e-6)
+    # The same segments; a point where visibility changes is located to bisection_tol_px (0.01
+    # at default) and may land elsewhere within it: the renumbered BVH answers a ray that grazes
+    # an edge with other float32 bits. (hypothesis found seed=1, az=144.25, el=0: one split point
+    # 0.0073 px apart, the facing of every face the same.)
+    tol = LineOptions.preset("default").bisection_tol_px
+    assert segment_distance(a, b) < tol
+    assert len(a) == len(b) and abs(a.lengths.sum() - b.lengths.sum()) < 2 * tol * len(a)
 
 
 @settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
