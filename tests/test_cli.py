@@ -583,6 +583,13 @@ def test_help_reads_whole_at_80_columns(capsys, monkeypatch):
     assert not bare, bare
 
 
+@pytest.mark.parametrize("size", ["0x10", "100001x10", "10x100001"])
+def test_size_outside_what_camera_files_allow_is_a_usage_error(cube, tmp_path, capsys, size):
+    """--size has the bounds of a camera file's width and height (1 to 100000 px)."""
+    code, _, err = run_cli(["render", cube, "--orbit", "1", "--size", size, "--out", tmp_path / "o"], capsys)
+    assert code == 2 and f"bad --size '{size}'" in err and not (tmp_path / "o").exists()
+
+
 def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube, tmp_path, capsys):
     """--size 100000x100000 with --bands needs terabytes per frame: one usage line before any work
     (it failed at frame time with a MemoryError); lines alone at that size are vector output and run."""

@@ -6,7 +6,7 @@ import json
 
 import click
 
-from strokekit.camera import dolly_path, orbit_path
+from strokekit.camera import MAX_IMAGE_PX, dolly_path, orbit_path
 from strokekit.fileio import atomic_write_text
 from strokekit.scene import load_scene
 
@@ -26,8 +26,8 @@ _common = [
     click.option("--frames", type=click.IntRange(min=1), default=48, show_default=True, help="Number of frames."),
     click.option("--elevation", type=FiniteFloatRange(-90, 90), default=15.0, show_default=True, help="Degrees above the horizon."),
     click.option("--fov", type=FiniteFloatRange(0.1, 179.9), default=40.0, show_default=True, help="Vertical field of view, degrees."),
-    click.option("--width", type=click.IntRange(min=1), default=1024, show_default=True),
-    click.option("--height", type=click.IntRange(min=1), default=1024, show_default=True),
+    click.option("--width", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True),
+    click.option("--height", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True),
     click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis."),
     click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout."),
 ]

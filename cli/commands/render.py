@@ -10,7 +10,7 @@ from pathlib import Path
 
 import click
 
-from strokekit.camera import load_camera_path, orbit_path
+from strokekit.camera import MAX_IMAGE_PX, load_camera_path, orbit_path
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
 from strokekit.frames import parse_frames
@@ -107,8 +107,9 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             width, height = (int(x) for x in size.lower().split("x"))
         except Exception:
             raise UsageError(f"bad --size {size!r}: use WxH, e.g. 1024x768") from None
-        if width <= 0 or height <= 0:
-            raise UsageError(f"bad --size {size!r}: width and height must be positive")
+        if not (0 < width <= MAX_IMAGE_PX and 0 < height <= MAX_IMAGE_PX):
+            raise UsageError(f"bad --size {size!r}: width and height must be positive and at most {MAX_IMAGE_PX} px "
+                             "(as in camera files)")
     if not (stroke_width > 0 and math.isfinite(stroke_width)):
         raise UsageError(f"--stroke-width must be a finite number > 0 px, got {stroke_width}")
     # Outputs that cannot be written are said now, not after every frame has been rendered.
