@@ -769,7 +769,7 @@ def gltf_camera_path(path: Path, width: int | None = None, height: int | None = 
     parents = {}
     for i, n in enumerate(nodes):
         for c in n.children or []:
-            if isinstance(c, bool) or not isinstance(c, int) or not 0 <= c < len(nodes):
+            if not _is_index(c) or c >= len(nodes):
                 raise data.error(f"node {i} has child {json.dumps(c)}, but there is no such node "
                                  f"(the file has {len(nodes)})")
             parents[c] = i
