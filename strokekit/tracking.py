@@ -17,8 +17,12 @@ self-similar `level` / `level_weight`. Three methods:
   shorter than `min_segment_px` are absorbed), so ids, not this frame's chain ends, decide where
   strokes begin and end. A cut between two ids goes where the previous frame's stroke end
   projects (`snap_boundaries`: the boundary between two ids does not wander with the sample
-  spacing from frame to frame). Closed loops are turned to start at the old loop's seam; each
-  segment is oriented so that u increases along it (with `chain_touching` off, segments with
+  spacing from frame to frame). Closed loops are turned to start at the old loop's seam, and
+  where an open stroke runs across an old loop's seam the votes are unwrapped by the loop's u
+  span (no fold there); each segment is oriented so that u increases along it: the way its
+  carried u increases, or where the votes do not tell, the way the old tangents ran (an edge
+  turning through edge-on turns its image around while u keeps its order) (with
+  `chain_touching` off, segments with
   the same id whose chains end within `join_tol_px` are healed into one stroke afterwards, a
   short chain that no vote landed on carrying the id of the chain it continues). Per stroke,
   votes of other ids are shifted by whole periods (the texture is periodic) to meet the largest
@@ -742,6 +746,78 @@ def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
     return _replace(out, u=out.arc_length / out.period_px)
 
 
+def _u_trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarray, u: np.ndarray,
+             R: int) -> np.ndarray:
+    """(R,) px of every run along which the carried u increases, less the px along which it
+    decreases: the votes that carry the run's own id (`label`), in order of their position `pos`
+    (px along the new stroke), each step counted by its length with the sign of its du. A step
+    across the seam of an old loop (u jumps back by the loop) counts for its length only."""
+    keep = np.flatnonzero(vid == label.take(run))
+    if len(keep) < 2:
+        return np.zeros(R)
+    rk, pk = run.take(keep), pos.take(keep)
+    pk = pk - pk.min()
+    o = np.argsort(rk * (pk.max() + 1.0) + pk, kind="stable")  # by run, then position
+    rq = rk.take(o)
+    same = rq[1:] == rq[:-1]
+    step = np.where(same, np.sign(np.diff(u.take(keep).take(o))) * np.diff(pk.take(o)), 0.0)
+    return np.bincount(rq[1:], weights=step, minlength=R)
+
+
+def _unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndarray, group: np.ndarray,
+                       w: np.ndarray, P: float, min_loop_spacing_px: float) -> np.ndarray:
+    """Votes u (V,) made continuous across the seams of the previous frame's closed strokes.
+
+    A closed stroke's u runs from u0 at its start to u0 + U at its end, the same point (U: its
+    length in periods), so its votes jump by U where the old seam lies. A new stroke that runs
+    across that point (an open piece of the old loop, or a loop the chaining started elsewhere
+    and _turn_loops_to_seams could not turn) would fit u through the jump and fold it backwards.
+    Within each vote group (`group`: a new stroke and the carried id `vid`), votes sorted by
+    their arc length `s` (px) along the new stroke; a step between two that arc length does not
+    explain (du - ds / P, a whole number of U away from 0) is undone, and the group keeps the
+    offset of most of its weight `w`, so the votes away from the seam keep their u."""
+    if len(u) == 0 or len(prev) == 0:
+        return u
+    first, last = prev.offsets[:-1], prev.offsets[1:] - 1
+    L = prev.lengths
+    closed = (L > 0) & (row_norm(prev.points.take(first, axis=0) - prev.points.take(last, axis=0)) < 1e-6)
+    if not closed.any():
+        return u
+    # U per carried id (ids are unique per stroke); only loops of at least 4 vote spacings
+    # (`min_loop_spacing_px`), whose jump stands out from the noise of neighbouring votes.
+    span = prev.u.take(last) - prev.u.take(first)
+    loop = closed & (L >= 4.0 * min_loop_spacing_px)
+    ids_sorted = np.argsort(prev.ids, kind="stable")
+    k = np.searchsorted(prev.ids, vid, sorter=ids_sorted)
+    src = ids_sorted[np.minimum(k, len(ids_sorted) - 1)]
+    U = np.where((prev.ids[src] == vid) & loop[src], span[src], 0.0)
+    if not (U > 0).any():
+        return u
+    o = np.lexsort((s, group))
+    gq, sq, uq, Uq = group[o], s[o], u[o], U[o]
+    same = gq[1:] == gq[:-1]
+    step = np.diff(uq) - np.diff(sq) / P
+    turns = np.where(same & (Uq[1:] > 0), np.round(step / np.where(Uq[1:] > 0, Uq[1:], 1.0)), 0.0)
+    if not turns.any():
+        return u
+    # Whole loops added so far within the group (a cumulative sum restarted at each group).
+    c = _cat(0.0, np.cumsum(turns))
+    start = _cat(True, ~same)
+    c -= c[np.maximum.accumulate(np.where(start, np.arange(len(c)), 0))]
+    # The offset holding most of the group's weight stays (ties: the lower one).
+    ci = c.astype(np.int64)
+    base = ci.min()
+    n_off = int(ci.max() - base) + 1
+    ukey, kinv = _unique_inverse(gq.astype(np.int64) * n_off + (ci - base))
+    kgroup = ukey // n_off
+    keep = _first_max_per_group(kgroup, np.bincount(kinv, weights=w[o]))
+    keep_c = np.zeros(int(gq.max()) + 1, np.int64)
+    keep_c[kgroup[keep]] = ukey[keep] % n_off + base
+    out = u.copy()
+    out[o] = uq - (ci - keep_c[gq]) * Uq
+    return out
+
+
 def _segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
     return [np.bincount(idx, weights=w, minlength=n) for w in weights]
 
@@ -1088,6 +1164,11 @@ class Tracker:
         # Direction: previous strokes have u increasing along them; a segment whose samples run
         # against the voters' tangents is reversed (seed 000 strategy 2, in vote form).
         r_sign = np.bincount(rv, weights=w * sign, minlength=R)
+        # ... unless the carried u itself says which way it increases: an edge turning through
+        # edge-on flips its image direction, so the tangents disagree while u, on the surface,
+        # keeps its order (followed by tangents alone, u ran backwards along the stroke).
+        trend = _u_trend(rv, vid, r_label, dense.s[vm] + ds, u, R)
+        r_sign = np.where(np.abs(trend) >= o.dense_spacing_px, trend, r_sign)
         # Healing (chain_touching off): segments carrying the same id that now end at the same
         # point (the chaining stopped at a junction it went through in the previous frame) are
         # drawn as one stroke.
@@ -1126,6 +1207,8 @@ class Tracker:
             gw = np.bincount(ginv, weights=w)
         else:
             gkeys, ginv, gw = np.zeros((0, 2), np.int64), np.zeros(0, np.int64), np.zeros(0)
+        if len(st):
+            u = _unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
         # Primary group per stroke: most matched length, ties to the lower id. gkeys come sorted
         # by (stroke, id): the first group of a stroke holding the stroke's maximum (no sort).
         primary = np.zeros(len(gw), bool)

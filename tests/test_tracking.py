@@ -541,3 +541,48 @@ def test_a_line_the_camera_flew_past_hands_its_id_to_nobody(method):
     a = tr.step(line(cam1, A, 1))
     b = tr.step(line(cam2, B, 2))
     assert a.ids[0] not in b.ids.tolist()
+
+
+def test_a_line_turning_through_edge_on_keeps_u_increasing_along_it():
+    """A straight line seen nearly end-on: as the camera swings past its axis, its image turns
+    around. u sits on the surface, so the carried votes still increase from the same end; the
+    tangents alone (old image direction against new) would reverse the stroke and u with it
+    would run backwards along the drawn line."""
+    X = np.stack([np.full(40, 0.05), np.zeros(40), np.linspace(-1.0, 1.0, 40)], 1)
+
+    def frame(azimuth, k):
+        cam = Camera(eye=(10 * np.sin(azimuth), 0.0, 10 * np.cos(azimuth)), target=(0, 0, 0), width=SIZE,
+                     height=SIZE)
+        p, _ = cam.project(X)
+        return Strokes.build(p, X, np.zeros(40), [0, 40], [KIND_INDEX["crease"]], camera=cam, frame=k)
+
+    a, b = frame(-0.2, 1), frame(0.2, 2)
+    # The image direction of the line (first to last point) has turned around.
+    da, db = a.points[-1] - a.points[0], b.points[-1] - b.points[0]
+    assert np.dot(da, db) < 0 and min(a.lengths[0], b.lengths[0]) > 20
+    tr = Tracker()
+    t1, t2 = tr.step(a), tr.step(b)
+    assert t2.ids.tolist() == t1.ids.tolist()
+    assert np.all(np.diff(t2.u) > 0)  # u increases along the drawn stroke
+    # from the same end of the line as before: u at each surface point is carried.
+    end = np.argmin(t2.surface[:, 2])
+    assert t2.u[end] == pytest.approx(t1.u[np.argmin(t1.surface[:, 2])], abs=0.1)
+
+
+def test_an_open_piece_across_an_old_loop_seam_keeps_u_continuous():
+    """Frame 1 draws a closed loop (u from u0 at its start to u0 + U back at the same point);
+    in frame 2 only an arc across that start is left. The votes jump by U there: u must not
+    fold back (nor leap) where the old seam was."""
+    ang = np.radians(np.arange(0, 361, 3))
+    loop = np.c_[0.6 * np.cos(ang), 0.6 * np.sin(ang)]
+    arc = np.radians(np.arange(-120, 121, 3))
+    piece = np.c_[0.6 * np.cos(arc), 0.6 * np.sin(arc)]
+    a = _plane_strokes([loop], frame=1, n=2)
+    b = _plane_strokes([piece], frame=2, n=2)
+    tr = Tracker()
+    t1, t2 = tr.step(a), tr.step(b)
+    assert np.linalg.norm(t1.points[0] - t1.points[-1]) < 1e-6  # a closed stroke
+    assert t2.ids.tolist() == t1.ids.tolist()
+    du = np.diff(t2.u) / np.maximum(np.linalg.norm(np.diff(t2.points, axis=0), axis=1), 1e-9)
+    # Every step's slope stays near 1 / P: no fold, no jump.
+    assert np.all(du > 0) and np.all(du * t2.period_px < 1.5)
