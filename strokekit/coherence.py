@@ -10,7 +10,8 @@ the screen position of the projected point, never on identical surface points.
 - M1 id persistence: matched length whose id is the same in both frames / matched length.
 - M2 popping: length without a match in the other frame (both directions) / both frames' length.
 - M4 sliding: |u' - u| wrapped into (-1/2, 1/2], times the period P, in px (median, p95, max).
-- M5 flatness: lambda = 1 / (P du/ds); length-weighted mean |log2 lambda| over a frame.
+- M5 flatness: lambda = 1 / (P du/ds); length-weighted mean |log2 lambda| over a frame; a
+  stretch counts for at most MAX_STRETCH_OCTAVES (10), which a frozen texture (constant u) gets.
   `flatness_raw` is that number on u as written. `flatness` is the same measure on the texture
   as drawn with the self-similar levels of Benard 2010 (Strokes.level, level_weight, convention
   of strokekit.tracking): octave k samples u * 2^-k, so its lambda is 2^k / (P du/ds); the
@@ -292,6 +293,10 @@ def _wrap(du: np.ndarray) -> np.ndarray:
     return -((-du + 0.5) % 1.0 - 0.5)
 
 
+#: M5: the stretch counted for a texture stretched further, or frozen (constant u), in octaves.
+MAX_STRETCH_OCTAVES = 10.0
+
+
 def _flatness(strokes: Strokes, smp: Samples, mode: str) -> float:
     """Length-weighted mean |log2 lambda| of one frame (see module doc). mode "raw": u as
     written; "level": the self-similar texture at its continuous level c = level + 1 -
@@ -301,13 +306,16 @@ def _flatness(strokes: Strokes, smp: Samples, mode: str) -> float:
         return 0.0
     same = smp.stroke[1:] == smp.stroke[:-1]
     ds = 0.5 * (smp.w[1:] + smp.w[:-1])
-    du = np.abs(smp.u[1:] - smp.u[:-1])
-    ok = same & (ds > 0) & (du > 0)
+    ok = same & (ds > 0)
     if not ok.any():
         return 0.0
     P = strokes.period_px
-    log_lam = -np.log2(P * du[ok] / ds[ok])  # lambda = 1 / (P du/ds)
-    w = ds[ok]
+    ds = ds[ok]
+    # A texture stretched beyond MAX_STRETCH_OCTAVES (constant u: frozen, lambda infinite)
+    # counts as stretched by that much: left out, a stroke with constant u would score 0.
+    du = np.maximum(np.abs(smp.u[1:] - smp.u[:-1])[ok], ds / (P * 2.0 ** MAX_STRETCH_OCTAVES))
+    log_lam = -np.log2(P * du / ds)  # lambda = 1 / (P du/ds)
+    w = ds
     if mode == "raw":
         return float(np.sum(w * np.abs(log_lam)) / np.sum(w))
     st = smp.stroke[1:][ok]

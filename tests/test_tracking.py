@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 from strokekit.camera import Camera, dolly_path, orbit_path
-from strokekit.coherence import folder_metrics, pair_metrics, resample_strokes, sequence_metrics
+from strokekit.coherence import MAX_STRETCH_OCTAVES, folder_metrics, pair_metrics, resample_strokes, sequence_metrics
 from strokekit.errors import InputError, UsageError
 from strokekit.lines import LineRenderer
 from strokekit.model import KIND_INDEX, Strokes
@@ -104,6 +104,9 @@ def test_flatness_counts_levels():
     leveled = replace(stretched, level=level, level_weight=weight)
     _, ov = sequence_metrics([s, leveled])
     assert ov["M5"] == pytest.approx(0.0, abs=1e-6)
+    # A frozen texture (constant u) is stretched without bound: it counts as the cap, not as 0.
+    _, ov = sequence_metrics([s, replace(s, u=np.full_like(s.u, 0.3))])
+    assert ov["M5_raw"] == pytest.approx(MAX_STRETCH_OCTAVES)
 
 
 def test_cut_pieces_keeps_the_polyline():
