@@ -9,7 +9,7 @@ from dataclasses import fields, replace
 import numpy as np
 
 from .coherence import resample_strokes, surface_between
-from .model import KIND_INDEX, Strokes, bracket, uclip
+from .model import KIND_INDEX, Strokes, bracket, row_norm, uclip
 
 
 def split_max_length(strokes: Strokes, max_length_px: float) -> Strokes:
@@ -96,6 +96,37 @@ def simplify(strokes: Strokes, tol_px: float) -> Strokes:
     out = replace(strokes, points=strokes.points[keep], surface=strokes.surface[keep], face=strokes.face[keep],
                   u=strokes.u[keep], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
     return out
+
+
+def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float) -> Strokes:
+    """Strokes less the points where the line turns by more than `angle_deg` beside a segment of
+    at most `max_px` (px): the sub-pixel back-and-forth where two strands that overlap at their
+    ends were joined (one ends 0.1 px past where the next begins; a ribbon folds there). The
+    chaining splits at such turns, so only joints have them. Ends are kept; of two neighbouring
+    such points the first goes, then the turns are looked at again."""
+    cos_max = np.cos(np.radians(angle_deg))
+    for _ in range(4):
+        P = strokes.points
+        n = len(P)
+        if n < 3:
+            return strokes
+        sop = strokes.stroke_of_point
+        i = np.flatnonzero((sop[1:-1] == sop[:-2]) & (sop[1:-1] == sop[2:])) + 1
+        d_in, d_out = P[i] - P[i - 1], P[i + 1] - P[i]
+        l_in, l_out = row_norm(d_in), row_norm(d_out)
+        dot = np.einsum("ij,ij->i", d_in, d_out)
+        bad = (np.minimum(l_in, l_out) <= max_px) & (l_in > 0) & (l_out > 0) & (dot < cos_max * l_in * l_out)
+        cand = i[bad]
+        if len(cand) == 0:
+            return strokes
+        cand = cand[_cat(True, np.diff(cand) > 1)]
+        keep = np.ones(n, bool)
+        keep[cand] = False
+        counts = np.bincount(sop[keep], minlength=len(strokes))
+        strokes = replace(strokes, points=P[keep], surface=strokes.surface[keep], face=strokes.face[keep],
+                          u=None if strokes.u is None else strokes.u[keep],
+                          offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    return strokes
 
 
 # --- pieces of strokes, doubled contours (the per-frame pass and the tracker use them) ---------

@@ -68,7 +68,7 @@ from .coherence import Samples, match_samples, resample_strokes, surface_between
 from .errors import UsageError
 from .model import Strokes, bracket, row_norm, uclip
 from .options import _FLAGS, _flag
-from .strokeops import _cat, _replace, _tree, cut_pieces
+from .strokeops import _cat, _replace, _tree, cut_pieces, drop_hairpins
 
 METHODS = ("kalnins", "seed", "none")
 
@@ -1266,7 +1266,9 @@ class Tracker:
             u_new = a[sop] + b[sop] * cur.arc_length
         ids, self.next_id = assign_ids(S, cand_s, cand_i, cand_w, self.next_id, o.min_id_px)
         level, weight = levels_from_slope(b, P)
-        return _replace(cur, ids=ids, u=u_new, level=level, level_weight=weight)
+        # Joined strands that overlapped at their ends turn back there by a fraction of a pixel.
+        return drop_hairpins(_replace(cur, ids=ids, u=u_new, level=level, level_weight=weight), o.join_angle_deg,
+                             o.join_tol_px)
 
     # -- seed 000 strategies 1-5
     def _seed(self, cur: Strokes) -> Strokes:

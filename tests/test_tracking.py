@@ -589,3 +589,33 @@ def test_an_open_piece_across_an_old_loop_seam_keeps_u_continuous():
     du = np.diff(t2.u) / np.maximum(np.linalg.norm(np.diff(t2.points, axis=0), axis=1), 1e-9)
     # Every step's slope stays near 1 / P: no fold, no jump.
     assert np.all(du > 0) and np.all(du * t2.period_px < 1.5)
+
+
+def _max_turn_deg(st: Strokes) -> float:
+    worst = 0.0
+    for i in range(len(st)):
+        d = np.diff(st.points[st.stroke(i)], axis=0)
+        d = d[np.linalg.norm(d, axis=1) > 1e-9]
+        if len(d) > 1:
+            c = np.einsum("ij,ij->i", d[1:], d[:-1]) / np.linalg.norm(d[1:], axis=1) / np.linalg.norm(d[:-1], axis=1)
+            worst = max(worst, float(np.degrees(np.arccos(np.clip(c.min(), -1, 1)))))
+    return worst
+
+
+def test_touching_strands_are_joined_without_a_hairpin():
+    """Two collinear strands: one ends 0.1 px past where the other begins (they overlap), or
+    0.5 px short of it (a gap). Both are joined into one stroke (the id boundary can then go
+    where the previous frame had it); the overlap must not leave a 180 degree hairpin at the
+    joint (drawn as a folded ribbon), and the gap is bridged."""
+    def strands(x_end, frame):
+        p = np.array([[100.0, 50.0], [100.0 + x_end, 50.0], [110.0, 50.0], [140.0, 50.0]])
+        X = np.c_[p, np.zeros(4)]
+        cam = Camera(eye=(0, 0, 10), target=(0, 0, 0), width=SIZE, height=SIZE)
+        return Strokes.build(p, X, np.zeros(4), [0, 2, 4], [KIND_INDEX["silhouette"]] * 2, camera=cam, frame=frame)
+
+    for x_end in (10.1, 9.5):
+        tr = Tracker()
+        tr.step(strands(x_end, 1))
+        out = tr.step(strands(x_end, 2))
+        assert len(out) == 1 and _max_turn_deg(out) < 1e-6
+        assert out.lengths[0] == pytest.approx(40.0, abs=0.11)
