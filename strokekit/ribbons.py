@@ -5,14 +5,18 @@ stroke and v = 0 / 0.5 / 1 across.
 The outline is built in pixels, so the ribbon has its requested width on screen whatever the
 placement; it is then either lifted into the world (default) or kept flat in image space.
 
-Geometry of one segment k (points P_j -> P_j+1, unit direction t, left normal n = t rotated +90
-degrees in pixel coordinates) is six vertices, two per row across the stroke::
+Geometry of one segment k (points P_j -> P_j+1, unit direction t, normal n = t rotated +90
+degrees in pixel coordinates, x right and y down: the stroke's right-hand side on screen) is six
+vertices, two per row across the stroke, drawn here for a stroke running left to right::
 
-    S_L ---- E_L      v = 0   (P + n d)
+    S_L ---- E_L      v = 0   (P - n d, the left-hand side)
      |  \\     |
     S_C ---- E_C      v = 0.5 (the stroke's own points)
      |  \\     |
-    S_R ---- E_R      v = 1   (P - n d)
+    S_R ---- E_R      v = 1   (P + n d, the right-hand side)
+
+so a brush image is laid along the stroke as it is drawn: its top row (v = 0) on the left of the
+direction of travel, above a stroke that runs left to right.
 
 and four triangles. At a turn between segments k and k+1 (turn angle theta):
 
@@ -337,7 +341,7 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     vuv = np.empty((K, 7, 2))
     vuv[:, :3, 0] = ua[:, None]
     vuv[:, 3:, 0] = ub[:, None]
-    vuv[:, :, 1] = np.array([0.0, 0.5, 1.0, 0.0, 0.5, 1.0, 0.5])
+    vuv[:, :, 1] = np.array([1.0, 0.5, 0.0, 1.0, 0.5, 0.0, 0.5])  # vertices 0, 3 at +n: the right side
     pt = np.empty((K, 7), np.int64)  # the stroke point each vertex hangs on (its depth, arc length, u)
     pt[:, :3] = seg_j[:, None]
     pt[:, 3:] = (seg_j + 1)[:, None]
@@ -353,7 +357,7 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     dot = np.clip(np.einsum("ij,ij->i", t1, t2), -1.0, 1.0)
     turns = (np.abs(cross) > 1e-7) | (dot < 0)
     jk, t1, t2, cross, dot = jk[turns], t1[turns], t2[turns], cross[turns], dot[turns]
-    sig = np.where(cross >= 0, 1.0, -1.0)  # +1: turns toward +n (left side is inner)
+    sig = np.where(cross >= 0, 1.0, -1.0)  # +1: turns toward +n (the +n side is inner)
     n1, n2 = nrm[jk], nrm[jk + 1]
     Pj = p[seg_j[jk] + 1]
     dj = half[seg_j[jk] + 1]
@@ -383,7 +387,7 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     else:  # still over-full after the passes: every join touching such a segment gives up
         over = overfull(inner_ok)[0]
         inner_ok &= ~(over[jk] | over[jk + 1])
-    left = sig > 0
+    left = sig > 0  # (the +n side is inner)
     ki = jk[inner_ok]
     I = Pj[inner_ok] + (sig * dj)[inner_ok, None] * bis[inner_ok]
     vpix[ki, np.where(left[inner_ok], 3, 5)] = I
@@ -391,7 +395,7 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     miter_ok = (one_c / 2.0 >= 1.0 / o.miter_limit ** 2) & (one_c > 1e-9)
     vpix[jk, 6] = np.where(miter_ok[:, None], Pj - (sig * dj)[:, None] * bis,
                            Pj - (0.5 * sig * dj)[:, None] * (n1 + n2))
-    vuv[jk, 6, 1] = np.where(left, 1.0, 0.0)
+    vuv[jk, 6, 1] = np.where(left, 0.0, 1.0)  # the outer side's v
     A = 7 * jk + np.where(left, 5, 3)
     B = 7 * (jk + 1) + np.where(left, 2, 0)
     C = 7 * jk + 4

@@ -174,6 +174,23 @@ def test_uv_monotone_along_each_stroke_and_v_across():
         assert uc[0] == 0.0 and uc[-1] == pytest.approx(1.0)
 
 
+def test_brush_top_row_is_on_the_left_of_the_direction_of_travel():
+    """v = 0 (a brush image's top row) lies on the left of the direction the stroke is drawn in:
+    above a stroke running left to right on screen, below one running right to left, and on
+    the outer side of a turn it keeps its side. An asymmetric brush (ink, dry, a user's PNG)
+    was mirrored across every ribbon."""
+    o = RibbonOptions(space="image", width_px=4.0, taper_head_px=0.0, taper_tail_px=0.0)
+    for pts, above in (([[100.0, 300.0], [400.0, 300.0]], True), ([[400.0, 300.0], [100.0, 300.0]], False),
+                       ([[100.0, 300.0], [250.0, 300.0], [250.0, 150.0]], True)):
+        m = build_ribbons(strokes_of([pts]), CAM, o)
+        first = m.pixels[:3]  # the first segment's start row (it runs along y = 300)
+        y0, y1 = first[m.uv[:3, 1] == 0.0, 1], first[m.uv[:3, 1] == 1.0, 1]
+        assert (y0 < 300.0).all() == above and (y1 > 300.0).all() == above  # pixels: y down
+        if len(pts) == 3:  # a left turn: its outer join corner (252, 302) is on the right side
+            corner = np.linalg.norm(m.pixels - [252.0, 302.0], axis=1) < 1e-9
+            assert corner.any() and (m.uv[corner, 1] == 1.0).all()
+
+
 def test_head_and_tail_keep_their_size_while_the_body_repeats_with_u():
     """The head region covers the same pixels on a short and a long stroke; in the body the
     texture u is tex_head + body * frac(strokes.u), whatever the offset of u."""
