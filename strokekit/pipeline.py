@@ -799,6 +799,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             nonlocal cursor
             while cursor < len(need_lines) and need_lines[cursor] in finished:
                 f = need_lines[cursor]
+                if f not in lines_results and spec.fail_fast:
+                    return  # --fail-fast: no frame after a failed one is tracked or written
                 cursor += 1
                 if f not in lines_results:
                     continue
@@ -809,7 +811,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
                 ordered.append(f)
                 if write_in_task is not None:
                     continue  # written by its frame task
-                if f not in done_before and not (spec.fail_fast and res.failures):
+                if f not in done_before:
                     pending.appendleft((write_task, lines_results[f], f, out, spec.lines.kinds, extra,
                                         underlays.pop(f, None)))
                 if not keep_strokes and f in done_before:
@@ -841,6 +843,13 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
 
         try:
             workers.map(pending, handle)
+            if spec.fail_fast and res.failures:
+                # Stopped at a failure: the frames before it whose lines are done are still
+                # tracked (above) and written, here (their write tasks were left in line).
+                rest = [item for item in pending if item[0] is write_task]
+                pending.clear()
+                for item in rest:
+                    written(write_task(*item[1:]))
         finally:
             enter_written()
         if out.gltf and out.gltf_sequence and ordered:
@@ -858,12 +867,15 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         workers.close()
         remove_temp_files(spec)
         _frames_found_whole(spec, res, t_wall)
+        _remove_partial_frames(spec, res, t_wall)
         res.interrupted = True
         _finish(res, t_start)
         raise RunInterrupted(res) from None
     finally:
         if own:
             workers.close()
+    if res.failures:
+        _remove_partial_frames(spec, res, t_wall)
     return _finish(res, t_start)
 
 
@@ -886,6 +898,30 @@ def _frames_found_whole(spec: RunSpec, res: RunResult, since: float) -> None:
                 res.outputs += [str(p) for p in paths if str(p) not in listed]
         except OSError:  # a file is missing: the frame is not whole
             continue
+
+
+def _remove_partial_frames(spec: RunSpec, res: RunResult, since: float) -> None:
+    """Files this run wrote (not older than `since`, its start in time.time()) of frames it did
+    not write whole: the raster images of a frame whose lines failed to be written, or that a
+    stop (Ctrl-C, --fail-fast) left untracked. Removed, so that a frame is on disk whole or not
+    at all (a frame kept from an earlier run, or files older than the run, are not touched)."""
+    import math
+
+    floor = math.floor(since)
+    keep = set(res.frames_ok) | set(res.frames_skipped)
+    gone = set()
+    for f, _ in spec.cameras:
+        if f in keep:
+            continue
+        for p in spec.outputs.frame_files(f):
+            try:
+                if p.stat().st_mtime >= floor:
+                    p.unlink()
+                    gone.add(str(p))
+            except OSError:
+                continue
+    if gone:
+        res.outputs[:] = [o for o in res.outputs if o not in gone]
 
 
 def _finish(res: RunResult, t_start: float) -> RunResult:

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -654,3 +655,39 @@ def test_gltf_sequence_after_a_resume_holds_every_frame(tmp_path, capsys):
     (out / "sequence.glb").unlink()
     assert run_cli([*args, "--out", out, "--skip-existing"], capsys)[0] == 0
     assert (out / "sequence.glb").read_bytes() == whole
+
+
+def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path):
+    """--fail-fast with pool workers, tracking and raster outputs: a worker's lines may be done
+    for frames before the failed one while their (tracked) writes still wait in line. Those
+    frames are still written, each whole (SVG, JSON and both PNGs); nothing after the failure is
+    written, and no frame is left with its PNGs alone."""
+    from strokekit.camera import orbit_path
+    from strokekit.options import LineOptions
+    from strokekit.pipeline import OutputOptions, RunSpec, make_executor, run
+    from strokekit.bands import RasterOptions
+    from strokekit.tracking import TrackingOptions
+
+    path = model_path("spot.obj")
+    s = load_scene(path)
+    cams = [(i + 1, c) for i, c in enumerate(orbit_path(s.center, s.radius, 16, width=256, height=256).cameras)]
+    inside = replace(cams[9][1], eye=tuple(s.center), target=tuple(s.center + [0.0, 0.0, -1.0]))
+    cams[9] = (10, inside)  # frame 10: the eye inside the mesh
+    out = tmp_path / "o"
+    spec = RunSpec(scene_path=str(path), cameras=tuple(cams), lines=LineOptions(),
+                   outputs=OutputOptions(out_dir=out, raster_options=RasterOptions(bands=2)),
+                   tracking=TrackingOptions(), workers=2, fail_fast=True)
+    pool = make_executor(2, None, (str(path), LineOptions()))
+    try:
+        while pool.started.value < 1:
+            time.sleep(0.02)
+        res = run(spec, workers=pool, scene=s)
+    finally:
+        pool.close()
+    assert list(res.failures) == [10] and res.frames_ok == list(range(1, 10))
+    by_frame: dict[str, set] = {}
+    for p in out.iterdir():
+        if not p.name.startswith("."):
+            by_frame.setdefault(p.name[:10], set()).add(p.name[10:])
+    assert sorted(by_frame) == [f"frame_{f:04d}" for f in range(1, 10)]
+    assert all(v == {".svg", ".json", "_bands.png", "_shade.png"} for v in by_frame.values()), by_frame
