@@ -440,7 +440,16 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
     if not d.is_dir():
         raise InputError("not a folder", d)
     glob = re.sub(r"\{frame[^}]*\}", "*", pattern) + ".json"
-    files = sorted(p for p in d.glob(glob) if not p.name.startswith("."))  # not render's .strokekit-run.json
+    # Exactly the names the pattern gives: {frame} is a number that formats back to the name
+    # (shot_{frame:04d} must not take shot_0001_draft.json, nor a report frame_report.json).
+    literal = re.split(r"\{frame[^}]*\}", pattern)
+    exact = re.compile(r"(\s*[+-]?\d+)".join(re.escape(s) for s in literal) + r"\.json")
+
+    def named_by_pattern(name: str) -> bool:
+        m = exact.fullmatch(name)
+        return m is not None and len(set(m.groups())) == 1 and pattern.format(frame=int(m.group(1))) + ".json" == name
+
+    files = sorted(p for p in d.glob(glob) if named_by_pattern(p.name))  # (not render's .strokekit-run.json)
     if len(files) < 2:
         hint = " (its frames have no JSON: render without --no-json)" if not files and any(d.glob(glob[:-5] + ".svg")) else ""
         raise InputError(f"needs at least 2 {glob} files to compare, found {len(files)}{hint}", d)

@@ -83,6 +83,9 @@ class LineOptions:
             raise UsageError(f"unknown line kind(s) {', '.join(unknown)} (known: {', '.join(KINDS)})")
         if not self.kinds:
             raise UsageError("no line kinds selected")
+        # One order (KINDS'), each kind once: the drawing does not depend on the order they were
+        # given in, so neither do the run's options digest (a resume) nor the files.
+        object.__setattr__(self, "kinds", tuple(k for k in KINDS if k in set(self.kinds)))
         # Messages name the command-line option (and the field, for library users).
         for name in ("sample_spacing_px", "bisection_tol_px", "period_px"):
             v = getattr(self, name)

@@ -691,3 +691,34 @@ def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path
             by_frame.setdefault(p.name[:10], set()).add(p.name[10:])
     assert sorted(by_frame) == [f"frame_{f:04d}" for f in range(1, 10)]
     assert all(v == {".svg", ".json", "_bands.png", "_shade.png"} for v in by_frame.values()), by_frame
+
+
+def test_kinds_in_another_order_are_the_same_run(tmp_path, capsys):
+    """--kinds crease,silhouette draws what silhouette,crease draws: a resume with the other
+    order is the same run (it was refused as 'other options')."""
+    args = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-2", "--out",
+            tmp_path / "k", "-q"]
+    assert run_cli(args + ["--kinds", "silhouette,crease"], capsys)[0] == 0
+    code, _, err = run_cli(args + ["--kinds", "crease,silhouette", "--skip-existing"], capsys)
+    assert code == 0, err
+
+
+def test_report_naming_the_out_folder_is_refused_before_any_frame(tmp_path, capsys):
+    out = tmp_path / "o3"
+    code, _, err = run_cli(["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-2",
+                            "--out", out, "--report", out], capsys)
+    assert code == 2 and "--report" in err and "--out folder" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_coherence_pattern_takes_only_the_names_it_gives(tmp_path, capsys):
+    """shot_{frame:04d} must not take shot_0001_draft.json (another render in the same folder) nor
+    a report saved there: the pairs would mix two renders."""
+    base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-3", "--out",
+            tmp_path, "-q"]
+    assert run_cli(base + ["--pattern", "shot_{frame:04d}"], capsys)[0] == 0
+    assert run_cli(base + ["--pattern", "shot_{frame:04d}_draft", "--quality", "draft", "--report",
+                           tmp_path / "shot_report.json"], capsys)[0] == 0
+    from strokekit.coherence import frame_files
+
+    assert [p.name for p in frame_files(tmp_path, "shot_{frame:04d}")] == [f"shot_000{i}.json" for i in (1, 2, 3)]

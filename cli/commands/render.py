@@ -120,6 +120,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         if not report_path.strip():
             raise UsageError("--report needs a file name")
         check_output_file(report_path)
+        if Path(report_path).absolute() == Path(out_dir).absolute():
+            raise UsageError(f"--report {report_path} is the --out folder: name a file for the report")
     lines = LineOptions.preset(quality, kinds=split_list(kinds, "--kinds"), contours=contours, crease_angle_deg=crease_angle,
                                whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
                                bisection_tol_px=bisection_tol,
