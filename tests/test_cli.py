@@ -600,3 +600,21 @@ def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube,
     assert len(err.strip().splitlines()) == 1 and not out.exists()
     code, _, err = run_cli(["render", cube, "--orbit", "1", "--size", "100000x100000", "--out", out, "-q"], capsys)
     assert code == 0 and (out / "frame_0001.svg").exists()
+
+
+@pytest.mark.parametrize("args, said", [
+    (["--coherence", "seed", "--no-coherence"], "not both"),
+    (["--bands", "2", "--band-polygons", "--no-svg"], "--band-polygons needs the SVG"),
+    (["--bands", "2", "--fill-pattern", "dots"], "--fill-pattern needs --fill"),
+    (["--max-growth", "5"], "--max-growth needs --coherence seed"),
+    (["--camera", SAMPLES / "orbit.json", "--elevation", "30", "--fov", "20"], "--elevation, --fov need --orbit"),
+    (["--brush", "dry"], "--brush needs --gltf"),
+])
+def test_an_option_the_run_would_ignore_is_a_usage_error(tmp_path, capsys, args, said):
+    """An option given on the command line that does nothing beside the others (or contradicts
+    one) is said, exit 2, before any work: it was dropped in silence, exit 0."""
+    code, _, err = run_cli(["render", SAMPLES / "still_life.glb", "--orbit", "2", *args, "--out", tmp_path / "o"]
+                           if "--camera" not in args else
+                           ["render", SAMPLES / "still_life.glb", *args, "--out", tmp_path / "o"], capsys)
+    assert code == 2 and said in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "o").exists()

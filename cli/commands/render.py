@@ -22,6 +22,36 @@ from ..common import FINITE, FiniteFloatRange, is_interactive, split_list
 from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
 
 
+#: Options that only mean something beside another: (options, what they need, when it is there).
+_NEEDS = (
+    (("elevation", "fov", "up"), "--orbit (they shape the orbit; a --camera file has its own)",
+     lambda cam, svg, x: not cam),
+    (("max_growth", "min_carry"), "--coherence seed", lambda cam, svg, x: x.get("coherence_method") == "seed"
+     and not x.get("no_coherence")),
+    (("fill_pattern", "fill_period"), "--fill", lambda cam, svg, x: x.get("fill")),
+    (("band_polygons",), "the SVG (they are a layer of it; not --no-svg)", lambda cam, svg, x: svg),
+    (("ribbon_width", "taper", "brush", "alpha_mode", "ribbon_space"), "--gltf or --gltf-sequence",
+     lambda cam, svg, x: x.get("gltf") or x.get("gltf_sequence")),
+)
+
+
+def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
+    """A usage error for an option given on the command line that the run would ignore, or two
+    that contradict each other (one line, exit 2): a typo'd intent is said, not dropped."""
+    ctx = click.get_current_context()
+
+    def given(name: str) -> bool:
+        return ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
+
+    if given("coherence_method") and extra.get("no_coherence"):
+        raise UsageError("give --coherence or --no-coherence, not both")
+    for names, need, present in _NEEDS:
+        said = [n for n in names if given(n)]
+        if said and not present(camera_file, svg, extra):
+            flags = ", ".join("--" + n.replace("_", "-") for n in said)
+            raise UsageError(f"{flags} {'needs' if len(said) == 1 else 'need'} {need}")
+
+
 @click.command("render", short_help="Line drawings for every frame of a camera path.")
 @click.argument("scene", type=click.Path())
 @click.option("--camera", "camera_file", type=click.Path(), default=None,
@@ -100,6 +130,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         raise UsageError("--gltf-sequence writes glTF: it cannot go with --no-gltf")
     if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
         raise UsageError("nothing to write: every output is turned off")
+    _check_option_pairs(camera_file, svg, extra)
     check_pattern(pattern)
     width = height = None
     if size:
