@@ -266,9 +266,30 @@ def _image_side(value, what: str) -> int:
     return n
 
 
-def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str) -> Camera:
+#: The keys of a camera path file (BRIEF 1.2): the file, and each frame or keyframe. Keys that
+#: start with "_" (comments) and "extras" are the user's own and are not read.
+_PATH_KEYS = ("width", "height", "fps", "frames", "keyframes", "frame_count", "interpolation")
+_CAMERA_KEYS = ("eye", "target", "up", "fov_y", "projection", "ortho_height", "near", "width", "height")
+
+
+def _check_keys(d: dict, known: tuple[str, ...], where: str, source: str) -> None:
+    """InputError for a key the reader does not know: a typo ("fovy") would silently give the
+    default instead (40 degrees)."""
+    unknown = [k for k in d if k not in known and not (isinstance(k, str) and (k.startswith("_") or k == "extras"))]
+    if unknown:
+        import difflib
+
+        k = unknown[0]
+        close = difflib.get_close_matches(str(k), known, n=1)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        raise InputError(f"{where}unknown key {json.dumps(k)} ({hint}known: {', '.join(known)}; "
+                         "keys starting with '_' are comments)", source)
+
+
+def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str, extra_keys=()) -> Camera:
     if not isinstance(d, dict):
         raise InputError(f"{where} must be an object", source)
+    _check_keys(d, _CAMERA_KEYS + tuple(extra_keys), f"{where}: ", source)
     for key in ("eye", "target"):
         if key not in d:
             raise InputError(f"{where} has no '{key}'", source)
@@ -287,6 +308,8 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str)
         raise InputError(f"{where}: {e}", source) from None
     except (TypeError, ValueError, OverflowError) as e:  # OverflowError: an integer beyond float range
         raise InputError(f"{where}: bad value ({e})", source) from None
+    if "up" in d and not np.any(cam.up):
+        raise InputError(f"{where}: 'up' is (0, 0, 0): it gives no direction", source)
     return cam
 
 
@@ -302,6 +325,9 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
     """Parse either form of BRIEF 1.2 into a CameraPath."""
     if not isinstance(data, dict):
         raise InputError("camera file must hold a JSON object", source)
+    _check_keys(data, _PATH_KEYS, "", source)
+    if "frames" in data and "keyframes" in data:
+        raise InputError("camera file has both 'frames' and 'keyframes': give one form", source)
     try:
         width = _image_side(data.get("width", 1024), "width")
         height = _image_side(data.get("height", 1024), "height")
@@ -343,7 +369,7 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
                 raise InputError(f"{e} (keyframes sit on output frames, counted from 0)", source) from None
             if abs(frame) > 2 ** 53:
                 raise InputError(f"keyframe {i + 1}: 'frame' {frame} is out of range", source)
-            parsed.append((frame, _camera_from_dict(k, width, height, f"keyframe {i + 1}", source)))
+            parsed.append((frame, _camera_from_dict(k, width, height, f"keyframe {i + 1}", source, ("frame",))))
         seen = [f for f, _ in parsed]
         if len(set(seen)) < len(seen):
             dup = sorted(f for f in set(seen) if seen.count(f) > 1)

@@ -16,6 +16,7 @@ from strokekit.errors import InputError
 
 KEY0 = {"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]}
 KEY2 = {"frame": 2, "eye": [0, 0, 6], "target": [0, 0, 0]}
+FRAME0 = {"eye": [0, 0, 5], "target": [0, 0, 0]}  # an entry of the frames form (no "frame")
 
 
 def keyed(keys=(KEY0, KEY2), **top) -> dict:
@@ -48,13 +49,13 @@ def load_error(tmp_path: Path, data: dict) -> str:
     (keyed(frame_count=0), ["frame_count must be between 1 and"]),
     (keyed(frame_count=10 ** 12), ["frame_count must be between 1 and"]),
     (keyed(frame_count=float("inf")), ["frame_count must be a whole number"]),
-    ({"width": float("inf"), "frames": [KEY0]}, ["width must be a whole number"]),
-    ({"width": 10 ** 400, "frames": [KEY0]}, ["image size", f"at most {MAX_IMAGE_PX} px", "width"]),
-    ({"height": 1e20, "frames": [KEY0]}, ["image size", "height"]),
-    ({"frames": [dict(KEY0, width=10 ** 20)]}, ["frame 1", "image size", "width"]),
-    ({"frames": [dict(KEY0, fov_y=10 ** 400)]}, ["frame 1", "bad value"]),
-    ({"frames": [dict(KEY0, near=10 ** 400)]}, ["frame 1", "bad value"]),
-    ({"fps": 10 ** 400, "frames": [KEY0]}, ["fps"]),
+    ({"width": float("inf"), "frames": [FRAME0]}, ["width must be a whole number"]),
+    ({"width": 10 ** 400, "frames": [FRAME0]}, ["image size", f"at most {MAX_IMAGE_PX} px", "width"]),
+    ({"height": 1e20, "frames": [FRAME0]}, ["image size", "height"]),
+    ({"frames": [dict(FRAME0, width=10 ** 20)]}, ["frame 1", "image size", "width"]),
+    ({"frames": [dict(FRAME0, fov_y=10 ** 400)]}, ["frame 1", "bad value"]),
+    ({"frames": [dict(FRAME0, near=10 ** 400)]}, ["frame 1", "bad value"]),
+    ({"fps": 10 ** 400, "frames": [FRAME0]}, ["fps"]),
 ])
 def test_bad_numbers_are_one_input_error_naming_the_file_and_field(tmp_path, data, needles):
     """Strings, nulls, infinities and integers beyond float range where a number belongs were
@@ -228,3 +229,22 @@ def test_keyframes_of_different_image_sizes_are_refused():
     with pytest.raises(InputError, match=r"k\.json: keyframes at frame 0 \(200 x 200 px\) and frame 4 "
                                          r"\(300 x 200 px\) have different image sizes"):
         camera_path_from_json(keyed(keys, frame_count=5), "k.json")
+
+
+@pytest.mark.parametrize("data,needles", [
+    ({"frames": [dict(FRAME0, fovy=20)]}, ["frame 1", 'unknown key "fovy"', "did you mean 'fov_y'"]),
+    ({"frames": [KEY0]}, ["frame 1", 'unknown key "frame"']),  # the frames form is in order
+    (dict(keyed(), frame_cont=3), ['unknown key "frame_cont"', "did you mean 'frame_count'"]),
+    ({"frames": [FRAME0], "keyframes": [KEY0]}, ["both 'frames' and 'keyframes'"]),
+    ({"frames": [dict(FRAME0, up=[0, 0, 0])]}, ["frame 1", "'up' is (0, 0, 0)"]),
+])
+def test_a_typo_or_a_contradiction_in_a_camera_file_is_said(tmp_path, data, needles):
+    """A misspelt key ("fovy") silently gave the default (40 degrees); both forms at once silently
+    used 'frames'. Keys starting with '_' stay free for comments."""
+    msg = load_error(tmp_path, data)
+    assert all(n in msg for n in needles), msg
+
+
+def test_comment_keys_are_allowed(tmp_path):
+    path = load_camera_path(write(tmp_path, {"_comment": "shot 12", "frames": [dict(FRAME0, _note="hero")]}))
+    assert len(path.cameras) == 1
