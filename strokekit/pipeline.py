@@ -261,7 +261,7 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
                "timings": timings, "underlays": underlays or None, "ray_tracer": r.occluder.backend}
         if write is not None and strokes is not None:
             kinds, extra, keep_strokes = write
-            res["written"] = write_task(strokes, frame, outputs, kinds, extra, res.pop("underlays"))
+            res["written"] = write_task(strokes, frame, outputs, kinds, extra, res.pop("underlays"), occluder=r.occluder)
             if not keep_strokes:
                 res["strokes"] = None
         return res
@@ -273,8 +273,10 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
 
 
 def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tuple[str, ...], extra: dict,
-               underlays: list | None = None) -> dict:
-    """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}."""
+               underlays: list | None = None, scene_key: tuple | None = None, occluder=None) -> dict:
+    """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}.
+    The GLB's world ribbons lie on the scene's surface (raster.surface_depth_at): `occluder`, or
+    this process's renderer of `scene_key` = (scene path, scene hash, LineOptions)."""
     t0 = time.perf_counter()
     try:
         cam = strokes.camera
@@ -296,13 +298,26 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
         if outputs.gltf and not outputs.gltf_sequence:
             from .writers.gltf import glb_for_frame
 
-            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".glb"),
-                                                glb_for_frame(strokes, cam, outputs.gltf_options))))
+            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".glb"), glb_for_frame(
+                strokes, cam, outputs.gltf_options, _surface_depth(outputs, scene_key, occluder)))))
             timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())
         return {"stage": "write", "frame": frame, "files": files, "seconds": time.perf_counter() - t0,
                 "timings": timings}
     except Exception as e:
         return {"stage": "write", "frame": frame, "error": f"frame {frame}: writing failed: {type(e).__name__}: {e}"}
+
+
+def _surface_depth(outputs: OutputOptions, scene_key: tuple | None, occluder=None):
+    """raster.surface_depth_at for world ribbons (None for image-space ones, or without a scene)."""
+    if getattr(outputs.gltf_options, "space", "world") != "world":  # (None: GltfOptions(), world)
+        return None
+    if occluder is None:
+        if scene_key is None:
+            return None
+        occluder = _renderer(*scene_key).occluder
+    from .raster import surface_depth_at
+
+    return surface_depth_at(occluder)
 
 
 # --- executors ---------------------------------------------------------------------------------------
@@ -813,7 +828,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
                     continue  # written by its frame task
                 if f not in done_before:
                     pending.appendleft((write_task, lines_results[f], f, out, spec.lines.kinds, extra,
-                                        underlays.pop(f, None)))
+                                        underlays.pop(f, None), (spec.scene_path, scene.content_hash, spec.lines)))
                 if not keep_strokes and f in done_before:
                     lines_results.pop(f)
 
@@ -858,7 +873,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             t = time.perf_counter()
             seq = [lines_results[f] for f in ordered]
             path = out.out_dir / "sequence.glb"
-            res.outputs.append(str(atomic_write_bytes(path, glb_for_sequence(seq, out.gltf_options))))
+            depth_at = _surface_depth(out, (spec.scene_path, scene.content_hash, spec.lines))
+            res.outputs.append(str(atomic_write_bytes(path, glb_for_sequence(seq, out.gltf_options, depth_at))))
             stage["ribbons + glTF"].seconds += time.perf_counter() - t
     except KeyboardInterrupt:
         # Ctrl-C: the frames in progress are abandoned. The workers stop now (also the caller's:

@@ -144,6 +144,17 @@ def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndar
     return {"face": fw, "bary": hits["primitive_uvs"], "depth": depth}
 
 
+def surface_depth_at(occluder: Occluder):
+    """f(camera, pixels (V, 2) px) -> (V,) float64 view depth of the first surface seen at those
+    image points (inf where none), for ribbons.build_ribbons."""
+    def depth(camera: Camera, pixels: np.ndarray) -> np.ndarray:
+        f = camera.focal_px
+        ax = (pixels[:, 0] - camera.width / 2.0) / f
+        ay = (camera.height / 2.0 - pixels[:, 1]) / f
+        return cast_samples(camera, occluder, ax, ay)["depth"].astype(float)
+    return depth
+
+
 #: Side, in samples, of the blocks used to skip rays that cannot hit.
 BLOCK = 8
 

@@ -302,3 +302,35 @@ def test_real_strokes_overlap_less_than_half_a_percent():
             union += unary_union([Polygon(x) for x in t]).area
     assert (total - union) / total < 0.005
     assert union == pytest.approx(s.lengths.sum() * 3.0, rel=0.01)
+
+
+def test_world_ribbons_are_not_hidden_by_the_surface_they_outline():
+    """A sphere's silhouette ribbon, composited with the sphere: every ribbon triangle must be in
+    front of the surface (the first hit along its eye ray is not nearer). At the stroke's own
+    depth the half of the ribbon inside the rim was behind the bulging surface."""
+    import trimesh
+
+    from strokekit.lines import LineRenderer
+    from strokekit.options import LineOptions
+    from strokekit.raster import surface_depth_at
+    from strokekit.scene import build_scene
+
+    ico = trimesh.creation.icosphere(subdivisions=4)
+    scene = build_scene(ico.vertices, ico.faces)
+    cam = Camera(eye=(0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), width=400, height=300)
+    r = LineRenderer(scene, LineOptions())
+    strokes = r.render(cam, 1)
+    o = RibbonOptions(width_px=3.0)
+
+    def hidden_share(mesh):
+        c = mesh.positions[mesh.indices].mean(axis=1)
+        d = c - cam.eye
+        dist = np.linalg.norm(d, axis=1)
+        loc, ray, _ = ico.ray.intersects_location(np.repeat([cam.eye], len(c), 0), d / dist[:, None],
+                                                  multiple_hits=False)
+        first = np.full(len(c), np.inf)
+        first[ray] = np.linalg.norm(loc - cam.eye, axis=1)
+        return float(np.mean(first < dist * (1 - 1e-6)))
+
+    assert hidden_share(build_ribbons(strokes, cam, o)) > 0.3  # the inner half
+    assert hidden_share(build_ribbons(strokes, cam, o, surface_depth_at(r.occluder))) == 0.0

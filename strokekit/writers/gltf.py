@@ -296,26 +296,30 @@ def by_kind(strokes: Strokes) -> Strokes:
                    level=strokes.level[order], level_weight=strokes.level_weight[order])
 
 
-def ribbons_for(strokes: Strokes, camera: Camera | None, options: GltfOptions) -> RibbonMesh:
-    """The ribbons a GLB holds: strokes grouped by kind, geometry per options and brush."""
+def ribbons_for(strokes: Strokes, camera: Camera | None, options: GltfOptions, surface_depth=None) -> RibbonMesh:
+    """The ribbons a GLB holds: strokes grouped by kind, geometry per options and brush
+    (surface_depth: see ribbons.build_ribbons)."""
     brush = get_brush(options.brush)
-    return build_ribbons(by_kind(strokes), camera, options.ribbon_options(brush))
+    return build_ribbons(by_kind(strokes), camera, options.ribbon_options(brush), surface_depth)
 
 
-def glb_for_frame(strokes: Strokes, camera: Camera | None = None, options: GltfOptions | None = None) -> bytes:
-    """GLB bytes of one frame: its camera and its strokes as textured ribbons."""
+def glb_for_frame(strokes: Strokes, camera: Camera | None = None, options: GltfOptions | None = None,
+                  surface_depth=None) -> bytes:
+    """GLB bytes of one frame: its camera and its strokes as textured ribbons. `surface_depth`
+    (raster.surface_depth_at(occluder)) lays world ribbons on the scene's surface where it comes
+    nearer than the stroke (see ribbons.build_ribbons)."""
     opts = options if options is not None else GltfOptions()
     cam = camera if camera is not None else strokes.camera
     if cam is None:
         raise UsageError("glTF output needs the frame's camera")
     doc = _Doc(opts)
-    mesh = ribbons_for(strokes, cam, opts)
+    mesh = ribbons_for(strokes, cam, opts, surface_depth)
     strokes_node = doc.ribbon_node(mesh, f"strokes_{int(strokes.frame):04d}")
     cam_node = doc.camera_node(cam)
     return doc.glb([cam_node, strokes_node])
 
 
-def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None) -> bytes:
+def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, surface_depth=None) -> bytes:
     """One GLB for a sequence: one node per frame (each Strokes carries its camera and frame number),
     shown only on its frame (STEP scale keys), the camera moved by STEP keys, at options.fps."""
     opts = options if options is not None else GltfOptions()
@@ -332,7 +336,7 @@ def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None) 
     n = len(frames)
     children = []
     for f in frames:
-        node = doc.ribbon_node(ribbons_for(f, f.camera, opts), f"frame_{int(f.frame):04d}")
+        node = doc.ribbon_node(ribbons_for(f, f.camera, opts, surface_depth), f"frame_{int(f.frame):04d}")
         children.append(node)
     anim: dict = {"name": "sequence", "channels": [], "samplers": []}
     if n > 1:
