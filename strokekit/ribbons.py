@@ -461,14 +461,15 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
 def unproject(camera: Camera, pixels: np.ndarray, depth: np.ndarray, pull: float = 0.0) -> np.ndarray:
     """World points (V, 3) seen at `pixels` (V, 2) at view depth `depth` (V,) (distance along fwd),
     moved toward the camera along their own view ray by the fraction `pull` of their depth (the pixel
-    does not change). Orthographic cameras move by `pull` times the eye-target distance."""
+    does not change), orthographic cameras too (by `pull` times the eye-target distance, a vertex
+    near the eye went behind the camera plane)."""
     right, up, fwd = camera.basis
     f = camera.focal_px
     eye = np.asarray(camera.eye)
     x = (pixels[:, 0] - camera.width / 2.0) / f  # in-plane offsets per unit depth (perspective)
     y = (camera.height / 2.0 - pixels[:, 1]) / f  # or in world units (orthographic)
     if camera.is_ortho:
-        z = depth - pull * float(np.linalg.norm(np.subtract(camera.target, camera.eye)))
+        z = depth * (1.0 - pull)
     else:
         z = depth * (1.0 - pull)
         x, y = x * z, y * z

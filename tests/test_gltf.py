@@ -366,3 +366,23 @@ def test_float32_positions_stay_on_their_pixels_far_from_the_origin():
         pos = accessor_array(doc, blob, prim["attributes"]["POSITION"]).astype(float) + node["translation"]
         px, _ = cam.project(pos)
         assert np.abs(px - m.pixels[vk == k]).max() < 0.05
+
+
+@pytest.mark.parametrize("projection, eye, target", [
+    ("perspective", (0.0, 0.0, 1.3), (0.0, 0.0, -400.0)),  # near the sphere, target far away: znear
+    ("orthographic", (0.0, 0.0, 30.0), (0.0, 0.0, 29.99)),  # target just ahead of the eye: zfar
+])
+def test_camera_clip_planes_hold_every_ribbon(projection, eye, target):
+    """The glTF camera's clip planes come from the ribbons' depths, not from the eye-target
+    distance alone: a viewer must show every ribbon the frame has."""
+    cam = Camera(eye=eye, target=target, fov_y=60.0, width=640, height=480, projection=projection,
+                 ortho_height=3.0)
+    s = spiral_strokes(cam)
+    doc, blob = parse_glb(glb_for_frame(s, cam, GltfOptions()))
+    c = doc["cameras"][0][projection]
+    node = [n for n in doc["nodes"] if n.get("name", "").startswith("strokes_")][0]
+    pos = np.concatenate([accessor_array(doc, blob, p["attributes"]["POSITION"])
+                          for p in doc["meshes"][node["mesh"]]["primitives"]]) + node.get("translation", [0, 0, 0])
+    z = cam.depth(pos)
+    assert z.min() > c["znear"] >= 0.0
+    assert z.max() < c.get("zfar", np.inf)

@@ -220,8 +220,11 @@ class _Doc:
             node["mesh"] = self.add("meshes", {"name": name, "primitives": prims})
         return self.add("nodes", node)
 
-    def camera_node(self, camera: Camera) -> int:
-        """The frame's camera: a glTF camera looks down its local -Z with +Y up."""
+    def camera_node(self, camera: Camera, depths: tuple[float, float] | None = None) -> int:
+        """The frame's camera: a glTF camera looks down its local -Z with +Y up. `depths`: the
+        (nearest, farthest) view depth of the ribbons it shows (world units), which the clip
+        planes must hold: from the eye-target distance alone, a camera 0.2 units from a nose
+        with its target 400 units away clipped the ribbons nearer than 0.4."""
         aspect = camera.width / camera.height
         if self.opts.space == "image":
             d = float(max(camera.width, camera.height))
@@ -232,10 +235,13 @@ class _Doc:
             dist = float(np.linalg.norm(np.subtract(camera.target, camera.eye)))
             if camera.is_ortho:
                 h = camera.ortho_height / 2.0
+                zfar = 100.0 * dist if depths is None else max(100.0 * dist, 2.0 * depths[1])
                 cam = {"type": "orthographic", "name": "camera", "orthographic": {
-                    "xmag": h * aspect, "ymag": h, "znear": 0.0, "zfar": 100.0 * dist}}
+                    "xmag": h * aspect, "ymag": h, "znear": 0.0, "zfar": zfar}}
             else:
                 znear = float(camera.near) if camera.near else 1e-3 * dist
+                if depths is not None and depths[0] > 0:
+                    znear = min(znear, 0.5 * depths[0])
                 cam = {"type": "perspective", "name": "camera", "perspective": {
                     "aspectRatio": aspect, "yfov": math.radians(camera.fov_y), "znear": znear}}
             node = {"name": "camera", "translation": [float(x) for x in camera.eye], "rotation": _camera_quat(camera)}
@@ -315,7 +321,7 @@ def glb_for_frame(strokes: Strokes, camera: Camera | None = None, options: GltfO
     doc = _Doc(opts)
     mesh = ribbons_for(strokes, cam, opts, surface_depth)
     strokes_node = doc.ribbon_node(mesh, f"strokes_{int(strokes.frame):04d}")
-    cam_node = doc.camera_node(cam)
+    cam_node = doc.camera_node(cam, _depth_range([(cam, mesh)]))
     return doc.glb([cam_node, strokes_node])
 
 
@@ -334,10 +340,10 @@ def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, 
     ok = np.all(np.diff(nums) > 0) and nums[0] >= 0
     times = (nums if ok else np.arange(len(frames))) / float(opts.fps)
     n = len(frames)
-    children = []
+    children, meshes = [], []
     for f in frames:
-        node = doc.ribbon_node(ribbons_for(f, f.camera, opts, surface_depth), f"frame_{int(f.frame):04d}")
-        children.append(node)
+        meshes.append((f.camera, ribbons_for(f, f.camera, opts, surface_depth)))
+        children.append(doc.ribbon_node(meshes[-1][1], f"frame_{int(f.frame):04d}"))
     anim: dict = {"name": "sequence", "channels": [], "samplers": []}
     if n > 1:
         for i, node in enumerate(children):
@@ -350,7 +356,7 @@ def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, 
             doc.j["nodes"][node]["scale"] = [1.0, 1.0, 1.0] if i == 0 else [0.0, 0.0, 0.0]
             _channel(doc, anim, node, "scale", np.array(t_keys), np.repeat(np.array(s_keys)[:, None], 3, 1))
     root_i = doc.add("nodes", {"name": "strokes", "children": children})
-    cam_node = doc.camera_node(frames[0].camera)
+    cam_node = doc.camera_node(frames[0].camera, _depth_range(meshes))
     if n > 1 and opts.space == "world":
         eyes = np.array([f.camera.eye for f in frames], float)
         quats = np.array([_camera_quat(f.camera) for f in frames])
@@ -362,6 +368,16 @@ def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, 
     if anim["channels"]:
         doc.add("animations", anim)
     return doc.glb([cam_node, root_i])
+
+
+def _depth_range(meshes: list[tuple[Camera, RibbonMesh]]) -> tuple[float, float] | None:
+    """(nearest, farthest) view depth of world ribbons, each seen from its frame's camera (None:
+    no ribbon, or image-space ribbons)."""
+    z = [cam.depth(m.positions) for cam, m in meshes if m.space == "world" and len(m.positions)]
+    if not z:
+        return None
+    z = np.concatenate(z)
+    return float(z.min()), float(z.max())
 
 
 def _channel(doc: _Doc, anim: dict, node: int, path: str, t: np.ndarray, values: np.ndarray) -> None:
