@@ -386,3 +386,23 @@ def test_camera_clip_planes_hold_every_ribbon(projection, eye, target):
     z = cam.depth(pos)
     assert z.min() > c["znear"] >= 0.0
     assert z.max() < c.get("zfar", np.inf)
+
+
+def test_sequence_keys_are_never_later_than_their_frame_time():
+    """A player sampling a STEP track at exactly N / fps must show frame N: float32(N / 24) is
+    later than N / 24 for N = 1, 2, 4, 8, 11, 13, ..., which showed frame N - 1 there."""
+    cams = [Camera(eye=(4 * np.sin(a), 1.0, 4 * np.cos(a)), target=(0, 0, 0), width=64, height=48)
+            for a in np.linspace(0, 1, 14)]
+    frames = [spiral_strokes(c, frame=i + 1, n=1) for i, c in enumerate(cams)]
+    doc, blob = parse_glb(glb_for_sequence(frames, GltfOptions(fps=24.0)))
+    kids = [n for n in doc["nodes"] if n.get("name") == "strokes"][0]["children"]
+    anim = doc["animations"][0]
+    for f in range(1, 15):
+        shown = []
+        for k in kids:
+            ch = [c for c in anim["channels"] if c["target"]["node"] == k][0]
+            smp = anim["samplers"][ch["sampler"]]
+            ts = accessor_array(doc, blob, smp["input"]).astype(float)
+            vs = accessor_array(doc, blob, smp["output"])
+            shown.append(vs[max(0, int(np.searchsorted(ts, f / 24.0, side="right")) - 1)][0])
+        assert shown == [1.0 if i == f - 1 else 0.0 for i in range(14)], f

@@ -380,8 +380,19 @@ def _depth_range(meshes: list[tuple[Camera, RibbonMesh]]) -> tuple[float, float]
     return float(z.min()), float(z.max())
 
 
+def _key_times(t: np.ndarray) -> np.ndarray:
+    """Key times as float32 no later than the exact times: float32(N / fps) rounds up for many N
+    (1, 2, 4, 8, 11, 13 at 24 fps), and a player sampling a STEP track at exactly N / fps then
+    showed frame N - 1."""
+    t = np.asarray(t, float)
+    t32 = t.astype(np.float32)
+    late = t32.astype(float) > t
+    t32[late] = np.nextafter(t32[late], np.float32(-np.inf))
+    return t32
+
+
 def _channel(doc: _Doc, anim: dict, node: int, path: str, t: np.ndarray, values: np.ndarray) -> None:
-    inp = doc.accessor(np.asarray(t, float), "SCALAR", target=None, minmax=True)
+    inp = doc.accessor(_key_times(t), "SCALAR", target=None, minmax=True)
     out = doc.accessor(np.asarray(values, float), "VEC4" if path == "rotation" else "VEC3", target=None)
     anim["samplers"].append({"input": inp, "output": out, "interpolation": "STEP"})
     anim["channels"].append({"sampler": len(anim["samplers"]) - 1, "target": {"node": node, "path": path}})
