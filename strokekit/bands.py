@@ -19,6 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from .camera import Camera
+from .colour import srgb_encode
 from .errors import UsageError
 from .raster import RasterHits, box_filter, cast_pixels, raster_outputs  # noqa: F401 (the shortcut, re-exported)
 from .scene import Scene
@@ -214,7 +215,7 @@ def quantize_bands(ndl: np.ndarray, bands: int, thresholds: tuple[float, ...] = 
 
 
 def band_ramps(scene: Scene, bands: int, gooch: bool = False) -> np.ndarray:
-    """(materials, N, 3) float RGB in [0, 1]: per material a 1D ramp from darker shades of its
+    """(materials, N, 3) float linear RGB in [0, 1]: per material a 1D ramp from darker shades of its
     base colour (band 1) up to the base colour (band N) (seed 000 Fig 2.7/2.8). With `gooch`,
     the ramp goes from a cool (blue) to a warm (yellow) tone mixed with the base colour
     (Gooch et al. 1998 constants)."""
@@ -330,7 +331,9 @@ class RasterFrame:
             # takes the first material's top band.
             lost = (alpha_k == 0) & (alpha > 0)
             straight[lost] = ramps[0, -1]
-        out = np.concatenate([straight, alpha[..., None]], axis=2)
+        # Filtered in linear light, written sRGB-encoded (the scene's colours are linear: a base
+        # colour 0.4 was written as 102 instead of 170, darker than any viewer shows it).
+        out = np.concatenate([srgb_encode(straight), alpha[..., None]], axis=2)
         return np.round(np.clip(out, 0, 1) * 255.0).astype(np.uint8)
 
     def objectid_image(self) -> np.ndarray:
@@ -476,7 +479,7 @@ def band_polygons_svg(frame: RasterFrame, *, decimals: int = 2, tolerance_px: fl
             d.extend(_ring_path(h.coords, decimals) for h in p.interiors)
         if not d:
             continue
-        rgb = np.round(ramps[min(mat, len(ramps) - 1), band - 1] * 255).astype(int)
+        rgb = np.round(srgb_encode(ramps[min(mat, len(ramps) - 1), band - 1]) * 255).astype(int)
         colour = "#%02x%02x%02x" % tuple(rgb)
         layer.add(dwg.path(d=" ".join(d), id=f"b{mat}-{band}", fill=colour, stroke=colour))
     return [layer]

@@ -406,3 +406,18 @@ def test_sequence_keys_are_never_later_than_their_frame_time():
             vs = accessor_array(doc, blob, smp["output"])
             shown.append(vs[max(0, int(np.searchsorted(ts, f / 24.0, side="right")) - 1)][0])
         assert shown == [1.0 if i == f - 1 else 0.0 for i in range(14)], f
+
+
+def test_ribbon_colours_are_the_svg_colours_in_linear_light():
+    """baseColorFactor is linear in glTF; the SVG's kind colours are sRGB. Written unconverted, a
+    silhouette ribbon rendered lighter than its SVG line."""
+    from strokekit.colour import srgb_encode
+    from strokekit.model import KINDS
+    from strokekit.writers.svg import KIND_COLORS
+
+    doc, _ = parse_glb(glb_for_frame(spiral_strokes(CAM), CAM, GltfOptions(brush="ink")))
+    for m in doc["materials"]:
+        want = KIND_COLORS[m["name"]]
+        got = srgb_encode(m["pbrMetallicRoughness"]["baseColorFactor"][:3])
+        assert "#%02x%02x%02x" % tuple(int(round(v * 255)) for v in got) == want
+    assert {m["name"] for m in doc["materials"]} <= set(KINDS)

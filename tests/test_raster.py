@@ -305,7 +305,9 @@ def test_band_polygons_svg_layer(sphere, sphere_occ):
     xml = layer.tostring()
     assert 'inkscape:label="bands"' in xml and 'id="layer-bands"' in xml
     assert xml.count("<path") == len(np.unique(fr.labels[fr.labels > 0]))
-    assert 'id="b0-3"' in xml and 'fill="#e6331a"' in xml  # top band = the red base colour
+    # Top band = the red base colour, linear (0.9, 0.2, 0.1) sRGB-encoded as SVG colours are
+    # (written unencoded, #e6331a, the bands came out darker than any glTF viewer shows them).
+    assert 'id="b0-3"' in xml and 'fill="#f37c59"' in xml
     # Each region is outlined in its own colour, 1 px wide, so that abutting anti-aliased regions
     # overlap and no light seam of background shows between bands.
     import re
@@ -620,3 +622,14 @@ def test_raster_pass_runs_on_the_embreex_fallback(sphere, sphere_occ):
     a = render_raster(sphere, cam, sphere_occ, opts)
     b = render_raster(sphere, cam, alt, opts)
     assert (a.labels == b.labels).mean() > 0.995 and len(np.unique(b.labels)) == 4
+
+
+def test_srgb_transfer_round_trips_and_matches_the_standard():
+    from strokekit.colour import srgb_decode, srgb_encode
+
+    x = np.linspace(0, 1, 1001)
+    assert np.allclose(srgb_decode(srgb_encode(x)), x, atol=1e-12)
+    # IEC 61966-2-1 reference points: linear 0.5 -> 0.7354, 0.4 -> 0.6651 (170 / 255: a glTF base
+    # colour 0.4 is byte 170 in the shade PNG, not 102)
+    assert srgb_encode(0.5) == pytest.approx(0.735357, abs=1e-6)
+    assert round(float(srgb_encode(0.4)) * 255) == 170

@@ -39,6 +39,7 @@ from ..brushes import Brush, get_brush
 from ..camera import Camera
 from ..errors import UsageError
 from ..model import KINDS, Strokes
+from ..colour import srgb_decode
 from ..ribbons import RibbonMesh, RibbonOptions, build_ribbons
 from .svg import KIND_COLORS
 
@@ -90,10 +91,12 @@ class GltfOptions:
 
 
 def _hex_rgba(c: str) -> list[float]:
+    """#rrggbb (sRGB, as in the SVG) -> linear RGBA, as glTF's baseColorFactor is: a factor written
+    unconverted drew the ribbons lighter than the SVG's lines (#b3261e came out as (218, 108, 96))."""
     s = c.lstrip("#")
     if len(s) != 6 or any(ch not in "0123456789abcdefABCDEF" for ch in s):
         raise UsageError(f"colour must be #rrggbb, got {c!r}")
-    return [int(s[i:i + 2], 16) / 255.0 for i in (0, 2, 4)] + [1.0]
+    return [float(x) for x in srgb_decode([int(s[i:i + 2], 16) / 255.0 for i in (0, 2, 4)])] + [1.0]
 
 
 # --- document building ----------------------------------------------------------------------------
