@@ -301,6 +301,8 @@ def _read_parts(p: Path) -> tuple:
             json.loads(p.read_bytes())
         except ValueError as e:
             raise InputError(f"not a glTF file: its JSON does not parse ({e})", p) from None
+    if p.suffix.lower() in (".gltf", ".glb"):
+        _check_gltf_modes(p)
     try:
         loaded = _load_holding_interrupts(p)
     except Exception as e:  # trimesh raises many kinds on bad files
@@ -343,6 +345,31 @@ def _read_parts(p: Path) -> tuple:
             tuple(objects), tuple(materials))
 
 
+def _check_gltf_modes(p: Path) -> None:
+    """InputError for glTF triangle fans (primitive mode 6), which trimesh leaves out without a word
+    (a valid file lost part of its drawing). Points and lines (modes 0-3) have no faces to draw and
+    are left out as in every format. A file whose JSON cannot be found is left to the loader."""
+    import json
+    import struct
+
+    try:
+        data = p.read_bytes()
+        if data[:4] == b"glTF":
+            n, kind = struct.unpack_from("<I4s", data, 12)
+            doc = json.loads(data[20:20 + n]) if kind == b"JSON" else {}
+        else:
+            doc = json.loads(data)
+        meshes = doc.get("meshes", []) if isinstance(doc, dict) else []
+        fans = [(i, k) for i, m in enumerate(meshes) if isinstance(m, dict)
+                for k, prim in enumerate(m.get("primitives", [])) if isinstance(prim, dict) and prim.get("mode") == 6]
+    except (OSError, ValueError, struct.error):
+        return
+    if fans:
+        i, k = fans[0]
+        raise InputError(f"mesh {i} primitive {k} is a triangle fan (mode 6), which strokekit cannot read: export "
+                         "it as triangles", p)
+
+
 # --- scene cache ----------------------------------------------------------------------------------
 # Parsing a mesh file costs the trimesh import (~0.8 s) and the parse (~0.3 s for the bunny) in
 # every process of a run (the main one and each worker), and again on every run. The parsed
@@ -350,7 +377,7 @@ def _read_parts(p: Path) -> tuple:
 # code that read them: the same bytes give the same arrays, so outputs do not change.
 
 #: Bump when the reading of files changes (naming, ordering, materials).
-_CACHE_FORMAT = 2  # 2: mirroring nodes reverse the winding; uint8 colours always / 255
+_CACHE_FORMAT = 3  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans refused
 
 
 def _cache_dir() -> Path | None:
