@@ -93,6 +93,7 @@ class RunSpec:
     scheduler: str | None = None
     skip_existing: bool = False  # resume: see run(); frames of another scene or options are a UsageError
     fail_fast: bool = False
+    camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
 
 
 @dataclass
@@ -987,6 +988,18 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
 
     with open(spec.scene_path, "rb") as fh:
         file_hash = hashlib.sha256(fh.read()).hexdigest()
+    cameras = {"source": spec.camera_source or None, "frames": len(spec.cameras),
+               "sizes": sorted({(c.width, c.height) for _, c in spec.cameras})}
+    if spec.camera_source and Path(spec.camera_source).is_file():
+        try:
+            cameras["sha256"] = hashlib.sha256(Path(spec.camera_source).read_bytes()).hexdigest()
+        except OSError:
+            pass
+    # Each frame's camera as the run used it (with the scene and options above, enough to
+    # render any frame again).
+    cams = {f: _canon(c.to_json()) for f, c in spec.cameras}
+    o = spec.outputs
+    outputs = _canon({f.name: getattr(o, f.name) for f in fields(o)})
     frames = {}
     for f, _ in spec.cameras:
         if f in res.failures:
@@ -997,14 +1010,17 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
             frames[str(f)] = {"status": "ok", "seconds": round(res.frame_seconds.get(f, 0.0), 6)}
         else:
             frames[str(f)] = {"status": "not run"}
+        frames[str(f)]["camera"] = cams[f]
     return {
         "status": res.status,
         "versions": versions(),
         "platform": platform.platform(),
         "scene": {"path": spec.scene_path, "sha256": file_hash, "content_hash": res.scene_hash, **res.scene_summary},
+        "cameras": cameras,
         "options": {"lines": spec.lines.to_json(), "workers": spec.workers, "scheduler": spec.scheduler,
                     "tracking": getattr(spec.tracking, "method", None) if spec.tracking is not None else "none",
-                    "contours": spec.lines.contours},
+                    "tracking_options": _canon(spec.tracking) if spec.tracking is not None else None,
+                    "contours": spec.lines.contours, "outputs": outputs},
         "ray_tracer": ", ".join(sorted(res.ray_tracers)) or None,
         "stages": [{"stage": s.name, "ran": s.ran, "why": s.why, "seconds": round(s.seconds, 6)} for s in res.stages],
         "frames": frames,

@@ -80,6 +80,15 @@ def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
     assert rep["ray_tracer"] == Occluder(load_scene(SAMPLES / "still_life.glb")).backend
     assert set(rep["frames"]) == {"1", "2"} and all(f["status"] == "ok" for f in rep["frames"].values())
     assert sorted(Path(p).name for p in rep["outputs"]) == sorted(p.name for p in (tmp_path / "o").iterdir())
+    # Enough to render a frame again: where the cameras came from (and the file's hash), each
+    # frame's camera, and every output option, not only the line options.
+    assert rep["cameras"]["source"].endswith("orbit.json") and len(rep["cameras"]["sha256"]) == 64
+    from strokekit.camera import Camera, load_camera_path
+
+    cam2 = load_camera_path(SAMPLES / "orbit.json").cameras[1]
+    assert Camera(**{k: tuple(v) if isinstance(v, list) else v for k, v in rep["frames"]["2"]["camera"].items()}) == cam2
+    assert rep["options"]["outputs"]["svg"] is True and rep["options"]["outputs"]["decimals"] == 2
+    assert rep["options"]["tracking_options"]["method"] == "kalnins"
 
 
 def test_pool_and_inline_give_identical_bytes(tmp_path, capsys):

@@ -195,7 +195,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
                                 raster_options=raster_options_from(extra, quality, lines.crease_angle_deg))
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
                        tracking=tracking_options_from(extra, lines, len(frames)), workers=workers,
-                       scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast)
+                       scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast,
+                       camera_source=str(camera_file) if camera_file else path.source)
         try:
             res = _run_with_progress(spec, quiet, dict(workers=pool, scene=s, load_seconds=load_seconds,
                                                        started_at=t_start))
