@@ -429,10 +429,15 @@ def orbit_path(center: np.ndarray, radius: float, frames: int, *, elevation: flo
         az = math.radians(start_azimuth + k * step)
         if up_axis == "y":
             d = np.array([math.sin(az) * math.cos(el), math.sin(el), math.cos(az) * math.cos(el)])
+            ground = np.array([math.sin(az), 0.0, math.cos(az)])
         else:
             d = np.array([math.sin(az) * math.cos(el), -math.cos(az) * math.cos(el), math.sin(el)])
+            ground = np.array([math.sin(az), -math.cos(az), 0.0])
         eye = np.asarray(center, float) + dist * d
-        cams.append(Camera(eye=tuple(eye), target=tuple(np.asarray(center, float)), up=tuple(up), fov_y=fov_y,
+        # Straight above or below (elevation +-90): the up axis is the view axis, so the image's
+        # up turns with the azimuth (away from the eye's side), or every frame would be the same.
+        frame_up = up if abs(math.cos(el)) > 1e-9 else -math.copysign(1.0, el) * ground
+        cams.append(Camera(eye=tuple(eye), target=tuple(np.asarray(center, float)), up=tuple(frame_up), fov_y=fov_y,
                            width=width, height=height))
     return CameraPath(cameras=tuple(cams), fps=fps, source="orbit")
 

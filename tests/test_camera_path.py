@@ -248,3 +248,19 @@ def test_a_typo_or_a_contradiction_in_a_camera_file_is_said(tmp_path, data, need
 def test_comment_keys_are_allowed(tmp_path):
     path = load_camera_path(write(tmp_path, {"_comment": "shot 12", "frames": [dict(FRAME0, _note="hero")]}))
     assert len(path.cameras) == 1
+
+
+@pytest.mark.parametrize("elevation", [90.0, -90.0])
+def test_orbit_straight_above_or_below_still_turns(elevation):
+    """At elevation +-90 the up axis is the view axis: the image's up now turns with the azimuth,
+    as it does just short of it (every frame was the same image)."""
+    import numpy as np
+
+    from strokekit.camera import orbit_path
+
+    top = orbit_path(np.zeros(3), 1.0, 8, elevation=elevation)
+    near = orbit_path(np.zeros(3), 1.0, 8, elevation=elevation - np.sign(elevation) * 1e-4)
+    for a, b in zip(top.cameras, near.cameras):
+        assert np.allclose(a.basis[0], b.basis[0], atol=1e-4) and np.allclose(a.basis[1], b.basis[1], atol=1e-4)
+    rights = np.array([c.basis[0] for c in top.cameras])
+    assert len({tuple(np.round(r, 6)) for r in rights}) == 8
