@@ -347,8 +347,9 @@ def _read_parts(p: Path) -> tuple:
 
 def _check_gltf_modes(p: Path) -> None:
     """InputError for glTF triangle fans (primitive mode 6), which trimesh leaves out without a word
-    (a valid file lost part of its drawing). Points and lines (modes 0-3) have no faces to draw and
-    are left out as in every format. A file whose JSON cannot be found is left to the loader."""
+    (a valid file lost part of its drawing), for a cycle in the node tree and for a node rotation
+    far from a unit quaternion. Points and lines (modes 0-3) have no faces to draw and are left
+    out as in every format. A file whose JSON cannot be found is left to the loader."""
     import json
     import struct
 
@@ -362,12 +363,39 @@ def _check_gltf_modes(p: Path) -> None:
         meshes = doc.get("meshes", []) if isinstance(doc, dict) else []
         fans = [(i, k) for i, m in enumerate(meshes) if isinstance(m, dict)
                 for k, prim in enumerate(m.get("primitives", [])) if isinstance(prim, dict) and prim.get("mode") == 6]
+        nodes = doc.get("nodes", []) if isinstance(doc, dict) else []
+        nodes = nodes if isinstance(nodes, list) else []
     except (OSError, ValueError, struct.error):
         return
     if fans:
         i, k = fans[0]
         raise InputError(f"mesh {i} primitive {k} is a triangle fan (mode 6), which strokekit cannot read: export "
                          "it as triangles", p)
+    # The node tree: a node that is its own ancestor, or a rotation that is no rotation, was left
+    # out (with its meshes) or read as something else without a word; the camera reader refuses both.
+    kids = [[c for c in n.get("children", []) if isinstance(c, int) and 0 <= c < len(nodes)]
+            if isinstance(n, dict) and isinstance(n.get("children", []), list) else [] for n in nodes]
+    state = [0] * len(nodes)  # 0 new, 1 on the current path, 2 done
+    for root in range(len(nodes)):
+        stack = [(root, iter(kids[root]))] if state[root] == 0 else []
+        if stack:
+            state[root] = 1
+        while stack:
+            node, it = stack[-1]
+            child = next(it, None)
+            if child is None:
+                state[node] = 2
+                stack.pop()
+            elif state[child] == 1:
+                raise InputError(f"node {child} is its own ancestor (a cycle in the node tree)", p)
+            elif state[child] == 0:
+                state[child] = 1
+                stack.append((child, iter(kids[child])))
+    for i, n in enumerate(nodes):
+        q = n.get("rotation") if isinstance(n, dict) else None
+        if isinstance(q, list) and len(q) == 4 and all(isinstance(x, (int, float)) for x in q):
+            if not (0.5 < sum(float(x) * float(x) for x in q) < 2.0):
+                raise InputError(f"node {i} has rotation {q}, which is not a unit quaternion", p)
 
 
 # --- scene cache ----------------------------------------------------------------------------------
@@ -377,7 +405,7 @@ def _check_gltf_modes(p: Path) -> None:
 # code that read them: the same bytes give the same arrays, so outputs do not change.
 
 #: Bump when the reading of files changes (naming, ordering, materials).
-_CACHE_FORMAT = 3  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans refused
+_CACHE_FORMAT = 3  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans, cycles refused
 
 
 def _cache_dir() -> Path | None:

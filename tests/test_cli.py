@@ -620,22 +620,27 @@ def test_an_option_the_run_would_ignore_is_a_usage_error(tmp_path, capsys, args,
     assert not (tmp_path / "o").exists()
 
 
-def test_gltf_triangle_fans_are_an_input_error_not_a_silent_gap(tmp_path, capsys):
-    """A valid glTF whose mesh is a TRIANGLE_FAN (mode 6): trimesh leaves it out without a word,
-    so the drawing silently lost it. It is one input line naming the mesh."""
+@pytest.mark.parametrize("mode, node, said", [
+    (6, {}, "triangle fan"),  # valid glTF, but trimesh leaves fans out without a word
+    (4, {"children": [0]}, "its own ancestor"),  # the node and its mesh were left out
+    (4, {"rotation": [0.0, 0.0, 0.0, 0.0]}, "not a unit quaternion"),
+])
+def test_gltf_triangle_fans_are_an_input_error_not_a_silent_gap(tmp_path, capsys, mode, node, said):
+    """A glTF mesh the loader would leave out, or place by a rotation that is none: the drawing
+    silently lost it (exit 0). It is one input line naming what is wrong."""
     import pygltflib as g
 
-    quad = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32)
+    quad = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float32)[:4 if mode == 6 else 3]
     blob = quad.tobytes()
     doc = g.GLTF2(asset=g.Asset(version="2.0"), scene=0, scenes=[g.Scene(nodes=[0])],
                   buffers=[g.Buffer(byteLength=len(blob))],
                   bufferViews=[g.BufferView(buffer=0, byteOffset=0, byteLength=len(blob))],
-                  accessors=[g.Accessor(bufferView=0, componentType=g.FLOAT, count=4, type="VEC3", min=[-1, -1, 0],
-                                        max=[1, 1, 0])],
-                  meshes=[g.Mesh(primitives=[g.Primitive(attributes=g.Attributes(POSITION=0), mode=6)])],
-                  nodes=[g.Node(name="fan", mesh=0)])
+                  accessors=[g.Accessor(bufferView=0, componentType=g.FLOAT, count=len(quad), type="VEC3",
+                                        min=[-1, -1, 0], max=[1, 1, 0])],
+                  meshes=[g.Mesh(primitives=[g.Primitive(attributes=g.Attributes(POSITION=0), mode=mode)])],
+                  nodes=[g.Node(name="fan", mesh=0, **node)])
     doc.set_binary_blob(blob)
     path = tmp_path / "fan.glb"
     doc.save_binary(str(path))
     code, _, err = run_cli(["info", path], capsys)
-    assert code == 1 and "triangle fan" in err and "fan.glb" in err and len(err.strip().splitlines()) == 1
+    assert code == 1 and said in err and "fan.glb" in err and len(err.strip().splitlines()) == 1
