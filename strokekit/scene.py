@@ -303,6 +303,8 @@ def _read_parts(p: Path) -> tuple:
             raise InputError(f"not a glTF file: its JSON does not parse ({e})", p) from None
     if p.suffix.lower() in (".gltf", ".glb"):
         _check_gltf_modes(p)
+    if p.suffix.lower() == ".stl":
+        _check_stl_length(p)
     try:
         loaded = _load_holding_interrupts(p)
     except Exception as e:  # trimesh raises many kinds on bad files
@@ -343,6 +345,28 @@ def _read_parts(p: Path) -> tuple:
         raise InputError("no triangle faces in file (empty, or a point cloud)", p)
     return (np.concatenate(verts), np.concatenate(faces), np.concatenate(fobj), np.concatenate(fmat),
             tuple(objects), tuple(materials))
+
+
+def _check_stl_length(p: Path) -> None:
+    """InputError for a binary STL shorter than its header says (84 bytes + 50 per triangle): cut
+    off in a copy, it read as 'no triangle faces'. ASCII STL (it starts with 'solid' and holds no
+    binary count that fits) is left to the loader."""
+    import struct
+
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(84)
+        size = p.stat().st_size
+    except OSError:
+        return
+    if len(head) < 84:
+        return
+    (n,) = struct.unpack_from("<I", head, 80)
+    if head[:5].lower() == b"solid" and b"facet" in p.read_bytes()[:4096].lower():
+        return  # ASCII
+    if size < 84 + 50 * n:
+        raise InputError(f"truncated binary STL: its header says {n} triangles ({84 + 50 * n} bytes), the file has "
+                         f"{size} bytes", p)
 
 
 def _check_gltf_modes(p: Path) -> None:

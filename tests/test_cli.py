@@ -644,3 +644,13 @@ def test_gltf_triangle_fans_are_an_input_error_not_a_silent_gap(tmp_path, capsys
     doc.save_binary(str(path))
     code, _, err = run_cli(["info", path], capsys)
     assert code == 1 and said in err and "fan.glb" in err and len(err.strip().splitlines()) == 1
+
+
+def test_truncated_binary_stl_says_truncated(tmp_path, capsys):
+    """A binary STL cut off in a copy read as 'no triangle faces (empty, or a point cloud)'."""
+    cut = tmp_path / "cut.stl"
+    cut.write_bytes(model_path("torus.STL").read_bytes()[:3000])
+    code, _, err = run_cli(["info", cut], capsys)
+    assert code == 1 and "truncated binary STL" in err and "cut.stl" in err
+    code, _, _ = run_cli(["info", model_path("torus.STL")], capsys)  # the whole file reads
+    assert code == 0
