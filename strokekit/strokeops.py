@@ -9,7 +9,7 @@ from dataclasses import fields, replace
 import numpy as np
 
 from .coherence import resample_strokes, surface_between
-from .model import KIND_INDEX, Strokes, bracket, row_norm, uclip
+from .model import KIND_INDEX, Strokes, bracket, uclip
 
 
 def split_max_length(strokes: Strokes, max_length_px: float) -> Strokes:
@@ -98,35 +98,52 @@ def simplify(strokes: Strokes, tol_px: float) -> Strokes:
     return out
 
 
-def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float) -> Strokes:
+def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndarray | None = None) -> Strokes:
     """Strokes less the points where the line turns by more than `angle_deg` beside a segment of
     at most `max_px` (px): the sub-pixel back-and-forth where two strands that overlap at their
     ends were joined (one ends 0.1 px past where the next begins; a ribbon folds there). The
-    chaining splits at such turns, so only joints have them. Ends are kept; of two neighbouring
-    such points the first goes, then the turns are looked at again."""
+    chaining splits at such turns, so only joints have them: `at` (point indices), when given,
+    are the only points looked at (the joints and their neighbours). Ends are kept; of two
+    neighbouring such points the first goes, then the rest are looked at again. The same object
+    when there is nothing to drop."""
     cos_max = np.cos(np.radians(angle_deg))
-    for _ in range(4):
-        P = strokes.points
-        n = len(P)
-        if n < 3:
-            return strokes
-        sop = strokes.stroke_of_point
-        i = np.flatnonzero((sop[1:-1] == sop[:-2]) & (sop[1:-1] == sop[2:])) + 1
-        d_in, d_out = P[i] - P[i - 1], P[i + 1] - P[i]
-        l_in, l_out = row_norm(d_in), row_norm(d_out)
-        dot = np.einsum("ij,ij->i", d_in, d_out)
-        bad = (np.minimum(l_in, l_out) <= max_px) & (l_in > 0) & (l_out > 0) & (dot < cos_max * l_in * l_out)
+    P = strokes.points
+    n = len(P)
+    if n < 3 or max_px <= 0:
+        return strokes
+    ends = np.zeros(n, bool)
+    ends[strokes.offsets[:-1]] = True
+    ends[strokes.offsets[1:] - 1] = True
+    i = np.arange(1, n - 1) if at is None else np.unique(np.asarray(at, np.int64))
+    i = i[(i > 0) & (i < n - 1)]
+    i = i[~ends[i]]  # interior points only (never a stroke's first or last)
+    alive = np.ones(n, bool)
+    for _ in range(8):
+        if len(i) == 0:
+            break
+        # Neighbours among the points still there (ends are never dropped: they stay in-stroke).
+        live = np.flatnonzero(alive)
+        k = np.searchsorted(live, i)
+        prv, nxt = P[live[k - 1]], P[live[k + 1]]
+        a, b = P[i] - prv, nxt - P[i]
+        la, lb = a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1], b[:, 0] * b[:, 0] + b[:, 1] * b[:, 1]
+        dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
+        bad = (np.minimum(la, lb) <= max_px * max_px) & (la > 0) & (lb > 0) & (dot < cos_max * np.sqrt(la * lb))
+        if not bad.any():
+            break
         cand = i[bad]
-        if len(cand) == 0:
-            return strokes
-        cand = cand[_cat(True, np.diff(cand) > 1)]
-        keep = np.ones(n, bool)
-        keep[cand] = False
-        counts = np.bincount(sop[keep], minlength=len(strokes))
-        strokes = replace(strokes, points=P[keep], surface=strokes.surface[keep], face=strokes.face[keep],
-                          u=None if strokes.u is None else strokes.u[keep],
-                          offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
-    return strokes
+        # Of neighbouring candidates (next to each other among the live points) the first goes.
+        kc = k[bad]
+        cand = cand[_cat(True, np.diff(kc) > 1)]
+        alive[cand] = False
+        i = i[alive[i]]
+    if alive.all():
+        return strokes
+    gone = np.flatnonzero(~alive)
+    counts = np.diff(strokes.offsets) - np.bincount(np.searchsorted(strokes.offsets, gone, side="right") - 1,
+                                                    minlength=len(strokes))
+    return replace(strokes, points=P[alive], surface=strokes.surface[alive], face=strokes.face[alive],
+                   u=None if strokes.u is None else strokes.u[alive], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
 
 
 # --- pieces of strokes, doubled contours (the per-frame pass and the tracker use them) ---------

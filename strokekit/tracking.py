@@ -719,6 +719,11 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
                   kind=strokes.kind[first], ids=np.arange(len(first), dtype=np.int64), u=None,
                   level=strokes.level[first], level_weight=strokes.level_weight[first], camera=strokes.camera,
                   frame=strokes.frame, period_px=strokes.period_px)
+    # Strands that overlapped at their ends (one 0.1 px past where the next begins) turn back at
+    # the joint: a hairpin, drawn as a folded ribbon. The joint point goes. (Joints in the
+    # output's numbering: the dropped repeats before them shift them down.)
+    j = joint - np.searchsorted(drop, joint)
+    out = drop_hairpins(out, angle_deg, tol_px, at=np.concatenate([j - 1, j]))
     return _replace(out, u=out.arc_length / out.period_px)
 
 
@@ -1266,9 +1271,11 @@ class Tracker:
             u_new = a[sop] + b[sop] * cur.arc_length
         ids, self.next_id = assign_ids(S, cand_s, cand_i, cand_w, self.next_id, o.min_id_px)
         level, weight = levels_from_slope(b, P)
-        # Joined strands that overlapped at their ends turn back there by a fraction of a pixel.
-        return drop_hairpins(_replace(cur, ids=ids, u=u_new, level=level, level_weight=weight), o.join_angle_deg,
-                             o.join_tol_px)
+        out = _replace(cur, ids=ids, u=u_new, level=level, level_weight=weight)
+        if not o.chain_touching:  # (chain_touching drops them where it joins)
+            # Healed strands that overlapped at their ends turn back there by a fraction of a pixel.
+            out = drop_hairpins(out, o.join_angle_deg, o.join_tol_px)
+        return out
 
     # -- seed 000 strategies 1-5
     def _seed(self, cur: Strokes) -> Strokes:
