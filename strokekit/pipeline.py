@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import platform
 import time
 import traceback
@@ -685,7 +686,9 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     scene and options digests and this frame's camera digest; frame files there with a manifest
     of another scene or options, or none, raise UsageError before any frame is rendered."""
     t_start = time.perf_counter() if started_at is None else started_at
-    t_wall = time.time()  # file times are wall-clock: what this run wrote is newer than this
+    # The frame files there before the run, by (inode, mtime, size): a file this run wrote is one
+    # missing from it or changed since (an atomic write replaces the inode). No clock compared.
+    before: dict[str, tuple] | None = None
     res = RunResult()
     check_pattern(spec.outputs.pattern)
     spec.outputs.check_names(f for f, _ in spec.cameras)
@@ -717,7 +720,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         manifest = run_manifest(spec, scene, tracking_on)
         old = read_run_manifest(out.out_dir)
         same_run = old is not None and old["run"] == manifest["run"]
-        on_disk = {f: [p.exists() for p in out.frame_files(f)] for f in frames}
+        before = _file_states(p for f in frames for p in out.frame_files(f))
+        on_disk = {f: [str(p) in before for p in out.frame_files(f)] for f in frames}
         done_before = set()
         if spec.skip_existing:
             present = {f for f in frames if all(on_disk[f])}
@@ -815,7 +819,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             nonlocal cursor
             while cursor < len(need_lines) and need_lines[cursor] in finished:
                 f = need_lines[cursor]
-                if f not in lines_results and spec.fail_fast:
+                if f in lines_failed and spec.fail_fast:
                     return  # --fail-fast: no frame after a failed one is tracked or written
                 cursor += 1
                 if f not in lines_results:
@@ -862,7 +866,11 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             if spec.fail_fast and res.failures:
                 # Stopped at a failure: the frames before it whose lines are done are still
                 # tracked (above) and written, here (their write tasks were left in line).
-                rest = [item for item in pending if item[0] is write_task]
+                # (A failed write stops the frames after it too; in frame order.)
+                order = {f: k for k, f in enumerate(frames)}
+                stop_at = min((order[f] for f in res.failures), default=len(frames))
+                rest = sorted((item for item in pending if item[0] is write_task and order[item[2]] < stop_at),
+                              key=lambda item: order[item[2]])
                 pending.clear()
                 for item in rest:
                     written(write_task(*item[1:]))
@@ -883,8 +891,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         # are removed; every file left is complete (written whole, then renamed).
         workers.close()
         remove_temp_files(spec)
-        _frames_found_whole(spec, res, t_wall)
-        _remove_partial_frames(spec, res, t_wall)
+        _frames_found_whole(spec, res, before)
+        _remove_partial_frames(spec, res, before)
         res.interrupted = True
         _finish(res, t_start)
         raise RunInterrupted(res) from None
@@ -892,51 +900,63 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         if own:
             workers.close()
     if res.failures:
-        _remove_partial_frames(spec, res, t_wall)
+        _remove_partial_frames(spec, res, before)
     return _finish(res, t_start)
 
 
-def _frames_found_whole(spec: RunSpec, res: RunResult, since: float) -> None:
-    """After Ctrl-C: frames whose every file this run wrote (all there, none older than `since`,
-    time.time() at the run's start) count as written, though their results never came back (the
-    interrupt fell between the last rename and the report of a worker, or of this process)."""
-    import math
+def _file_states(paths) -> dict[str, tuple]:
+    """{path: (inode, mtime_ns, size)} of the files among `paths` that exist."""
+    out = {}
+    for p in paths:
+        try:
+            s = os.stat(p)
+        except OSError:
+            continue
+        out[str(p)] = (s.st_ino, s.st_mtime_ns, s.st_size)
+    return out
 
-    floor = math.floor(since)  # file systems that keep whole seconds
+
+def _written_by_run(p: Path, before: dict[str, tuple] | None) -> bool:
+    """Whether file `p` exists and was written by this run: it was not there at the start (see
+    `before`), or has changed since. False when the run never took stock (nothing written yet)."""
+    if before is None:
+        return False
+    now = _file_states([p])
+    return str(p) in now and before.get(str(p)) != now[str(p)]
+
+
+def _frames_found_whole(spec: RunSpec, res: RunResult, before: dict[str, tuple] | None) -> None:
+    """After Ctrl-C: frames whose every file this run wrote count as written, though their results
+    never came back (the interrupt fell between the last rename and the report of a worker, or
+    of this process)."""
     known = set(res.frames_ok) | set(res.failures) | set(res.frames_skipped)
     listed = set(res.outputs)
     for f, _ in spec.cameras:
         if f in known:
             continue
         paths = spec.outputs.frame_files(f)
-        try:
-            if paths and all(p.stat().st_mtime >= floor for p in paths):
-                res.frames_ok.append(f)
-                res.outputs += [str(p) for p in paths if str(p) not in listed]
-        except OSError:  # a file is missing: the frame is not whole
-            continue
+        if paths and all(_written_by_run(p, before) for p in paths):
+            res.frames_ok.append(f)
+            res.outputs += [str(p) for p in paths if str(p) not in listed]
 
 
-def _remove_partial_frames(spec: RunSpec, res: RunResult, since: float) -> None:
-    """Files this run wrote (not older than `since`, its start in time.time()) of frames it did
-    not write whole: the raster images of a frame whose lines failed to be written, or that a
-    stop (Ctrl-C, --fail-fast) left untracked. Removed, so that a frame is on disk whole or not
-    at all (a frame kept from an earlier run, or files older than the run, are not touched)."""
-    import math
-
-    floor = math.floor(since)
+def _remove_partial_frames(spec: RunSpec, res: RunResult, before: dict[str, tuple] | None) -> None:
+    """Files this run wrote of frames it did not write whole: the raster images of a frame whose
+    lines failed to be written, or that a stop (Ctrl-C, --fail-fast) left untracked. Removed, so
+    that a frame is on disk whole or not at all. A file that was there before the run and that it
+    did not touch (a frame of an earlier run) stays."""
     keep = set(res.frames_ok) | set(res.frames_skipped)
     gone = set()
     for f, _ in spec.cameras:
         if f in keep:
             continue
         for p in spec.outputs.frame_files(f):
-            try:
-                if p.stat().st_mtime >= floor:
+            if _written_by_run(p, before):
+                try:
                     p.unlink()
                     gone.add(str(p))
-            except OSError:
-                continue
+                except OSError:
+                    continue
     if gone:
         res.outputs[:] = [o for o in res.outputs if o not in gone]
 

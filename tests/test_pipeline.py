@@ -731,3 +731,30 @@ def test_coherence_pattern_takes_only_the_names_it_gives(tmp_path, capsys):
     from strokekit.coherence import frame_files
 
     assert [p.name for p in frame_files(tmp_path, "shot_{frame:04d}")] == [f"shot_000{i}.json" for i in (1, 2, 3)]
+
+
+def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
+    """Frames 5-8 written whole by one run stay when the next run into the folder (frames 1-8,
+    --fail-fast, frame 2 failing) stops before them, even within the same second: 'written by
+    this run' is a file that was missing at its start or has changed since, not a file time."""
+    from strokekit.camera import orbit_path
+    from strokekit.options import LineOptions
+    from strokekit.pipeline import OutputOptions, RunSpec, run
+
+    path = model_path("spot.obj")
+    s = load_scene(path)
+    cams = [(i + 1, c) for i, c in enumerate(orbit_path(s.center, s.radius, 8, width=96, height=96).cameras)]
+    out = tmp_path / "o"
+    first = run(RunSpec(scene_path=str(path), cameras=tuple(cams[4:]), lines=LineOptions(),
+                        outputs=OutputOptions(out_dir=out)), scene=s)
+    assert first.frames_ok == [5, 6, 7, 8]
+    kept = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
+    inside = replace(cams[1][1], eye=tuple(s.center), target=tuple(s.center + [0.0, 0.0, -1.0]))
+    cams2 = list(cams)
+    cams2[1] = (2, inside)
+    second = run(RunSpec(scene_path=str(path), cameras=tuple(cams2), lines=LineOptions(),
+                         outputs=OutputOptions(out_dir=out), fail_fast=True), scene=s)
+    assert list(second.failures) == [2] and second.frames_ok == [1]
+    now = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
+    assert {k: v for k, v in now.items() if k in kept} == kept
+    assert sorted(now) == sorted([*kept, "frame_0001.json", "frame_0001.svg"])
