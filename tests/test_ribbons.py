@@ -334,3 +334,36 @@ def test_world_ribbons_are_not_hidden_by_the_surface_they_outline():
 
     assert hidden_share(build_ribbons(strokes, cam, o)) > 0.3  # the inner half
     assert hidden_share(build_ribbons(strokes, cam, o, surface_depth_at(r.occluder))) == 0.0
+
+
+@pytest.mark.parametrize("projection", ["perspective", "orthographic"])
+def test_a_section_view_keeps_its_near_plane_in_the_glb(projection):
+    """A camera with `near` cutting into the model (a section view): the ribbons lie beyond the
+    near plane (pulled a little toward the eye), orthographic too, and the glTF camera's znear
+    stays at the section, so a viewer hides what the drawing cut away. Surface rays from the
+    camera plane put 29% of an orthographic section's vertices in front of it, and znear went
+    down to half the nearest ribbon depth."""
+    import json
+    import struct
+
+    from strokekit.lines import LineRenderer
+    from strokekit.options import LineOptions
+    from strokekit.raster import surface_depth_at
+    from strokekit.scene import load_scene
+    from strokekit.writers.gltf import GltfOptions, glb_for_frame
+    from helpers import model_path
+
+    s = load_scene(model_path("spot.obj"))
+    c, R = np.asarray(s.center), s.radius
+    near = 2.7 * R
+    cam = Camera(eye=tuple(c + [0.0, 0.0, 3 * R]), target=tuple(c), width=300, height=300, fov_y=40.0,
+                 projection=projection, ortho_height=2.5 * R, near=near)
+    r = LineRenderer(s, LineOptions())
+    st = r.render(cam, 1)
+    o = RibbonOptions(width_px=3.0)
+    m = build_ribbons(st, cam, o, surface_depth_at(r.occluder))
+    assert cam.depth(m.positions).min() >= near * (1 - o.pull) * (1 - 1e-6)
+    if projection == "perspective":
+        glb = glb_for_frame(st, cam, GltfOptions(), surface_depth_at(r.occluder))
+        n = struct.unpack_from("<I", glb, 12)[0]
+        assert json.loads(glb[20:20 + n])["cameras"][0]["perspective"]["znear"] > 0.99 * near

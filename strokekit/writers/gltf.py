@@ -244,7 +244,10 @@ class _Doc:
             else:
                 znear = float(camera.near) if camera.near else 1e-3 * dist
                 if depths is not None and depths[0] > 0:
-                    znear = min(znear, 0.5 * depths[0])
+                    # A near plane the camera gives is the drawing's section: a viewer must cut the
+                    # scene there too, so it goes only as far below as a ribbon needs (ribbons of
+                    # clipped edges sit on it, pulled a little toward the eye).
+                    znear = min(znear, (0.999 if camera.near else 0.5) * depths[0])
                 cam = {"type": "perspective", "name": "camera", "perspective": {
                     "aspectRatio": aspect, "yfov": math.radians(camera.fov_y), "znear": znear}}
             node = {"name": "camera", "translation": [float(x) for x in camera.eye], "rotation": _camera_quat(camera)}
