@@ -443,11 +443,23 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
     # Exactly the names the pattern gives: {frame} is a number that formats back to the name
     # (shot_{frame:04d} must not take shot_0001_draft.json, nor a report frame_report.json).
     literal = re.split(r"\{frame[^}]*\}", pattern)
-    exact = re.compile(r"(\s*[+-]?\d+)".join(re.escape(s) for s in literal) + r"\.json")
+    exact = re.compile("(.+?)".join(re.escape(s) for s in literal) + r"\.json")
 
     def named_by_pattern(name: str) -> bool:
         m = exact.fullmatch(name)
-        return m is not None and len(set(m.groups())) == 1 and pattern.format(frame=int(m.group(1))) + ".json" == name
+        if m is None or len(set(m.groups())) != 1:
+            return False
+        # Some whole number must format back to the name, in any integer format ({frame:x},
+        # {frame:<4}, {frame:,}); a longer name of another render (_draft) has none.
+        text = m.group(1).strip().replace(",", "").replace("_", "")
+        for base in (10, 16, 8, 2):
+            try:
+                n = int(text, base)
+            except ValueError:
+                continue
+            if pattern.format(frame=n) + ".json" == name:
+                return True
+        return False
 
     files = sorted(p for p in d.glob(glob) if named_by_pattern(p.name))  # (not render's .strokekit-run.json)
     if len(files) < 2:

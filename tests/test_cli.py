@@ -603,7 +603,7 @@ def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube,
 
 
 @pytest.mark.parametrize("args, said", [
-    (["--coherence", "seed", "--no-coherence"], "not both"),
+    (["--coherence", "seed", "--no-coherence"], "contradict each other"),
     (["--bands", "2", "--band-polygons", "--no-svg"], "--band-polygons needs the SVG"),
     (["--bands", "2", "--fill-pattern", "dots"], "--fill-pattern needs --fill"),
     (["--max-growth", "5"], "--max-growth needs --coherence seed"),

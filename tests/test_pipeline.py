@@ -714,9 +714,10 @@ def test_kinds_in_another_order_are_the_same_run(tmp_path, capsys):
 
 def test_report_naming_the_out_folder_is_refused_before_any_frame(tmp_path, capsys):
     out = tmp_path / "o3"
-    code, _, err = run_cli(["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-2",
-                            "--out", out, "--report", out], capsys)
-    assert code == 2 and "--report" in err and "--out folder" in err
+    for report in (out, out / ".." / "o3"):  # (the same folder by another spelling)
+        code, _, err = run_cli(["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames",
+                                "1-2", "--out", out, "--report", report], capsys)
+        assert code == 2 and "--report" in err and "--out folder" in err
     assert not out.exists() or not any(out.iterdir())
 
 
@@ -731,6 +732,13 @@ def test_coherence_pattern_takes_only_the_names_it_gives(tmp_path, capsys):
     from strokekit.coherence import frame_files
 
     assert [p.name for p in frame_files(tmp_path, "shot_{frame:04d}")] == [f"shot_000{i}.json" for i in (1, 2, 3)]
+    # Any integer format render takes: hex past 9, padding, thousands separators.
+    for pattern, names in (("h_{frame:x}", [f"h_{i:x}.json" for i in range(1, 21)]),
+                           ("p_{frame:<4}", [f"p_{i:<4}.json" for i in (1, 2)]),
+                           ("c_{frame:,}", [f"c_{i:,}.json" for i in (999, 1000)])):
+        for n in names:
+            (tmp_path / n).write_text("{}")
+        assert sorted(p.name for p in frame_files(tmp_path, pattern)) == sorted(names)
 
 
 def test_a_failed_run_removes_only_what_it_wrote(tmp_path):

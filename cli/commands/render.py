@@ -43,8 +43,8 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
     def given(name: str) -> bool:
         return ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
 
-    if given("coherence_method") and extra.get("no_coherence"):
-        raise UsageError("give --coherence or --no-coherence, not both")
+    if given("coherence_method") and extra.get("no_coherence") and extra.get("coherence_method") != "none":
+        raise UsageError(f"--coherence {extra.get('coherence_method')} and --no-coherence contradict each other")
     for names, need, present in _NEEDS:
         said = [n for n in names if given(n)]
         if said and not present(camera_file, svg, extra):
@@ -151,7 +151,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         if not report_path.strip():
             raise UsageError("--report needs a file name")
         check_output_file(report_path)
-        if Path(report_path).absolute() == Path(out_dir).absolute():
+        if Path(report_path).resolve() == Path(out_dir).resolve():
             raise UsageError(f"--report {report_path} is the --out folder: name a file for the report")
     lines = LineOptions.preset(quality, kinds=split_list(kinds, "--kinds"), contours=contours, crease_angle_deg=crease_angle,
                                whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
