@@ -436,7 +436,8 @@ def orbit_path(center: np.ndarray, radius: float, frames: int, *, elevation: flo
         eye = np.asarray(center, float) + dist * d
         # Straight above or below (elevation +-90): the up axis is the view axis, so the image's
         # up turns with the azimuth (away from the eye's side), or every frame would be the same.
-        frame_up = up if abs(math.cos(el)) > 1e-9 else -math.copysign(1.0, el) * ground
+        # (Camera.basis gives up on an up within 1e-6 of the view axis; 1e-5 stays clear of it.)
+        frame_up = up if abs(math.cos(el)) > 1e-5 else -math.copysign(1.0, el) * ground
         cams.append(Camera(eye=tuple(eye), target=tuple(np.asarray(center, float)), up=tuple(frame_up), fov_y=fov_y,
                            width=width, height=height))
     return CameraPath(cameras=tuple(cams), fps=fps, source="orbit")

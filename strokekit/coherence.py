@@ -451,14 +451,24 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
             return False
         # Some whole number must format back to the name, in any integer format ({frame:x},
         # {frame:<4}, {frame:,}); a longer name of another render (_draft) has none.
-        text = m.group(1).strip().replace(",", "").replace("_", "")
+        text = m.group(1)
+        digits = re.sub(r"[^0-9a-fA-F]", "", text)
+        tries = set()
         for base in (10, 16, 8, 2):
+            for s in (text.strip().replace(",", "").replace("_", ""), digits):
+                try:
+                    tries.add(int(s, base))
+                except ValueError:
+                    pass
+        tries |= {-x for x in tries}  # ("{frame:=+5}" and fill characters: the sign stands apart)
+        if len(text) == 1:
+            tries.add(ord(text))  # {frame:c}
+        for n in tries:
             try:
-                n = int(text, base)
-            except ValueError:
+                if pattern.format(frame=n) + ".json" == name:
+                    return True
+            except (ValueError, OverflowError):
                 continue
-            if pattern.format(frame=n) + ".json" == name:
-                return True
         return False
 
     files = sorted(p for p in d.glob(glob) if named_by_pattern(p.name))  # (not render's .strokekit-run.json)

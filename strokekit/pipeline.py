@@ -942,21 +942,24 @@ def _frames_found_whole(spec: RunSpec, res: RunResult, before: dict[str, tuple] 
 
 def _remove_partial_frames(spec: RunSpec, res: RunResult, before: dict[str, tuple] | None) -> None:
     """Files this run wrote of frames it did not write whole: the raster images of a frame whose
-    lines failed to be written, or that a stop (Ctrl-C, --fail-fast) left untracked. Removed, so
-    that a frame is on disk whole or not at all. A file that was there before the run and that it
-    did not touch (a frame of an earlier run) stays."""
+    lines failed to be written, or that a stop (Ctrl-C, --fail-fast) left untracked. Removed with
+    the rest of the frame's files (an earlier run's, which would make a frame of two runs), so that
+    a frame is on disk whole or not at all. A frame this run did not touch stays as it was."""
     keep = set(res.frames_ok) | set(res.frames_skipped)
     gone = set()
     for f, _ in spec.cameras:
         if f in keep:
             continue
-        for p in spec.outputs.frame_files(f):
-            if _written_by_run(p, before):
-                try:
-                    p.unlink()
-                    gone.add(str(p))
-                except OSError:
-                    continue
+        paths = spec.outputs.frame_files(f)
+        if not any(_written_by_run(p, before) for p in paths):
+            continue  # untouched: an earlier run's frame stays as it was
+        # Some of it is new: an earlier run's files of it would make a frame of two runs.
+        for p in paths:
+            try:
+                p.unlink()
+                gone.add(str(p))
+            except OSError:
+                continue
     if gone:
         res.outputs[:] = [o for o in res.outputs if o not in gone]
 

@@ -347,23 +347,31 @@ def _read_parts(p: Path) -> tuple:
             tuple(objects), tuple(materials))
 
 
+#: The bytes of a text file (tab, newlines, printable ASCII).
+_TEXT_BYTES = bytes([9, 10, 13, *range(32, 127)])
+
+
 def _check_stl_length(p: Path) -> None:
     """InputError for a binary STL shorter than its header says (84 bytes + 50 per triangle): cut
-    off in a copy, it read as 'no triangle faces'. ASCII STL (it starts with 'solid' and holds no
-    binary count that fits) is left to the loader."""
+    off in a copy, it read as 'no triangle faces'. A file of exactly that length is binary
+    whatever its header says; otherwise one whose first 4 KB are text starting with 'solid'
+    (after a byte-order mark and blanks) is ASCII and left to the loader."""
     import struct
 
     try:
         with open(p, "rb") as fh:
-            head = fh.read(84)
+            head = fh.read(4096)
         size = p.stat().st_size
     except OSError:
         return
     if len(head) < 84:
         return
     (n,) = struct.unpack_from("<I", head, 80)
-    if head[:5].lower() == b"solid" and b"facet" in p.read_bytes()[:4096].lower():
-        return  # ASCII
+    if size == 84 + 50 * n:
+        return
+    text = head.removeprefix(b"\xef\xbb\xbf")
+    if text.lstrip()[:5].lower() == b"solid" and not text.translate(None, _TEXT_BYTES):
+        return  # ASCII (a binary header may start with 'solid' too, but its count and floats are not text)
     if size < 84 + 50 * n:
         raise InputError(f"truncated binary STL: its header says {n} triangles ({84 + 50 * n} bytes), the file has "
                          f"{size} bytes", p)
@@ -429,7 +437,8 @@ def _check_gltf_modes(p: Path) -> None:
 # code that read them: the same bytes give the same arrays, so outputs do not change.
 
 #: Bump when the reading of files changes (naming, ordering, materials).
-_CACHE_FORMAT = 3  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans, cycles refused
+_CACHE_FORMAT = 4  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans refused;
+#   4: glTF node cycles and non-unit rotations refused
 
 
 def _cache_dir() -> Path | None:

@@ -112,8 +112,9 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
     if n < 3 or max_px <= 0:
         return strokes
     ends = np.zeros(n, bool)
-    ends[strokes.offsets[:-1]] = True
-    ends[strokes.offsets[1:] - 1] = True
+    full = np.flatnonzero(np.diff(strokes.offsets) > 0)  # (an empty stroke has no ends)
+    ends[strokes.offsets[:-1][full]] = True
+    ends[strokes.offsets[1:][full] - 1] = True
     i = np.arange(1, n - 1) if at is None else np.unique(np.asarray(at, np.int64))
     i = i[(i > 0) & (i < n - 1)]
     i = i[~ends[i]]  # interior points only (never a stroke's first or last)
@@ -136,7 +137,10 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
         kc = k[bad]
         cand = cand[_cat(True, np.diff(kc) > 1)]
         alive[cand] = False
-        i = i[alive[i]]
+        # The fold can move to a neighbour of a dropped point: look at those too.
+        kc = kc[_cat(True, np.diff(kc) > 1)]
+        near = np.concatenate([live[kc - 1], live[np.minimum(kc + 1, len(live) - 1)]])
+        i = np.union1d(i[alive[i]], near[alive[near] & ~ends[near]])
     if alive.all():
         return strokes
     gone = np.flatnonzero(~alive)

@@ -250,7 +250,7 @@ def test_comment_keys_are_allowed(tmp_path):
     assert len(path.cameras) == 1
 
 
-@pytest.mark.parametrize("elevation", [90.0, -90.0])
+@pytest.mark.parametrize("elevation", [90.0, -90.0, 89.99999, -89.99999])
 def test_orbit_straight_above_or_below_still_turns(elevation):
     """At elevation +-90 the up axis is the view axis: the image's up now turns with the azimuth,
     as it does just short of it (every frame was the same image)."""

@@ -654,3 +654,12 @@ def test_truncated_binary_stl_says_truncated(tmp_path, capsys):
     assert code == 1 and "truncated binary STL" in err and "cut.stl" in err
     code, _, _ = run_cli(["info", model_path("torus.STL")], capsys)  # the whole file reads
     assert code == 0
+    # ASCII STL is not binary, however it starts: blanks, a byte-order mark, a long solid name.
+    import trimesh
+
+    text = trimesh.exchange.stl.export_stl_ascii(trimesh.creation.box())
+    for i, data in enumerate([("\n  " + text).encode(), b"\xef\xbb\xbf" + text.encode(),
+                              ("solid " + "x" * 5000 + text[text.index("\n"):]).encode()]):
+        (tmp_path / f"a{i}.stl").write_bytes(data)
+        code, _, err = run_cli(["info", tmp_path / f"a{i}.stl"], capsys)
+        assert code == 0, err

@@ -735,7 +735,9 @@ def test_coherence_pattern_takes_only_the_names_it_gives(tmp_path, capsys):
     # Any integer format render takes: hex past 9, padding, thousands separators.
     for pattern, names in (("h_{frame:x}", [f"h_{i:x}.json" for i in range(1, 21)]),
                            ("p_{frame:<4}", [f"p_{i:<4}.json" for i in (1, 2)]),
-                           ("c_{frame:,}", [f"c_{i:,}.json" for i in (999, 1000)])):
+                           ("c_{frame:,}", [f"c_{i:,}.json" for i in (999, 1000)]),
+                           ("s_{frame:*>4}", [f"s_{i:*>4}.json" for i in (1, 2)]),
+                           ("e_{frame:=+5}", [f"e_{i:=+5}.json" for i in (1, 2)])):
         for n in names:
             (tmp_path / n).write_text("{}")
         assert sorted(p.name for p in frame_files(tmp_path, pattern)) == sorted(names)
@@ -766,3 +768,34 @@ def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
     now = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
     assert {k: v for k, v in now.items() if k in kept} == kept
     assert sorted(now) == sorted([*kept, "frame_0001.json", "frame_0001.svg"])
+
+
+def test_an_interrupted_rewrite_leaves_no_frame_of_two_runs(tmp_path, monkeypatch):
+    """Frames 1-6 rendered, then rendered again and interrupted between frame 3's SVG and its
+    JSON: frame 3 must not be left as this run's SVG beside the earlier run's JSON. It goes
+    whole (a resume renders it again); frames 4-6, which this run never touched, stay."""
+    import strokekit.pipeline as P
+    from strokekit.camera import orbit_path
+    from strokekit.options import LineOptions
+
+    path = model_path("spot.obj")
+    s = load_scene(path)
+    cams = tuple((i + 1, c) for i, c in enumerate(orbit_path(s.center, s.radius, 6, width=96, height=96).cameras))
+    out = tmp_path / "o"
+    spec = P.RunSpec(scene_path=str(path), cameras=cams, lines=LineOptions(), outputs=P.OutputOptions(out_dir=out))
+    assert P.run(spec, scene=s).frames_ok == [1, 2, 3, 4, 5, 6]
+    earlier = {p.name: p.read_bytes() for p in out.iterdir() if p.name[-6] in "456"}
+    real = P.atomic_write_bytes
+
+    def interrupted(p, data):
+        if str(p).endswith("frame_0003.json"):
+            raise KeyboardInterrupt
+        return real(p, data)
+
+    monkeypatch.setattr(P, "atomic_write_bytes", interrupted)
+    with pytest.raises(P.RunInterrupted) as e:
+        P.run(spec, scene=s)
+    assert e.value.result.frames_ok == [1, 2]
+    names = {p.name for p in out.iterdir()}
+    assert not {"frame_0003.svg", "frame_0003.json"} & names
+    assert {n: (out / n).read_bytes() for n in earlier} == earlier

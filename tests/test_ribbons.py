@@ -363,7 +363,6 @@ def test_a_section_view_keeps_its_near_plane_in_the_glb(projection):
     o = RibbonOptions(width_px=3.0)
     m = build_ribbons(st, cam, o, surface_depth_at(r.occluder))
     assert cam.depth(m.positions).min() >= near * (1 - o.pull) * (1 - 1e-6)
-    if projection == "perspective":
-        glb = glb_for_frame(st, cam, GltfOptions(), surface_depth_at(r.occluder))
-        n = struct.unpack_from("<I", glb, 12)[0]
-        assert json.loads(glb[20:20 + n])["cameras"][0]["perspective"]["znear"] > 0.99 * near
+    glb = glb_for_frame(st, cam, GltfOptions(), surface_depth_at(r.occluder))
+    n = struct.unpack_from("<I", glb, 12)[0]
+    assert json.loads(glb[20:20 + n])["cameras"][0][projection]["znear"] > 0.99 * near

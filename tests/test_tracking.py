@@ -619,3 +619,16 @@ def test_touching_strands_are_joined_without_a_hairpin():
         out = tr.step(strands(x_end, 2))
         assert len(out) == 1 and _max_turn_deg(out) < 1e-6
         assert out.lengths[0] == pytest.approx(40.0, abs=0.11)
+
+
+def test_a_hairpin_that_moves_back_a_point_when_the_joint_goes_is_dropped_too():
+    """Strand A ends at x = 10.8 with a point at 10.6 before it; strand B begins at 10.2. The joint
+    point (10.8) goes, and then the fold is at 10.6: the points next to a dropped one are looked
+    at again."""
+    from strokekit.tracking import chain_touching
+
+    p = np.array([[0.0, 50.0], [10.6, 50.0], [10.8, 50.0], [10.2, 50.0], [20.0, 50.0]]) + [100.0, 0.0]
+    s = Strokes.build(p, np.c_[p, np.zeros(5)], np.zeros(5), [0, 3, 5], [KIND_INDEX["silhouette"]] * 2)
+    out = chain_touching(s, 2.0, 90.0)
+    assert len(out) == 1 and _max_turn_deg(out) < 1e-6
+    assert out.points[:, 0].tolist() == [100.0, 110.2, 120.0]

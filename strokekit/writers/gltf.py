@@ -239,8 +239,11 @@ class _Doc:
             if camera.is_ortho:
                 h = camera.ortho_height / 2.0
                 zfar = 100.0 * dist if depths is None else max(100.0 * dist, 2.0 * depths[1])
+                znear = float(camera.near) if camera.near else 0.0  # a section's near plane, as in perspective
+                if depths is not None and znear > 0:
+                    znear = min(znear, 0.999 * max(depths[0], 0.0))
                 cam = {"type": "orthographic", "name": "camera", "orthographic": {
-                    "xmag": h * aspect, "ymag": h, "znear": 0.0, "zfar": zfar}}
+                    "xmag": h * aspect, "ymag": h, "znear": znear, "zfar": zfar}}
             else:
                 znear = float(camera.near) if camera.near else 1e-3 * dist
                 if depths is not None and depths[0] > 0:
