@@ -132,13 +132,12 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
         bad = (np.minimum(la, lb) <= max_px * max_px) & (la > 0) & (lb > 0) & (dot < cos_max * np.sqrt(la * lb))
         if not bad.any():
             break
-        cand = i[bad]
         # Of neighbouring candidates (next to each other among the live points) the first goes.
         kc = k[bad]
-        cand = cand[_cat(True, np.diff(kc) > 1)]
+        first = _cat(True, np.diff(kc) > 1)
+        cand, kc = i[bad][first], kc[first]
         alive[cand] = False
         # The fold can move to a neighbour of a dropped point: look at those too.
-        kc = kc[_cat(True, np.diff(kc) > 1)]
         near = np.concatenate([live[kc - 1], live[np.minimum(kc + 1, len(live) - 1)]])
         i = np.union1d(i[alive[i]], near[alive[near] & ~ends[near]])
     if alive.all():

@@ -12,19 +12,20 @@ self-similar `level` / `level_weight`. Three methods:
   `search_radius_px` whose tangent agrees (the same correspondence the metrics of BRIEF 3 use);
   with `reverse_votes` every new sample also looks back for the nearest old sample. First,
   chains of one kind whose ends meet within `join_tol_px` are joined into one path
-  (`chain_touching`): where the chaining stops changes from frame to frame. Each path is then
+  (`chain_touching`; where two strands overlap at their ends, the joint point that would make
+  the path turn back is dropped): where the chaining stops changes from frame to frame. Each path is then
   cut into segments where the id its votes carry changes (Kalnins' brush path segments; runs
   shorter than `min_segment_px` are absorbed), so ids, not this frame's chain ends, decide where
   strokes begin and end. A cut between two ids goes where the previous frame's stroke end
   projects (`snap_boundaries`: the boundary between two ids does not wander with the sample
   spacing from frame to frame). Closed loops are turned to start at the old loop's seam, and
   where an open stroke runs across an old loop's seam the votes are unwrapped by the loop's u
-  span (no fold there); each segment is oriented so that u increases along it: the way its
-  carried u increases, or where the votes do not tell, the way the old tangents ran (an edge
-  turning through edge-on turns its image around while u keeps its order) (with
-  `chain_touching` off, segments with
-  the same id whose chains end within `join_tol_px` are healed into one stroke afterwards, a
-  short chain that no vote landed on carrying the id of the chain it continues). Per stroke,
+  span (no fold there). Each segment is oriented so that u increases along it: the way its
+  carried u increases, or, where the votes do not tell, the way the old tangents ran (an edge
+  turning through edge-on turns its image around while u keeps its order). With
+  `chain_touching` off, segments with the same id whose chains end within `join_tol_px` are
+  healed into one stroke afterwards, a short chain that no vote landed on carrying the id of
+  the chain it continues. Per stroke,
   votes of other ids are shifted by whole periods (the texture is periodic) to meet the largest
   group, which heals strokes that merged. u is then fitted by least squares as a piecewise-linear
   function of arc length (knots every `knot_spacing_px`, inserted as points so that downstream
