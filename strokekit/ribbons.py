@@ -393,21 +393,21 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     else:  # still over-full after the passes: every join touching such a segment gives up
         over = overfull(inner_ok)[0]
         inner_ok &= ~(over[jk] | over[jk + 1])
-    left = sig > 0  # (the +n side is inner)
+    plus_inner = sig > 0  # the turn is toward +n: the +n side (the right-hand one) is inner
     ki = jk[inner_ok]
     I = Pj[inner_ok] + (sig * dj)[inner_ok, None] * bis[inner_ok]
-    vpix[ki, np.where(left[inner_ok], 3, 5)] = I
-    vpix[ki + 1, np.where(left[inner_ok], 0, 2)] = I
+    vpix[ki, np.where(plus_inner[inner_ok], 3, 5)] = I
+    vpix[ki + 1, np.where(plus_inner[inner_ok], 0, 2)] = I
     miter_ok = (one_c / 2.0 >= 1.0 / o.miter_limit ** 2) & (one_c > 1e-9)
     vpix[jk, 6] = np.where(miter_ok[:, None], Pj - (sig * dj)[:, None] * bis,
                            Pj - (0.5 * sig * dj)[:, None] * (n1 + n2))
-    vuv[jk, 6, 1] = np.where(left, 0.0, 1.0)  # the outer side's v
-    A = 7 * jk + np.where(left, 5, 3)
-    B = 7 * (jk + 1) + np.where(left, 2, 0)
+    vuv[jk, 6, 1] = np.where(plus_inner, 0.0, 1.0)  # the outer side's v
+    A = 7 * jk + np.where(plus_inner, 5, 3)
+    B = 7 * (jk + 1) + np.where(plus_inner, 2, 0)
     C = 7 * jk + 4
     Mi = 7 * jk + 6
-    tris[jk, 4] = np.where(left[:, None], np.stack([C, A, Mi], 1), np.stack([C, Mi, A], 1))
-    tris[jk, 5] = np.where(left[:, None], np.stack([C, Mi, B], 1), np.stack([C, B, Mi], 1))
+    tris[jk, 4] = np.where(plus_inner[:, None], np.stack([C, A, Mi], 1), np.stack([C, Mi, A], 1))
+    tris[jk, 5] = np.where(plus_inner[:, None], np.stack([C, Mi, B], 1), np.stack([C, B, Mi], 1))
 
     # --- drop missing and zero-area triangles, then the vertices no triangle uses
     pix = vpix.reshape(-1, 2)
