@@ -43,6 +43,8 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
     def given(name: str) -> bool:
         return ctx.get_parameter_source(name) == click.core.ParameterSource.COMMANDLINE
 
+    if extra.get("gltf_sequence") and extra.get("gltf") is False and given("gltf"):
+        raise UsageError("--gltf-sequence writes glTF: it cannot go with --no-gltf")
     if given("coherence_method") and extra.get("no_coherence") and extra.get("coherence_method") != "none":
         raise UsageError(f"--coherence {extra.get('coherence_method')} and --no-coherence contradict each other")
     for names, need, present in _NEEDS:
@@ -125,12 +127,9 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     130 interrupted by Ctrl-C (the frames written so far stay, whole; --report lists them)."""
     if camera_file and orbit:
         raise UsageError("give either --camera or --orbit, not both")
-    if extra.get("gltf_sequence") and extra.get("gltf") is False \
-            and click.get_current_context().get_parameter_source("gltf") == click.core.ParameterSource.COMMANDLINE:
-        raise UsageError("--gltf-sequence writes glTF: it cannot go with --no-gltf")
+    _check_option_pairs(camera_file, svg, extra)
     if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
         raise UsageError("nothing to write: every output is turned off")
-    _check_option_pairs(camera_file, svg, extra)
     check_pattern(pattern)
     width = height = None
     if size:
