@@ -115,20 +115,23 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
     full = np.flatnonzero(np.diff(strokes.offsets) > 0)  # (an empty stroke has no ends)
     ends[strokes.offsets[:-1][full]] = True
     ends[strokes.offsets[1:][full] - 1] = True
-    i = np.arange(1, n - 1) if at is None else np.unique(np.asarray(at, np.int64))
+    i = np.arange(1, n - 1) if at is None else _sorted_unique(np.asarray(at, np.int64))
     i = i[(i > 0) & (i < n - 1)]
     i = i[~ends[i]]  # interior points only (never a stroke's first or last)
     alive = np.ones(n, bool)
+    live = None  # indices of the points still there, once some are dropped
     for _ in range(8):
         if len(i) == 0:
             break
         # Neighbours among the points still there (ends are never dropped: they stay in-stroke).
-        live = np.flatnonzero(alive)
-        k = np.searchsorted(live, i)
-        prv, nxt = P[live[k - 1]], P[live[k + 1]]
-        a, b = P[i] - prv, nxt - P[i]
-        la, lb = a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1], b[:, 0] * b[:, 0] + b[:, 1] * b[:, 1]
-        dot = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
+        if live is None:  # (none dropped yet: the neighbours are the next points)
+            k, prv, nxt = i, P[i - 1], P[i + 1]
+        else:
+            k = np.searchsorted(live, i)
+            prv, nxt = P[live[k - 1]], P[live[k + 1]]
+        Pi = P[i]
+        a, b = Pi - prv, nxt - Pi
+        la, lb, dot = np.einsum("ij,ij->i", a, a), np.einsum("ij,ij->i", b, b), np.einsum("ij,ij->i", a, b)
         bad = (np.minimum(la, lb) <= max_px * max_px) & (la > 0) & (lb > 0) & (dot < cos_max * np.sqrt(la * lb))
         if not bad.any():
             break
@@ -136,10 +139,14 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
         kc = k[bad]
         first = _cat(True, np.diff(kc) > 1)
         cand, kc = i[bad][first], kc[first]
-        alive[cand] = False
         # The fold can move to a neighbour of a dropped point: look at those too.
-        near = np.concatenate([live[kc - 1], live[np.minimum(kc + 1, len(live) - 1)]])
-        i = np.union1d(i[alive[i]], near[alive[near] & ~ends[near]])
+        if live is None:
+            near = np.concatenate([cand - 1, cand + 1])
+        else:
+            near = np.concatenate([live[kc - 1], live[np.minimum(kc + 1, len(live) - 1)]])
+        alive[cand] = False
+        live = np.flatnonzero(alive)
+        i = _sorted_unique(np.concatenate([i[alive[i]], near[alive[near] & ~ends[near]]]))
     if alive.all():
         return strokes
     gone = np.flatnonzero(~alive)
@@ -147,6 +154,12 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
                                                     minlength=len(strokes))
     return replace(strokes, points=P[alive], surface=strokes.surface[alive], face=strokes.face[alive],
                    u=None if strokes.u is None else strokes.u[alive], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+
+
+def _sorted_unique(x: np.ndarray) -> np.ndarray:
+    """np.unique of a small 1-D integer array by a sort (numpy's hash-based unique costs ~15 us)."""
+    x = np.sort(x)
+    return x[_cat(True, x[1:] != x[:-1])] if len(x) else x
 
 
 # --- pieces of strokes, doubled contours (the per-frame pass and the tracker use them) ---------
