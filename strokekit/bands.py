@@ -662,7 +662,7 @@ def _thin_face_pixels(frame: RasterFrame, vnormals: np.ndarray | None) -> np.nda
     W, H = int(cam.width), int(cam.height)
     xy, z = cam.project(scene.vertices)
     f = scene.faces
-    near = 0.0 if cam.is_ortho else cam.near_distance(scene.radius)
+    near = cam.near_distance(scene.radius)  # (orthographic too: the lines are clipped there)
     (xa, xb, xc), (ya, yb, yc), (za, zb, zc) = (tuple(v[f[:, k]] for k in range(3)) for v in (xy[:, 0], xy[:, 1], z))
     ok = (np.minimum(np.minimum(za, zb), zc) > near)
     ok &= (np.maximum(np.maximum(xa, xb), xc) >= 0) & (np.minimum(np.minimum(xa, xb), xc) < W)

@@ -96,7 +96,7 @@ def cast_pixels(camera: Camera, occluder: Occluder, supersample: int = 1) -> Ras
     px = (np.arange(WK) + 0.5) / K - W / 2.0
     py = H / 2.0 - (np.arange(HK) + 0.5) / K
     ax, ay = px / f, py / f
-    near = 0.0 if camera.is_ortho else camera.near_distance(occluder.radius)
+    near = camera.near_distance(occluder.radius)
     # Only samples in blocks that some triangle's screen bounding box touches can hit anything;
     # the others are background without a ray (the cost is in the rays).
     sel = _candidate_samples(camera, occluder.scene, K, near)
@@ -111,18 +111,17 @@ def cast_pixels(camera: Camera, occluder: Occluder, supersample: int = 1) -> Ras
                       camera=camera, supersample=K, ray_dir_x=ax, ray_dir_y=ay)
 
 
-def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndarray,
-                 ortho_near: bool = False) -> dict:
+def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndarray) -> dict:
     """First hits of rays through arbitrary image points given by their camera-plane offsets
     ax, ay (M,) (ax = (x - W/2) / f, ay = (H/2 - y) / f for pixel coordinates x, y).
-    Perspective rays start on the near plane; orthographic ones on the camera plane, or with
-    `ortho_near` on the near plane too (where the lines are clipped: a section view).
+    Rays start on the near plane (Camera.near_distance), orthographic ones too: what lies before it
+    is clipped out of the lines (a section view), so the raster pass does not show it either.
 
     Returns {'face' (M,) int32 (-1: none), 'bary' (M, 2) float32, 'depth' (M,) float32 view z
     (inf: none)}."""
     right, up, fwd = camera.basis
     eye = np.asarray(camera.eye, float)
-    near = 0.0 if camera.is_ortho and not ortho_near else camera.near_distance(occluder.radius)
+    near = camera.near_distance(occluder.radius)
     # Rays in the occluder's centred, unit-radius float32 frame, one component at a time: no
     # (N, 3) float64 temporaries (they cost as much as the BVH traversal at 1024 x 1024). Origin
     # and direction are both scaled, so t_hit keeps its units (view depth for perspective).
@@ -154,7 +153,7 @@ def surface_depth_at(occluder: Occluder):
         f = camera.focal_px
         ax = (pixels[:, 0] - camera.width / 2.0) / f
         ay = (camera.height / 2.0 - pixels[:, 1]) / f
-        return cast_samples(camera, occluder, ax, ay, ortho_near=True)["depth"].astype(float)
+        return cast_samples(camera, occluder, ax, ay)["depth"].astype(float)
     return depth
 
 

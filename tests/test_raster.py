@@ -633,3 +633,19 @@ def test_srgb_transfer_round_trips_and_matches_the_standard():
     # colour 0.4 is byte 170 in the shade PNG, not 102)
     assert srgb_encode(0.5) == pytest.approx(0.735357, abs=1e-6)
     assert round(float(srgb_encode(0.4)) * 255) == 170
+
+
+def test_orthographic_raster_starts_at_the_near_plane_as_the_lines_do(sphere, sphere_occ):
+    """An orthographic section view (near plane through the sphere): the lines clip what lies
+    before the near plane, so the raster pass must not show it either. Its rays started on the
+    camera plane: the bands showed the cut-away front cap over the lines of the section."""
+    from strokekit.raster import cast_pixels
+
+    c, r = np.asarray(sphere.center), sphere.radius
+    near = 3.0 * r  # eye 3.5 r in front of the centre: the plane cuts the front cap off
+    cam = Camera(eye=tuple(c + [0.0, 0.0, 3.5 * r]), target=tuple(c), width=32, height=32,
+                 projection="orthographic", ortho_height=3.0 * r, near=near)
+    hits = cast_pixels(cam, sphere_occ, 1)
+    d = hits.depth[np.isfinite(hits.depth)]
+    assert len(d) and d.min() >= near * (1 - 1e-5)
+    assert hits.depth[16, 16] > 4.0 * r  # the centre ray starts inside: it meets the back wall
