@@ -59,10 +59,15 @@ class FrameAccuracy:
         return {t: _ratio(n, self.ref_length, self.drawn_length) for t, n in zip(self.tols, self.ref_near)}
 
 
+#: Drawn length below which a frame has nothing to measure (px): a stroke of 1e-27 px is resampled
+#: to no point on the other side, so it would count as missed.
+NOTHING_PX = 1e-9
+
+
 def _ratio(near: float, total: float, other_total: float) -> float:
     # Nothing to measure: perfect when the other side is empty too, else nothing matched.
-    if total <= 0:
-        return 1.0 if other_total <= 0 else 0.0
+    if total <= NOTHING_PX:
+        return 1.0 if other_total <= NOTHING_PX else 0.0
     return float(min(1.0, near / total))
 
 
