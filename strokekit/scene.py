@@ -293,16 +293,8 @@ def load_scene(path: str | Path) -> Scene:
 def _read_parts(p: Path) -> tuple:
     """(vertices, faces, face_object, face_material, objects, materials) of a mesh file, world
     space, through trimesh."""
-    if p.suffix.lower() == ".gltf":
-        # trimesh reads broken glTF JSON as a path to look up ("FileNotFoundError: model.gltf").
-        import json
-
-        try:
-            json.loads(p.read_bytes())
-        except ValueError as e:
-            raise InputError(f"not a glTF file: its JSON does not parse ({e})", p) from None
     if p.suffix.lower() in (".gltf", ".glb"):
-        _check_gltf_modes(p)
+        _check_gltf(p, _gltf_document(p))
     if p.suffix.lower() == ".stl":
         _check_stl_length(p)
     try:
@@ -377,28 +369,45 @@ def _check_stl_length(p: Path) -> None:
                          f"{size} bytes", p)
 
 
-def _check_gltf_modes(p: Path) -> None:
-    """InputError for glTF triangle fans (primitive mode 6), which trimesh leaves out without a word
-    (a valid file lost part of its drawing), for a cycle in the node tree and for a node rotation
-    far from a unit quaternion. Points and lines (modes 0-3) have no faces to draw and are left
-    out as in every format. A file whose JSON cannot be found is left to the loader."""
+def _gltf_document(p: Path) -> dict | None:
+    """The JSON document of a .gltf file, or of a .glb's JSON chunk (None where a .glb has none
+    that parses: the loader reports it). A .gltf whose JSON does not parse is an InputError:
+    trimesh would read it as a path to look up ("FileNotFoundError: model.gltf")."""
     import json
     import struct
 
     try:
         data = p.read_bytes()
-        if data[:4] == b"glTF":
-            n, kind = struct.unpack_from("<I4s", data, 12)
-            doc = json.loads(data[20:20 + n]) if kind == b"JSON" else {}
-        else:
+    except OSError:
+        return None
+    if p.suffix.lower() == ".gltf":
+        try:
             doc = json.loads(data)
-        meshes = doc.get("meshes", []) if isinstance(doc, dict) else []
-        fans = [(i, k) for i, m in enumerate(meshes) if isinstance(m, dict)
-                for k, prim in enumerate(m.get("primitives", [])) if isinstance(prim, dict) and prim.get("mode") == 6]
-        nodes = doc.get("nodes", []) if isinstance(doc, dict) else []
-        nodes = nodes if isinstance(nodes, list) else []
-    except (OSError, ValueError, struct.error):
+        except ValueError as e:
+            raise InputError(f"not a glTF file: its JSON does not parse ({e})", p) from None
+    else:
+        try:
+            n, kind = struct.unpack_from("<I4s", data, 12)
+            doc = json.loads(data[20:20 + n]) if data[:4] == b"glTF" and kind == b"JSON" else None
+        except (ValueError, struct.error):
+            return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _check_gltf(p: Path, doc: dict | None) -> None:
+    """InputError for glTF triangle fans (primitive mode 6), which trimesh leaves out without a word
+    (a valid file lost part of its drawing), for a cycle in the node tree and for a node rotation
+    far from a unit quaternion. Points and lines (modes 0-3) have no faces to draw and are left
+    out as in every format. `doc`: _gltf_document(p) (None: left to the loader)."""
+    if doc is None:
         return
+    meshes = doc.get("meshes", [])
+    meshes = meshes if isinstance(meshes, list) else []
+    fans = [(i, k) for i, m in enumerate(meshes) if isinstance(m, dict)
+            for k, prim in enumerate(m.get("primitives", []) if isinstance(m.get("primitives", []), list) else [])
+            if isinstance(prim, dict) and prim.get("mode") == 6]
+    nodes = doc.get("nodes", [])
+    nodes = nodes if isinstance(nodes, list) else []
     if fans:
         i, k = fans[0]
         raise InputError(f"mesh {i} primitive {k} is a triangle fan (mode 6), which strokekit cannot read: export "
