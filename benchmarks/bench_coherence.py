@@ -29,12 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
-from strokekit.camera import dolly_path, orbit_path
-from strokekit.coherence import sequence_metrics
-from strokekit.lines import LineRenderer
+from strokekit.camera.paths import dolly_path, orbit_path
+from strokekit.lines.renderer import LineRenderer
+from strokekit.metrics.coherence import sequence_metrics
 from strokekit.options import LineOptions
-from strokekit.scene import load_scene
-from strokekit.tracking import Tracker, TrackingOptions
+from strokekit.scene.load import load_scene
+from strokekit.tracking.options import TrackingOptions
+from strokekit.tracking.tracker import Tracker
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
 FILES = {"spot": "spot.obj", "fandisk": "fandisk.obj", "bunny": "stanford-bunny.obj", "cow": "cow.obj",

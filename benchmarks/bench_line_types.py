@@ -11,7 +11,7 @@ Prints tables:
    screen and 2 face sizes in space), with and without the ray lift;
 4. bunny smooth contour screen-tangent reversals between linked segments, without and with
    cusp splitting;
-5. coherence metrics (BRIEF 3, strokekit.coherence, Kalnins tracking) of mesh vs smooth contours
+5. coherence metrics (BRIEF 3, strokekit.metrics.coherence, Kalnins tracking) of mesh vs smooth contours
    on a 3 degree/frame orbit of spot and the bunny;
 6. normals split at creases: a box on a slab drawn with contours=smooth vs mesh (largest point
    difference, px), a cylinder's smooth contour vs its analytic tangent lines and the number of
@@ -29,16 +29,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from strokekit import contours as C  # noqa: E402
-from strokekit.accuracy import screen_reversals, smooth_contour_wrongly_hidden  # noqa: E402
-from strokekit.camera import Camera, orbit_path  # noqa: E402
-from strokekit.contours import smooth_contour_edges  # noqa: E402
-from strokekit.features import silhouette_mask  # noqa: E402
-from strokekit.intersections import intersection_edges  # noqa: E402
-from strokekit.lines import LineRenderer  # noqa: E402
+from strokekit.camera.paths import orbit_path  # noqa: E402
+from strokekit.camera.view import Camera  # noqa: E402
+from strokekit.lines import contours as C  # noqa: E402
+from strokekit.lines.contours import smooth_contour_edges  # noqa: E402
+from strokekit.lines.features import silhouette_mask  # noqa: E402
+from strokekit.lines.intersections import intersection_edges  # noqa: E402
+from strokekit.lines.renderer import LineRenderer  # noqa: E402
+from strokekit.metrics.accuracy import screen_reversals, smooth_contour_wrongly_hidden  # noqa: E402
 from strokekit.model import KINDS  # noqa: E402
 from strokekit.options import DEFAULT_KINDS, LineOptions  # noqa: E402
-from strokekit.scene import build_scene, load_scene  # noqa: E402
+from strokekit.scene.load import build_scene, load_scene  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
 
@@ -198,7 +199,7 @@ def split_normal_checks():
         print(f"   {sections:18d} {err.max():24.4f} {len(st):16d} {str(bool(np.allclose(st.points[0], st.points[-1]))):>7s}")
     sample = Path(__file__).resolve().parents[1] / "samples"
     if (sample / "still_life.glb").exists():
-        from strokekit.camera import load_camera_path
+        from strokekit.camera.paths import load_camera_path
 
         sl = load_scene(sample / "still_life.glb")
         cam = load_camera_path(sample / "orbit.json").cameras[0]
@@ -275,8 +276,9 @@ def main():
         print(f"   frame {k + 1}: {r0:4d} reversals unsplit -> {r1} after splitting at {nc} detected cusps")
 
     if args.coherence_frames > 1:
-        from strokekit.coherence import sequence_metrics
-        from strokekit.tracking import Tracker, TrackingOptions
+        from strokekit.metrics.coherence import sequence_metrics
+        from strokekit.tracking.options import TrackingOptions
+        from strokekit.tracking.tracker import Tracker
 
         print(f"\n5. coherence, {args.coherence_frames}-frame orbit at 3 deg/frame, kalnins tracking")
         print(f"   {'model':10s} {'contours':8s} {'M1':>6s} {'M2 med':>7s} {'M4 med':>7s} {'M4 p95':>7s} {'M5':>6s}")

@@ -30,10 +30,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from strokekit import LineOptions, LineRenderer, build_scene, load_scene  # noqa: E402
-from strokekit.accuracy import accuracy  # noqa: E402
-from strokekit.bench import default_cameras, frame_bytes  # noqa: E402
 from strokekit.errors import InputError  # noqa: E402
-from strokekit.scene import SUPPORTED  # noqa: E402
+from strokekit.metrics.accuracy import accuracy  # noqa: E402
+from strokekit.metrics.bench import default_cameras, frame_bytes  # noqa: E402
+from strokekit.scene.load import SUPPORTED  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
 SPEED_TARGETS = {"bunny": 15.0, "bunny x2 loop": 150.0}

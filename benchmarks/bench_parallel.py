@@ -2,7 +2,7 @@
 
   python benchmarks/bench_parallel.py [--frames 48] [--repeats 3] [--gltf] [--tracking]
 
-Runs `strokekit.pipeline.run` on a bunny orbit at 1024 x 1024 with 1 and 2 workers, in one
+Runs `strokekit.run.run` on a bunny orbit at 1024 x 1024 with 1 and 2 workers, in one
 process run so the ratios are measured under the same conditions, two ways:
 - cold: each run starts its own pool, as `strokekit render --workers N` does (a spawned worker
   spends about a second on imports, the scene and its BVH before its first frame);
@@ -31,10 +31,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from strokekit.camera import orbit_path  # noqa: E402
+from strokekit.camera.paths import orbit_path  # noqa: E402
 from strokekit.options import LineOptions  # noqa: E402
-from strokekit.pipeline import OutputOptions, RunSpec, make_executor, run  # noqa: E402
-from strokekit.scene import load_scene  # noqa: E402
+from strokekit.run.runner import run  # noqa: E402
+from strokekit.run.spec import OutputOptions, RunSpec  # noqa: E402
+from strokekit.run.workers import make_executor  # noqa: E402
+from strokekit.scene.load import load_scene  # noqa: E402
 
 
 def spec_for(scene_path, cams, workers, out_dir, gltf, tracking):
@@ -62,7 +64,7 @@ def main():
     cams = [(i + 1, c) for i, c in enumerate(path.cameras)]
     tracking = None
     if a.tracking:
-        from strokekit.tracking import TrackingOptions
+        from strokekit.tracking.options import TrackingOptions
 
         tracking = TrackingOptions()
     cold, warm = {1: [], 2: []}, {1: [], 2: []}

@@ -3,7 +3,7 @@
 1. Band-mask accuracy and cost: spot, fandisk, CesiumMilkTruck at 1024 x 1024 on 4 orbit frames;
    for K = 1, 2, 4: median time of render_raster + coverage, and the soft IoU per band (and
    background) against the 4x supersampled reference (sum min / sum max of the per-pixel
-   coverages): worst band, pooled, worst 'thick' band (strokekit.bands.mask_agreement).
+   coverages): worst band, pooled, worst 'thick' band (strokekit.raster.bands.mask_agreement).
 2. Speed bar: the raster pass at 1024 x 1024, K = 1 on the bunny, median of several frames.
 
 Run: python benchmarks/bench_raster.py [--size 1024] [--repeats 5]
@@ -17,14 +17,13 @@ import sys
 import time
 from pathlib import Path
 
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from strokekit.bands import RasterOptions, mask_agreement, render_raster  # noqa: E402
-from strokekit.camera import orbit_path  # noqa: E402
-from strokekit.scene import load_scene  # noqa: E402
-from strokekit.visibility import Occluder  # noqa: E402
+from strokekit.camera.paths import orbit_path  # noqa: E402
+from strokekit.raster.bands import RasterOptions, mask_agreement, render_raster  # noqa: E402
+from strokekit.scene.load import load_scene  # noqa: E402
+from strokekit.scene.occluder import Occluder  # noqa: E402
 from strokekit.writers.png import png_bytes  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
@@ -52,7 +51,7 @@ def speed_bar(size: int, repeats: int) -> None:
     occ = Occluder(scene)
     cams = orbit_path(scene.center, scene.radius, 8, width=size, height=size).cameras
     opts = RasterOptions(bands=3, supersample=1, shade=False)
-    scene.face_normals  # cached once per scene, like the BVH
+    _ = scene.face_normals  # cached once per scene, like the BVH
     render_raster(scene, cams[0], occ, opts)  # warm-up
     t_pass, t_png, t_smooth = [], [], []
     smooth = RasterOptions(bands=3, supersample=1, shade=False, shading="smooth")

@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from strokekit.brushes import get_brush
-from strokekit.camera import orbit_path
-from strokekit.lines import LineRenderer
+from strokekit.camera.paths import orbit_path
+from strokekit.lines.renderer import LineRenderer
 from strokekit.options import LineOptions
-from strokekit.ribbons import build_ribbons
-from strokekit.scene import load_scene
+from strokekit.ribbons.brushes import get_brush
+from strokekit.ribbons.mesh import build_ribbons
+from strokekit.scene.load import load_scene
 from strokekit.writers.gltf import GltfOptions, glb_for_frame, glb_for_sequence
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,8 +69,8 @@ def main() -> None:
     for i, cam in enumerate(path.cameras):
         s = lr.render(cam, i + 1)
         all_strokes.append(s)
-        tr, mesh = timed(lambda: build_ribbons(s, cam, ropts), a.repeat)
-        tg, data = timed(lambda: glb_for_frame(s, cam, opts), a.repeat)
+        tr, mesh = timed(lambda s=s, cam=cam: build_ribbons(s, cam, ropts), a.repeat)
+        tg, data = timed(lambda s=s, cam=cam: glb_for_frame(s, cam, opts), a.repeat)
         rib_ms.append(tr * 1e3)
         glb_ms.append(tg * 1e3)
         print(f"{i + 1:>5} {len(s):>7} {len(s.points):>7} {s.lengths.sum():>9.0f} {len(mesh.positions):>7} "

@@ -25,9 +25,10 @@ import pkgutil  # noqa: E402
 
 import click  # noqa: E402
 
-from strokekit.errors import StrokekitError
+from cli.common import user_message  # noqa: E402
+from strokekit.errors import StrokekitError  # noqa: E402
 
-from . import commands
+from . import commands  # noqa: E402
 
 
 class _Interrupted(Exception):
@@ -78,7 +79,7 @@ def main(argv: list[str] | None = None) -> None:
         e.show()
         sys.exit(e.exit_code)
     except StrokekitError as e:
-        click.echo(f"strokekit: error: {e}", err=True)
+        click.echo(f"strokekit: error: {user_message(e)}", err=True)
         sys.exit(e.exit_code)
     except (KeyboardInterrupt, _Interrupted):
         click.echo("strokekit: interrupted", err=True)

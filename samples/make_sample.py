@@ -57,8 +57,8 @@ def main():
     import sys
 
     sys.path.insert(0, str(HERE.parent))
-    from strokekit.camera import orbit_path
-    from strokekit.scene import load_scene
+    from strokekit.camera.paths import orbit_path
+    from strokekit.scene.load import load_scene
 
     s = load_scene(HERE / "still_life.glb")
     path = orbit_path(s.center, s.radius, 24, elevation=20.0, fov_y=35.0, width=800, height=600,

@@ -3,12 +3,13 @@
 Pipeline: scene -> frame view -> feature edges -> visible runs -> strokes -> tracked strokes -> writers.
 """
 
-from .camera import Camera, CameraPath, load_camera_path, orbit_path
-from .errors import InputError, StrokekitError, UsageError
-from .lines import LineRenderer
-from .model import KINDS, FeatureEdges, Strokes, VisibleRuns
-from .options import LineOptions
-from .scene import Scene, build_scene, load_scene
+from strokekit.camera.paths import load_camera_path, orbit_path
+from strokekit.camera.view import Camera, CameraPath
+from strokekit.errors import InputError, StrokekitError, UsageError
+from strokekit.lines.renderer import LineRenderer
+from strokekit.model import KINDS, FeatureEdges, Strokes, VisibleRuns
+from strokekit.options import LineOptions
+from strokekit.scene.load import Scene, build_scene, load_scene
 
 __version__ = "0.1.0"
 __all__ = ["Camera", "CameraPath", "load_camera_path", "orbit_path", "InputError", "StrokekitError", "UsageError",

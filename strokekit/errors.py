@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+
 
 class StrokekitError(Exception):
     """Base of all errors meant for the user. `exit_code` is what the CLI returns."""
@@ -20,9 +22,14 @@ class InputError(StrokekitError):
 
 
 class UsageError(StrokekitError):
-    """An impossible combination of options."""
+    """An impossible option value or combination. `option`: the options field the message is
+    about, named first in it (the CLI names its command-line flag instead)."""
 
     exit_code = 2
+
+    def __init__(self, message: str, path: str | None = None, option: str | None = None):
+        self.option = option
+        super().__init__(message, path)
 
 
 class hold_interrupts:
@@ -36,7 +43,6 @@ class hold_interrupts:
 
     def __enter__(self):
         import signal
-        import threading
 
         self.pressed, self.previous = False, None
         if threading.current_thread() is threading.main_thread() \

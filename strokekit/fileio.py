@@ -7,7 +7,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from .errors import InputError, UsageError
+from strokekit.errors import InputError, UsageError
 
 
 def _read_umask() -> int:

@@ -5,12 +5,14 @@ scene -> FeatureEdges (per frame) -> VisibleRuns -> Strokes -> (tracked) Strokes
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .camera import Camera
+if TYPE_CHECKING:  # the model holds a frame's Camera; the camera stage imports the model's KINDS nowhere
+    from strokekit.camera.view import Camera
 
 #: Line kinds in layer order. The index is what `kind` arrays hold.
 KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmanifold",
@@ -178,6 +180,28 @@ class Strokes:
     def stroke(self, s: int) -> slice:
         return slice(int(self.offsets[s]), int(self.offsets[s + 1]))
 
+    def replace(self, **changes) -> "Strokes":
+        """dataclasses.replace that keeps the cached arc lengths (and stroke_of_point) when the new
+        strokes share this one's points (and offsets) arrays: they would be recomputed identically,
+        and tracking replaces strokes a dozen times a frame. The fields are copied into a new
+        instance directly (Strokes has no __post_init__), which is what replace's call of __init__
+        amounts to, at a quarter of its cost."""
+        if not changes.keys() <= _STROKES_FIELD_SET:
+            return replace(self, **changes)  # (its error)
+        old = self.__dict__
+        out = object.__new__(Strokes)
+        new = out.__dict__
+        for k in _STROKES_FIELDS:
+            new[k] = changes[k] if k in changes else old[k]
+        if new["offsets"] is old["offsets"]:
+            if "stroke_of_point" in old:
+                new["stroke_of_point"] = old["stroke_of_point"]
+            if new["points"] is old["points"]:
+                for k in _GEOMETRY_CACHE:
+                    if k in old:
+                        new[k] = old[k]
+        return out
+
     def select(self, mask: np.ndarray) -> "Strokes":
         """The strokes where mask (S,) is true, in order."""
         mask = np.asarray(mask, bool)
@@ -221,3 +245,20 @@ class Strokes:
                        kind=np.concatenate([p.kind for p in parts]), ids=np.concatenate([p.ids for p in parts]),
                        level=np.concatenate([p.level for p in parts]),
                        level_weight=np.concatenate([p.level_weight for p in parts]))
+
+
+#: Cached properties that depend only on points and offsets (see Strokes.replace).
+_GEOMETRY_CACHE = ("segment_lengths", "arc_length", "lengths")
+_STROKES_FIELDS = tuple(f.name for f in fields(Strokes))  # (in order: the same __dict__ as __init__ makes)
+_STROKES_FIELD_SET = frozenset(_STROKES_FIELDS)
+
+
+@dataclass(frozen=True)
+class BandRegion:
+    """One band of one material as polygons: rings (K, 2) px (closed: the last point repeats the
+    first), outer boundaries and holes alike (even-odd fill); colour (3,) its ramp colour, linear."""
+
+    material: int
+    band: int
+    rings: list
+    colour: np.ndarray

@@ -5,8 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
-from .errors import UsageError
-from .model import KINDS
+from strokekit.errors import UsageError
+from strokekit.model import KINDS
 
 #: Accuracy knobs per preset. whole_edge_px: edges shorter than this on screen get one
 #: visibility ray at their middle and are drawn whole or not at all (0: none);
@@ -15,29 +15,20 @@ from .model import KINDS
 #: bisect, bisect_changes False: its changes lie in the middle of a 2 px bracket, within 1 px);
 #: retest_front_hits: see LineOptions; supersample: raster masks; simplify_tol_px: polyline
 #: simplification (0 = none); doubled_px and merge_overlaps: the cleanup of lines drawn twice
-#: (draft previews keep them).
+#: (draft previews keep them); supersample K and edge_supersample R: the raster pass's samples
+#: per pixel side, and the band-edge pixels resampled R x R (0: none).
 QUALITY_PRESETS: dict[str, dict] = {
     "draft": {"whole_edge_px": 12.0, "sample_spacing_px": 2.0, "bisection_tol_px": 1.0, "supersample": 1,
+              "edge_supersample": 0,
               "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False, "bisect_changes": False,
               "retest_front_hits": False},
-    "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "simplify_tol_px": 0.0},
-    "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "simplify_tol_px": 0.0},
+    "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "edge_supersample": 4,
+                "simplify_tol_px": 0.0},
+    "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "edge_supersample": 0,
+              "simplify_tol_px": 0.0},
 }
 
 DEFAULT_KINDS = ("silhouette", "border", "crease", "material", "nonmanifold")
-
-#: The command-line option of each LineOptions (and TrackingOptions) field whose name differs from it.
-_FLAGS = {"sample_spacing_px": "--sample-spacing", "bisection_tol_px": "--bisection-tol", "period_px": "--period",
-          "max_length_px": "--max-length", "min_length_px": "--min-length", "simplify_tol_px": "--simplify",
-          "doubled_px": "--doubled", "whole_edge_px": "--whole-edge", "max_growth_px": "--max-growth",
-          "min_carry_px": "--min-carry", "suggestive_derivative_threshold": "--suggestive-threshold",
-          "suggestive_kr_threshold": "--suggestive-kr-threshold"}
-
-
-def _flag(field_name: str) -> str:
-    """'--sample-spacing (sample_spacing_px)': how error messages name a LineOptions field."""
-    return f"{_FLAGS.get(field_name, '--' + field_name.replace('_', '-'))} ({field_name})"
-
 
 @dataclass(frozen=True)
 class LineOptions:
@@ -86,25 +77,26 @@ class LineOptions:
         # One order (KINDS'), each kind once: the drawing does not depend on the order they were
         # given in, so neither do the run's options digest (a resume) nor the files.
         object.__setattr__(self, "kinds", tuple(k for k in KINDS if k in set(self.kinds)))
-        # Messages name the command-line option (and the field, for library users).
         for name in ("sample_spacing_px", "bisection_tol_px", "period_px"):
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
-                raise UsageError(f"{_flag(name)} must be a finite number > 0, got {v}")
+                raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
         for name in ("max_length_px", "min_length_px", "simplify_tol_px", "doubled_px", "whole_edge_px"):
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
-                raise UsageError(f"{_flag(name)} must be a finite number >= 0 px, got {v}")
+                raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)
         if not 0 < self.crease_angle_deg < 180:
-            raise UsageError(f"--crease-angle must be in (0, 180) degrees, got {self.crease_angle_deg}")
+            raise UsageError(f"crease_angle_deg must be in (0, 180) degrees, got {self.crease_angle_deg}",
+                             option="crease_angle_deg")
         if not 0 < self.split_angle_deg <= 180:
-            raise UsageError(f"--split-angle must be in (0, 180] degrees, got {self.split_angle_deg}")
+            raise UsageError(f"split_angle_deg must be in (0, 180] degrees, got {self.split_angle_deg}",
+                             option="split_angle_deg")
         if self.contours not in ("mesh", "smooth"):
             raise UsageError(f"contours must be 'mesh' or 'smooth', got {self.contours!r}")
         for name in ("suggestive_derivative_threshold", "suggestive_kr_threshold"):  # thresholds on magnitudes
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
-                raise UsageError(f"{_flag(name)} must be a finite number >= 0, got {v}")
+                raise UsageError(f"{name} must be a finite number >= 0, got {v}", option=name)
 
     @staticmethod
     def preset(quality: str = "default", **overrides) -> "LineOptions":

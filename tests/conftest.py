@@ -18,7 +18,7 @@ settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
 
-from helpers import MODELS
+from helpers import MODELS  # noqa: E402
 
 
 @pytest.fixture

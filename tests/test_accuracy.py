@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from strokekit import LineOptions, LineRenderer, Strokes, load_scene, orbit_path
-from strokekit.accuracy import accuracy, frame_accuracy, length_samples
+from strokekit.metrics.accuracy import accuracy, frame_accuracy, length_samples
 
 MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
 
@@ -112,7 +112,7 @@ def _small_scene():
 def test_bench_rows_table_json_and_plot(tmp_path):
     import json
 
-    from strokekit.bench import default_cameras, format_table, plot_bench, result_json, run_bench
+    from strokekit.metrics.bench import default_cameras, format_table, plot_bench, result_json, run_bench
 
     sc = _small_scene()
     cams = default_cameras(sc, 2, 256, 256)
@@ -150,8 +150,8 @@ def test_bench_plot_labels_do_not_overlap():
     legend, and time ticks that do not run into each other."""
     import matplotlib.pyplot as plt
 
-    from strokekit.accuracy import Accuracy
-    from strokekit.bench import BenchRow, bench_figure
+    from strokekit.metrics.accuracy import Accuracy
+    from strokekit.metrics.bench import BenchRow, bench_figure
     from strokekit.options import LineOptions
 
     tols = (0.5, 1.0, 2.0)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from cli.main import main
-from strokekit.camera import MAX_IMAGE_PX, camera_path_from_json, load_camera_path
+from strokekit.camera.paths import camera_path_from_json, load_camera_path
+from strokekit.camera.view import MAX_IMAGE_PX
 from strokekit.errors import InputError
 
 KEY0 = {"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]}
@@ -256,7 +257,7 @@ def test_orbit_straight_above_or_below_still_turns(elevation):
     as it does just short of it (every frame was the same image)."""
     import numpy as np
 
-    from strokekit.camera import orbit_path
+    from strokekit.camera.paths import orbit_path
 
     top = orbit_path(np.zeros(3), 1.0, 8, elevation=elevation)
     near = orbit_path(np.zeros(3), 1.0, 8, elevation=elevation - np.sign(elevation) * 1e-4)

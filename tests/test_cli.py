@@ -11,10 +11,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import SAMPLES, model_path
 
 from cli.main import main
-from helpers import SAMPLES, model_path
-from strokekit.camera import load_camera_path
+from strokekit.camera.paths import load_camera_path
 
 
 def run_cli(args, capsys):
@@ -312,7 +312,7 @@ def test_a_frame_draws_the_same_lines_alone_and_in_a_sequence(tmp_path, capsys):
     the renderer's strokes have none left, and frame 5 alone and inside a sequence rendered
     without tracking give the same bytes."""
     from strokekit import LineOptions, LineRenderer, load_camera_path, load_scene
-    from strokekit.strokeops import drop_doubled
+    from strokekit.lines.strokeops import drop_doubled
 
     scene = load_scene(SAMPLES / "still_life.glb")
     cam = load_camera_path(SAMPLES / "orbit.json").cameras[4]
@@ -330,7 +330,7 @@ def test_gltf_with_unnamed_nodes_loads_the_same_every_time(tmp_path, capsys):
     """trimesh names unnamed glTF nodes at random on every load; the scene (face order, object
     names, hash) must not depend on that, or two runs differ and workers refuse the scene as
     changed."""
-    from strokekit.scene import load_scene
+    from strokekit.scene.load import load_scene
 
     p = model_path("CesiumMilkTruck.glb")
     a, b = load_scene(p), load_scene(p)
@@ -388,7 +388,7 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
 
     import trimesh
 
-    from strokekit.scene import load_scene
+    from strokekit.scene.load import load_scene
 
     real = trimesh.load
 
@@ -433,8 +433,8 @@ def test_ctrl_c_while_open3d_loads_stops_the_run_and_keeps_the_ray_tracer(monkey
     import importlib.machinery
     import signal
 
-    from strokekit.scene import build_scene
-    from strokekit.visibility import Occluder
+    from strokekit.scene.load import build_scene
+    from strokekit.scene.occluder import Occluder
 
     class InterruptedInit(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         def find_spec(self, name, path, target=None):
@@ -548,7 +548,7 @@ def test_non_finite_numbers_are_usage_errors_naming_the_option(cube, tmp_path, c
 
 
 def test_camera_values_are_said_as_numbers_and_fps_is_checked(cube, tmp_path, capsys):
-    from strokekit.camera import orbit_path
+    from strokekit.camera.paths import orbit_path
     from strokekit.errors import UsageError as SkUsageError
 
     cam = write_camera(tmp_path / "c.json", [{"eye": [0, 0, float("nan")], "target": [0, 0, 0]}])

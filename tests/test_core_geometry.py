@@ -6,17 +6,15 @@ import math
 
 import numpy as np
 import pytest
-
-from strokekit.errors import InputError
 import trimesh
+from helpers import box_mesh, model_path
 
-from strokekit.camera import Camera
-from strokekit.lines import LineRenderer
+from strokekit.camera.view import Camera
+from strokekit.errors import InputError
+from strokekit.lines.renderer import LineRenderer
 from strokekit.model import KIND_INDEX
 from strokekit.options import LineOptions
-from strokekit.scene import build_scene, load_scene
-
-from helpers import box_mesh, model_path
+from strokekit.scene.load import build_scene, load_scene
 
 
 def kind_strokes(strokes, kind):
@@ -195,7 +193,7 @@ def test_box_resting_on_ground_keeps_its_bottom_silhouette():
     probe = bottom[0] + t[:, None] * d
     from scipy.spatial import cKDTree
 
-    from strokekit.strokeops import resample
+    from strokekit.lines.strokeops import resample
 
     pts, _ = resample(st, 0.05)
     dist, _ = cKDTree(pts).query(probe)
@@ -219,7 +217,7 @@ def test_open_rim_resting_on_ground_is_visible():
     probe, _ = cam.project(rim)
     from scipy.spatial import cKDTree
 
-    from strokekit.strokeops import resample
+    from strokekit.lines.strokeops import resample
 
     pts, _ = resample(border, 0.05)
     dist, _ = cKDTree(pts).query(probe)
@@ -232,7 +230,7 @@ def test_scene_cache_gives_the_same_scene_without_reading_the_file_again(tmp_pat
     scene; changed bytes are read again; STROKEKIT_CACHE=0 turns the cache off."""
     import trimesh
 
-    from strokekit.scene import load_scene
+    from strokekit.scene.load import load_scene
 
     monkeypatch.setenv("STROKEKIT_CACHE", "1")
     monkeypatch.setenv("STROKEKIT_CACHE_DIR", str(tmp_path / "cache"))
@@ -294,7 +292,7 @@ def test_a_truncated_scene_cache_file_is_read_past(tmp_path, monkeypatch):
     """A cache file cut short (disk full, a killed copy) made every later load of that scene fail
     with an internal BadZipFile error; the scene is read from its file again and the cache
     rewritten."""
-    from strokekit.scene import load_scene
+    from strokekit.scene.load import load_scene
 
     monkeypatch.setenv("STROKEKIT_CACHE", "1")
     monkeypatch.setenv("STROKEKIT_CACHE_DIR", str(tmp_path / "cache"))
@@ -316,7 +314,7 @@ def test_fallback_backend_draws_the_same_lines(backend):
     scene with partly hidden edges, several objects and a curved silhouette is the same within
     0.02 px (changes are bisected to 0.01 px by both; float32 answers may differ in the last bits)."""
     pytest.importorskip(backend)
-    from strokekit.accuracy import accuracy
+    from strokekit.metrics.accuracy import accuracy
 
     vb, fb = box_mesh([-2, -0.1, -1], [2, 0.1, -0.9])
     vf, ff = box_mesh([-0.2, -1, 0], [0.2, 1, 0.2])
@@ -341,7 +339,7 @@ def test_draft_splits_partly_hidden_long_edges_within_1px():
     placed between two samples, so every stroke end lies within 1 px of the default preset's
     (bisected to 0.01 px), and the drawings agree at 1 px. Perspective camera: the draft's own
     visibility path (visibility._visible_runs_sampled)."""
-    from strokekit.accuracy import frame_accuracy
+    from strokekit.metrics.accuracy import frame_accuracy
 
     vb, fb = box_mesh([-2, -0.1, -1], [2, 0.1, -0.9])
     vf, ff = box_mesh([-0.2, -1, 0], [0.2, 1, 0.2])

@@ -1,4 +1,4 @@
-"""glTF ribbons (strokekit.writers.gltf) and brushes (strokekit.brushes): GLB layout, material,
+"""glTF ribbons (strokekit.writers.gltf) and brushes (strokekit.ribbons.brushes): GLB layout, material,
 embedded texture, camera round trip, sequence visibility keys, and the Khronos validator on GLBs
 written for shared models."""
 
@@ -17,10 +17,11 @@ import pygltflib
 import pytest
 from PIL import Image
 
-from strokekit.brushes import BUNDLED, brush_rgba, bundled_brush, load_brush
-from strokekit.camera import Camera, gltf_camera_path
+from strokekit.camera.gltf import gltf_camera_path
+from strokekit.camera.view import Camera
 from strokekit.errors import InputError, UsageError
 from strokekit.model import Strokes
+from strokekit.ribbons.brushes import BUNDLED, brush_rgba, bundled_brush, load_brush
 from strokekit.writers.gltf import GltfOptions, glb_for_frame, glb_for_sequence, ribbons_for
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
@@ -266,10 +267,10 @@ def _validator_dir() -> Path | None:
 
 
 def _frames_for_model(name: str, n: int):
-    from strokekit.camera import orbit_path
-    from strokekit.lines import LineRenderer
+    from strokekit.camera.paths import orbit_path
+    from strokekit.lines.renderer import LineRenderer
     from strokekit.options import LineOptions
-    from strokekit.scene import load_scene
+    from strokekit.scene.load import load_scene
 
     sc = load_scene(MODELS / name)
     path = orbit_path(sc.center, sc.radius, 8, width=512, height=512)

@@ -14,7 +14,9 @@ import numpy as np
 import pygltflib
 import pytest
 
-from strokekit.camera import Camera, gltf_camera_path, load_camera_path
+from strokekit.camera.gltf import gltf_camera_path
+from strokekit.camera.paths import load_camera_path
+from strokekit.camera.view import Camera
 from strokekit.errors import InputError
 
 YFOV = 0.7  # radians

@@ -3,11 +3,10 @@ per line kind (ids may be renumbered), checked with `strokekit diff` as a user's
 
 from __future__ import annotations
 
-
 import pytest
+from helpers import ROOT, SAMPLES
 
 from cli.main import main
-from helpers import ROOT, SAMPLES
 
 GOLDEN = ROOT / "tests" / "golden" / "still_life"
 

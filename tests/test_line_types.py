@@ -13,16 +13,17 @@ import pytest
 import trimesh
 from scipy.spatial import cKDTree
 
-from strokekit.accuracy import screen_reversals, smooth_contour_wrongly_hidden
-from strokekit.camera import Camera
-from strokekit.contours import smooth_contour_edges, vertex_normals
-from strokekit.features import feature_edges, silhouette_mask
-from strokekit.intersections import intersection_edges
-from strokekit.lines import LineRenderer
+from strokekit.camera.view import Camera
+from strokekit.lines.contours import smooth_contour_edges
+from strokekit.lines.features import feature_edges, silhouette_mask
+from strokekit.lines.intersections import intersection_edges
+from strokekit.lines.renderer import LineRenderer
+from strokekit.lines.suggestive import curvature_tensors, suggestive_contour_edges
+from strokekit.metrics.accuracy import screen_reversals, smooth_contour_wrongly_hidden
 from strokekit.model import KIND_INDEX, KINDS
 from strokekit.options import LineOptions
-from strokekit.scene import build_scene, load_scene
-from strokekit.suggestive import curvature_tensors, suggestive_contour_edges
+from strokekit.scene.load import build_scene, load_scene
+from strokekit.scene.tables import vertex_normals
 
 MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
 
@@ -490,7 +491,8 @@ def test_cylinder_smooth_sides_and_sharp_rims(eye):
 def test_sphere_smooth_contour_unchanged_by_split_normals(sphere):
     """A sphere has no crease: split normals are the vertex normals, and the smooth contour is
     bit for bit the zero set of the vertex normal view function (no sharp-edge pieces)."""
-    from strokekit.contours import phong_points, split_normals, view_function, zero_set_segments
+    from strokekit.lines.contours import phong_points, zero_set_segments
+    from strokekit.scene.tables import split_normals, view_function
 
     sn = split_normals(sphere, 60.0)
     assert not sn.split.any() and np.array_equal(sn.corner, sphere.faces)
@@ -509,7 +511,7 @@ def test_crease_threshold_splits_normals():
     cylinder's side edges turn by 5.6 degrees, so a threshold of 5 degrees splits every side
     edge too (the sides become flat facets: no smooth contour inside a face), 60 only the rims."""
     sc = cylinder_scene(sections=64)
-    from strokekit.contours import split_normals
+    from strokekit.scene.tables import split_normals
 
     assert split_normals(sc, 60.0).split.sum() == 128
     assert split_normals(sc, 5.0).split.sum() == 128 + 64  # the rims and the vertical side edges

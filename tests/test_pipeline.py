@@ -13,10 +13,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from helpers import SAMPLES, model_path
 
 from cli.main import main
-from strokekit.scene import load_scene
-from helpers import SAMPLES, model_path
+from strokekit.scene.load import load_scene
 
 
 def run_cli(args, capsys):
@@ -75,7 +75,7 @@ def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
     assert rep["versions"]["strokekit"] and rep["versions"]["numpy"]
     assert len(rep["scene"]["sha256"]) == 64
     # Which occlusion backend drew the lines (a fallback's last digits can differ).
-    from strokekit.visibility import Occluder
+    from strokekit.scene.occluder import Occluder
 
     assert rep["ray_tracer"] == Occluder(load_scene(SAMPLES / "still_life.glb")).backend
     assert set(rep["frames"]) == {"1", "2"} and all(f["status"] == "ok" for f in rep["frames"].values())
@@ -83,7 +83,8 @@ def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
     # Enough to render a frame again: where the cameras came from (and the file's hash), each
     # frame's camera, and every output option, not only the line options.
     assert rep["cameras"]["source"].endswith("orbit.json") and len(rep["cameras"]["sha256"]) == 64
-    from strokekit.camera import Camera, load_camera_path
+    from strokekit.camera.paths import load_camera_path
+    from strokekit.camera.view import Camera
 
     cam2 = load_camera_path(SAMPLES / "orbit.json").cameras[1]
     assert Camera(**{k: tuple(v) if isinstance(v, list) else v for k, v in rep["frames"]["2"]["camera"].items()}) == cam2
@@ -172,7 +173,7 @@ def test_main_process_shares_the_frames_and_feeds_only_started_workers():
     import threading
     from types import SimpleNamespace
 
-    from strokekit.pipeline import Workers
+    from strokekit.run.workers import Workers
 
     executed = []
 
@@ -216,7 +217,7 @@ def test_main_process_helping_feeds_the_pool_as_results_arrive():
     from concurrent.futures import Future
     from types import SimpleNamespace
 
-    from strokekit.pipeline import Workers
+    from strokekit.run.workers import Workers
 
     where = {}
     pool_may_go = threading.Event()
@@ -261,7 +262,7 @@ def test_a_dead_worker_ends_the_run_with_an_error_not_a_hang():
     from concurrent.futures.process import BrokenProcessPool
     from types import SimpleNamespace
 
-    from strokekit.pipeline import Workers
+    from strokekit.run.workers import Workers
 
     class BreakingPool:
         def __init__(self):
@@ -304,9 +305,10 @@ def test_a_dead_worker_ends_the_run_with_an_error_not_a_hang():
 def test_a_run_given_the_loaded_scene_reports_its_load_and_start_time(tmp_path):
     """The command loads the scene and starts the pool before run(): the report's load stage
     and wall time still count them."""
-    from strokekit.camera import orbit_path
+    from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
-    from strokekit.pipeline import OutputOptions, RunSpec, run
+    from strokekit.run.runner import run
+    from strokekit.run.spec import OutputOptions, RunSpec
 
     path = model_path("spot.obj")
     scene = load_scene(path)
@@ -325,7 +327,7 @@ def test_tasks_added_while_mapping_run_next():
     from collections import deque
     from types import SimpleNamespace
 
-    from strokekit.pipeline import Workers, make_executor
+    from strokekit.run.workers import Workers, make_executor
 
     order = []
 
@@ -375,9 +377,11 @@ def test_interrupted_run_keeps_what_it_wrote_and_says_so(tmp_path):
     """Ctrl-C in the middle of run(): RunInterrupted (a KeyboardInterrupt) carries the result
     with the frames written so far; the temporary files of writes this run was in are removed
     (not other files); the report says 'interrupted' and exit code 130."""
-    from strokekit.camera import orbit_path
+    from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
-    from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, run, run_report
+    from strokekit.run.report import run_report
+    from strokekit.run.runner import run
+    from strokekit.run.spec import OutputOptions, RunInterrupted, RunSpec
 
     cube = _cube(tmp_path)
     s = load_scene(cube)
@@ -413,10 +417,12 @@ def test_a_frame_written_whole_just_before_ctrl_c_counts_as_written(tmp_path, mo
     every file of frame 1 on disk and 'interrupted: 0 of 20 frame(s) written', the report saying
     'not run'): the frame is whole and this run wrote it, so it counts as written and its files
     are listed; a frame with a file missing is not."""
-    import strokekit.pipeline as pl
-    from strokekit.camera import orbit_path
+    import strokekit.run.runner as pl
+    from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
-    from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, run, run_report
+    from strokekit.run.report import run_report
+    from strokekit.run.runner import run
+    from strokekit.run.spec import OutputOptions, RunInterrupted, RunSpec
 
     cube = _cube(tmp_path)
     s = load_scene(cube)
@@ -584,9 +590,11 @@ def test_stopped_rerun_with_new_cameras_never_leaves_an_old_frame_looking_done(t
     """Same options, other cameras, no --skip-existing, stopped after two frames: the frames
     not rewritten yet still hold the old cameras' drawings, so the manifest (written before the
     first frame) must not claim them; a resume then renders them and matches a fresh run."""
-    from strokekit.camera import orbit_path
+    from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
-    from strokekit.pipeline import OutputOptions, RunInterrupted, RunSpec, read_run_manifest, run
+    from strokekit.run.manifest import read_run_manifest
+    from strokekit.run.runner import run
+    from strokekit.run.spec import OutputOptions, RunInterrupted, RunSpec
 
     cube, _ = _scenes(tmp_path)
     s = load_scene(cube)
@@ -617,7 +625,7 @@ def test_stopped_rerun_with_new_cameras_never_leaves_an_old_frame_looking_done(t
 
 def test_coherence_metrics_ignore_the_run_manifest(tmp_path, capsys):
     """A --pattern like {frame:04d} makes the frame glob *.json, which matches the dotfile too."""
-    from strokekit.coherence import frame_files
+    from strokekit.metrics.coherence import frame_files
 
     cube, _ = _scenes(tmp_path)
     out = tmp_path / "o"
@@ -630,7 +638,7 @@ def test_resume_after_a_failed_frame_with_tracking_gives_the_uninterrupted_bytes
     """Frame 3 of a tracked run fails once: the frames after it were tracked without it, so the
     resume must render them again (they stayed in the manifest as done and kept their wrong ids).
     After the resume every file equals an uninterrupted run's."""
-    import strokekit.pipeline as pl
+    import strokekit.run.runner as pl
 
     args = ["render", model_path("spot.obj"), "--orbit", "6", "--size", "160x160", "--workers", "1", "-q", "--no-svg"]
     ref, part = tmp_path / "ref", tmp_path / "part"
@@ -671,11 +679,13 @@ def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path
     for frames before the failed one while their (tracked) writes still wait in line. Those
     frames are still written, each whole (SVG, JSON and both PNGs); nothing after the failure is
     written, and no frame is left with its PNGs alone."""
-    from strokekit.camera import orbit_path
+    from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
-    from strokekit.pipeline import OutputOptions, RunSpec, make_executor, run
-    from strokekit.bands import RasterOptions
-    from strokekit.tracking import TrackingOptions
+    from strokekit.raster.bands import RasterOptions
+    from strokekit.run.runner import run
+    from strokekit.run.spec import OutputOptions, RunSpec
+    from strokekit.run.workers import make_executor
+    from strokekit.tracking.options import TrackingOptions
 
     path = model_path("spot.obj")
     s = load_scene(path)
@@ -729,7 +739,7 @@ def test_coherence_pattern_takes_only_the_names_it_gives(tmp_path, capsys):
     assert run_cli(base + ["--pattern", "shot_{frame:04d}"], capsys)[0] == 0
     assert run_cli(base + ["--pattern", "shot_{frame:04d}_draft", "--quality", "draft", "--report",
                            tmp_path / "shot_report.json"], capsys)[0] == 0
-    from strokekit.coherence import frame_files
+    from strokekit.metrics.coherence import frame_files
 
     assert [p.name for p in frame_files(tmp_path, "shot_{frame:04d}")] == [f"shot_000{i}.json" for i in (1, 2, 3)]
     # Any integer format render takes: hex past 9, padding, thousands separators.
@@ -747,9 +757,10 @@ def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
     """Frames 5-8 written whole by one run stay when the next run into the folder (frames 1-8,
     --fail-fast, frame 2 failing) stops before them, even within the same second: 'written by
     this run' is a file that was missing at its start or has changed since, not a file time."""
-    from strokekit.camera import orbit_path
+    from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
-    from strokekit.pipeline import OutputOptions, RunSpec, run
+    from strokekit.run.runner import run
+    from strokekit.run.spec import OutputOptions, RunSpec
 
     path = model_path("spot.obj")
     s = load_scene(path)
@@ -774,8 +785,8 @@ def test_an_interrupted_rewrite_leaves_no_frame_of_two_runs(tmp_path, monkeypatc
     """Frames 1-6 rendered, then rendered again and interrupted between frame 3's SVG and its
     JSON: frame 3 must not be left as this run's SVG beside the earlier run's JSON. It goes
     whole (a resume renders it again); frames 4-6, which this run never touched, stay."""
-    import strokekit.pipeline as P
-    from strokekit.camera import orbit_path
+    import strokekit.run as P
+    from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
 
     path = model_path("spot.obj")
@@ -785,14 +796,15 @@ def test_an_interrupted_rewrite_leaves_no_frame_of_two_runs(tmp_path, monkeypatc
     spec = P.RunSpec(scene_path=str(path), cameras=cams, lines=LineOptions(), outputs=P.OutputOptions(out_dir=out))
     assert P.run(spec, scene=s).frames_ok == [1, 2, 3, 4, 5, 6]
     earlier = {p.name: p.read_bytes() for p in out.iterdir() if p.name[-6] in "456"}
-    real = P.atomic_write_bytes
+    import strokekit.run.tasks as T
+    real = T.atomic_write_bytes
 
     def interrupted(p, data):
         if str(p).endswith("frame_0003.json"):
             raise KeyboardInterrupt
         return real(p, data)
 
-    monkeypatch.setattr(P, "atomic_write_bytes", interrupted)
+    monkeypatch.setattr(T, "atomic_write_bytes", interrupted)
     with pytest.raises(P.RunInterrupted) as e:
         P.run(spec, scene=s)
     assert e.value.result.frames_ok == [1, 2]

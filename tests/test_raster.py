@@ -9,18 +9,27 @@ import numpy as np
 import pytest
 import trimesh
 
-from strokekit.bands import (RasterOptions, band_polygons_svg, band_ramps, label_polygons, quantize_bands,
-                             raster_outputs, render_raster)
-from strokekit.camera import Camera, dolly_path, orbit_path
+from strokekit.camera.paths import dolly_path, orbit_path
+from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
-from strokekit.fill import fill_field, octave_weights, self_similar_field
-from strokekit.lines import LineRenderer
+from strokekit.lines.renderer import LineRenderer
 from strokekit.model import KINDS
 from strokekit.options import LineOptions
-from strokekit.raster import cast_pixels
-from strokekit.scene import Material, build_scene, load_scene
-from strokekit.visibility import Occluder
-from strokekit.writers.png import read_png
+from strokekit.raster.bands import (
+    RasterOptions,
+    band_ramps,
+    band_regions,
+    label_polygons,
+    quantize_bands,
+    render_raster,
+)
+from strokekit.raster.fill import fill_field, octave_weights, self_similar_field
+from strokekit.raster.rays import cast_pixels
+from strokekit.run.tasks import raster_outputs
+from strokekit.scene.load import Material, build_scene, load_scene
+from strokekit.scene.occluder import Occluder
+from strokekit.writers.png import png_files, read_png
+from strokekit.writers.svg import bands_layer
 
 MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
 
@@ -233,7 +242,7 @@ def test_masks_and_labels_are_consistent_and_antialiased(sphere, sphere_occ):
     assert np.allclose(cov.sum(axis=2), 1.0)
     # Anti-aliased: partial coverage exists along every border, and masks are 0..255 of it.
     assert ((cov[..., 0] > 0) & (cov[..., 0] < 1)).sum() > 50
-    out = fr.png_outputs()
+    out = png_files(fr.images())
     assert sorted(out) == ["bands", "depth", "mask_1", "mask_2", "mask_3", "objectid", "shade"]
     assert np.array_equal(read_png(out["bands"]), fr.labels)
     m2 = read_png(out["mask_2"]).astype(float) / 255
@@ -249,12 +258,12 @@ def test_masks_and_labels_are_consistent_and_antialiased(sphere, sphere_occ):
     assert depth.dtype == np.uint16 and (depth[ids == 0] == 65535).all()
     assert depth[30, 40] < depth[ids == 1].max()  # the sphere's centre is its nearest point
     # Deterministic bytes.
-    assert fr.png_outputs() == raster_outputs(sphere, cam, sphere_occ, opts)
+    assert png_files(fr.images()) == raster_outputs(sphere, cam, sphere_occ, opts)
 
 
 def test_only_asked_outputs_are_computed(sphere, sphere_occ, monkeypatch):
     cam = Camera(eye=(3.0, -2.0, 6.0), target=(3.0, -2.0, 1.0), fov_y=30, width=32, height=32)
-    import strokekit.fill as fill
+    import strokekit.raster.fill as fill
 
     def boom(*a, **k):
         raise AssertionError("fill texture computed without being asked")
@@ -301,8 +310,7 @@ def test_label_polygons_have_holes_and_exact_area():
 def test_band_polygons_svg_layer(sphere, sphere_occ):
     cam = Camera(eye=(3.0, -2.0, 6.0), target=(3.0, -2.0, 1.0), fov_y=30, width=64, height=64)
     fr = render_raster(sphere, cam, sphere_occ, RasterOptions(bands=3, supersample=2, band_polygons=True))
-    (layer,) = band_polygons_svg(fr)
-    xml = layer.tostring()
+    xml = bands_layer(band_regions(fr))
     assert 'inkscape:label="bands"' in xml and 'id="layer-bands"' in xml
     assert xml.count("<path") == len(np.unique(fr.labels[fr.labels > 0]))
     # Top band = the red base colour, linear (0.9, 0.2, 0.1) sRGB-encoded as SVG colours are
@@ -482,7 +490,7 @@ def test_orthographic_zoom_keeps_fill_period(sphere, sphere_occ):
 def test_tone_map_inks_each_band_by_its_darkness(sphere, sphere_occ, pattern):
     """Seed 003 4.2: thresholding the equalized texture by the band tone inks about that
     fraction of each band: darker bands get more marks."""
-    from strokekit.fill import band_darkness, fill_ink
+    from strokekit.raster.fill import band_darkness, fill_ink
 
     cam = Camera(eye=(3.0, -2.0, 5.0), target=(3.0, -2.0, 1.0), fov_y=40, width=200, height=200)
     fr = render_raster(sphere, cam, sphere_occ, RasterOptions(bands=3, supersample=1, fill_pattern=pattern,
@@ -516,7 +524,9 @@ def test_pipeline_entry_points_agree(sphere, sphere_occ):
     import pickle
 
     from strokekit.model import Strokes
-    from strokekit.raster import raster_file_suffixes, raster_outputs as ro, raster_outputs_with_bands_layer
+    from strokekit.run.spec import raster_file_suffixes
+    from strokekit.run.tasks import raster_outputs as ro
+    from strokekit.run.tasks import raster_outputs_with_bands_layer
     from strokekit.writers.svg import svg_document
 
     cam = Camera(eye=(3.0, -2.0, 6.0), target=(3.0, -2.0, 1.0), fov_y=30, width=40, height=40)
@@ -578,7 +588,7 @@ def test_edge_supersample_finds_thin_triangles_between_the_samples(shading, proj
     to be sure of a sample), so the coverages equal uniform R x R supersampling there too.
     Choosing the pixels from the samples alone (neighbour samples or pixel majorities) left
     band 1 at IoU 0.40-0.42 (K = 2, orthographic) and 0.07-0.09 (perspective) here."""
-    from strokekit.bands import soft_iou
+    from strokekit.raster.bands import soft_iou
 
     scene = _thin_ribbon_scene()
     occ = Occluder(scene)
@@ -639,7 +649,7 @@ def test_orthographic_raster_starts_at_the_near_plane_as_the_lines_do(sphere, sp
     """An orthographic section view (near plane through the sphere): the lines clip what lies
     before the near plane, so the raster pass must not show it either. Its rays started on the
     camera plane: the bands showed the cut-away front cap over the lines of the section."""
-    from strokekit.raster import cast_pixels
+    from strokekit.raster.rays import cast_pixels
 
     c, r = np.asarray(sphere.center), sphere.radius
     near = 3.0 * r  # eye 3.5 r in front of the centre: the plane cuts the front cap off

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
-from strokekit.camera import Camera
+from strokekit.camera.view import Camera
 from strokekit.model import Strokes
-from strokekit.ribbons import RibbonOptions, build_ribbons
+from strokekit.ribbons.mesh import RibbonOptions, build_ribbons
 
 CAM = Camera(eye=(0.0, 0.0, 5.0), target=(0.0, 0.0, 0.0), width=1024, height=1024)
 FLAT = RibbonOptions(space="image", taper_head_px=0.0, taper_tail_px=0.0, width_px=4.0)
@@ -284,10 +284,10 @@ def test_real_strokes_overlap_less_than_half_a_percent():
     model = Path(__file__).resolve().parents[2] / "shared" / "models" / "spot.obj"
     if not model.exists():
         pytest.skip(f"shared model not found: {model}")
-    from strokekit.camera import orbit_path
-    from strokekit.lines import LineRenderer
+    from strokekit.camera.paths import orbit_path
+    from strokekit.lines.renderer import LineRenderer
     from strokekit.options import LineOptions
-    from strokekit.scene import load_scene
+    from strokekit.scene.load import load_scene
 
     sc = load_scene(model)
     cam = orbit_path(sc.center, sc.radius, 8).cameras[1]
@@ -310,10 +310,10 @@ def test_world_ribbons_are_not_hidden_by_the_surface_they_outline():
     depth the half of the ribbon inside the rim was behind the bulging surface."""
     import trimesh
 
-    from strokekit.lines import LineRenderer
+    from strokekit.lines.renderer import LineRenderer
     from strokekit.options import LineOptions
-    from strokekit.raster import surface_depth_at
-    from strokekit.scene import build_scene
+    from strokekit.raster.rays import surface_depth_at
+    from strokekit.scene.load import build_scene
 
     ico = trimesh.creation.icosphere(subdivisions=4)
     scene = build_scene(ico.vertices, ico.faces)
@@ -346,12 +346,13 @@ def test_a_section_view_keeps_its_near_plane_in_the_glb(projection):
     import json
     import struct
 
-    from strokekit.lines import LineRenderer
-    from strokekit.options import LineOptions
-    from strokekit.raster import surface_depth_at
-    from strokekit.scene import load_scene
-    from strokekit.writers.gltf import GltfOptions, glb_for_frame
     from helpers import model_path
+
+    from strokekit.lines.renderer import LineRenderer
+    from strokekit.options import LineOptions
+    from strokekit.raster.rays import surface_depth_at
+    from strokekit.scene.load import load_scene
+    from strokekit.writers.gltf import GltfOptions, glb_for_frame
 
     s = load_scene(model_path("spot.obj"))
     c, R = np.asarray(s.center), s.radius

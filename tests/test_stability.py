@@ -23,8 +23,8 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from strokekit import Camera, InputError, LineOptions, LineRenderer, Strokes, build_scene, load_scene
-from strokekit.accuracy import frame_accuracy
-from strokekit.camera import load_camera_path
+from strokekit.camera.paths import load_camera_path
+from strokekit.metrics.accuracy import frame_accuracy
 from strokekit.model import KIND_INDEX
 
 MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
@@ -648,7 +648,7 @@ def test_camera_file_with_a_missing_key_is_one_clear_error(tmp_path):
 
 
 def test_bench_refuses_an_eye_inside_the_mesh():
-    from strokekit.bench import run_bench
+    from strokekit.metrics.bench import run_bench
 
     with pytest.raises(InputError, match="inside"):
         run_bench(scene_of(box()), [cam_at((0.1, 0.0, 0.05), (0, 0, -1))], repeats=1, sweep=())
@@ -679,7 +679,7 @@ def test_bench_cli_reports_bad_input_in_one_line(tmp_path, capsys):
 # --- determinism -------------------------------------------------------------------------------
 
 def test_two_runs_give_byte_identical_svg_and_json():
-    from strokekit.bench import frame_bytes
+    from strokekit.metrics.bench import frame_bytes
 
     sc = _test_scene()
     cam = _orbit_cam(sc.center, 3.2 * sc.radius, 35.0, 20.0)

@@ -3,24 +3,27 @@ and the BRIEF 3 metrics that measure them."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from dataclasses import replace
 import pytest
 import trimesh
-
-from strokekit.camera import Camera, dolly_path, orbit_path
-from strokekit.coherence import MAX_STRETCH_OCTAVES, folder_metrics, pair_metrics, resample_strokes, sequence_metrics
-from strokekit.errors import InputError, UsageError
-from strokekit.lines import LineRenderer
-from strokekit.model import KIND_INDEX, Strokes
-from strokekit.options import LineOptions
-from strokekit.scene import build_scene, load_scene
 from scipy.spatial import cKDTree
 
-from strokekit.strokeops import cut_pieces, drop_doubled
-from strokekit.tracking import Tracker, TrackingOptions, levels_from_slope, track_frames
+from strokekit.camera.paths import dolly_path, orbit_path
+from strokekit.camera.view import Camera
+from strokekit.errors import InputError, UsageError
+from strokekit.lines.renderer import LineRenderer
+from strokekit.lines.strokeops import cut_pieces, drop_doubled
+from strokekit.metrics.coherence import MAX_STRETCH_OCTAVES, folder_metrics, pair_metrics, sequence_metrics
+from strokekit.model import KIND_INDEX, Strokes
+from strokekit.options import LineOptions
+from strokekit.sampling import resample_strokes
+from strokekit.scene.load import build_scene, load_scene
+from strokekit.tracking.options import TrackingOptions
+from strokekit.tracking.tracker import Tracker, track_frames
+from strokekit.tracking.ufit import levels_from_slope
 from strokekit.writers.strokes_json import strokes_json
 
 MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
@@ -406,8 +409,8 @@ def test_votes_go_to_the_nearest_line_and_a_sample_to_the_most_vote_weight():
     # 3-4 px apart, so the nearest sample *centre* can be on the neighbour line while the line
     # itself passes nearer (the metric's 1 px samples find that line): votes must land on the
     # line whose piece passes nearest. Protects bunny M1 (0.922 -> 0.929 on the 120-frame orbit).
-    from strokekit.coherence import Samples, match_samples
-    from strokekit.tracking import segment_by_votes
+    from strokekit.sampling import Samples, match_samples
+    from strokekit.tracking.votes import segment_by_votes
 
     cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), width=SIZE, height=SIZE)
     # Line A along y = 0 with samples every 3 px at x = 0, 3; line B along y = 1.5 px, sample at x = 1.5.
@@ -434,7 +437,7 @@ def test_metric_match_finds_the_nearest_agreeing_sample_behind_a_crowd():
     """BRIEF 3: the match is the nearest sample within 6 px whose tangent agrees. A line with a
     crowd of short crossing strokes between it and its next-frame copy 3 px away: more than k
     disagreeing samples are nearer than the copy, and the metric still finds the copy."""
-    from strokekit.coherence import match_samples
+    from strokekit.sampling import match_samples
 
     probe = _plane_strokes([[(-0.3, 0), (0.3, 0)]], frame=1)
     px = _px(probe)
@@ -459,11 +462,11 @@ def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
     """chain_touching's specialized linking (_touching_paths, _close_pairs) gives exactly what the
     general _join_segments gives for its call, on random strokes with shared ends, rings, closed
     strokes and near-tolerance gaps."""
-    from strokekit.tracking import _close_pairs, _join_segments, _touching_paths
+    from strokekit.tracking.joins import _close_pairs, _join_segments, _touching_paths
 
     rng = np.random.default_rng(1)
     linked = 0
-    for trial in range(200):
+    for _trial in range(200):
         S = int(rng.integers(2, 40))
         ends = rng.integers(0, 6, (S, 2, 2)).astype(float) * 3
         pts, off = [], [0]
@@ -492,7 +495,7 @@ def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
 
 
 def test_unique_inverse_is_np_unique():
-    from strokekit.tracking import _unique_inverse
+    from strokekit.tracking.votes import _unique_inverse
 
     rng = np.random.default_rng(2)
     for n in (0, 1, 2, 7, 300, 2000):
@@ -510,7 +513,7 @@ def test_max_length_splits_each_stroke_and_keeps_the_others_whole():
     The inserted end points were not counted in the later strokes' starts: after the first split
     every later stroke took points of the one before (silhouette points in a crease stroke, an
     empty path, jumps of 500 px drawn between strokes)."""
-    from strokekit.strokeops import split_max_length
+    from strokekit.lines.strokeops import split_max_length
 
     p = np.array([[0, 0], [10, 0], [20, 0], [30, 0], [0, 50], [5, 50], [0, 80], [10, 80], [20, 80]], float)
     st = Strokes.build(p, np.zeros((len(p), 3)), np.zeros(len(p)), [0, 4, 6, 9],
@@ -625,7 +628,7 @@ def test_a_hairpin_that_moves_back_a_point_when_the_joint_goes_is_dropped_too():
     """Strand A ends at x = 10.8 with a point at 10.6 before it; strand B begins at 10.2. The joint
     point (10.8) goes, and then the fold is at 10.6: the points next to a dropped one are looked
     at again."""
-    from strokekit.tracking import chain_touching
+    from strokekit.tracking.joins import chain_touching
 
     p = np.array([[0.0, 50.0], [10.6, 50.0], [10.8, 50.0], [10.2, 50.0], [20.0, 50.0]]) + [100.0, 0.0]
     s = Strokes.build(p, np.c_[p, np.zeros(5)], np.zeros(5), [0, 3, 5], [KIND_INDEX["silhouette"]] * 2)

@@ -6,7 +6,11 @@ import json
 
 import click
 
+from strokekit.camera.paths import load_camera_path
 from strokekit.errors import UsageError
+from strokekit.fileio import check_output_file
+from strokekit.metrics.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
+from strokekit.scene.load import load_scene
 
 from ..common import is_interactive
 
@@ -30,9 +34,6 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
     recall at 0.5/1/2 px against the `exact` preset, and the raster pass at supersample 1, 2, 4
     and at render's default (2, band-edge pixels resampled 4 x 4) with its IoU against
     supersample 4."""
-    from strokekit.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
-    from strokekit.camera import load_camera_path
-    from strokekit.scene import load_scene
 
     if frames <= 0:
         raise UsageError(f"--frames must be positive, got {frames}")
@@ -47,7 +48,6 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
         if not values or min(values) <= 0:
             raise UsageError("--sweep values must be > 0")
     if plot_path is not None:
-        from strokekit.fileio import check_output_file
 
         check_output_file(plot_path)  # said now, not after a minute of timing
     scene = load_scene(scene_path)

@@ -6,9 +6,10 @@ import json
 
 import click
 
-from strokekit.camera import MAX_IMAGE_PX, dolly_path, orbit_path
+from strokekit.camera.paths import dolly_path, orbit_path
+from strokekit.camera.view import MAX_IMAGE_PX
 from strokekit.fileio import atomic_write_text
-from strokekit.scene import load_scene
+from strokekit.scene.load import load_scene
 
 from ..common import FINITE, FiniteFloatRange
 

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import click
 import orjson
+from rich.console import Console
+from rich.table import Table
 
-from strokekit.coherence import folder_metrics
+from strokekit.metrics.coherence import folder_metrics
 
 from ..common import FINITE
 
@@ -35,8 +37,6 @@ def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern:
     if as_json:
         click.echo(orjson.dumps({"pairs": rows, "overall": total}, option=orjson.OPT_INDENT_2).decode())
         return
-    from rich.console import Console
-    from rich.table import Table
 
     t = Table(title=f"coherence of {out_dir} ({len(pairs)} frame pairs)")
     for _, head, _ in _COLUMNS:

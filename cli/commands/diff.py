@@ -6,8 +6,8 @@ from __future__ import annotations
 import click
 import orjson
 
-from strokekit.diff import diff_paths
 from strokekit.errors import StrokekitError
+from strokekit.metrics.diff import diff_paths
 
 from ..common import FINITE, FiniteFloatRange
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from strokekit.camera import gltf_camera_count
-from strokekit.scene import load_scene
+from strokekit.camera.gltf import gltf_camera_count
+from strokekit.scene.load import load_scene
 
 from ..common import FINITE, echo_json
 

@@ -6,21 +6,26 @@ import json
 import math
 import os
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import click
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from strokekit.camera import MAX_IMAGE_PX, load_camera_path, orbit_path
+from strokekit.camera.frames import parse_frames
+from strokekit.camera.paths import load_camera_path, orbit_path
+from strokekit.camera.view import MAX_IMAGE_PX
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
-from strokekit.frames import parse_frames
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
-from strokekit.pipeline import OutputOptions, RunInterrupted, RunResult, RunSpec, make_executor, run, run_report
-from strokekit.scene import load_scene
+from strokekit.run.report import run_report
+from strokekit.run.runner import run
+from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec
+from strokekit.run.workers import make_executor
+from strokekit.scene.load import load_scene
 
 from ..common import FINITE, FiniteFloatRange, is_interactive, split_list
 from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
-
 
 #: Options that only mean something beside another: (options, what they need, when it is there).
 _NEEDS = (
@@ -164,7 +169,6 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
     if camera_file:
         path = load_camera_path(camera_file)
         if width:
-            from dataclasses import replace
 
             path = type(path)(cameras=tuple(replace(c, width=width, height=height) for c in path.cameras),
                               fps=path.fps, source=path.source)
@@ -225,7 +229,7 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             mark = "ran " if st.ran else "skip"
             t = f"{st.seconds * 1e3:9.1f} ms" if st.ran and not st.name.startswith(" ") else " " * 12
             click.echo(f"  [{mark}] {st.name:<26} {t}  {st.why}")
-    for f, msg in sorted(res.failures.items()):
+    for _, msg in sorted(res.failures.items()):
         click.echo(f"strokekit: error: {msg}", err=True)
     if not quiet:
         n_ok = len(res.frames_ok)
@@ -244,7 +248,6 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
 def _run_with_progress(spec: RunSpec, quiet: bool, run_args: dict):
     if not is_interactive(quiet):
         return run(spec, **run_args)
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[fps]:.1f} frames/s"), TimeRemainingColumn(), transient=True) as prog:

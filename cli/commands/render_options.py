@@ -7,6 +7,11 @@ from __future__ import annotations
 import click
 
 from strokekit.errors import UsageError
+from strokekit.options import QUALITY_PRESETS
+from strokekit.raster.bands import RasterOptions
+from strokekit.ribbons.brushes import get_brush
+from strokekit.tracking.options import TrackingOptions
+from strokekit.writers.gltf import GltfOptions
 
 from ..common import FINITE
 
@@ -71,7 +76,6 @@ def tracking_options_from(extra: dict, lines, n_frames: int):
     method = "none" if extra.get("no_coherence") else extra.get("coherence_method", "kalnins")
     if n_frames < 2 or method == "none":
         return None
-    from strokekit.tracking import TrackingOptions
 
     return TrackingOptions(method=method, period_px=lines.period_px, max_growth_px=extra["max_growth"],
                            min_carry_px=extra["min_carry"])
@@ -83,8 +87,6 @@ def gltf_options_from(extra: dict, lines, fps: float = 24.0):
         extra["gltf"] = True
     if not extra.get("gltf"):
         return None
-    from strokekit.brushes import get_brush
-    from strokekit.writers.gltf import GltfOptions
 
     if extra["ribbon_width"] <= 0:
         raise UsageError(f"--ribbon-width must be > 0, got {extra['ribbon_width']}")
@@ -111,9 +113,8 @@ def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.
     wanted = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
     if not wanted:
         return None
-    from strokekit.bands import QUALITY_SAMPLING, RasterOptions
-
-    k_default, r_default = QUALITY_SAMPLING[quality]
+    k_default = QUALITY_PRESETS[quality]["supersample"]
+    r_default = QUALITY_PRESETS[quality]["edge_supersample"]
     thresholds = _floats(extra["band_thresholds"], "--band-thresholds") if extra.get("band_thresholds") else ()
     if thresholds and extra.get("bands") and extra["bands"] != len(thresholds) + 1:
         raise UsageError(f"--bands {extra['bands']} but --band-thresholds gives {len(thresholds) + 1} bands "

@@ -35,13 +35,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..brushes import Brush, get_brush
-from ..camera import Camera
-from ..errors import UsageError
-from ..model import KINDS, Strokes
-from ..colour import srgb_decode
-from ..ribbons import RibbonMesh, RibbonOptions, build_ribbons
-from .svg import KIND_COLORS
+from strokekit.camera.view import Camera
+from strokekit.colour import srgb_decode
+from strokekit.errors import UsageError
+from strokekit.model import KINDS, Strokes
+from strokekit.ribbons.brushes import Brush, get_brush
+from strokekit.ribbons.mesh import RibbonMesh, RibbonOptions, build_ribbons
+from strokekit.writers.svg import KIND_COLORS
 
 
 @dataclass(frozen=True)

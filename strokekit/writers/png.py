@@ -39,3 +39,8 @@ def read_png(data: bytes) -> np.ndarray:
     if img.mode in ("I;16", "I;16B", "I"):
         return np.asarray(img, dtype=np.uint16) if img.mode != "I" else np.asarray(img).astype(np.uint16)
     return np.asarray(img)
+
+
+def png_files(images: dict[str, np.ndarray]) -> dict[str, bytes]:
+    """{file suffix: PNG bytes} of {file suffix: image} (RasterFrame.images), in the same order."""
+    return {k: png_bytes(v) for k, v in images.items()}

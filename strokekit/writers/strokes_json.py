@@ -7,8 +7,8 @@ from itertools import chain
 import numpy as np
 import orjson
 
-from ..camera import Camera
-from ..model import KIND_INDEX, KINDS, Strokes
+from strokekit.camera.view import Camera
+from strokekit.model import KIND_INDEX, KINDS, Strokes
 
 
 def round_list(x: np.ndarray, ndigits: int) -> list[float]:

@@ -1,0 +1,314 @@
+"""Cameras (BRIEF 1.1) and camera paths (BRIEF 1.2).
+
+Image space: x right, y down, origin top-left, pixel (i, j) covers [i, i+1] x [j, j+1].
+All camera maths is float64.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from strokekit.camera.gltf import gltf_camera_path
+from strokekit.camera.view import _FALLBACK_UPS, MAX_IMAGE_PX, MAX_PATH_FRAMES, Camera, CameraPath
+from strokekit.errors import InputError, UsageError
+
+# --- keyframes ----------------------------------------------------------------------------------
+
+def _turn(u0: np.ndarray, u1: np.ndarray, t: float, spare_axis: np.ndarray) -> np.ndarray:
+    """The unit vector a fraction t of the way from unit u0 to unit u1 along the great circle
+    (slerp of directions). Opposite vectors turn about `spare_axis` (made perpendicular to u0)."""
+    axis = np.cross(u0, u1)
+    angle = math.atan2(np.linalg.norm(axis), float(u0 @ u1))
+    if np.linalg.norm(axis) < 1e-9:
+        if angle < 1.0:  # the same direction
+            return u0
+        axis = spare_axis - (spare_axis @ u0) * u0
+        if np.linalg.norm(axis) < 1e-9:
+            axis = np.cross(u0, _FALLBACK_UPS[0] if abs(u0[1]) < 0.9 else _FALLBACK_UPS[2])
+    k = axis / np.linalg.norm(axis)
+    a = t * angle  # Rodrigues; k is perpendicular to u0
+    return u0 * math.cos(a) + np.cross(k, u0) * math.sin(a)
+
+
+def _key_up(cam: Camera) -> np.ndarray:
+    up = np.asarray(cam.up, float)
+    n = np.linalg.norm(up)
+    return up / n if n > 0 else cam.basis[1]
+
+
+def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smooth: bool = False,
+                          source: str = "") -> list[Camera]:
+    """Cameras for frames 0..frame_count-1 from (frame, camera) keyframes.
+
+    Keyframes give eye, target and up (BRIEF 1.2), and those are what is interpolated: eye and
+    target linearly, or along Catmull-Rom curves (smooth), so a target that two keys share stays at
+    the image centre between them; the up vector turns at an even rate from one key's to the
+    next's and the camera frame re-orthogonalizes it against the view direction (Camera.basis).
+    fov_y (perspective), ortho_height (orthographic) and near are linear. Before the first key and
+    after the last the nearest key holds; a keyframe's frame is that key's camera exactly.
+
+    Keys must all have one projection and give near all or none (an InputError naming `source`
+    and the two frames otherwise: a perspective-to-orthographic jump or a near plane that exists
+    on one side only has no in-between)."""
+    keys = sorted(keys, key=lambda k: k[0])
+    for (fa, a), (fb, b) in zip(keys, keys[1:]):
+        if a.projection != b.projection:
+            raise InputError(f"keyframes at frame {fa} ({a.projection}) and frame {fb} ({b.projection}) mix "
+                             f"projections: every keyframe of a path needs the same one", source or None)
+        if (a.width, a.height) != (b.width, b.height):
+            raise InputError(f"keyframes at frame {fa} ({a.width} x {a.height} px) and frame {fb} ({b.width} x "
+                             f"{b.height} px) have different image sizes: a path has one size", source or None)
+        if (a.near is None) != (b.near is None):
+            has, hasnt = (fa, fb) if a.near is not None else (fb, fa)
+            raise InputError(f"the keyframe at frame {has} gives 'near' and the one at frame {hasnt} does not: "
+                             f"give 'near' on every keyframe or on none", source or None)
+    kf = np.array([k for k, _ in keys], float)
+    eyes = np.array([c.eye for _, c in keys])
+    targets = np.array([c.target for _, c in keys])
+    ups = [_key_up(c) for _, c in keys]
+
+    def curve(p: np.ndarray, i: int, t: float) -> np.ndarray:
+        if not smooth:
+            return (1 - t) * p[i] + t * p[i + 1]
+        p0, p1, p2, p3 = p[max(i - 1, 0)], p[i], p[i + 1], p[min(i + 2, len(p) - 1)]
+        t2, t3 = t * t, t * t * t
+        return 0.5 * ((2 * p1) + (-p0 + p2) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t2
+                      + (-p0 + 3 * p1 - 3 * p2 + p3) * t3)
+
+    out = []
+    for f in range(frame_count):
+        if f <= kf[0]:
+            i, t = 0, 0.0
+        elif f >= kf[-1]:
+            i, t = len(keys) - 1, 0.0
+        else:
+            i = int(np.searchsorted(kf, f, side="right") - 1)
+            t = (f - kf[i]) / (kf[i + 1] - kf[i])
+        a = keys[i][1]
+        if t == 0.0:
+            out.append(a)
+            continue
+        b = keys[i + 1][1]
+        eye, target = curve(eyes, i, t), curve(targets, i, t)
+        up = _turn(ups[i], ups[i + 1], t, spare_axis=a.basis[2])
+        if a.is_ortho:  # (only the lens of the path's projection: the other is never checked)
+            lens = {"ortho_height": (1 - t) * a.ortho_height + t * b.ortho_height}
+        else:
+            lens = {"fov_y": (1 - t) * a.fov_y + t * b.fov_y}
+        near = None if a.near is None else (1 - t) * a.near + t * b.near
+        try:
+            out.append(replace(a, eye=tuple(eye), target=tuple(target), up=tuple(up), near=near, **lens))
+        except InputError as e:  # the eye passes through the target
+            raise InputError(f"frame {f}, between the keyframes at frame {keys[i][0]} and frame {keys[i + 1][0]}: "
+                             f"{e}", source or None) from None
+    return out
+
+
+# --- camera path files ----------------------------------------------------------------------------
+
+def _whole_number(value, what: str) -> int:
+    """A whole number from a JSON value: an int, or a float with an integral value (3.0). Anything
+    else (2.7, "3", null, true, 1e400) is an InputError naming `what`; the caller adds the file."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{what} must be a whole number, got {json.dumps(value)}")
+    if isinstance(value, float) and not (math.isfinite(value) and value.is_integer()):
+        raise InputError(f"{what} must be a whole number, got {value!r}")
+    return int(value)
+
+
+def _image_side(value, what: str) -> int:
+    n = _whole_number(value, what)
+    if not 0 < n <= MAX_IMAGE_PX:
+        raise InputError(f"image size must be positive and at most {MAX_IMAGE_PX} px, got {what} {n}")
+    return n
+
+
+#: The keys of a camera path file (BRIEF 1.2): the file, and each frame or keyframe. Keys that
+#: start with "_" (comments) and "extras" are the user's own and are not read.
+_PATH_KEYS = ("width", "height", "fps", "frames", "keyframes", "frame_count", "interpolation")
+_CAMERA_KEYS = ("eye", "target", "up", "fov_y", "projection", "ortho_height", "near", "width", "height")
+
+
+def _check_keys(d: dict, known: tuple[str, ...], where: str, source: str) -> None:
+    """InputError for a key the reader does not know: a typo ("fovy") would silently give the
+    default instead (40 degrees)."""
+    unknown = [k for k in d if k not in known and not (isinstance(k, str) and (k.startswith("_") or k == "extras"))]
+    if unknown:
+
+        k = unknown[0]
+        close = difflib.get_close_matches(str(k), known, n=1)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        raise InputError(f"{where}unknown key {json.dumps(k)} ({hint}known: {', '.join(known)}; "
+                         "keys starting with '_' are comments)", source)
+
+
+def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str, extra_keys=()) -> Camera:
+    if not isinstance(d, dict):
+        raise InputError(f"{where} must be an object", source)
+    _check_keys(d, _CAMERA_KEYS + tuple(extra_keys), f"{where}: ", source)
+    for key in ("eye", "target"):
+        if key not in d:
+            raise InputError(f"{where} has no '{key}'", source)
+    if d.get("projection") == "orthographic" and "ortho_height" not in d:
+        # (it would silently be 1 world unit: the size of the drawing would be a guess)
+        raise InputError(f"{where}: an orthographic camera needs 'ortho_height' (world units across the image height)",
+                         source)
+    try:
+        cam = Camera(eye=tuple(d["eye"]), target=tuple(d["target"]), up=tuple(d.get("up", (0.0, 1.0, 0.0))),
+                     fov_y=float(d.get("fov_y", 40.0)), width=_image_side(d.get("width", width), "width"),
+                     height=_image_side(d.get("height", height), "height"),
+                     projection=d.get("projection", "perspective"),
+                     ortho_height=float(d.get("ortho_height", 1.0)),
+                     near=(float(d["near"]) if d.get("near") is not None else None))
+    except InputError as e:
+        raise InputError(f"{where}: {e}", source) from None
+    except (TypeError, ValueError, OverflowError) as e:  # OverflowError: an integer beyond float range
+        raise InputError(f"{where}: bad value ({e})", source) from None
+    if "up" in d and not np.any(cam.up):
+        raise InputError(f"{where}: 'up' is (0, 0, 0): it gives no direction", source)
+    return cam
+
+
+def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
+    """Parse either form of BRIEF 1.2 into a CameraPath."""
+    if not isinstance(data, dict):
+        raise InputError("camera file must hold a JSON object", source)
+    _check_keys(data, _PATH_KEYS, "", source)
+    if "frames" in data and "keyframes" in data:
+        raise InputError("camera file has both 'frames' and 'keyframes': give one form", source)
+    try:
+        width = _image_side(data.get("width", 1024), "width")
+        height = _image_side(data.get("height", 1024), "height")
+        fps = float(data.get("fps", 24))
+    except InputError as e:
+        raise InputError(str(e), source) from None
+    except (TypeError, ValueError, OverflowError) as e:
+        raise InputError(f"bad fps ({e})", source) from None
+    if not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"fps must be a number > 0, got {fps:g}", source)
+    # Entries are named as output frames are, from 1 (BRIEF 1.2: entry k is output frame k+1).
+    if "frames" in data:
+        frames = data["frames"]
+        if not isinstance(frames, list) or not frames:
+            raise InputError("'frames' must be a non-empty list", source)
+        cams = [_camera_from_dict(f, width, height, f"frame {i + 1}", source) for i, f in enumerate(frames)]
+    elif "keyframes" in data:
+        keys = data["keyframes"]
+        if not isinstance(keys, list) or not keys:
+            raise InputError("'keyframes' must be a non-empty list", source)
+        if "frame_count" not in data:
+            raise InputError("keyframe form needs 'frame_count'", source)
+        interp = data.get("interpolation", "linear")
+        if interp not in ("linear", "smooth"):
+            raise InputError(f"interpolation must be 'linear' or 'smooth', got {interp!r}", source)
+        try:
+            count = _whole_number(data["frame_count"], "frame_count")
+        except InputError as e:
+            raise InputError(str(e), source) from None
+        if not 0 < count <= MAX_PATH_FRAMES:
+            raise InputError(f"frame_count must be between 1 and {MAX_PATH_FRAMES}, got {count}", source)
+        parsed = []
+        for i, k in enumerate(keys):
+            if not isinstance(k, dict) or "frame" not in k:
+                raise InputError(f"keyframe {i + 1} has no 'frame'", source)
+            try:
+                frame = _whole_number(k["frame"], f"keyframe {i + 1}: 'frame'")
+            except InputError as e:
+                raise InputError(f"{e} (keyframes sit on output frames, counted from 0)", source) from None
+            if abs(frame) > 2 ** 53:
+                raise InputError(f"keyframe {i + 1}: 'frame' {frame} is out of range", source)
+            parsed.append((frame, _camera_from_dict(k, width, height, f"keyframe {i + 1}", source, ("frame",))))
+        seen = [f for f, _ in parsed]
+        if len(set(seen)) < len(seen):
+            dup = sorted(f for f in set(seen) if seen.count(f) > 1)
+            raise InputError(f"two keyframes for frame {dup[0]}", source)
+        cams = interpolate_keyframes(parsed, count, smooth=(interp == "smooth"), source=source)
+    else:
+        raise InputError("camera file needs 'frames' or 'keyframes'", source)
+    return CameraPath(cameras=tuple(cams), fps=fps, source=source)
+
+
+def load_camera_path(path: str | Path) -> CameraPath:
+    """Read a camera path JSON file (BRIEF 1.2) or a glTF/GLB file's camera node (animated: one
+    camera per frame at 24 fps, see gltf_camera_path)."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError("camera file not found", p)
+    if p.is_dir():
+        raise InputError("is a folder, not a camera file", p)
+    if p.suffix.lower() in (".glb", ".gltf"):
+        return gltf_camera_path(p)
+    try:
+        data = json.loads(p.read_text())
+    except OSError as e:
+        raise InputError(f"cannot read camera file ({e.strerror or e})", p) from None
+    except UnicodeDecodeError:
+        raise InputError("camera file is not text", p) from None
+    except json.JSONDecodeError as e:
+        raise InputError(f"camera file is not valid JSON ({e.msg}: line {e.lineno}, column {e.colno})", p) from None
+    return camera_path_from_json(data, str(p))
+
+
+def orbit_path(center: np.ndarray, radius: float, frames: int, *, elevation: float = 15.0, fov_y: float = 40.0,
+               width: int = 1024, height: int = 1024, fps: float = 24.0, degrees_per_frame: float | None = None,
+               up_axis: str = "y", start_azimuth: float = 0.0, distance_factor: float = 1.0) -> CameraPath:
+    """A turntable orbit around `center` that keeps a sphere of `radius` in view.
+
+    `degrees_per_frame` defaults to 360 / frames (a full turn). `up_axis` is 'y' or 'z'."""
+    if frames <= 0:
+        raise InputError(f"orbit needs a positive frame count, got {frames}")
+    if not (np.isfinite(radius) and radius > 0):
+        raise InputError("cannot orbit an empty or degenerate scene")
+    for name, v in (("elevation", elevation), ("fov_y", fov_y), ("degrees_per_frame", degrees_per_frame),
+                    ("start_azimuth", start_azimuth), ("distance_factor", distance_factor), ("fps", fps)):
+        if v is not None and not math.isfinite(v):
+            raise UsageError(f"orbit {name} must be a finite number, got {v}")
+    if not 0.0 < fov_y < 180.0:
+        raise UsageError(f"orbit fov_y must be in (0, 180) degrees, got {fov_y:g}")
+    if not (distance_factor > 0 and fps > 0):
+        raise UsageError(f"orbit distance_factor and fps must be > 0, got {distance_factor:g} and {fps:g}")
+    step = 360.0 / frames if degrees_per_frame is None else degrees_per_frame
+    dist = distance_factor * 1.15 * radius / math.sin(math.radians(fov_y) / 2.0)
+    el = math.radians(elevation)
+    up = np.array([0.0, 1.0, 0.0]) if up_axis == "y" else np.array([0.0, 0.0, 1.0])
+    cams = []
+    for k in range(frames):
+        az = math.radians(start_azimuth + k * step)
+        if up_axis == "y":
+            d = np.array([math.sin(az) * math.cos(el), math.sin(el), math.cos(az) * math.cos(el)])
+            ground = np.array([math.sin(az), 0.0, math.cos(az)])
+        else:
+            d = np.array([math.sin(az) * math.cos(el), -math.cos(az) * math.cos(el), math.sin(el)])
+            ground = np.array([math.sin(az), -math.cos(az), 0.0])
+        eye = np.asarray(center, float) + dist * d
+        # Straight above or below (elevation +-90): the up axis is the view axis, so the image's
+        # up turns with the azimuth (away from the eye's side), or every frame would be the same.
+        # (Camera.basis gives up on an up within 1e-6 of the view axis; 1e-5 stays clear of it.)
+        frame_up = up if abs(math.cos(el)) > 1e-5 else -math.copysign(1.0, el) * ground
+        cams.append(Camera(eye=tuple(eye), target=tuple(np.asarray(center, float)), up=tuple(frame_up), fov_y=fov_y,
+                           width=width, height=height))
+    return CameraPath(cameras=tuple(cams), fps=fps, source="orbit")
+
+
+def dolly_path(center: np.ndarray, radius: float, frames: int, *, start: float = 1.0, end: float = 8.0,
+               fov_y: float = 40.0, width: int = 1024, height: int = 1024, elevation: float = 15.0,
+               azimuth: float = 0.0, up_axis: str = "y") -> CameraPath:
+    """The camera moves from `start` to `end` times the framing distance, geometrically."""
+    if not all(math.isfinite(v) and v > 0 for v in (start, end)):
+        raise UsageError(f"dolly start and end must be finite numbers > 0, got {start:g} and {end:g}")
+    base = orbit_path(center, radius, 1, elevation=elevation, fov_y=fov_y, width=width, height=height,
+                      up_axis=up_axis, start_azimuth=azimuth)
+    cam0 = base.cameras[0]
+    c = np.asarray(center, float)
+    d = np.subtract(cam0.eye, c)
+    cams = []
+    for k in range(frames):
+        s = start * (end / start) ** (k / max(frames - 1, 1))
+        cams.append(replace(cam0, eye=tuple(c + s * d)))
+    return CameraPath(cameras=tuple(cams), source="dolly")

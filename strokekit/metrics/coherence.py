@@ -1,0 +1,243 @@
+"""Temporal coherence metrics of BRIEF section 3, between the strokes of consecutive frames.
+
+Every stroke is resampled at 1 px of arc length. A sample carries its stroke id, position p (px),
+parameter u (texture periods), surface point X (world) and screen tangent t. Correspondence
+between frames f-1 and f: X of frame f-1 is projected with frame f's camera and matched to the
+nearest frame-f sample within `radius_px` (6) whose tangent agrees (|t.t'| >= `min_tangent_dot`,
+0.65); the same is run from f to f-1. Silhouettes slide over the surface, so matching is done on
+the screen position of the projected point, never on identical surface points.
+
+- M1 id persistence: matched length whose id is the same in both frames / matched length.
+- M2 popping: length without a match in the other frame (both directions) / both frames' length.
+- M4 sliding: |u' - u| wrapped into (-1/2, 1/2], times the period P, in px (median, p95, max).
+- M5 flatness: lambda = 1 / (P du/ds); length-weighted mean |log2 lambda| over a frame; a
+  stretch counts for at most MAX_STRETCH_OCTAVES (10), which a frozen texture (constant u) gets.
+  `flatness_raw` is that number on u as written. `flatness` is the same measure on the texture
+  as drawn with the self-similar levels of Benard 2010 (Strokes.level, level_weight, convention
+  of strokekit.tracking.ufit): octave k samples u * 2^-k, so its lambda is 2^k / (P du/ds); the
+  blend of octaves level and level+1 is read at its continuous level
+  c = level + 1 - level_weight. `flatness_blend` counts the two octaves apart with their
+  weights instead (an upper bound: 1/3 octave on average even for a perfect level choice).
+- M7 end growth: per id present in both frames, |L' - L| in px.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from strokekit.errors import InputError
+from strokekit.fileio import check_pattern
+from strokekit.model import Strokes
+from strokekit.sampling import MATCH_RADIUS_PX, MIN_TANGENT_DOT, Samples, match_samples, resample_strokes
+from strokekit.writers.strokes_json import read_strokes_json
+
+
+def _wrap(du: np.ndarray) -> np.ndarray:
+    """Wrap a parameter difference into (-1/2, 1/2] (periodic texture)."""
+    return -((-du + 0.5) % 1.0 - 0.5)
+
+
+#: M5: the stretch counted for a texture stretched further, or frozen (constant u), in octaves.
+MAX_STRETCH_OCTAVES = 10.0
+
+
+def _flatness(strokes: Strokes, smp: Samples, mode: str) -> float:
+    """Length-weighted mean |log2 lambda| of one frame (see module doc). mode "raw": u as
+    written; "level": the self-similar texture at its continuous level c = level + 1 -
+    level_weight (octave blend read as one texture of scale 2^c, as Benard 2010 designs it);
+    "blend": the two blended octaves counted separately with their weights (an upper bound)."""
+    if len(smp) < 2:
+        return 0.0
+    same = smp.stroke[1:] == smp.stroke[:-1]
+    ds = 0.5 * (smp.w[1:] + smp.w[:-1])
+    ok = same & (ds > 0)
+    if not ok.any():
+        return 0.0
+    P = strokes.period_px
+    ds = ds[ok]
+    # A texture stretched beyond MAX_STRETCH_OCTAVES (constant u: frozen, lambda infinite)
+    # counts as stretched by that much: left out, a stroke with constant u would score 0.
+    du = np.maximum(np.abs(smp.u[1:] - smp.u[:-1])[ok], ds / (P * 2.0 ** MAX_STRETCH_OCTAVES))
+    log_lam = -np.log2(P * du / ds)  # lambda = 1 / (P du/ds)
+    w = ds
+    if mode == "raw":
+        return float(np.sum(w * np.abs(log_lam)) / np.sum(w))
+    st = smp.stroke[1:][ok]
+    lev = strokes.level[st]
+    wt = np.clip(strokes.level_weight[st], 0.0, 1.0)
+    # Octave k samples u 2^-k: lambda_k = 2^k lambda. Octave `level` has weight `level_weight`,
+    # octave level + 1 the rest.
+    if mode == "level":
+        e = np.abs(log_lam + lev + 1 - wt)
+    else:
+        e = wt * np.abs(log_lam + lev) + (1 - wt) * np.abs(log_lam + lev + 1)
+    return float(np.sum(w * e) / np.sum(w))
+
+
+@dataclass
+class PairMetrics:
+    """Metrics of one frame pair (f-1, f). Lengths in px."""
+
+    frame: int
+    matched_px: float
+    same_id_px: float
+    unmatched_px: float
+    total_px: float
+    sliding_px: np.ndarray = field(repr=False)  # |wrapped du| * P of every matched sample
+    growth_px: np.ndarray = field(repr=False)  # |L' - L| per persisting id
+    flatness: float = 0.0  # of frame f, with self-similar levels
+    flatness_raw: float = 0.0  # of frame f, u as written
+    flatness_blend: float = 0.0  # of frame f, blended octaves counted apart
+    prev_frame: int = -1  # the frame compared with (frame - 1 unless frames are missing)
+
+    @property
+    def m1(self) -> float:
+        return self.same_id_px / self.matched_px if self.matched_px > 0 else 1.0
+
+    @property
+    def m2(self) -> float:
+        return self.unmatched_px / self.total_px if self.total_px > 0 else 0.0
+
+    def summary(self) -> dict:
+        return {"frame": self.frame, "M1": self.m1, "M2": self.m2, **_stats("M4", self.sliding_px),
+                "M5": self.flatness, "M5_raw": self.flatness_raw,
+                "M5_blend": self.flatness_blend, **_stats("M7", self.growth_px),
+                "matched_px": self.matched_px, "total_px": self.total_px}
+
+
+def _stats(name: str, v: np.ndarray) -> dict:
+    if len(v) == 0:
+        return {f"{name}_median": 0.0, f"{name}_p95": 0.0, f"{name}_max": 0.0}
+    return {f"{name}_median": float(np.median(v)), f"{name}_p95": float(np.percentile(v, 95)),
+            f"{name}_max": float(np.max(v))}
+
+
+def pair_metrics(prev: Strokes, cur: Strokes, *, radius_px: float = MATCH_RADIUS_PX,
+                 min_tangent_dot: float = MIN_TANGENT_DOT, prev_samples: Samples | None = None,
+                 cur_samples: Samples | None = None) -> PairMetrics:
+    """BRIEF 3 metrics between the strokes of frame f-1 (`prev`) and frame f (`cur`). Both need
+    their camera. The sliding uses cur.period_px."""
+    if prev.camera is None or cur.camera is None:
+        raise InputError("coherence metrics need the camera of both frames")
+    a = prev_samples if prev_samples is not None else resample_strokes(prev, 1.0)
+    b = cur_samples if cur_samples is not None else resample_strokes(cur, 1.0)
+    P = cur.period_px
+    ta = cKDTree(a.p) if len(a) else None
+    tb = cKDTree(b.p) if len(b) else None
+    ab = match_samples(a, cur.camera, b, tb, radius_px=radius_px, min_tangent_dot=min_tangent_dot, exact=True)
+    ba = match_samples(b, prev.camera, a, ta, radius_px=radius_px, min_tangent_dot=min_tangent_dot, exact=True)
+    ma, mb = ab >= 0, ba >= 0
+    matched = a.w[ma].sum() + b.w[mb].sum()
+    same = a.w[ma][a.ids[ma] == b.ids[ab[ma]]].sum() + b.w[mb][b.ids[mb] == a.ids[ba[mb]]].sum()
+    unmatched = a.w[~ma].sum() + b.w[~mb].sum()
+    total = a.w.sum() + b.w.sum()
+    slide = np.concatenate([np.abs(_wrap(b.u[ab[ma]] - a.u[ma])), np.abs(_wrap(b.u[mb] - a.u[ba[mb]]))]) * P
+    common, ia, ib = np.intersect1d(prev.ids, cur.ids, return_indices=True)
+    # Ids are unique per frame when tracked; with repeated ids compare the first occurrences.
+    growth = np.abs(cur.lengths[ib] - prev.lengths[ia])
+    return PairMetrics(frame=int(cur.frame), prev_frame=int(prev.frame), matched_px=float(matched), same_id_px=float(same),
+                       unmatched_px=float(unmatched), total_px=float(total), sliding_px=slide, growth_px=growth,
+                       flatness=_flatness(cur, b, "level"), flatness_raw=_flatness(cur, b, "raw"),
+                       flatness_blend=_flatness(cur, b, "blend"))
+
+
+def sequence_metrics(frames: list[Strokes], **kw) -> tuple[list[PairMetrics], dict]:
+    """Metrics of every consecutive pair of `frames` (in order) and the overall summary:
+    M1 over all matched length; M2 median and mean of the per-pair values; M4 and M7 median, p95
+    and max over all pairs' samples; M5 mean and max over frames 2..n (with levels and raw)."""
+    pairs = []
+    prev_s = None
+    for k in range(1, len(frames)):
+        a = prev_s if prev_s is not None else resample_strokes(frames[k - 1], 1.0)
+        b = resample_strokes(frames[k], 1.0)
+        pairs.append(pair_metrics(frames[k - 1], frames[k], prev_samples=a, cur_samples=b, **kw))
+        prev_s = b
+    return pairs, overall(pairs)
+
+
+def overall(pairs: list[PairMetrics]) -> dict:
+    """Summary of a list of pair metrics (see sequence_metrics)."""
+    if not pairs:
+        return {"pairs": 0}
+    matched = sum(p.matched_px for p in pairs)
+    same = sum(p.same_id_px for p in pairs)
+    m2 = np.array([p.m2 for p in pairs])
+    fl = np.array([p.flatness for p in pairs])
+    flr = np.array([p.flatness_raw for p in pairs])
+    return {"pairs": len(pairs), "M1": same / matched if matched > 0 else 1.0,
+            "M2_median": float(np.median(m2)), "M2_mean": float(np.mean(m2)), "M2_max": float(np.max(m2)),
+            **_stats("M4", np.concatenate([p.sliding_px for p in pairs])),
+            "M5": float(np.mean(fl)), "M5_max": float(np.max(fl)),
+            "M5_raw": float(np.mean(flr)), "M5_raw_max": float(np.max(flr)),
+            "M5_blend": float(np.mean([p.flatness_blend for p in pairs])),
+            **_stats("M7", np.concatenate([p.growth_px for p in pairs]))}
+
+
+def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
+    """The frame JSON files of a folder named by `pattern` (render --pattern), sorted by name."""
+
+    check_pattern(pattern)
+    d = Path(out_dir)
+    if not d.exists():
+        raise InputError("folder not found", d)
+    if not d.is_dir():
+        raise InputError("not a folder", d)
+    glob = re.sub(r"\{frame[^}]*\}", "*", pattern) + ".json"
+    # Exactly the names the pattern gives: {frame} is a number that formats back to the name
+    # (shot_{frame:04d} must not take shot_0001_draft.json, nor a report frame_report.json).
+    literal = re.split(r"\{frame[^}]*\}", pattern)
+    exact = re.compile("(.+?)".join(re.escape(s) for s in literal) + r"\.json")
+
+    def named_by_pattern(name: str) -> bool:
+        m = exact.fullmatch(name)
+        if m is None or len(set(m.groups())) != 1:
+            return False
+        # Some whole number must format back to the name, in any integer format ({frame:x},
+        # {frame:<4}, {frame:,}); a longer name of another render (_draft) has none.
+        text = m.group(1)
+        digits = re.sub(r"[^0-9a-fA-F]", "", text)
+        tries = set()
+        for base in (10, 16, 8, 2):
+            for s in (text.strip().replace(",", "").replace("_", ""), digits):
+                try:
+                    tries.add(int(s, base))
+                except ValueError:
+                    pass
+        tries |= {-x for x in tries}  # ("{frame:=+5}" and fill characters: the sign stands apart)
+        if len(text) == 1:
+            tries.add(ord(text))  # {frame:c}
+        for n in tries:
+            try:
+                if pattern.format(frame=n) + ".json" == name:
+                    return True
+            except (ValueError, OverflowError):
+                continue
+        return False
+
+    files = sorted(p for p in d.glob(glob) if named_by_pattern(p.name))  # (not render's .strokekit-run.json)
+    if len(files) < 2:
+        hint = " (its frames have no JSON: render without --no-json)" if not files and any(d.glob(glob[:-5] + ".svg")) else ""
+        raise InputError(f"needs at least 2 {glob} files to compare, found {len(files)}{hint}", d)
+    return files
+
+
+def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", **kw) -> tuple[list[PairMetrics], dict]:
+    """Read every frame JSON of `out_dir` named by `pattern` (strokekit.writers.strokes_json
+    format), in frame order, and return (per pair metrics, overall summary)."""
+
+    frames = []
+    for f in frame_files(out_dir, pattern):
+        try:
+            st = read_strokes_json(f)
+        except (KeyError, ValueError, TypeError) as e:
+            raise InputError(f"not a strokekit frame JSON ({type(e).__name__}: {e})", f) from None
+        if st.camera is None:
+            raise InputError("frame JSON has no camera: cannot project surface points", f)
+        frames.append(st)
+    frames.sort(key=lambda s: s.frame)
+    return sequence_metrics(frames, **kw)

@@ -1,0 +1,78 @@
+"""The JSON run report (`run_report`): versions, input hashes, every option, per-frame status,
+camera, outputs and timings: enough to render any frame again."""
+
+from __future__ import annotations
+
+import hashlib
+import platform
+from dataclasses import fields
+from pathlib import Path
+
+from strokekit.run.manifest import _canon
+from strokekit.run.spec import RunResult, RunSpec
+
+
+def _add_timings(stage: dict, timings: dict) -> None:
+    """Stage times are the sum of the work done in all workers (CPU time spent per stage)."""
+    for name, sec in timings.items():
+        if name in stage:
+            stage[name].seconds += sec
+
+
+def run_report(spec: RunSpec, res: RunResult) -> dict:
+    """The JSON run report: versions, input hashes, per-frame status, outputs, timings, stages."""
+    def versions():
+        from importlib.metadata import PackageNotFoundError, version
+
+        out = {"python": platform.python_version()}
+        for dist in ("strokekit", "numpy", "scipy", "trimesh", "open3d", "embreex", "shapely",
+                     "pygltflib", "click", "pillow"):
+            try:
+                out[dist] = version(dist)
+            except PackageNotFoundError:
+                out[dist] = None
+        return out
+
+    with open(spec.scene_path, "rb") as fh:
+        file_hash = hashlib.sha256(fh.read()).hexdigest()
+    cameras = {"source": spec.camera_source or None, "frames": len(spec.cameras),
+               "sizes": sorted({(c.width, c.height) for _, c in spec.cameras})}
+    if spec.camera_source and Path(spec.camera_source).is_file():
+        try:
+            cameras["sha256"] = hashlib.sha256(Path(spec.camera_source).read_bytes()).hexdigest()
+        except OSError:
+            pass
+    # Each frame's camera as the run used it (with the scene and options above, enough to
+    # render any frame again).
+    cams = {f: _canon(c.to_json()) for f, c in spec.cameras}
+    o = spec.outputs
+    outputs = _canon({f.name: getattr(o, f.name) for f in fields(o)})
+    frames = {}
+    for f, _ in spec.cameras:
+        if f in res.failures:
+            frames[str(f)] = {"status": "failed", "error": res.failures[f]}
+        elif f in res.frames_skipped and f not in res.frames_ok:
+            frames[str(f)] = {"status": "skipped (exists)"}
+        elif f in res.frames_ok:
+            frames[str(f)] = {"status": "ok", "seconds": round(res.frame_seconds.get(f, 0.0), 6)}
+        else:
+            frames[str(f)] = {"status": "not run"}
+        frames[str(f)]["camera"] = cams[f]
+    return {
+        "status": res.status,
+        "versions": versions(),
+        "platform": platform.platform(),
+        "scene": {"path": spec.scene_path, "sha256": file_hash, "content_hash": res.scene_hash, **res.scene_summary},
+        "cameras": cameras,
+        "options": {"lines": spec.lines.to_json(), "workers": spec.workers, "scheduler": spec.scheduler,
+                    "tracking": spec.tracking.method if spec.tracking is not None else "none",
+                    "tracking_options": _canon(spec.tracking) if spec.tracking is not None else None,
+                    "contours": spec.lines.contours, "outputs": outputs},
+        "ray_tracer": ", ".join(sorted(res.ray_tracers)) or None,
+        "stages": [{"stage": s.name, "ran": s.ran, "why": s.why, "seconds": round(s.seconds, 6)} for s in res.stages],
+        "frames": frames,
+        "failures": {str(k): v for k, v in sorted(res.failures.items())},
+        "outputs": res.outputs,
+        "wall_seconds": round(res.wall_seconds, 4),
+        "exit_code": res.exit_code,
+    }

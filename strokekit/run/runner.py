@@ -1,0 +1,412 @@
+"""A render run: which stages the requested outputs need, per-frame work in parallel (process
+pool started with spawn, or a dask.distributed cluster), the tracking pass in frame order, then
+writing, with atomic files, resumption and a run report.
+
+Per-frame tasks carry only the scene path and content hash, the frame number and its camera;
+each worker loads the scene and builds its BVH once (cached per process).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections import deque
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable
+
+from strokekit.errors import UsageError
+from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
+from strokekit.model import Strokes
+from strokekit.raster.rays import check_raster_fits
+from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
+from strokekit.run.report import _add_timings
+from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, plan_stages
+from strokekit.run.tasks import _surface_depth, frame_task, write_task
+from strokekit.run.workers import Workers, _keep_renderer, make_executor
+from strokekit.scene.load import Scene, load_scene
+from strokekit.tracking.tracker import Tracker
+from strokekit.writers.gltf import glb_for_sequence
+
+
+def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, load_seconds: float = 0.0):
+    """The main process's scene (hash, summary) and the stage plan, timed as the first stage.
+    `scene`: the scene file already loaded by the caller (not loaded again) in `load_seconds`."""
+    t = time.perf_counter() - load_seconds
+    scene = load_scene(spec.scene_path) if scene is None else scene
+    res.scene_hash = scene.content_hash
+    res.scene_summary = {"faces": int(len(scene.faces)), "objects": len(scene.objects),
+                         "materials": len(scene.materials)}
+    res.stages = plan_stages(scene, spec)
+    res.stages[0].seconds = time.perf_counter() - t
+    return scene
+
+
+def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, *,
+        workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
+        started_at: float | None = None) -> RunResult:
+    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
+    `workers`: make_executor(spec.workers, spec.scheduler, (spec.scene_path, spec.lines)) started
+    by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
+    `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
+    load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
+    (the report's wall time counts from there: the pool start and the load are part of it).
+
+    The steps: check the request, start the workers, load and plan the stages, plan the resume
+    (`plan_resume`), stream the frames through line work, tracking and writing (`FrameStream`),
+    write sequence.glb, and on Ctrl-C or failures clean up (`clean_up`)."""
+    t_start = time.perf_counter() if started_at is None else started_at
+    res = RunResult()
+    check_run(spec)
+    resume: ResumePlan | None = None
+    # Workers start first: their imports and scene load overlap the main process's own load.
+    own = workers is None
+    if own:
+        workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
+    try:
+        scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
+        stage = {s.name: s for s in res.stages}
+        resume = plan_resume(spec, scene, stage["tracking"].ran)
+        res.frames_skipped = sorted(resume.done_before)
+        res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
+        if workers.main_helps:
+            # Frames rendered here use this load; building the renderer (open3d, the BVH) is part
+            # of the load stage.
+            t = time.perf_counter()
+            _keep_renderer(spec.scene_path, scene, spec.lines)
+            stage["load scene + BVH"].seconds += time.perf_counter() - t
+        stream = FrameStream(spec, scene, res, stage, resume, progress)
+        try:
+            workers.map(stream.pending, stream.handle)
+            if spec.fail_fast and res.failures:
+                stream.write_before_failure()
+        finally:
+            stream.enter_written()
+        write_sequence_glb(spec, scene, res, stage, stream)
+    except KeyboardInterrupt:
+        # Ctrl-C: the frames in progress are abandoned. The workers stop now (also the caller's:
+        # their tasks belong to this run), then the temporary files of the writes they were in
+        # are removed; every file left is complete (written whole, then renamed).
+        workers.close()
+        clean_up(spec, res, resume, interrupted=True)
+        res.interrupted = True
+        _finish(res, t_start)
+        raise RunInterrupted(res) from None
+    finally:
+        if own:
+            workers.close()
+    if res.failures:
+        clean_up(spec, res, resume)
+    return _finish(res, t_start)
+
+
+def check_run(spec: RunSpec) -> None:
+    """UsageError before any work: a file pattern that names two frames alike, a raster pass
+    larger than the machine's memory."""
+    check_pattern(spec.outputs.pattern)
+    spec.outputs.check_names(f for f, _ in spec.cameras)
+    if spec.outputs.raster_options is not None:
+        for w, h in sorted({(c.width, c.height) for _, c in spec.cameras}):
+            check_raster_fits(w, h, spec.outputs.raster_options.supersample)
+
+
+@dataclass
+class ResumePlan:
+    """What is on disk before the run and what this run will (re)write.
+
+    before: {path: (inode, mtime_ns, size)} of the frame files there at the start (a file this run
+    wrote is one missing from it or changed since; an atomic write replaces the inode: no clock
+    compared). done_before: frames kept from an earlier run (--skip-existing). entries: the run
+    manifest's frame entries to write now; enter_later: frames entered once written (files of
+    them from something else are there until then)."""
+
+    manifest: dict
+    before: dict[str, tuple]
+    done_before: set[int]
+    entries: dict
+    enter_later: set[int]
+    tracking_on: bool
+
+
+def plan_resume(spec: RunSpec, scene: Scene, tracking_on: bool) -> ResumePlan:
+    """Take stock of the output folder. Frames whose every file exists, rendered by this run's
+    scene and options with this frame's camera (the manifest says so), are not written again
+    with spec.skip_existing (with tracking their lines are still computed: the tracker's state
+    depends on every earlier frame, so a resumed run gives the same bytes as an uninterrupted one).
+    Frame files there with a manifest of another scene or options, or none, raise UsageError."""
+    out = spec.outputs
+    out.out_dir.mkdir(parents=True, exist_ok=True)
+    # Temporary files of an interrupted earlier run are ours to remove (their final names never existed).
+    for stale in out.out_dir.glob(".*.part"):
+        stale.unlink(missing_ok=True)
+    frames = [f for f, _ in spec.cameras]
+    manifest = run_manifest(spec, scene, tracking_on)
+    old = read_run_manifest(out.out_dir)
+    same_run = old is not None and old["run"] == manifest["run"]
+    before = _file_states(p for f in frames for p in out.frame_files(f))
+    on_disk = {f: [str(p) in before for p in out.frame_files(f)] for f in frames}
+    done_before = set()
+    if spec.skip_existing:
+        present = {f for f in frames if all(on_disk[f])}
+        if present and not same_run:
+            raise UsageError(_not_a_resume(out.out_dir, old, manifest, present))
+        done_before = {f for f in present if old["frames"].get(f) == manifest["frames"][f]}
+    # The manifest is written before any frame file: the same run's entries are kept (merged),
+    # another run's replaced. A frame of this run is entered now unless files of it from
+    # something else are there (they stay until rewritten): it is entered once written, so
+    # a run stopped before that never leaves such a file looking like this run's.
+    entries = dict(old["frames"]) if same_run else {}
+    enter_later: set[int] = set()
+    for f in frames:
+        new = manifest["frames"][f]
+        if entries.get(f) == new or not any(on_disk[f]):
+            entries[f] = new
+        else:
+            entries.pop(f, None)
+            enter_later.add(f)
+    return ResumePlan(manifest, before, done_before, entries, enter_later, tracking_on)
+
+
+class FrameStream:
+    """The frames of a run on their way through line work (in any process), tracking (here, in
+    frame order) and writing. `pending` is the queue of tasks the workers take from; `handle`
+    takes each task's result. Frames go on in frame order as soon as every earlier one is done:
+    the tracking pass (the only sequential stage) runs beside the workers' line work, and each
+    tracked frame's write task goes first in line, so output appears from the start and no stage
+    waits for all frames."""
+
+    def __init__(self, spec: RunSpec, scene: Scene, res: RunResult, stage: dict, resume: ResumePlan,
+                 progress: Callable[[str, int, int], None] | None):
+        self.spec, self.res, self.stage, self.resume, self.progress = spec, res, stage, resume, progress
+        out = spec.outputs
+        self.frames = [f for f, _ in spec.cameras]
+        cams = dict(spec.cameras)
+        done_before = resume.done_before
+        tracking_on = resume.tracking_on
+        # The lines of frames kept from an earlier run are computed again (not written) when the
+        # tracker needs every frame, or when sequence.glb holds every frame of the run.
+        self.need_lines = [f for f in self.frames
+                           if f not in done_before or tracking_on or (out.gltf and out.gltf_sequence)]
+        self.to_write = [f for f in self.need_lines if f not in done_before]
+        self.extra = {"contours": spec.lines.contours, "tracking": spec.tracking.method if tracking_on else "none"}
+        self.keep_strokes = out.gltf and out.gltf_sequence
+        self.scene_key = (spec.scene_path, scene.content_hash, spec.lines)
+        # Without tracking a frame needs no other: it is written where its lines are computed.
+        self.write_in_task = None if tracking_on else (spec.lines.kinds, self.extra, self.keep_strokes)
+        self.pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
+                              out if f not in done_before else replace(out, raster_options=None), True,
+                              self.write_in_task if f not in done_before else None) for f in self.need_lines)
+        self.n_lines = len(self.pending)
+        self.tracker = Tracker(spec.tracking) if tracking_on else None
+        self.lines_results: dict[int, Strokes] = {}
+        self.underlays: dict[int, list | None] = {}
+        self.finished: set[int] = set()  # frames whose lines are done or failed
+        self.lines_failed: set[int] = set()
+        self.ordered: list[int] = []  # frames with lines, in frame order, tracked when tracking is on
+        self.n_done = self.n_written = 0
+        self.cursor = 0
+
+    def handle(self, r: dict) -> bool:
+        """Take one task result; False stops the run (--fail-fast after a failure)."""
+        if r.get("stage") == "write":
+            self.written(r)
+        else:
+            self.lines_done(r)
+        return not (self.spec.fail_fast and ("error" in r or "error" in r.get("written", ())))
+
+    def lines_done(self, r: dict) -> None:
+        res = self.res
+        self.n_done += 1
+        f = r["frame"]
+        self.finished.add(f)
+        if "error" in r:
+            res.failures[f] = r["error"]
+            self.lines_failed.add(f)
+        else:
+            self.lines_results[f] = r["strokes"]
+            self.underlays[f] = r.get("underlays")
+            res.ray_tracers.add(r["ray_tracer"])
+            res.frame_seconds[f] = r["seconds"]
+            res.outputs += r["files"]
+            _add_timings(self.stage, r["timings"])
+        if self.progress:
+            self.progress("lines", self.n_done, self.n_lines)
+        if "written" in r:
+            self.written(r["written"])
+        self.advance()
+
+    def advance(self) -> None:
+        """Track and queue for writing every frame whose earlier frames are all done."""
+        need, done_before = self.need_lines, self.resume.done_before
+        while self.cursor < len(need) and need[self.cursor] in self.finished:
+            f = need[self.cursor]
+            if f in self.lines_failed and self.spec.fail_fast:
+                return  # --fail-fast: no frame after a failed one is tracked or written
+            self.cursor += 1
+            if f not in self.lines_results:
+                continue
+            if self.tracker is not None:
+                t = time.perf_counter()
+                self.lines_results[f] = self.tracker.step(self.lines_results[f])
+                self.stage["tracking"].seconds += time.perf_counter() - t
+            self.ordered.append(f)
+            if self.write_in_task is not None:
+                continue  # written by its frame task
+            if f not in done_before:
+                self.pending.appendleft((write_task, self.lines_results[f], f, self.spec.outputs,
+                                         self.spec.lines.kinds, self.extra, self.underlays.pop(f, None),
+                                         self.scene_key))
+            if not self.keep_strokes and f in done_before:
+                self.lines_results.pop(f)
+
+    def written(self, r: dict) -> None:
+        res = self.res
+        self.n_written += 1
+        f = r["frame"]
+        if "error" in r:
+            res.failures[f] = r["error"]
+        else:
+            res.outputs += r["files"]
+            res.frames_ok.append(f)
+            res.frame_seconds[f] = res.frame_seconds.get(f, 0.0) + r["seconds"]
+            _add_timings(self.stage, r["timings"])
+        if not self.keep_strokes:
+            self.lines_results.pop(f, None)
+        if self.progress:
+            # Frames whose lines failed are never written: they leave the total.
+            failed = len(self.lines_failed.intersection(self.to_write))
+            self.progress("write", self.n_written, len(self.to_write) - failed)
+
+    def write_before_failure(self) -> None:
+        """After a stop at a failure (--fail-fast): the frames before it whose lines are done are
+        tracked (advance) and written, here, in frame order (their write tasks were left in line)."""
+        order = {f: k for k, f in enumerate(self.frames)}
+        stop_at = min((order[f] for f in self.res.failures), default=len(self.frames))
+        rest = sorted((item for item in self.pending if item[0] is write_task and order[item[2]] < stop_at),
+                      key=lambda item: order[item[2]])
+        self.pending.clear()
+        for item in rest:
+            self.written(write_task(*item[1:]))
+
+    def enter_written(self) -> None:
+        """Enter the frames written since the start in the run manifest (see ResumePlan)."""
+        resume, out = self.resume, self.spec.outputs
+        done = resume.enter_later.intersection(self.res.frames_ok)
+        resume.entries.update((f, resume.manifest["frames"][f]) for f in done)
+        stale = []
+        if resume.tracking_on and self.lines_failed:
+            # The frames after a frame whose lines failed were tracked without it: they are
+            # not what a run with it gives, so they leave the manifest and a resume renders
+            # them again (their digests chain through the failed frame).
+            first = self.frames.index(min(self.lines_failed, key=self.frames.index))
+            stale = [f for f in self.frames[first + 1:] if resume.entries.pop(f, None) is not None]
+        if done or stale:
+            write_run_manifest(out.out_dir, resume.manifest, resume.entries)
+
+
+def write_sequence_glb(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, stream: FrameStream) -> None:
+    """sequence.glb (--gltf-sequence): every tracked frame of the run, one node per frame."""
+    out = spec.outputs
+    if not (out.gltf and out.gltf_sequence and stream.ordered):
+        return
+    t = time.perf_counter()
+    seq = [stream.lines_results[f] for f in stream.ordered]
+    depth_at = _surface_depth(out, stream.scene_key)
+    res.outputs.append(str(atomic_write_bytes(out.out_dir / "sequence.glb",
+                                              glb_for_sequence(seq, out.gltf_options, depth_at))))
+    stage["ribbons + glTF"].seconds += time.perf_counter() - t
+
+
+def clean_up(spec: RunSpec, res: RunResult, resume: ResumePlan | None, interrupted: bool = False) -> None:
+    """After Ctrl-C (`interrupted`) or failed frames: a frame is on disk whole or not at all.
+    After Ctrl-C the temporaries of writes in progress go, and frames whose files this run all
+    wrote count as written though their results never came back."""
+    before = resume.before if resume is not None else None
+    if interrupted:
+        remove_temp_files(spec)
+        _frames_found_whole(spec, res, before)
+    _remove_partial_frames(spec, res, before)
+
+
+def _file_states(paths) -> dict[str, tuple]:
+    """{path: (inode, mtime_ns, size)} of the files among `paths` that exist."""
+    out = {}
+    for p in paths:
+        try:
+            s = os.stat(p)
+        except OSError:
+            continue
+        out[str(p)] = (s.st_ino, s.st_mtime_ns, s.st_size)
+    return out
+
+
+def _written_by_run(p: Path, before: dict[str, tuple] | None) -> bool:
+    """Whether file `p` exists and was written by this run: it was not there at the start (see
+    `before`), or has changed since. False when the run never took stock (nothing written yet)."""
+    if before is None:
+        return False
+    now = _file_states([p])
+    return str(p) in now and before.get(str(p)) != now[str(p)]
+
+
+def _frames_found_whole(spec: RunSpec, res: RunResult, before: dict[str, tuple] | None) -> None:
+    """After Ctrl-C: frames whose every file this run wrote count as written, though their results
+    never came back (the interrupt fell between the last rename and the report of a worker, or
+    of this process)."""
+    known = set(res.frames_ok) | set(res.failures) | set(res.frames_skipped)
+    listed = set(res.outputs)
+    for f, _ in spec.cameras:
+        if f in known:
+            continue
+        paths = spec.outputs.frame_files(f)
+        if paths and all(_written_by_run(p, before) for p in paths):
+            res.frames_ok.append(f)
+            res.outputs += [str(p) for p in paths if str(p) not in listed]
+
+
+def _remove_partial_frames(spec: RunSpec, res: RunResult, before: dict[str, tuple] | None) -> None:
+    """Files this run wrote of frames it did not write whole: the raster images of a frame whose
+    lines failed to be written, or that a stop (Ctrl-C, --fail-fast) left untracked. Removed with
+    the rest of the frame's files (an earlier run's, which would make a frame of two runs), so that
+    a frame is on disk whole or not at all. A frame this run did not touch stays as it was."""
+    keep = set(res.frames_ok) | set(res.frames_skipped)
+    gone = set()
+    for f, _ in spec.cameras:
+        if f in keep:
+            continue
+        paths = spec.outputs.frame_files(f)
+        if not any(_written_by_run(p, before) for p in paths):
+            continue  # untouched: an earlier run's frame stays as it was
+        # Some of it is new: an earlier run's files of it would make a frame of two runs.
+        for p in paths:
+            try:
+                p.unlink()
+                gone.add(str(p))
+            except OSError:
+                continue
+    if gone:
+        res.outputs[:] = [o for o in res.outputs if o not in gone]
+
+
+def _finish(res: RunResult, t_start: float) -> RunResult:
+    res.frames_ok.sort()
+    res.outputs.sort()
+    res.wall_seconds = time.perf_counter() - t_start
+    return res
+
+
+def remove_temp_files(spec: RunSpec) -> list[Path]:
+    """Remove the temporary files (.<name>.<random>.part) that writes of this run's outputs left
+    in its output folder (a worker stopped mid-write); returns them. Others' files are not touched."""
+    out = spec.outputs
+    names = {p.name for f, _ in spec.cameras for p in out.frame_files(f)} | {"sequence.glb"}
+    removed = []
+    try:
+        temps = list(out.out_dir.glob(".*.part"))
+    except OSError:
+        return removed
+    for tmp in temps:
+        if temp_file_target(tmp) in names:
+            tmp.unlink(missing_ok=True)
+            removed.append(tmp)
+    return removed

@@ -1,0 +1,183 @@
+"""What a run is asked to do (`RunSpec`, `OutputOptions`: typed, picklable), which stages that
+needs (`plan_stages`), and what it did (`RunResult`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from strokekit.camera.view import Camera
+from strokekit.errors import UsageError
+from strokekit.options import LineOptions
+from strokekit.raster.bands import RasterOptions
+from strokekit.scene.load import Scene
+from strokekit.tracking.options import TrackingOptions
+from strokekit.writers.gltf import GltfOptions
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """What to write and where. `pattern` names a frame's files (without extension)."""
+
+    out_dir: Path
+    pattern: str = "frame_{frame:04d}"
+    svg: bool = True
+    json: bool = True
+    gltf: bool = False
+    gltf_sequence: bool = False
+    decimals: int = 2
+    stroke_width_px: float = 1.5
+    gltf_options: GltfOptions | None = None  # None: GltfOptions()
+    raster_options: RasterOptions | None = None  # None: no raster pass
+
+    def stem(self, frame: int) -> str:
+        return self.pattern.format(frame=frame)
+
+    def check_names(self, frames) -> None:
+        """UsageError when the pattern gives two of `frames` the same name (a pattern such as
+        f_{frame:.0e} writes frames 10, 11 and 12 to one file: each would overwrite the last)."""
+        seen: dict[str, int] = {}
+        for f in frames:
+            name = self.stem(f)
+            if name in seen:
+                raise UsageError(f"--pattern {self.pattern!r} names frames {seen[name]} and {f} alike ({name!r}): "
+                                 "one would overwrite the other")
+            seen[name] = f
+
+    def frame_file(self, frame: int, suffix: str) -> Path:
+        """OUT/<pattern>.<suffix>: the suffix is appended, never replaces a dotted part of the
+        name (a pattern like shot.{frame:04d} keeps its frame number)."""
+        return self.out_dir / f"{self.stem(frame)}{suffix}"
+
+    def frame_files(self, frame: int) -> list[Path]:
+        """The files one frame produces with these options."""
+        stem = self.out_dir / self.stem(frame)
+        out = []
+        if self.svg:
+            out.append(self.frame_file(frame, ".svg"))
+        if self.json:
+            out.append(self.frame_file(frame, ".json"))
+        if self.gltf and not self.gltf_sequence:
+            out.append(self.frame_file(frame, ".glb"))
+        if self.raster_options is not None:
+            out += [Path(f"{stem}_{s}.png") for s in raster_file_suffixes(self.raster_options)]
+        return out
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything a run needs; cheap to pickle."""
+
+    scene_path: str
+    cameras: tuple[tuple[int, Camera], ...]
+    lines: LineOptions
+    outputs: OutputOptions
+    tracking: TrackingOptions | None = None  # None: no tracking
+    workers: int = 1
+    scheduler: str | None = None
+    skip_existing: bool = False  # resume: see run(); frames of another scene or options are a UsageError
+    fail_fast: bool = False
+    camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
+
+
+@dataclass
+class StageRecord:
+    name: str
+    ran: bool
+    why: str
+    seconds: float = 0.0
+
+
+@dataclass
+class RunResult:
+    frames_ok: list[int] = field(default_factory=list)
+    frames_skipped: list[int] = field(default_factory=list)
+    failures: dict[int, str] = field(default_factory=dict)
+    outputs: list[str] = field(default_factory=list)
+    stages: list[StageRecord] = field(default_factory=list)
+    frame_seconds: dict[int, float] = field(default_factory=dict)
+    wall_seconds: float = 0.0
+    scene_hash: str = ""
+    scene_summary: dict = field(default_factory=dict)
+    #: Stopped by Ctrl-C (KeyboardInterrupt): frames_ok are the frames written before it.
+    interrupted: bool = False
+    #: The occlusion backends the frames' lines came from (Occluder.backend: 'open3d', or a
+    #: fallback whose drawing can differ in the last digits): one, unless processes differed.
+    ray_tracers: set = field(default_factory=set)
+
+    @property
+    def exit_code(self) -> int:
+        if self.interrupted:
+            return 130  # the shell's code for a process stopped by SIGINT
+        if not self.failures:
+            return 0
+        return 3 if self.frames_ok or self.frames_skipped else 1
+
+    @property
+    def status(self) -> str:
+        """'ok', 'interrupted', 'partial' (some frames failed) or 'failed' (no frame done)."""
+        if self.interrupted:
+            return "interrupted"
+        return {0: "ok", 3: "partial"}.get(self.exit_code, "failed")
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a run. The run has shut its workers down and removed the temporary files
+    they left; `result` holds what was done before (frames written, failures, timings), with
+    `result.interrupted` set. A KeyboardInterrupt, so code that does not know it stops as usual."""
+
+    def __init__(self, result: RunResult):
+        super().__init__("run interrupted")
+        self.result = result
+
+
+# --- the stage plan -------------------------------------------------------------------------------
+
+def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
+    """Which stages run for this scene and these outputs, and why (for --explain and the report)."""
+    o, L = spec.outputs, spec.lines
+    kinds = set(L.kinds)
+    st = [StageRecord("load scene + BVH", True, "every run needs the scene and its occlusion BVH")]
+
+    def add(name, ran, yes, no):
+        st.append(StageRecord(name, bool(ran), yes if ran else no))
+
+    st.append(StageRecord("feature edges", True, "candidate edges of the kinds below that ran"))
+    add("  silhouette (mesh contour)", "silhouette" in kinds and L.contours == "mesh" and scene.is_manifold.any(),
+        "silhouette lines requested", "not requested, smooth contours chosen, or no manifold edges")
+    add("  smooth contour", L.contours == "smooth" or "smooth_contour" in kinds, "smooth contours requested",
+        "mesh contours chosen")
+    add("  border", "border" in kinds and scene.is_border.any(), "border lines requested and the scene has borders",
+        "not requested or the scene has no border edges")
+    add("  crease", "crease" in kinds and scene.crease_mask(L.crease_angle_deg).any(),
+        f"crease lines requested, creases above {L.crease_angle_deg:g} deg exist",
+        "not requested or no edge is sharper than the crease angle")
+    add("  material boundary", "material" in kinds and len(scene.materials) > 1 and scene.is_material_boundary.any(),
+        "requested and faces of different materials meet",
+        "not requested, or no edge between faces of different materials")
+    add("  nonmanifold", "nonmanifold" in kinds and scene.is_nonmanifold.any(),
+        "requested and non-manifold edges exist", "not requested or no non-manifold edge")
+    add("  suggestive contour", "suggestive" in kinds, "requested", "not requested")
+    add("  intersection", "intersection" in kinds, "requested", "not requested")
+    st.append(StageRecord("visibility", True, "Embree occlusion samples and bisection of every change"))
+    st.append(StageRecord("chaining", True, "visible runs linked into strokes"))
+    n = len(spec.cameras)
+    add("tracking", spec.tracking is not None and n > 1,
+        f"{n} frames with coherence on", "single frame or --no-coherence")
+    add("svg", o.svg, "SVG output requested", "--no-svg")
+    add("json", o.json, "JSON output requested", "--no-json")
+    add("ribbons + glTF", o.gltf, "glTF output requested", "no glTF output requested")
+    add("raster pass", o.raster_options is not None, "a raster output was requested", "no raster output requested")
+    return st
+
+
+def raster_file_suffixes(options) -> list[str]:
+    """File suffixes (frame_0001_<suffix>.png) that `raster_outputs` writes for RasterOptions."""
+    out = ["bands"]
+    if options.shade:
+        out.append("shade")
+    if options.masks:
+        out += [f"mask_{b}" for b in range(1, int(options.bands) + 1)]
+    out += [name for name, on in (("objectid", options.objectid), ("depth", options.depth), ("fill", options.fill))
+            if on]
+    return out

@@ -1,0 +1,580 @@
+"""Scene loading: any mesh file flattened to one welded triangle soup in world space.
+
+A `Scene` holds float64 world vertices welded by position, faces, a per-face object id and
+material id, and cached topology (edges, their faces, static edge kinds). UV and normal seams
+disappear in the weld, so they never become borders. Degenerate and duplicate faces are dropped
+from the scene and counted.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import re
+import struct
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from urllib.parse import unquote
+
+import numpy as np
+
+from strokekit.errors import InputError, hold_interrupts
+from strokekit.fileio import atomic_write_bytes
+
+SUPPORTED = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    base_color: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """World-space triangle scene. vertices (V, 3) float64, faces (F, 3) int64,
+    face_object (F,) int32 indices into `objects`, face_material (F,) int32 into `materials`."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_object: np.ndarray
+    face_material: np.ndarray
+    objects: tuple[str, ...] = ()
+    materials: tuple[Material, ...] = ()
+    source: str = ""
+    dropped_degenerate: int = 0
+    dropped_duplicate: int = 0
+    input_vertices: int = 0
+
+    # --- geometry --------------------------------------------------------------------------
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) min and max corners."""
+        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    @cached_property
+    def center(self) -> np.ndarray:
+        return self.bounds.mean(axis=0)
+
+    @cached_property
+    def radius(self) -> float:
+        """Radius of the bounding sphere around `center` (world units); > 0 for any non-empty scene."""
+        r = float(np.linalg.norm(self.vertices - self.center, axis=1).max())
+        return r if r > 0 else 1.0
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit normals from the winding, float64. Degenerate faces were dropped, so no NaN."""
+        v = self.vertices
+        # Relative to the first vertex for precision when the scene is far from the origin.
+        a = v[self.faces[:, 0]]
+        n = np.cross(v[self.faces[:, 1]] - a, v[self.faces[:, 2]] - a)
+        return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+    @cached_property
+    def face_normal_rows(self) -> np.ndarray:
+        """(3, F) face_normals as contiguous rows (for column-wise arithmetic on (3, N) arrays)."""
+        return np.ascontiguousarray(self.face_normals.T)
+
+    @cached_property
+    def face_offsets(self) -> np.ndarray:
+        """(F,) plane offsets n.P for the face centroid: facing(eye) = sign(n.eye - offset)."""
+        c = self.vertices[self.faces].mean(axis=1)
+        return np.einsum("ij,ij->i", self.face_normals, c)
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        v = self.vertices
+        a = v[self.faces[:, 0]]
+        return 0.5 * np.linalg.norm(np.cross(v[self.faces[:, 1]] - a, v[self.faces[:, 2]] - a), axis=1)
+
+    # --- topology --------------------------------------------------------------------------
+    @cached_property
+    def edges(self) -> np.ndarray:
+        """(E, 2) unique undirected edges, vertex ids sorted within each row, rows sorted."""
+        return self._topology[0]
+
+    @cached_property
+    def edge_faces(self) -> np.ndarray:
+        """(E, 2) the first two faces of each edge; -1 where the edge has fewer."""
+        return self._topology[1]
+
+    @cached_property
+    def edge_face_count(self) -> np.ndarray:
+        """(E,) how many faces use each edge: 1 border, 2 manifold, > 2 non-manifold."""
+        return self._topology[2]
+
+    @cached_property
+    def _topology(self):
+        f = self.faces
+        half = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+        face_of = np.tile(np.arange(len(f)), 3)
+        half.sort(axis=1)
+        key = half[:, 0].astype(np.int64) * (len(self.vertices) + 1) + half[:, 1]
+        order = np.argsort(key, kind="stable")
+        key_sorted = key[order]
+        starts = np.flatnonzero(np.r_[True, key_sorted[1:] != key_sorted[:-1]])
+        counts = np.diff(np.r_[starts, len(key_sorted)])
+        edges = half[order[starts]]
+        ef = np.full((len(starts), 2), -1, dtype=np.int64)
+        ef[:, 0] = face_of[order[starts]]
+        two = counts >= 2
+        ef[two, 1] = face_of[order[starts[two] + 1]]
+        return edges, ef, counts
+
+    @cached_property
+    def dihedral_cos(self) -> np.ndarray:
+        """(E,) cosine of the angle between the two face normals of each manifold edge (1 elsewhere)."""
+        ef = self.edge_faces
+        ok = ef[:, 1] >= 0
+        c = np.ones(len(ef))
+        n = self.face_normals
+        c[ok] = np.einsum("ij,ij->i", n[ef[ok, 0]], n[ef[ok, 1]])
+        return c
+
+    @cached_property
+    def is_border(self) -> np.ndarray:
+        return self.edge_face_count == 1
+
+    @cached_property
+    def is_nonmanifold(self) -> np.ndarray:
+        return self.edge_face_count > 2
+
+    @cached_property
+    def is_manifold(self) -> np.ndarray:
+        return self.edge_face_count == 2
+
+    @cached_property
+    def is_material_boundary(self) -> np.ndarray:
+        ef = self.edge_faces
+        ok = self.is_manifold
+        out = np.zeros(len(ef), bool)
+        out[ok] = self.face_material[ef[ok, 0]] != self.face_material[ef[ok, 1]]
+        return out
+
+    def crease_mask(self, threshold_deg: float) -> np.ndarray:
+        """(E,) manifold edges whose face normals differ by more than `threshold_deg` degrees."""
+        return self.is_manifold & (self.dihedral_cos < np.cos(np.radians(threshold_deg)))
+
+    @cached_property
+    def content_hash(self) -> str:
+        h = hashlib.sha256()
+        for a in (self.vertices, self.faces, self.face_object, self.face_material):
+            h.update(np.ascontiguousarray(a).tobytes())
+        return h.hexdigest()[:16]
+
+    def summary(self) -> dict:
+        """What `strokekit info` prints: counts, bounds and what lines the scene can have."""
+        return {
+            "source": self.source,
+            "objects": len(self.objects),
+            "object_names": list(self.objects),
+            "materials": [m.name for m in self.materials],
+            "faces": int(len(self.faces)),
+            "vertices_welded": int(len(self.vertices)),
+            "vertices_in_file": int(self.input_vertices),
+            "dropped_degenerate_faces": int(self.dropped_degenerate),
+            "dropped_duplicate_faces": int(self.dropped_duplicate),
+            "bounds_min": [float(x) for x in self.bounds[0]],
+            "bounds_max": [float(x) for x in self.bounds[1]],
+            "edges": int(len(self.edges)),
+            "border_edges": int(self.is_border.sum()),
+            "nonmanifold_edges": int(self.is_nonmanifold.sum()),
+            "crease_edges_60deg": int(self.crease_mask(60.0).sum()),
+            "material_boundary_edges": int(self.is_material_boundary.sum()),
+            "line_kinds": self.available_kinds(),
+        }
+
+    def available_kinds(self, crease_deg: float = 60.0) -> list[str]:
+        kinds = ["silhouette"] if self.is_manifold.any() else []
+        if self.is_border.any():
+            kinds.append("border")
+        if self.crease_mask(crease_deg).any():
+            kinds.append("crease")
+        if self.is_material_boundary.any():
+            kinds.append("material")
+        if self.is_nonmanifold.any():
+            kinds.append("nonmanifold")
+        return kinds
+
+
+def build_scene(vertices: np.ndarray, faces: np.ndarray, face_object: np.ndarray | None = None,
+                face_material: np.ndarray | None = None, *, objects=("mesh",), materials=(Material("default"),),
+                source: str = "") -> Scene:
+    """Weld vertices by position, drop degenerate and duplicate faces, return a Scene.
+
+    vertices (V, 3) world units; faces (F, 3) vertex indices."""
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if len(f) == 0:
+        raise InputError("scene has no triangle faces", source or None)
+    if f.min() < 0 or f.max() >= len(v):
+        raise InputError("face refers to a vertex that does not exist", source or None)
+    used = np.unique(f)
+    if not np.all(np.isfinite(v[used])):
+        bad = int((~np.isfinite(v[used]).all(axis=1)).sum())
+        raise InputError(f"{bad} {'vertex has' if bad == 1 else 'vertices have'} NaN or infinite coordinates",
+                         source or None)
+    fo = np.zeros(len(f), np.int32) if face_object is None else np.asarray(face_object, np.int32)
+    fm = np.zeros(len(f), np.int32) if face_material is None else np.asarray(face_material, np.int32)
+    # Weld by exact position: seams duplicate vertices with identical coordinates.
+    uniq, inverse = np.unique(v[used], axis=0, return_inverse=True)
+    remap = np.full(len(v), -1, np.int64)
+    remap[used] = inverse.ravel()
+    f = remap[f]
+    # Degenerate: repeated vertex or zero area (relative to the scene's size).
+    a, b, c = uniq[f[:, 0]], uniq[f[:, 1]], uniq[f[:, 2]]
+    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    extent = float(np.max(uniq.max(axis=0) - uniq.min(axis=0))) or 1.0
+    degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]) | (area2 <= (1e-14 * extent) ** 2)
+    keep = ~degenerate
+    # Duplicates: the same three vertices (any order or winding); the first one stays.
+    s = np.sort(f, axis=1)
+    _, first = np.unique(s[keep], axis=0, return_index=True)
+    keep_idx = np.flatnonzero(keep)
+    dup = np.ones(len(keep_idx), bool)
+    dup[first] = False
+    n_dup = int(dup.sum())
+    keep_idx = np.sort(keep_idx[~dup])
+    if len(keep_idx) == 0:
+        raise InputError("every face is degenerate (zero area)", source or None)
+    f, fo, fm = f[keep_idx], fo[keep_idx], fm[keep_idx]
+    # Drop vertices no face uses any more, keeping order.
+    used2, f2 = np.unique(f, return_inverse=True)
+    return Scene(vertices=uniq[used2], faces=f2.reshape(-1, 3).astype(np.int64), face_object=fo, face_material=fm,
+                 objects=tuple(objects), materials=tuple(materials), source=source,
+                 dropped_degenerate=int(degenerate.sum()), dropped_duplicate=n_dup, input_vertices=len(v))
+
+
+def _material_of(geom) -> Material:
+    vis = getattr(geom, "visual", None)
+    mat = getattr(vis, "material", None)
+    if mat is None:
+        return Material("default")
+    name = getattr(mat, "name", None) or "material"
+    color = None
+    for attr in ("baseColorFactor", "main_color", "diffuse"):
+        c = getattr(mat, attr, None)
+        if c is not None:
+            c = np.asarray(c).ravel()
+            if c.size >= 3:
+                # trimesh hands colours back as uint8 (0-255) whatever the file held; floats are
+                # taken as 0-1 unless they are out of that range.
+                integer = np.issubdtype(c.dtype, np.integer)
+                c = c.astype(float)
+                if integer or c.max() > 1.0:
+                    c = c / 255.0
+                color = tuple(float(x) for x in (list(c[:3]) + [float(c[3]) if c.size > 3 else 1.0]))
+                break
+    return Material(str(name), color or (0.8, 0.8, 0.8, 1.0))
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Load OBJ, PLY, STL, OFF or glTF/GLB into a world-space Scene (node transforms applied).
+
+    Raises InputError with one clear line for missing, empty, unknown or broken files."""
+    p = Path(path)
+    if not p.exists():
+        raise InputError("file not found", p)
+    if p.is_dir():
+        raise InputError("is a directory, not a mesh file", p)
+    if p.suffix.lower() not in SUPPORTED:
+        raise InputError(f"unknown mesh format '{p.suffix}' (supported: {', '.join(SUPPORTED)})", p)
+    if p.stat().st_size == 0:
+        raise InputError("file is empty", p)
+    cache = _cache_file(p)
+    parts = _cache_read(cache)
+    cached = parts is not None
+    if not cached:
+        parts = _read_parts(p)
+    scene = build_scene(*parts[:4], objects=parts[4], materials=parts[5], source=str(p))
+    if not cached:
+        _cache_write(cache, parts)  # once build_scene has accepted it (finite, has faces)
+    return scene
+
+
+def _read_parts(p: Path) -> tuple:
+    """(vertices, faces, face_object, face_material, objects, materials) of a mesh file, world
+    space, through trimesh."""
+    if p.suffix.lower() in (".gltf", ".glb"):
+        _check_gltf(p, _gltf_document(p))
+    if p.suffix.lower() == ".stl":
+        _check_stl_length(p)
+    try:
+        loaded = _load_holding_interrupts(p)
+    except Exception as e:  # trimesh raises many kinds on bad files
+        raise InputError(f"cannot read mesh ({type(e).__name__}: {e})", p) from None
+    verts, faces, fobj, fmat = [], [], [], []
+    objects: list[str] = []
+    materials: list[Material] = []
+    mat_index: dict[tuple, int] = {}
+    offset = 0
+    for node, name in _nodes_in_stable_order(loaded):
+        transform, geom_name = loaded.graph[node]
+        geom = loaded.geometry[geom_name]
+        f = getattr(geom, "faces", None)
+        if f is None or len(f) == 0:
+            continue  # point clouds and paths have no faces
+        v = np.asarray(geom.vertices, np.float64)
+        T = np.asarray(transform, float)
+        with np.errstate(invalid="ignore", over="ignore"):  # non-finite input is reported below
+            v = v @ T[:3, :3].T + T[:3, 3]
+            mirrored = np.linalg.det(T[:3, :3]) < 0
+        f = np.asarray(f, np.int64)
+        if mirrored:
+            # A mirroring node turns the winding around (glTF 2.0, node transforms: the front
+            # face is then the clockwise one): facing, creases and welds come from the winding.
+            f = f[:, ::-1]
+        mat = _material_of(geom)
+        key = (mat.name, mat.base_color)
+        if key not in mat_index:
+            mat_index[key] = len(materials)
+            materials.append(mat)
+        verts.append(v)
+        faces.append(f + offset)
+        fobj.append(np.full(len(f), len(objects), np.int32))
+        fmat.append(np.full(len(f), mat_index[key], np.int32))
+        objects.append(name)
+        offset += len(v)
+    if not faces:
+        raise InputError("no triangle faces in file (empty, or a point cloud)", p)
+    return (np.concatenate(verts), np.concatenate(faces), np.concatenate(fobj), np.concatenate(fmat),
+            tuple(objects), tuple(materials))
+
+
+#: The bytes of a text file (tab, newlines, printable ASCII).
+_TEXT_BYTES = bytes([9, 10, 13, *range(32, 127)])
+
+
+def _check_stl_length(p: Path) -> None:
+    """InputError for a binary STL shorter than its header says (84 bytes + 50 per triangle): cut
+    off in a copy, it read as 'no triangle faces'. A file of exactly that length is binary
+    whatever its header says; otherwise one whose first 4 KB are text starting with 'solid'
+    (after a byte-order mark and blanks) is ASCII and left to the loader."""
+
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(4096)
+        size = p.stat().st_size
+    except OSError:
+        return
+    if len(head) < 84:
+        return
+    (n,) = struct.unpack_from("<I", head, 80)
+    if size == 84 + 50 * n:
+        return
+    text = head.removeprefix(b"\xef\xbb\xbf")
+    if text.lstrip()[:5].lower() == b"solid" and not text.translate(None, _TEXT_BYTES):
+        return  # ASCII (a binary header may start with 'solid' too, but its count and floats are not text)
+    if size < 84 + 50 * n:
+        raise InputError(f"truncated binary STL: its header says {n} triangles ({84 + 50 * n} bytes), the file has "
+                         f"{size} bytes", p)
+
+
+def _gltf_document(p: Path) -> dict | None:
+    """The JSON document of a .gltf file, or of a .glb's JSON chunk (None where a .glb has none
+    that parses: the loader reports it). A .gltf whose JSON does not parse is an InputError:
+    trimesh would read it as a path to look up ("FileNotFoundError: model.gltf")."""
+
+    try:
+        data = p.read_bytes()
+    except OSError:
+        return None
+    if p.suffix.lower() == ".gltf":
+        try:
+            doc = json.loads(data)
+        except ValueError as e:
+            raise InputError(f"not a glTF file: its JSON does not parse ({e})", p) from None
+    else:
+        try:
+            n, kind = struct.unpack_from("<I4s", data, 12)
+            doc = json.loads(data[20:20 + n]) if data[:4] == b"glTF" and kind == b"JSON" else None
+        except (ValueError, struct.error):
+            return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _check_gltf(p: Path, doc: dict | None) -> None:
+    """InputError for glTF triangle fans (primitive mode 6), which trimesh leaves out without a word
+    (a valid file lost part of its drawing), for a cycle in the node tree and for a node rotation
+    far from a unit quaternion. Points and lines (modes 0-3) have no faces to draw and are left
+    out as in every format. `doc`: _gltf_document(p) (None: left to the loader)."""
+    if doc is None:
+        return
+    meshes = doc.get("meshes", [])
+    meshes = meshes if isinstance(meshes, list) else []
+    fans = [(i, k) for i, m in enumerate(meshes) if isinstance(m, dict)
+            for k, prim in enumerate(m.get("primitives", []) if isinstance(m.get("primitives", []), list) else [])
+            if isinstance(prim, dict) and prim.get("mode") == 6]
+    nodes = doc.get("nodes", [])
+    nodes = nodes if isinstance(nodes, list) else []
+    if fans:
+        i, k = fans[0]
+        raise InputError(f"mesh {i} primitive {k} is a triangle fan (mode 6), which strokekit cannot read: export "
+                         "it as triangles", p)
+    # The node tree: a node that is its own ancestor, or a rotation that is no rotation, was left
+    # out (with its meshes) or read as something else without a word; the camera reader refuses both.
+    kids = [[c for c in n.get("children", []) if isinstance(c, int) and 0 <= c < len(nodes)]
+            if isinstance(n, dict) and isinstance(n.get("children", []), list) else [] for n in nodes]
+    state = [0] * len(nodes)  # 0 new, 1 on the current path, 2 done
+    for root in range(len(nodes)):
+        stack = [(root, iter(kids[root]))] if state[root] == 0 else []
+        if stack:
+            state[root] = 1
+        while stack:
+            node, it = stack[-1]
+            child = next(it, None)
+            if child is None:
+                state[node] = 2
+                stack.pop()
+            elif state[child] == 1:
+                raise InputError(f"node {child} is its own ancestor (a cycle in the node tree)", p)
+            elif state[child] == 0:
+                state[child] = 1
+                stack.append((child, iter(kids[child])))
+    for i, n in enumerate(nodes):
+        q = n.get("rotation") if isinstance(n, dict) else None
+        if isinstance(q, list) and len(q) == 4 and all(isinstance(x, (int, float)) for x in q):
+            if not (0.5 < sum(float(x) * float(x) for x in q) < 2.0):
+                raise InputError(f"node {i} has rotation {q}, which is not a unit quaternion", p)
+
+
+# --- scene cache ----------------------------------------------------------------------------------
+# Parsing a mesh file costs the trimesh import (~0.8 s) and the parse (~0.3 s for the bunny) in
+# every process of a run (the main one and each worker), and again on every run. The parsed
+# arrays are kept in a cache folder under a key of the file's bytes and the versions of the
+# code that read them: the same bytes give the same arrays, so outputs do not change.
+
+#: Bump when the reading of files changes (naming, ordering, materials).
+_CACHE_FORMAT = 4  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans refused;
+#   4: glTF node cycles and non-unit rotations refused
+
+
+def _cache_dir() -> Path | None:
+    """$STROKEKIT_CACHE_DIR, else $XDG_CACHE_HOME/strokekit, else ~/.cache/strokekit;
+    None when STROKEKIT_CACHE=0."""
+
+    if os.environ.get("STROKEKIT_CACHE", "1") == "0":
+        return None
+    if os.environ.get("STROKEKIT_CACHE_DIR"):
+        return Path(os.environ["STROKEKIT_CACHE_DIR"])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "strokekit"
+
+
+def _cache_file(p: Path) -> Path | None:
+    """The cache file of mesh file `p` (None: the cache is off): named by the hash of its bytes,
+    of the files it refers to (an OBJ's material libraries, a .gltf's external buffers and
+    images: editing one of them is a new scene) and of the versions of the code that reads them."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    folder = _cache_dir()
+    if folder is None:
+        return None
+    try:
+        stamp = f"{_CACHE_FORMAT}|{version('trimesh')}|{version('numpy')}|{p.suffix.lower()}|"
+    except PackageNotFoundError:
+        return None
+    h = hashlib.sha256(stamp.encode())
+    obj = p.suffix.lower() == ".obj"
+    names: list[bytes] = []
+    carry = b""
+    with open(p, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+            if obj:  # mtllib lines, whole lines only (a block may end inside one)
+                text = carry + block
+                cut = text.rfind(b"\n") + 1
+                if b"mtllib" in text[:cut]:  # (a plain search first: the regex is 4x slower)
+                    names += _MTLLIB.findall(text[:cut])
+                carry = text[cut:]
+    names += _MTLLIB.findall(carry) if obj else []
+    for ref in _referenced_files(p, names):
+        h.update(b"|" + str(ref.name).encode())
+        try:
+            h.update(hashlib.sha256(ref.read_bytes()).digest())
+        except OSError:
+            h.update(b"(missing)")
+    return folder / "scenes" / f"{h.hexdigest()}.npz"
+
+
+_MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+([^\r\n]*?)[ \t]*\r?$", re.M)
+
+
+def _referenced_files(p: Path, mtllib: list[bytes]) -> list[Path]:
+    """The files that mesh file `p` refers to and trimesh reads with it: the material libraries of
+    an OBJ (`mtllib` lines), the external buffers and images of a .gltf."""
+    if p.suffix.lower() == ".obj":
+        return [p.parent / n.decode("utf-8", "replace") for n in mtllib if n]
+    if p.suffix.lower() != ".gltf":
+        return []
+
+    try:
+        doc = json.loads(p.read_bytes())
+        uris = [x.get("uri") for key in ("buffers", "images") for x in doc.get(key) or [] if isinstance(x, dict)]
+    except (ValueError, AttributeError, TypeError):
+        return []  # not parsed here: the load reports it
+    return [p.parent / unquote(u) for u in uris if isinstance(u, str) and u and not u.startswith("data:")]
+
+
+def _cache_read(f: Path | None) -> tuple | None:
+    if f is None:
+        return None
+    try:
+        with np.load(f, allow_pickle=False) as z:
+
+            objects = tuple(json.loads(str(z["objects"])))
+            materials = tuple(Material(m[0], tuple(m[1])) for m in json.loads(str(z["materials"])))
+            return (z["vertices"], z["faces"], z["face_object"], z["face_material"], objects, materials)
+    except Exception:  # absent, unreadable, truncated (BadZipFile, EOFError, zlib.error) or from
+        return None  # another layout: a cache never breaks a load, the file is read again
+
+
+def _cache_write(f: Path | None, parts: tuple) -> None:
+    if f is None:
+        return
+
+    buf = io.BytesIO()
+    np.savez(buf, vertices=parts[0], faces=parts[1], face_object=parts[2], face_material=parts[3],
+             objects=np.array(json.dumps(list(parts[4]))),
+             materials=np.array(json.dumps([[m.name, list(m.base_color)] for m in parts[5]])))
+    try:
+        atomic_write_bytes(f, buf.getvalue())
+    except OSError:  # a read-only home or a full disk only costs the next run its parse time
+        pass
+
+
+def _object_name(node: str, geometry: str, parent: str | None) -> str:
+    """The name of a scene object: its glTF node's name, or its mesh's name where trimesh made the
+    node name up. trimesh names a node without a name by its index, and gives each primitive of a
+    multi-primitive mesh a child node "<parent>_<6 random hex digits>", new on every load: such a
+    name must neither name the object nor order the faces."""
+    made_up = node.isdigit() or (parent is not None and re.fullmatch(re.escape(parent) + r"_[0-9a-f]{6}", node))
+    return geometry if made_up else node
+
+
+def _nodes_in_stable_order(loaded) -> list[tuple]:
+    """(node, object name) of the geometry nodes of a trimesh scene, in an order that is the same
+    on every load: by object name, mesh name (deterministic) and world transform. Face order,
+    object ids and the scene hash follow from it."""
+    parents = loaded.graph.transforms.parents
+    rows = []
+    for node in loaded.graph.nodes_geometry:
+        transform, geom_name = loaded.graph[node]
+        parent = parents.get(node)
+        name = _object_name(str(node), str(geom_name), None if parent is None else str(parent))
+        rows.append(((name, str(geom_name), np.asarray(transform, np.float64).tobytes()), node, name))
+    rows.sort(key=lambda r: r[0])
+    return [(node, name) for _, node, name in rows]
+
+
+def _load_holding_interrupts(path: Path):
+    """Import trimesh and load `path` with Ctrl-C held until done (hold_interrupts: trimesh
+    catches BaseException around its optional imports and between loaders)."""
+    with hold_interrupts():
+        import trimesh
+
+        return trimesh.load(str(path), force="scene", process=False)
