@@ -125,7 +125,7 @@ def test_options_are_checked():
     with pytest.raises(UsageError):
         TrackingOptions(method="magic")
     with pytest.raises(UsageError):
-        TrackingOptions(period_px=0)
+        TrackingOptions(search_radius_px=0)
     # Fields the command line does not expose: dense_spacing_px 0 raised a numpy ValueError on
     # frame 2, bend_weight -1 gave NaN u, negative spacings were quietly taken.
     for bad in ({"dense_spacing_px": 0}, {"dense_spacing_px": -1}, {"bend_weight": -1}, {"knot_spacing_px": -1},

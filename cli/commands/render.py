@@ -14,7 +14,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from strokekit.camera.frames import parse_frames
 from strokekit.camera.paths import load_camera_path, orbit_path
-from strokekit.camera.view import MAX_IMAGE_PX
+from strokekit.camera.view import MAX_IMAGE_PX, CameraPath
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
 from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
@@ -120,34 +120,78 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
 @click.option("--report", "report_path", type=click.Path(), default=None, help="Write a JSON run report.")
 @click.option("--explain", is_flag=True, help="List the stages that ran, why, and their time.")
 @render_extra_options
-def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out_dir, pattern, kinds, contours, quality,
-            crease_angle, whole_edge, sample_spacing, bisection_tol, split_angle, max_length, min_length, simplify_tol, doubled, drop_retraced, period,
-            suggestive_threshold, suggestive_kr_threshold, svg, write_json, decimals, stroke_width, workers, scheduler, skip_existing, fail_fast, quiet, report_path,
-            explain, **extra):
+def command(scene, **o):
     """Render the visible feature lines of SCENE for every frame of a camera path (--camera, or
     --orbit N; without either, a 48-frame orbit).
 
     Writes OUT/frame_0001.svg and .json (and .glb, band PNGs when asked) per frame. Exit codes: 0 done,
     1 bad input or unwritable output, 2 usage error, 3 some frames failed (the others are written),
     130 interrupted by Ctrl-C (the frames written so far stay, whole; --report lists them)."""
-    if camera_file and orbit:
-        raise UsageError("give either --camera or --orbit, not both")
-    _check_option_pairs(camera_file, svg, extra)
-    if not (svg or write_json or extra.get("gltf") or extra.get("gltf_sequence") or extra.get("bands")):
-        raise UsageError("nothing to write: every output is turned off")
-    check_pattern(pattern)
-    width = height = None
-    if size:
+    size = _check_usage(o)
+    lines = _line_options(o)
+    path = _camera_file_path(o, size)
+    frames = parse_frames(o["frame_spec"], len(path) if path is not None else o["orbit"] or 48)
+    workers = o["workers"] or ((os.cpu_count() or 1) if len(frames) >= 8 else 1)
+    workers = min(workers, len(frames))
+    # The workers start before this process loads the scene: their start-up (imports, scene,
+    # BVH: about a second) overlaps ours.
+    if not Path(scene).is_file():
+        load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
+    t_start = time.perf_counter()
+    pool = make_executor(workers, o["scheduler"], warm=(str(scene), lines))
+    spec = None
+    try:
+        t_load = time.perf_counter()
+        s = load_scene(scene)
+        load_seconds = time.perf_counter() - t_load
+        if path is None:
+            width, height = size or (1024, 1024)
+            path = orbit_path(s.center, s.radius, o["orbit"] or 48, elevation=o["elevation"], fov_y=o["fov"],
+                              width=width, height=height, up_axis=o["up"])
+        spec = _run_spec(scene, o, lines, path, frames, workers)
         try:
-            width, height = (int(x) for x in size.lower().split("x"))
+            res = _run_with_progress(spec, o["quiet"], dict(workers=pool, scene=s, load_seconds=load_seconds,
+                                                            started_at=t_start))
+        except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
+            res = e.result
+    except KeyboardInterrupt:
+        if spec is not None:
+            raise
+        # Ctrl-C while the scene loads, before the run: nothing written; the report still says so.
+        res = RunResult(interrupted=True, wall_seconds=time.perf_counter() - t_start)
+        spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)) if path is not None else (),
+                       lines=lines, outputs=OutputOptions(out_dir=Path(o["out_dir"]), pattern=o["pattern"]),
+                       workers=workers, scheduler=o["scheduler"])
+    finally:
+        pool.close()
+    if o["report_path"]:
+        atomic_write_text(o["report_path"], json.dumps(run_report(spec, res), indent=1) + "\n")
+    _say_result(o, spec, res, len(frames))
+    return res.exit_code
+
+
+def _check_usage(o: dict) -> tuple[int, int] | None:
+    """Usage errors before any work (one line, exit 2); outputs that cannot be written are said now,
+    not after every frame has been rendered. Returns --size as (width, height), or None."""
+    if o["camera_file"] and o["orbit"]:
+        raise UsageError("give either --camera or --orbit, not both")
+    _check_option_pairs(o["camera_file"], o["svg"], o)
+    if not (o["svg"] or o["write_json"] or o.get("gltf") or o.get("gltf_sequence") or o.get("bands")):
+        raise UsageError("nothing to write: every output is turned off")
+    check_pattern(o["pattern"])
+    size = None
+    if o["size"]:
+        try:
+            width, height = (int(x) for x in o["size"].lower().split("x"))
         except Exception:
-            raise UsageError(f"bad --size {size!r}: use WxH, e.g. 1024x768") from None
+            raise UsageError(f"bad --size {o['size']!r}: use WxH, e.g. 1024x768") from None
         if not (0 < width <= MAX_IMAGE_PX and 0 < height <= MAX_IMAGE_PX):
-            raise UsageError(f"bad --size {size!r}: width and height must be positive and at most {MAX_IMAGE_PX} px "
-                             "(as in camera files)")
-    if not (stroke_width > 0 and math.isfinite(stroke_width)):
-        raise UsageError(f"--stroke-width must be a finite number > 0 px, got {stroke_width}")
-    # Outputs that cannot be written are said now, not after every frame has been rendered.
+            raise UsageError(f"bad --size {o['size']!r}: width and height must be positive and at most "
+                             f"{MAX_IMAGE_PX} px (as in camera files)")
+        size = (width, height)
+    if not (o["stroke_width"] > 0 and math.isfinite(o["stroke_width"])):
+        raise UsageError(f"--stroke-width must be a finite number > 0 px, got {o['stroke_width']}")
+    out_dir, report_path = o["out_dir"], o["report_path"]
     if not str(out_dir).strip():
         raise UsageError("--out needs a folder name (use --out . for the current folder)")
     check_output_folder(out_dir)
@@ -157,73 +201,52 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
         check_output_file(report_path)
         if Path(report_path).resolve() == Path(out_dir).resolve():
             raise UsageError(f"--report {report_path} is the --out folder: name a file for the report")
-    lines = LineOptions.preset(quality, kinds=split_list(kinds, "--kinds"), contours=contours, crease_angle_deg=crease_angle,
-                               whole_edge_px=whole_edge, sample_spacing_px=sample_spacing,
-                               bisection_tol_px=bisection_tol,
-                               split_angle_deg=split_angle, max_length_px=max_length, min_length_px=min_length,
-                               simplify_tol_px=simplify_tol, doubled_px=doubled, merge_overlaps=drop_retraced,
-                               period_px=period,
-                               suggestive_derivative_threshold=suggestive_threshold,
-                               suggestive_kr_threshold=suggestive_kr_threshold)
-    path = None
-    if camera_file:
-        path = load_camera_path(camera_file)
-        if width:
+    return size
 
-            path = type(path)(cameras=tuple(replace(c, width=width, height=height) for c in path.cameras),
-                              fps=path.fps, source=path.source)
-    frames = parse_frames(frame_spec, len(path) if path is not None else orbit or 48)
-    if workers is None:
-        workers = (os.cpu_count() or 1) if len(frames) >= 8 else 1
-    workers = min(workers, len(frames))
-    # The workers start before this process loads the scene: their start-up (imports, scene,
-    # BVH: about a second) overlaps ours.
-    if not Path(scene).is_file():
-        load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
-    t_start = time.perf_counter()
-    pool = make_executor(workers, scheduler, warm=(str(scene), lines))
-    spec = None
-    try:
-        t_load = time.perf_counter()
-        s = load_scene(scene)
-        load_seconds = time.perf_counter() - t_load
-        if path is None:
-            path = orbit_path(s.center, s.radius, orbit or 48, elevation=elevation, fov_y=fov, width=width or 1024,
-                              height=height or 1024, up_axis=up)
-        gltf_options = gltf_options_from(extra, lines, path.fps)
-        outputs = OutputOptions(out_dir=Path(out_dir), pattern=pattern, svg=svg, json=write_json,
-                                decimals=decimals, stroke_width_px=stroke_width,
-                                gltf=gltf_options is not None, gltf_sequence=bool(extra.get("gltf_sequence")),
-                                gltf_options=gltf_options,
-                                raster_options=raster_options_from(extra, quality, lines.crease_angle_deg))
-        spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
-                       tracking=tracking_options_from(extra, lines, len(frames)), workers=workers,
-                       scheduler=scheduler, skip_existing=skip_existing, fail_fast=fail_fast,
-                       camera_source=str(camera_file) if camera_file else path.source)
-        try:
-            res = _run_with_progress(spec, quiet, dict(workers=pool, scene=s, load_seconds=load_seconds,
-                                                       started_at=t_start))
-        except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
-            res = e.result
-    except KeyboardInterrupt:
-        if spec is not None:
-            raise
-        # Ctrl-C while the scene loads, before the run: nothing written; the report still says so.
-        res = RunResult(interrupted=True, wall_seconds=time.perf_counter() - t_start)
-        spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)) if path is not None else (),
-                       lines=lines, outputs=OutputOptions(out_dir=Path(out_dir), pattern=pattern), workers=workers,
-                       scheduler=scheduler)
-    finally:
-        pool.close()
-    if report_path:
-        atomic_write_text(report_path, json.dumps(run_report(spec, res), indent=1) + "\n")
+
+def _line_options(o: dict) -> LineOptions:
+    return LineOptions.preset(o["quality"], kinds=split_list(o["kinds"], "--kinds"), contours=o["contours"],
+                              crease_angle_deg=o["crease_angle"], whole_edge_px=o["whole_edge"],
+                              sample_spacing_px=o["sample_spacing"], bisection_tol_px=o["bisection_tol"],
+                              split_angle_deg=o["split_angle"], max_length_px=o["max_length"],
+                              min_length_px=o["min_length"], simplify_tol_px=o["simplify_tol"],
+                              doubled_px=o["doubled"], merge_overlaps=o["drop_retraced"], period_px=o["period"],
+                              suggestive_derivative_threshold=o["suggestive_threshold"],
+                              suggestive_kr_threshold=o["suggestive_kr_threshold"])
+
+
+def _camera_file_path(o: dict, size: tuple[int, int] | None) -> CameraPath | None:
+    """The --camera file's path, resized by --size; None for an orbit (made once the scene is loaded)."""
+    if not o["camera_file"]:
+        return None
+    path = load_camera_path(o["camera_file"])
+    if size:
+        path = CameraPath(cameras=tuple(replace(c, width=size[0], height=size[1]) for c in path.cameras),
+                          fps=path.fps, source=path.source)
+    return path
+
+
+def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list[int], workers: int) -> RunSpec:
+    gltf_options = gltf_options_from(o, lines, path.fps)
+    outputs = OutputOptions(out_dir=Path(o["out_dir"]), pattern=o["pattern"], svg=o["svg"], json=o["write_json"],
+                            decimals=o["decimals"], stroke_width_px=o["stroke_width"],
+                            gltf=gltf_options is not None, gltf_sequence=bool(o.get("gltf_sequence")),
+                            gltf_options=gltf_options,
+                            raster_options=raster_options_from(o, o["quality"], lines.crease_angle_deg))
+    return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
+                   tracking=tracking_options_from(o, len(frames)), workers=workers,
+                   scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
+                   camera_source=str(o["camera_file"]) if o["camera_file"] else path.source)
+
+
+def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
+    out_dir, report_path = Path(o["out_dir"]), o["report_path"]
     if res.interrupted:
         # Said even with --quiet: it explains the exit code.
-        msg = (f"strokekit: interrupted: {len(res.frames_ok)} of {len(frames)} frame(s) written to "
-               f"{Path(out_dir)}/")
+        msg = f"strokekit: interrupted: {len(res.frames_ok)} of {n_frames} frame(s) written to {out_dir}/"
         click.echo(msg + (f"; report in {report_path}" if report_path else ""), err=True)
-        return res.exit_code
-    if explain:
+        return
+    if o["explain"]:
         click.echo("stages (time summed over all frames and processes):")
         for st in res.stages:
             mark = "ran " if st.ran else "skip"
@@ -231,9 +254,8 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             click.echo(f"  [{mark}] {st.name:<26} {t}  {st.why}")
     for _, msg in sorted(res.failures.items()):
         click.echo(f"strokekit: error: {msg}", err=True)
-    if not quiet:
-        n_ok = len(res.frames_ok)
-        msg = f"wrote {n_ok} frame(s) to {Path(out_dir)}/ in {res.wall_seconds:.2f} s"
+    if not o["quiet"]:
+        msg = f"wrote {len(res.frames_ok)} frame(s) to {out_dir}/ in {res.wall_seconds:.2f} s"
         if res.frames_skipped:
             msg += f" ({len(res.frames_skipped)} already there, skipped)"
         if res.failures:
@@ -242,7 +264,6 @@ def command(scene, camera_file, orbit, elevation, fov, up, size, frame_spec, out
             if spec.fail_fast and not_run:
                 msg += f"; stopped at frame {min(res.failures)} (--fail-fast), {not_run} not run"
         click.echo(msg, err=True)
-    return res.exit_code
 
 
 def _run_with_progress(spec: RunSpec, quiet: bool, run_args: dict):

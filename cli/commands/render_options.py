@@ -71,13 +71,12 @@ def render_extra_options(f):
     return f
 
 
-def tracking_options_from(extra: dict, lines, n_frames: int):
+def tracking_options_from(extra: dict, n_frames: int):
     """TrackingOptions for a sequence with coherence on; None for one frame or --no-coherence."""
     method = "none" if extra.get("no_coherence") else extra.get("coherence_method", "kalnins")
     if n_frames < 2 or method == "none":
         return None
-
-    return TrackingOptions(method=method, period_px=lines.period_px, max_growth_px=extra["max_growth"],
+    return TrackingOptions(method=method, max_growth_px=extra["max_growth"],
                            min_carry_px=extra["min_carry"])
 
 

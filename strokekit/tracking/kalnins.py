@@ -37,7 +37,7 @@ class Kalnins:
 
 
 def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) -> tuple[Strokes, int]:
-    P = o.period_px
+    P = cur.period_px
     if o.chain_touching:
         cur = chain_touching(cur, o.join_tol_px, o.join_angle_deg)
     votes = resample_strokes(prev, o.vote_spacing_px)

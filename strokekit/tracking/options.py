@@ -13,7 +13,8 @@ METHODS = ("kalnins", "seed", "none")
 class TrackingOptions:
     """Options of the tracking pass. Pixel values are image pixels.
 
-    method: "kalnins" | "seed" | "none". period_px: texture period P of u.
+    method: "kalnins" | "seed" | "none". The texture period P of u is the strokes' own
+    (Strokes.period_px, from LineOptions.period_px).
     search_radius_px, min_tangent_dot: correspondence of carried samples (BRIEF 3: 6 px, 0.65).
     vote_spacing_px: spacing of the samples carried from frame to frame (kalnins).
     stretch_weight: weight of "slope close to 1/P" against "u close to the votes" (kalnins): a
@@ -39,7 +40,6 @@ class TrackingOptions:
     the neighbourhood of strategy 1 and the direction penalty (px per radian) of strategy 2."""
 
     method: str = "kalnins"
-    period_px: float = 30.0
     search_radius_px: float = 6.0
     min_tangent_dot: float = 0.65
     vote_spacing_px: float = 4.0
@@ -63,7 +63,7 @@ class TrackingOptions:
     def __post_init__(self):
         if self.method not in METHODS:
             raise UsageError(f"unknown coherence method {self.method!r} (known: {', '.join(METHODS)})")
-        for name in ("period_px", "search_radius_px", "vote_spacing_px", "seed_search_px", "dense_spacing_px"):
+        for name in ("search_radius_px", "vote_spacing_px", "seed_search_px", "dense_spacing_px"):
             if not getattr(self, name) > 0:
                 raise UsageError(f"{name} must be > 0, got {getattr(self, name)}", option=name)
         for name in ("stretch_weight", "outlier_px", "min_id_px", "max_growth_px", "min_carry_px",

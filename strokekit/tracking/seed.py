@@ -23,7 +23,7 @@ class Seed:
 
 
 def seed_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) -> tuple[Strokes, int]:
-    P = o.period_px
+    P = cur.period_px
     S = len(cur)
     L = cur.lengths
     carried = np.flatnonzero(prev.lengths >= o.min_carry_px)  # strategy 5

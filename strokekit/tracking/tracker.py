@@ -3,7 +3,8 @@ self-similar texture levels. The tracking pass is the only stage that walks the 
 everything before it (features, visibility, chaining) is per frame and independent.
 
 `Tracker(options).step(strokes) -> strokes` takes one frame's strokes (as LineRenderer gives them)
-and returns them with persistent `ids`, a coherent `u` (texture periods of `period_px` px) and the
+and returns them with persistent `ids`, a coherent `u` (texture periods of the strokes' `period_px`,
+set by LineOptions.period_px) and the
 self-similar `level` / `level_weight`. Three methods:
 
 - "kalnins" (default; Kalnins et al. 2003, "Coherent Stylized Silhouettes"): the previous frame's
@@ -84,7 +85,7 @@ class Renumber:
     name = "none"
 
     def track(self, prev: Strokes | None, cur: Strokes, o: TrackingOptions, next_id: int) -> tuple[Strokes, int]:
-        return fresh(cur, o.period_px, 0)[0], next_id
+        return fresh(cur, cur.period_px, 0)[0], next_id
 
 
 #: The tracking method of each TrackingOptions.method: an object with
@@ -109,11 +110,10 @@ class Tracker:
         level set; strokes may be re-cut, healed and reversed). The camera of `strokes` is required for
         carrying samples from the previous frame."""
         o = self.options
-        strokes = strokes.replace(period_px=o.period_px)
         no_history = self.prev is None or len(self.prev) == 0 or strokes.camera is None \
             or self.prev.camera is None or len(strokes) == 0
         if no_history and o.method != "none":
-            out, self.next_id = fresh(strokes, o.period_px, self.next_id)
+            out, self.next_id = fresh(strokes, strokes.period_px, self.next_id)
         else:
             out, self.next_id = self.method.track(self.prev, strokes, o, self.next_id)
         self.prev = out
