@@ -60,7 +60,7 @@ class LineOptions:
     # are dropped (mesh contours come out shingled; strokeops.drop_doubled). 0 keeps them. Done per
     # frame, so a frame draws the same lines alone, in a sequence, with or without tracking. 1 px
     # keeps every visible contour within 1 px of a drawn line (BRIEF 2 at tol 1); 2 px gives
-    # steadier ids on scanned meshes (bunny M1 0.92 -> 0.95) at the cost of that guarantee.
+    # steadier ids on scanned meshes at the cost of that guarantee (README, coherence).
     doubled_px: float = 1.0
     occlusion_offset: float = 1e-5  # ray offset as a fraction of the scene radius
     contours: str = "mesh"  # or "smooth": interpolated contours replace mesh silhouettes

@@ -50,14 +50,9 @@ from strokekit.scene.tables import (
 
 #: Lift of a smooth contour's occlusion ray origin (see `contour_lift`): LIFT_GAIN x the face's
 #: chord error scale along the normal, VIEW_LIFT_GAIN x the face's longest edge toward the eye.
-#: Measured (benchmarks/bench_line_types.py, section 3; 16-24 frame bunny orbits): with
-#: 0.25 / 3.5 the share of smooth contour wrongly reported hidden is 0 on a sphere, < 0.01 % on a
-#: torus and about 0.03 % on the bunny (3.0: 0.10-0.13 %; 4.0: 0.02 %). The price is the other
-#: way: a larger view lift ignores occluders within that depth, so near T-junctions of bumpy
-#: scans some hidden contour shows (bunny: visible smooth contour farther than 2 px from any
-#: visible mesh contour 0.6 % at 3.0, 0.9 % at 3.5, 1.4 % at 4.0). Larger normal lifts pop hidden
-#: contour loops into view; a lift scaled by the radial curvature was tried and missed grazing
-#: hits on the bunny (2.6-3 % wrongly hidden).
+#: A smaller view lift reports more grazing contour as hidden; a larger one ignores occluders
+#: within that depth, so hidden contour shows near T-junctions of bumpy scans. These values
+#: balance the two (benchmarks/bench_line_types.py, section 3, measures both).
 LIFT_GAIN = 0.25
 VIEW_LIFT_GAIN = 3.5
 
@@ -287,9 +282,8 @@ def sharp_edge_contours(scene: Scene, camera: Camera, sn: SplitNormals, g: np.nd
     an unsplit edge: a box, a cylinder's cap) that of a mesh silhouette (lines.surface_lift, `occlusion_offset` x scene
     radius), so flat geometry is drawn exactly as in mesh mode. Between two curved sides (noisy
     scans: the bunny has 110 edges sharper than 60 degrees) the ray grazes the 1-ring like a
-    smooth contour's and gets `contour_lift` (measured on the bunny: with the mesh lift 0.3 % of
-    the smooth contour is wrongly hidden, nearly all on such pieces, hit by adjacent faces a few
-    hundredths of a face size away)."""
+    smooth contour's and gets `contour_lift` (with the mesh lift such pieces are hit by adjacent
+    faces a few hundredths of a face size away and wrongly hidden)."""
     E_s = np.flatnonzero(sn.split & scene.is_manifold)
     if len(E_s) == 0:
         return FeatureEdges.empty(), np.zeros(0, np.int64)

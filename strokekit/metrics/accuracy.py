@@ -136,7 +136,7 @@ def accuracy(drawn: list[Strokes], reference: list[Strokes], tols=DEFAULT_TOLS, 
     return aggregate([frame_accuracy(d, r, tols, step_px) for d, r in zip(drawn, reference)])
 
 
-# --- smooth contours: visibility and cusps (issue 8 measurements, shared by tests and benchmarks) ---
+# --- smooth contours: visibility and cusps (shared by tests and benchmarks) ---
 
 def mesh_contour_samples(scene, camera, n: int = 16) -> tuple[np.ndarray, np.ndarray]:
     """Samples (M, 3) world of the mesh contour edges (BRIEF 2 silhouettes), n per edge, and their

@@ -1,4 +1,4 @@
-"""What accuracy costs in time (issue 6): every --quality preset and a sweep of the main knob,
+"""What accuracy costs in time: every --quality preset and a sweep of the main knob,
 timed per frame and measured against the `exact` preset (BRIEF 2).
 
 Time per frame is what a render spends on lines after loading: LineRenderer.render(camera) then
@@ -154,7 +154,7 @@ def run_bench(scene: Scene, cameras: list[Camera], *, repeats: int = 3, tols=DEF
 
 def raster_rows(scene: Scene, cameras: list[Camera], *, occluder=None, repeats: int = 1,
                 supersamples: tuple = (1, 2, "default", 4), reference: int = 4, log=None) -> list[dict]:
-    """RASTER SECTION (issue 6): the raster pass (strokekit.raster.render_raster with default
+    """The raster pass (strokekit.raster.render_raster with default
     RasterOptions, plus its PNG bytes) at supersample K = 1, 2, 4 and at the setup `strokekit
     render` uses by default ("default": K = 2, band-edge pixels resampled R x R, R = 4, see
     options.QUALITY_PRESETS): ms per frame (median over repeats of the mean per frame) and IoU of

@@ -125,9 +125,8 @@ class Workers:
         """map() beside a local pool that this process helps. A worker's next task is sent the
         moment its result arrives (by the pool's result thread, in a done-callback), not when
         this process has finished the frame it is rendering and handled the results (with
-        tracking, the tracking pass too): so a worker does not wait for this process. Measured,
-        warm 48-frame bunny orbit with tracking, 2 workers against 1: 1.44x -> 1.68x (the worker
-        starved while this process rendered and tracked); without tracking unchanged (1.7x).
+        tracking, the tracking pass too): so a worker does not starve while this process renders
+        and tracks.
 
         A worker gets a second task queued (to cover the round trip) only while more than two
         tasks per worker remain; near the end it gets one at a time and this process takes the
