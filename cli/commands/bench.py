@@ -12,7 +12,7 @@ from strokekit.fileio import check_output_file
 from strokekit.metrics.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
 from strokekit.scene.load import load_scene
 
-from ..common import is_interactive
+from ..common import is_interactive, say_warnings
 
 
 @click.command("bench", short_help="What accuracy costs in time: presets and a sweep.")
@@ -51,6 +51,7 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
 
         check_output_file(plot_path)  # said now, not after a minute of timing
     scene = load_scene(scene_path)
+    say_warnings(scene)
     if camera_path:
         cams = list(load_camera_path(camera_path).cameras)[:frames]
     else:

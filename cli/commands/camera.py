@@ -11,7 +11,7 @@ from strokekit.camera.view import MAX_IMAGE_PX
 from strokekit.fileio import atomic_write_text
 from strokekit.scene.load import load_scene
 
-from ..common import FINITE, FiniteFloatRange
+from ..common import FINITE, FiniteFloatRange, say_warnings
 
 
 def _emit(path, out):
@@ -53,6 +53,7 @@ def command():
 def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
     """A turntable orbit around the scene that keeps it in view."""
     s = load_scene(scene)
+    say_warnings(s)
     _emit(orbit_path(s.center, s.radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
                      fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
 
@@ -64,5 +65,6 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
 def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
     s = load_scene(scene)
+    say_warnings(s)
     _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)

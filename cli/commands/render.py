@@ -24,7 +24,7 @@ from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec
 from strokekit.run.workers import make_executor
 from strokekit.scene.load import load_scene
 
-from ..common import FINITE, FiniteFloatRange, is_interactive, split_list
+from ..common import FINITE, FiniteFloatRange, is_interactive, say_warnings, split_list
 from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
 
 #: Options that only mean something beside another: (options, what they need, when it is there).
@@ -143,6 +143,7 @@ def command(scene, **o):
     try:
         t_load = time.perf_counter()
         s = load_scene(scene)
+        say_warnings(s)
         load_seconds = time.perf_counter() - t_load
         if path is None:
             width, height = size or (1024, 1024)
