@@ -17,6 +17,7 @@ from typing import Callable
 
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
+from strokekit.lines.budget import check_lines_fit
 from strokekit.model import Strokes
 from strokekit.raster.rays import check_raster_fits
 from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
@@ -65,6 +66,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
+        check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
         stage = {s.name: s for s in res.stages}
         resume = plan_resume(spec, scene, stage["tracking"].ran)
         res.frames_skipped = sorted(resume.done_before)
