@@ -27,7 +27,7 @@ from strokekit.options import (
 )
 from strokekit.run.report import run_report
 from strokekit.run.runner import run
-from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec
+from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
 from strokekit.run.workers import MAX_WORKERS, make_executor
 from strokekit.scene.load import load_scene
 
@@ -152,6 +152,7 @@ def command(scene, **o):
     t_start = time.perf_counter()
     pool = make_executor(workers, o["scheduler"], warm=(str(scene), lines))
     spec = None
+    write_error: RunWriteError | None = None
     try:
         t_load = time.perf_counter()
         s = load_scene(scene)
@@ -167,6 +168,8 @@ def command(scene, **o):
                                                             started_at=t_start))
         except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
             res = e.result
+        except RunWriteError as e:  # a file could not be written: the run stopped, frames whole or gone
+            res, write_error = e.result, e
     except KeyboardInterrupt:
         if spec is not None:
             raise
@@ -178,7 +181,15 @@ def command(scene, **o):
     finally:
         pool.close()
     if o["report_path"]:
-        atomic_write_text(o["report_path"], json.dumps(run_report(spec, res), indent=1) + "\n")
+        try:
+            atomic_write_text(o["report_path"], json.dumps(run_report(spec, res), indent=1) + "\n")
+        except OSError:
+            if write_error is None:
+                raise
+            # (the disk that was full for a frame is likely full for the report too: the first
+            # error is the one to say)
+    if write_error is not None:
+        raise write_error  # one line naming the file, exit 1 (cli.main)
     _say_result(o, spec, res, len(frames))
     return res.exit_code
 
@@ -266,17 +277,24 @@ def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
             mark = "ran " if st.ran else "skip"
             t = f"{st.seconds * 1e3:9.1f} ms" if st.ran and not st.name.startswith(" ") else " " * 12
             click.echo(f"  [{mark}] {st.name:<26} {t}  {st.why}")
-    for _, msg in sorted(res.failures.items()):
-        click.echo(f"strokekit: error: {msg}", err=True)
-    if not o["quiet"]:
+    if res.failures:
+        # One line, even with --quiet (it explains the exit code): the first error, then what
+        # became of the run; every error is in the --report.
+        first = min(res.failures)
+        msg = f"strokekit: error: {res.failures[first]}; {len(res.failures)} of {n_frames} frame(s) failed, " \
+              f"{len(res.frames_ok)} written to {out_dir}/"
+        if res.frames_skipped:
+            msg += f" ({len(res.frames_skipped)} already there, skipped)"
+        not_run = len(spec.cameras) - len(set(res.frames_ok) | set(res.frames_skipped) | set(res.failures))
+        if spec.fail_fast and not_run:
+            msg += f"; stopped at frame {first} (--fail-fast), {not_run} not run"
+        if len(res.failures) > 1:
+            msg += f"; every error in {report_path}" if report_path else "; --report lists every error"
+        click.echo(msg, err=True)
+    elif not o["quiet"]:
         msg = f"wrote {len(res.frames_ok)} frame(s) to {out_dir}/ in {res.wall_seconds:.2f} s"
         if res.frames_skipped:
             msg += f" ({len(res.frames_skipped)} already there, skipped)"
-        if res.failures:
-            msg += f"; {len(res.failures)} frame(s) failed"
-            not_run = len(spec.cameras) - len(set(res.frames_ok) | set(res.frames_skipped) | set(res.failures))
-            if spec.fail_fast and not_run:
-                msg += f"; stopped at frame {min(res.failures)} (--fail-fast), {not_run} not run"
         click.echo(msg, err=True)
 
 
