@@ -57,7 +57,7 @@ def _samples(scene: Scene, camera: Camera, options: LineOptions, edges: np.ndarr
     pa, _ = camera.project(a[keep] + t0[keep, None] * ab)
     pb, _ = camera.project(a[keep] + t1[keep, None] * ab)
     L = row_norm(pb - pa)
-    n = np.where(L < options.whole_edge_px, 1.0, np.ceil(L / options.sample_spacing_px) + 1.0)
+    n = np.where(L < options.whole_edge_px, 1.0, np.maximum(1.0, np.ceil(L / options.sample_spacing_px)) + 1.0)
     return int(min(n.sum(), 2.0 ** 62))
 
 
