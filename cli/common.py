@@ -36,6 +36,13 @@ def user_message(e: Exception) -> str:
     return text
 
 
+def say_warnings(scene) -> None:
+    """Say a loaded scene's warnings on stderr, one line each, even with --quiet: the file is
+    broken for other tools though the drawing is right (Scene.warnings)."""
+    for w in scene.warnings:
+        click.echo(f"strokekit: warning: {w}", err=True)
+
+
 def split_list(value: str | None, option: str = "the list") -> tuple[str, ...] | None:
     """'a, b,c' -> ('a', 'b', 'c'); None stays None; an empty list is a usage error naming `option`."""
     if value is None:

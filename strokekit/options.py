@@ -30,6 +30,20 @@ QUALITY_PRESETS: dict[str, dict] = {
 
 DEFAULT_KINDS = ("silhouette", "border", "crease", "material", "nonmanifold")
 
+#: Bounds of the accuracy knobs. Visibility samples closer than 0.01 px find nothing the
+#: bisection does not (it locates every change to bisection_tol_px) and cost memory without end
+#: (1e-9 px asked for 33 TiB); a change located finer than 1e-6 px is below what the float32 ray
+#: tracer can tell; doubled parts looked for beyond 16 px compare every sample with every other
+#: (the close pairs of a frame grow with the square of the radius) and drop lines a few pixels
+#: apart that are two lines. The line pass's memory is also estimated before a run
+#: (lines.budget.check_lines_fit).
+MIN_SAMPLE_SPACING_PX = 0.01
+MIN_BISECTION_TOL_PX = 1e-6
+MAX_DOUBLED_PX = 16.0
+#: A texture period longer than the largest image (camera.view.MAX_IMAGE_PX) never repeats on a
+#: stroke; from about 1e7 px the fit of u (tracking.ufit) breaks down numerically.
+MAX_PERIOD_PX = 100_000.0
+
 @dataclass(frozen=True)
 class LineOptions:
     """What lines to find and how accurately. Pixel values are image-space pixels."""
@@ -85,6 +99,20 @@ class LineOptions:
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)
+        for name, low, why in (("sample_spacing_px", MIN_SAMPLE_SPACING_PX, "closer samples find nothing the "
+                                "bisection does not and only cost memory"),
+                               ("bisection_tol_px", MIN_BISECTION_TOL_PX, "finer than the float32 ray tracer can "
+                                "tell")):
+            if getattr(self, name) < low:
+                raise UsageError(f"{name} must be at least {low:g} px ({why}), got {getattr(self, name):g}",
+                                 option=name)
+        if self.period_px > MAX_PERIOD_PX:
+            raise UsageError(f"period_px must be at most {MAX_PERIOD_PX:g} px (the largest image side), got "
+                             f"{self.period_px:g}", option="period_px")
+        if self.doubled_px > MAX_DOUBLED_PX:
+            raise UsageError(f"doubled_px must be at most {MAX_DOUBLED_PX:g} px (lines farther apart are two lines, "
+                             f"and the search grows with the square of the distance), got {self.doubled_px:g}",
+                             option="doubled_px")
         if not 0 < self.crease_angle_deg < 180:
             raise UsageError(f"crease_angle_deg must be in (0, 180) degrees, got {self.crease_angle_deg}",
                              option="crease_angle_deg")

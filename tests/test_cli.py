@@ -76,13 +76,33 @@ def test_empty_frame_still_gets_files(cube, tmp_path, capsys):
     assert json.loads((tmp_path / "o" / "frame_0001.json").read_text())["strokes"] == []
 
 
-@pytest.mark.parametrize("case", ["missing", "unknown_ext", "empty", "point_cloud", "nan", "directory", "gltf_cut"])
+PLY_TRI = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+           "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+
+
+@pytest.mark.parametrize("case", ["missing", "unknown_ext", "empty", "point_cloud", "nan", "directory", "gltf_cut",
+                                  "ply_rows_missing", "ply_row_cut", "ply_no_end_header", "not_ply",
+                                  "ply_binary_cut"])
 def test_bad_scene_gives_one_line_and_exit_1(case, tmp_path, capsys):
     p = {"missing": tmp_path / "nope.obj", "unknown_ext": tmp_path / "scene.xyz", "empty": tmp_path / "empty.obj",
          "point_cloud": tmp_path / "cloud.ply", "nan": tmp_path / "nan.obj", "directory": tmp_path,
-         "gltf_cut": tmp_path / "cut.gltf"}[case]
+         "gltf_cut": tmp_path / "cut.gltf"}.get(case, tmp_path / f"{case}.ply")
     if case == "gltf_cut":  # trimesh took it for a path: "cannot read mesh (FileNotFoundError: model.gltf)"
         p.write_text('{"asset":')
+    # PLY files cut short (issue 21): 'IndexError', 'KeyError', or drawn without the missing faces.
+    if case == "ply_rows_missing":
+        p.write_text(PLY_TRI.replace("element face 1", "element face 2"))
+    elif case == "ply_row_cut":
+        p.write_text(PLY_TRI[:-4])
+    elif case == "ply_no_end_header":
+        p.write_text(PLY_TRI[:PLY_TRI.index("end_header")])
+    elif case == "not_ply":
+        p.write_text("solid cube\n")
+    elif case == "ply_binary_cut":
+        head = PLY_TRI[:PLY_TRI.index("0 0 0")].replace("ascii", "binary_little_endian").encode()
+        body = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "<f4").tobytes() + bytes([3]) + \
+            np.array([0, 1, 2], "<i4").tobytes()
+        p.write_bytes(head + body[:-2])
     if case == "unknown_ext":
         p.write_text("hello")
     elif case == "empty":
@@ -102,6 +122,10 @@ def test_bad_scene_gives_one_line_and_exit_1(case, tmp_path, capsys):
     assert not out.exists() or not any(out.iterdir())
     if case == "gltf_cut":
         assert "JSON does not parse" in lines[0]
+    if case.startswith("ply"):
+        assert "truncated PLY" in lines[0] and "Error" not in lines[0], lines[0]
+    if case == "ply_rows_missing":
+        assert "its header says 3 vertices and 2 faces, but the file ends at face 2 of 2" in lines[0]
 
 
 @pytest.mark.parametrize("args,code,needle", [
@@ -143,6 +167,12 @@ def test_shared_empty_obj_is_a_clear_error(capsys):
     ('{"frames": [{"eye": [0,0,5], "target": [0,0,0], "projection": "orthographic"}]}', "needs 'ortho_height'"),
     ('{"frame_count": 4, "keyframes": [{"frame": 0, "eye": [0,0,5], "target": [0,0,0]}, '
      '{"frame": 0, "eye": [5,0,0], "target": [0,0,0]}]}', "two keyframes for frame 0"),
+    # issue 21: the image's roll undefined (an up given, or the default one), a key never reached
+    ('{"frames": [{"eye": [0,0,5], "target": [0,0,0], "up": [0,0,2]}]}', "frame 1: 'up' (0, 0, 2) is parallel"),
+    ('{"frames": [{"eye": [0,5,0], "target": [0,0,0]}]}', "frame 1: 'up' (not given: (0, 1, 0)) is parallel"),
+    ('{"frame_count": 4, "keyframes": [{"frame": 0, "eye": [0,0,5], "target": [0,0,0]}, '
+     '{"frame": 4, "eye": [5,0,0], "target": [0,0,0]}]}', "'frame' 4 is outside the path's frames 0 to 3"),
+    ('{"frame_count": 4, "keyframes": [{"frame": -1, "eye": [0,0,5], "target": [0,0,0]}]}', "'frame' -1 is outside"),
 ])
 def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, content, needle):
     cam = tmp_path / "cam.json"
@@ -169,6 +199,16 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
     (["--out", ""], "--out needs a folder name"),
     (["--size", "big"], "bad --size"),
     (["--quality", "perfect"], "perfect"),
+    # issue 21: numbers no machine can honour
+    (["--sample-spacing", "0.001"], "--sample-spacing (sample_spacing_px) must be at least 0.01 px"),
+    (["--bisection-tol", "1e-9"], "--bisection-tol (bisection_tol_px) must be at least 1e-06 px"),
+    (["--doubled", "100"], "--doubled (doubled_px) must be at most 16 px"),
+    (["--period", "1e9"], "--period (period_px) must be at most 100000 px"),
+    (["--orbit", "100001"], "--orbit"),
+    (["--workers", "100000"], "--workers"),
+    (["--stroke-width", "1e9"], "--stroke-width"),
+    (["--gltf", "--ribbon-width", "1e9"], "ribbon width"),
+    (["--bands", "2", "--light", "1e300,0,0"], "beyond float range"),
 ])
 def test_impossible_options_exit_2(cube, tmp_path, capsys, args, needle):
     code, _, err = run_cli(["render", cube, "--out", tmp_path / "o", *args], capsys)

@@ -7,24 +7,26 @@ import json
 import click
 
 from strokekit.camera.paths import load_camera_path
+from strokekit.camera.view import MAX_PATH_FRAMES
 from strokekit.errors import UsageError
 from strokekit.fileio import check_output_file
 from strokekit.metrics.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
 from strokekit.scene.load import load_scene
 
-from ..common import is_interactive
+from ..common import is_interactive, say_warnings
 
 
 @click.command("bench", short_help="What accuracy costs in time: presets and a sweep.")
 @click.argument("scene_path", metavar="SCENE", type=click.Path())
 @click.option("--camera", "camera_path", type=click.Path(), default=None,
               help="Camera path JSON (format: README, camera path files); default: an orbit around the scene.")
-@click.option("--frames", type=int, default=8, show_default=True,
+@click.option("--frames", type=click.IntRange(1, MAX_PATH_FRAMES), default=8, show_default=True,
               help="Orbit frames, or the first N frames of --camera.")
-@click.option("--repeats", type=int, default=3, show_default=True, help="Timed passes; the median is reported.")
+@click.option("--repeats", type=click.IntRange(1, 1000), default=3, show_default=True,
+              help="Timed passes; the median is reported.")
 @click.option("--sweep", default=None,
               help="Comma-separated values of sample_spacing_px to sweep (default 0.5,1,2,4,8,16).")
-@click.option("--raster-frames", type=int, default=2, show_default=True,
+@click.option("--raster-frames", type=click.IntRange(0, MAX_PATH_FRAMES), default=2, show_default=True,
               help="Frames for the raster section (IoU vs supersample 4); 0 skips it.")
 @click.option("--plot", "plot_path", type=click.Path(), default=None,
               help="Write accuracy against time as a PNG (one curve per knob).")
@@ -34,11 +36,6 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
     recall at 0.5/1/2 px against the `exact` preset, and the raster pass at supersample 1, 2, 4
     and at render's default (2, band-edge pixels resampled 4 x 4) with its IoU against
     supersample 4."""
-
-    if frames <= 0:
-        raise UsageError(f"--frames must be positive, got {frames}")
-    if repeats <= 0:
-        raise UsageError(f"--repeats must be positive, got {repeats}")
     values = DEFAULT_SWEEP
     if sweep:
         try:
@@ -51,14 +48,13 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
 
         check_output_file(plot_path)  # said now, not after a minute of timing
     scene = load_scene(scene_path)
+    say_warnings(scene)
     if camera_path:
         cams = list(load_camera_path(camera_path).cameras)[:frames]
     else:
         cams = default_cameras(scene, frames)
     # Progress lines on a terminal only: piped, the table (or JSON) on stdout is the whole output.
     log = (lambda m: click.echo(m, err=True)) if is_interactive(as_json) else None
-    if raster_frames < 0:
-        raise UsageError(f"--raster-frames must be >= 0, got {raster_frames}")
     result = run_bench(scene, cams, repeats=repeats, sweep=values, raster_frames=raster_frames, log=log)
     if plot_path:
         plot_bench(result, plot_path)

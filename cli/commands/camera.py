@@ -7,11 +7,11 @@ import json
 import click
 
 from strokekit.camera.paths import dolly_path, orbit_path
-from strokekit.camera.view import MAX_IMAGE_PX
+from strokekit.camera.view import MAX_IMAGE_PX, MAX_PATH_FRAMES
 from strokekit.fileio import atomic_write_text
 from strokekit.scene.load import load_scene
 
-from ..common import FINITE, FiniteFloatRange
+from ..common import FINITE, FiniteFloatRange, say_warnings
 
 
 def _emit(path, out):
@@ -24,7 +24,8 @@ def _emit(path, out):
 
 _common = [
     click.argument("scene", type=click.Path()),
-    click.option("--frames", type=click.IntRange(min=1), default=48, show_default=True, help="Number of frames."),
+    click.option("--frames", type=click.IntRange(1, MAX_PATH_FRAMES), default=48, show_default=True,
+                 help="Number of frames (at most as many as a camera file may have)."),
     click.option("--elevation", type=FiniteFloatRange(-90, 90), default=15.0, show_default=True, help="Degrees above the horizon."),
     click.option("--fov", type=FiniteFloatRange(0.1, 179.9), default=40.0, show_default=True, help="Vertical field of view, degrees."),
     click.option("--width", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True),
@@ -53,6 +54,7 @@ def command():
 def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
     """A turntable orbit around the scene that keeps it in view."""
     s = load_scene(scene)
+    say_warnings(s)
     _emit(orbit_path(s.center, s.radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
                      fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
 
@@ -64,5 +66,6 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
 def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
     s = load_scene(scene)
+    say_warnings(s)
     _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)

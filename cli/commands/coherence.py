@@ -9,7 +9,7 @@ from rich.table import Table
 
 from strokekit.metrics.coherence import folder_metrics
 
-from ..common import FINITE
+from ..common import FiniteFloatRange
 
 _COLUMNS = [("frame", "pair", "{:d}"), ("M1", "M1 ids", "{:.3f}"), ("M2", "M2 pop", "{:.4f}"),
             ("M4_median", "M4 med px", "{:.2f}"), ("M4_p95", "M4 p95 px", "{:.2f}"), ("M4_max", "M4 max px", "{:.2f}"),
@@ -20,8 +20,10 @@ _COLUMNS = [("frame", "pair", "{:d}"), ("M1", "M1 ids", "{:.3f}"), ("M2", "M2 po
 @click.command("coherence", short_help="Temporal coherence metrics of a rendered sequence.")
 @click.argument("out_dir", type=click.Path())
 @click.option("--json", "as_json", is_flag=True, help="Print JSON (per pair and overall) instead of a table.")
-@click.option("--radius", type=FINITE, default=6.0, show_default=True, help="Match radius, px.")
-@click.option("--min-dot", type=FINITE, default=0.65, show_default=True, help="Minimum |t.t'| of a match.")
+@click.option("--radius", type=FiniteFloatRange(min=0, min_open=True), default=6.0, show_default=True,
+              help="Match radius, px.")
+@click.option("--min-dot", type=FiniteFloatRange(0, 1), default=0.65, show_default=True,
+              help="Minimum |t.t'| of a match (0 to 1).")
 @click.option("--pattern", default="frame_{frame:04d}", show_default=True,
               help="File name pattern of the frames (as given to render --pattern).")
 def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern: str):

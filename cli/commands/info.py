@@ -7,7 +7,7 @@ import click
 from strokekit.camera.gltf import gltf_camera_count
 from strokekit.scene.load import load_scene
 
-from ..common import FINITE, echo_json
+from ..common import FINITE, echo_json, say_warnings
 
 
 @click.command("info", short_help="What a scene holds and which lines it can have.")
@@ -17,6 +17,7 @@ from ..common import FINITE, echo_json
 def command(scene: str, as_json: bool, crease_angle: float):
     """Meshes, faces, materials, bounds, borders and non-manifold edges, and the line kinds present."""
     s = load_scene(scene)
+    say_warnings(s)
     d = s.summary()
     d["line_kinds"] = s.available_kinds(crease_angle)
     d["crease_edges"] = int(s.crease_mask(crease_angle).sum())

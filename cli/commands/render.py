@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 import os
 import time
 from dataclasses import replace
@@ -14,17 +13,25 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from strokekit.camera.frames import parse_frames
 from strokekit.camera.paths import load_camera_path, orbit_path
-from strokekit.camera.view import MAX_IMAGE_PX, CameraPath
+from strokekit.camera.view import MAX_IMAGE_PX, MAX_PATH_FRAMES, CameraPath
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
-from strokekit.options import DEFAULT_KINDS, QUALITY_PRESETS, LineOptions
+from strokekit.options import (
+    DEFAULT_KINDS,
+    MAX_DOUBLED_PX,
+    MAX_PERIOD_PX,
+    MIN_BISECTION_TOL_PX,
+    MIN_SAMPLE_SPACING_PX,
+    QUALITY_PRESETS,
+    LineOptions,
+)
 from strokekit.run.report import run_report
 from strokekit.run.runner import run
-from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec
-from strokekit.run.workers import make_executor
+from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
+from strokekit.run.workers import MAX_WORKERS, make_executor
 from strokekit.scene.load import load_scene
 
-from ..common import FINITE, FiniteFloatRange, is_interactive, split_list
+from ..common import FINITE, FiniteFloatRange, is_interactive, say_warnings, split_list
 from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
 
 #: Options that only mean something beside another: (options, what they need, when it is there).
@@ -64,7 +71,8 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
 @click.option("--camera", "camera_file", type=click.Path(), default=None,
               help="Camera path JSON (format: README, camera path files), or a glTF/GLB file with a camera node "
                    "(its animation, if any, sampled at 24 fps).")
-@click.option("--orbit", type=click.IntRange(min=1), default=None, help="Orbit the scene in N frames (instead of --camera).")
+@click.option("--orbit", type=click.IntRange(1, MAX_PATH_FRAMES), default=None,
+              help="Orbit the scene in N frames (instead of --camera; at most as many as a camera file may have).")
 @click.option("--elevation", type=FiniteFloatRange(-90, 90), default=15.0, show_default=True, help="Orbit elevation, degrees.")
 @click.option("--fov", type=FiniteFloatRange(0.1, 179.9), default=40.0, show_default=True, help="Orbit field of view, degrees.")
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="Orbit up axis.")
@@ -84,20 +92,24 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
 @click.option("--whole-edge", "whole_edge", type=FINITE, default=None,
               help="Edges shorter than N px get one visibility ray and are drawn whole or not at all "
                    "(draft: 12; default 0: every edge is split where its visibility changes) (overrides --quality).")
-@click.option("--sample-spacing", type=FINITE, default=None, help="Visibility samples every N px (overrides --quality).")
-@click.option("--bisection-tol", type=FINITE, default=None, help="Visibility change located to N px (overrides --quality).")
+@click.option("--sample-spacing", type=FINITE, default=None,
+              help=f"Visibility samples every N px, at least {MIN_SAMPLE_SPACING_PX:g} (overrides --quality; a spacing "
+                   "whose samples would not fit in this machine's memory is refused before any work).")
+@click.option("--bisection-tol", type=FINITE, default=None,
+              help=f"Visibility change located to N px, at least {MIN_BISECTION_TOL_PX:g} (overrides --quality).")
 @click.option("--split-angle", type=FINITE, default=None, help="Split strokes at turns sharper than N degrees [90].")
 @click.option("--max-length", type=FINITE, default=None, help="Split strokes longer than N px [no limit].")
 @click.option("--min-length", type=FINITE, default=None, help="Drop strokes shorter than N px [0].")
 @click.option("--simplify", "simplify_tol", type=FINITE, default=None, help="Simplify strokes within N px (Douglas-Peucker) [0: off].")
 @click.option("--doubled", type=FINITE, default=None,
               help="Drop parts of contour strokes running beside a longer one within N px (mesh-contour "
-                   "shingles) [1; draft: 0]; 0 keeps every visible contour edge, 2 keeps ids steadier on scanned "
-                   "meshes.")
+                   f"shingles) [1; draft: 0; at most {MAX_DOUBLED_PX:g}]; 0 keeps every visible contour edge, 2 keeps "
+                   "ids steadier on scanned meshes.")
 @click.option("--drop-retraced/--keep-retraced", "drop_retraced", default=None,
               help="Drop strokes that retrace a longer stroke of their kind within 0.5 px (zig-zag spurs, "
                    "coincident copies) [default: drop; draft: keep].")
-@click.option("--period", type=FINITE, default=None, help="Texture period P in px for the parametrization u [30].")
+@click.option("--period", type=FINITE, default=None,
+              help=f"Texture period P in px for the parametrization u [30; at most {MAX_PERIOD_PX:g}].")
 @click.option("--suggestive-threshold", type=FINITE, default=None,
               help="Suggestive contours: minimum derivative of radial curvature, scale-free [50].")
 @click.option("--suggestive-kr-threshold", type=FINITE, default=None,
@@ -107,9 +119,9 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
               help="Write frame_NNNN.json (strokes with ids, kinds and u, for tools).")
 @click.option("--decimals", type=click.IntRange(0, 8), default=2, show_default=True, help="SVG coordinate decimals.")
 @click.option("--stroke-width", type=FINITE, default=1.5, show_default=True, help="SVG stroke width in px.")
-@click.option("--workers", type=click.IntRange(min=1), default=None,
+@click.option("--workers", type=click.IntRange(1, MAX_WORKERS), default=None,
               help="Processes rendering frames: this one and N-1 started beside it (default: the machine's "
-                   "cores for 8 frames or more, else 1).")
+                   "cores for 8 frames or more, else 1; at most 4 per core, 8 on smaller machines).")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address, e.g. tcp://host:8786.")
 @click.option("--skip-existing", is_flag=True, help="Resume: do not rewrite frames whose files all exist and were rendered from the same scene, options "
                    "and camera (OUT/.strokekit-run.json says so); frames of another scene or other options "
@@ -140,9 +152,11 @@ def command(scene, **o):
     t_start = time.perf_counter()
     pool = make_executor(workers, o["scheduler"], warm=(str(scene), lines))
     spec = None
+    write_error: RunWriteError | None = None
     try:
         t_load = time.perf_counter()
         s = load_scene(scene)
+        say_warnings(s)
         load_seconds = time.perf_counter() - t_load
         if path is None:
             width, height = size or (1024, 1024)
@@ -154,6 +168,8 @@ def command(scene, **o):
                                                             started_at=t_start))
         except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
             res = e.result
+        except RunWriteError as e:  # a file could not be written: the run stopped, frames whole or gone
+            res, write_error = e.result, e
     except KeyboardInterrupt:
         if spec is not None:
             raise
@@ -165,7 +181,15 @@ def command(scene, **o):
     finally:
         pool.close()
     if o["report_path"]:
-        atomic_write_text(o["report_path"], json.dumps(run_report(spec, res), indent=1) + "\n")
+        try:
+            atomic_write_text(o["report_path"], json.dumps(run_report(spec, res), indent=1) + "\n")
+        except OSError:
+            if write_error is None:
+                raise
+            # (the disk that was full for a frame is likely full for the report too: the first
+            # error is the one to say)
+    if write_error is not None:
+        raise write_error  # one line naming the file, exit 1 (cli.main)
     _say_result(o, spec, res, len(frames))
     return res.exit_code
 
@@ -189,8 +213,9 @@ def _check_usage(o: dict) -> tuple[int, int] | None:
             raise UsageError(f"bad --size {o['size']!r}: width and height must be positive and at most "
                              f"{MAX_IMAGE_PX} px (as in camera files)")
         size = (width, height)
-    if not (o["stroke_width"] > 0 and math.isfinite(o["stroke_width"])):
-        raise UsageError(f"--stroke-width must be a finite number > 0 px, got {o['stroke_width']}")
+    if not (0 < o["stroke_width"] <= MAX_IMAGE_PX):
+        raise UsageError(f"--stroke-width must be a number > 0 px and at most {MAX_IMAGE_PX} px (the largest image "
+                         f"side), got {o['stroke_width']:g}")
     out_dir, report_path = o["out_dir"], o["report_path"]
     if not str(out_dir).strip():
         raise UsageError("--out needs a folder name (use --out . for the current folder)")
@@ -252,17 +277,24 @@ def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
             mark = "ran " if st.ran else "skip"
             t = f"{st.seconds * 1e3:9.1f} ms" if st.ran and not st.name.startswith(" ") else " " * 12
             click.echo(f"  [{mark}] {st.name:<26} {t}  {st.why}")
-    for _, msg in sorted(res.failures.items()):
-        click.echo(f"strokekit: error: {msg}", err=True)
-    if not o["quiet"]:
+    if res.failures:
+        # One line, even with --quiet (it explains the exit code): the first error, then what
+        # became of the run; every error is in the --report.
+        first = min(res.failures)
+        msg = f"strokekit: error: {res.failures[first]}; {len(res.failures)} of {n_frames} frame(s) failed, " \
+              f"{len(res.frames_ok)} written to {out_dir}/"
+        if res.frames_skipped:
+            msg += f" ({len(res.frames_skipped)} already there, skipped)"
+        not_run = len(spec.cameras) - len(set(res.frames_ok) | set(res.frames_skipped) | set(res.failures))
+        if spec.fail_fast and not_run:
+            msg += f"; stopped at frame {first} (--fail-fast), {not_run} not run"
+        if len(res.failures) > 1:
+            msg += f"; every error in {report_path}" if report_path else "; --report lists every error"
+        click.echo(msg, err=True)
+    elif not o["quiet"]:
         msg = f"wrote {len(res.frames_ok)} frame(s) to {out_dir}/ in {res.wall_seconds:.2f} s"
         if res.frames_skipped:
             msg += f" ({len(res.frames_skipped)} already there, skipped)"
-        if res.failures:
-            msg += f"; {len(res.failures)} frame(s) failed"
-            not_run = len(spec.cameras) - len(set(res.frames_ok) | set(res.frames_skipped) | set(res.failures))
-            if spec.fail_fast and not_run:
-                msg += f"; stopped at frame {min(res.failures)} (--fail-fast), {not_run} not run"
         click.echo(msg, err=True)
 
 

@@ -102,11 +102,16 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
         else:
             lens = {"fov_y": (1 - t) * a.fov_y + t * b.fov_y}
         near = None if a.near is None else (1 - t) * a.near + t * b.near
+        between = f"frame {f}, between the keyframes at frame {keys[i][0]} and frame {keys[i + 1][0]}"
         try:
-            out.append(replace(a, eye=tuple(eye), target=tuple(target), up=tuple(up), near=near, **lens))
+            cam = replace(a, eye=tuple(eye), target=tuple(target), up=tuple(up), near=near, **lens)
         except InputError as e:  # the eye passes through the target
-            raise InputError(f"frame {f}, between the keyframes at frame {keys[i][0]} and frame {keys[i + 1][0]}: "
-                             f"{e}", source or None) from None
+            raise InputError(f"{between}: {e}", source or None) from None
+        if cam.up_along_view:  # e.g. an eye that passes straight over the target
+            raise InputError(f"{between}: the up vector turns parallel to the view direction, so the image's "
+                             "roll is undefined: give the keys an 'up' across the view there, or add a key",
+                             source or None)
+        out.append(cam)
     return out
 
 
@@ -172,7 +177,17 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str,
         raise InputError(f"{where}: bad value ({e})", source) from None
     if "up" in d and not np.any(cam.up):
         raise InputError(f"{where}: 'up' is (0, 0, 0): it gives no direction", source)
+    if cam.up_along_view:
+        # The image's roll is undefined: Camera.basis would draw the frame with a fallback up,
+        # which is not the view asked for.
+        given = f"'up' {_show_vec(cam.up)}" if "up" in d else f"'up' (not given: {_show_vec(cam.up)})"
+        raise InputError(f"{where}: {given} is parallel to the view direction (eye to target), so the image's "
+                         "roll is undefined: give an 'up' across the view", source)
     return cam
+
+
+def _show_vec(v) -> str:
+    return "(" + ", ".join(f"{float(x):g}" for x in v) + ")"
 
 
 def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
@@ -223,6 +238,11 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
                 raise InputError(f"{e} (keyframes sit on output frames, counted from 0)", source) from None
             if abs(frame) > 2 ** 53:
                 raise InputError(f"keyframe {i + 1}: 'frame' {frame} is out of range", source)
+            if not 0 <= frame < count:
+                # Never reached: the path would only move part of the way toward it (the key
+                # numbers or frame_count are wrong, e.g. keys counted at another frame rate).
+                raise InputError(f"keyframe {i + 1}: 'frame' {frame} is outside the path's frames 0 to {count - 1} "
+                                 f"(frame_count {count}; keyframes sit on output frames, counted from 0)", source)
             parsed.append((frame, _camera_from_dict(k, width, height, f"keyframe {i + 1}", source, ("frame",))))
         seen = [f for f, _ in parsed]
         if len(set(seen)) < len(seen):
@@ -245,7 +265,8 @@ def load_camera_path(path: str | Path) -> CameraPath:
     if p.suffix.lower() in (".glb", ".gltf"):
         return gltf_camera_path(p)
     try:
-        data = json.loads(p.read_text())
+        # utf-8-sig: a byte-order mark (Windows editors write one) is read as the text it starts.
+        data = json.loads(p.read_text(encoding="utf-8-sig"))
     except OSError as e:
         raise InputError(f"cannot read camera file ({e.strerror or e})", p) from None
     except UnicodeDecodeError:

@@ -16,6 +16,9 @@ _FALLBACK_UPS = (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array(
 # Limits of what a camera file (JSON or glTF) may ask for: beyond them a run would fail late (a
 # width of 1e30 px overflows the writers) or never end (a frame_count of 1e12).
 MAX_IMAGE_PX = 100_000  # per side
+#: `up` counts as parallel to the view direction when |fwd x up| <= this x |up| (fwd a unit
+#: vector): Camera.basis then picks a fallback up, and a camera file refuses it.
+UP_PARALLEL_TOL = 1e-6
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -66,10 +69,19 @@ class Camera:
         for up in candidates:
             r = np.cross(fwd, up)
             nr = np.linalg.norm(r)
-            if np.linalg.norm(up) > 0 and nr > 1e-6 * np.linalg.norm(up):
+            if np.linalg.norm(up) > 0 and nr > UP_PARALLEL_TOL * np.linalg.norm(up):
                 right = r / nr
                 return right, np.cross(right, fwd), fwd
         raise AssertionError("unreachable: one fallback up is never parallel")
+
+    @property
+    def up_along_view(self) -> bool:
+        """True when `up` is (0, 0, 0) or (nearly, see UP_PARALLEL_TOL) parallel to the view
+        direction: it fixes no roll, and `basis` uses a fallback up instead."""
+        up = np.asarray(self.up, float)
+        fwd = _unit(np.subtract(self.target, self.eye))
+        n = np.linalg.norm(up)
+        return not (n > 0 and np.linalg.norm(np.cross(fwd, up)) > UP_PARALLEL_TOL * n)
 
     @cached_property
     def eye_array(self) -> np.ndarray:

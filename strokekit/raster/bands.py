@@ -87,8 +87,11 @@ class RasterOptions:
         if self.light_space not in LIGHT_SPACES:
             raise UsageError(f"light space must be one of {', '.join(LIGHT_SPACES)}, got {self.light_space!r}")
         light = np.asarray(self.light, float)
-        if light.shape != (3,) or not np.all(np.isfinite(light)) or np.linalg.norm(light) == 0:
-            raise UsageError(f"light must be 3 finite numbers, not all zero, got {self.light!r}")
+        with np.errstate(over="ignore"):  # a length beyond float range (1e300, 0, 0) is refused too
+            length = np.linalg.norm(light) if light.shape == (3,) else 0.0
+        if light.shape != (3,) or not np.all(np.isfinite(light)) or not (0 < length < np.inf):
+            raise UsageError(f"light must be 3 finite numbers, not all zero, got {self.light!r}"
+                             + (" (its length is beyond float range)" if length == np.inf else ""))
         if int(self.supersample) not in (1, 2, 4):
             raise UsageError(f"supersample must be 1, 2 or 4, got {self.supersample}")
         if int(self.edge_supersample) and (int(self.edge_supersample) not in (2, 4, 8)

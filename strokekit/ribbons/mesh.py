@@ -48,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strokekit.camera.view import Camera
+from strokekit.camera.view import MAX_IMAGE_PX, Camera
 from strokekit.errors import UsageError
 from strokekit.model import Strokes
 
@@ -82,8 +82,9 @@ class RibbonOptions:
     pull: float = 0.003
 
     def __post_init__(self):
-        if not (np.isfinite(self.width_px) and self.width_px > 0):
-            raise UsageError(f"ribbon width must be > 0 px, got {self.width_px}")
+        if not (np.isfinite(self.width_px) and 0 < self.width_px <= MAX_IMAGE_PX):
+            raise UsageError(f"ribbon width must be > 0 px and at most {MAX_IMAGE_PX} px (the largest image side), "
+                             f"got {self.width_px:g}")
         for name in ("taper_head_px", "taper_tail_px", "head_px", "tail_px"):
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise UsageError(f"{name.replace('_', '-')} must be >= 0, got {getattr(self, name)}")

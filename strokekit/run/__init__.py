@@ -3,7 +3,8 @@ dask cluster), tracking in frame order, atomic writes, resumption and the run re
 
 from strokekit.run.report import run_report
 from strokekit.run.runner import run
-from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec
+from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
 from strokekit.run.workers import Workers, make_executor
 
-__all__ = ["OutputOptions", "RunInterrupted", "RunResult", "RunSpec", "Workers", "make_executor", "run", "run_report"]
+__all__ = ["OutputOptions", "RunInterrupted", "RunResult", "RunSpec", "RunWriteError", "Workers", "make_executor", "run",
+           "run_report"]

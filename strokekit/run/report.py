@@ -72,6 +72,7 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
         "stages": [{"stage": s.name, "ran": s.ran, "why": s.why, "seconds": round(s.seconds, 6)} for s in res.stages],
         "frames": frames,
         "failures": {str(k): v for k, v in sorted(res.failures.items())},
+        "write_error": res.write_error,
         "outputs": res.outputs,
         "wall_seconds": round(res.wall_seconds, 4),
         "exit_code": res.exit_code,

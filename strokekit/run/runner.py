@@ -17,11 +17,12 @@ from typing import Callable
 
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
+from strokekit.lines.budget import check_lines_fit
 from strokekit.model import Strokes
 from strokekit.raster.rays import check_raster_fits
 from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.report import _add_timings
-from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, plan_stages
+from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, RunWriteError, plan_stages
 from strokekit.run.tasks import _surface_depth, frame_task, write_task
 from strokekit.run.workers import Workers, _keep_renderer, make_executor
 from strokekit.scene.load import Scene, load_scene
@@ -54,35 +55,32 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
 
     The steps: check the request, start the workers, load and plan the stages, plan the resume
     (`plan_resume`), stream the frames through line work, tracking and writing (`FrameStream`),
-    write sequence.glb, and on Ctrl-C or failures clean up (`clean_up`)."""
+    write sequence.glb, and on Ctrl-C or failures clean up (`clean_up`).
+
+    A file that cannot be written (disk full, no permission, a failing device; here or in a
+    worker) stops the run at the first one: the frames it left part-written are removed, and
+    RunWriteError (an OSError naming that file) is raised with the result."""
     t_start = time.perf_counter() if started_at is None else started_at
     res = RunResult()
     check_run(spec)
     resume: ResumePlan | None = None
+    write_error: OSError | None = None
     # Workers start first: their imports and scene load overlap the main process's own load.
     own = workers is None
     if own:
         workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
+        check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
         stage = {s.name: s for s in res.stages}
         resume = plan_resume(spec, scene, stage["tracking"].ran)
         res.frames_skipped = sorted(resume.done_before)
-        res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
-        if workers.main_helps:
-            # Frames rendered here use this load; building the renderer (open3d, the BVH) is part
-            # of the load stage.
-            t = time.perf_counter()
-            _keep_renderer(spec.scene_path, scene, spec.lines)
-            stage["load scene + BVH"].seconds += time.perf_counter() - t
-        stream = FrameStream(spec, scene, res, stage, resume, progress)
         try:
-            workers.map(stream.pending, stream.handle)
-            if spec.fail_fast and res.failures:
-                stream.write_before_failure()
-        finally:
-            stream.enter_written()
-        write_sequence_glb(spec, scene, res, stage, stream)
+            res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
+        except OSError as e:
+            write_error = e
+        if write_error is None:
+            write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
     except KeyboardInterrupt:
         # Ctrl-C: the frames in progress are abandoned. The workers stop now (also the caller's:
         # their tasks belong to this run), then the temporary files of the writes they were in
@@ -95,9 +93,44 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     finally:
         if own:
             workers.close()
+    if write_error is not None:
+        res.write_error = f"{write_error.filename}: {write_error.strerror}"
+        clean_up(spec, res, resume)
+        _finish(res, t_start)
+        raise RunWriteError(write_error, res)
     if res.failures:
         clean_up(spec, res, resume)
     return _finish(res, t_start)
+
+
+def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, resume: ResumePlan,
+                   progress: Callable[[str, int, int], None] | None, workers: Workers) -> OSError | None:
+    """Every frame through line work, tracking and writing (FrameStream), then sequence.glb.
+    Returns the first write error (the stream stopped there), or None."""
+    if workers.main_helps:
+        # Frames rendered here use this load; building the renderer (open3d, the BVH) is part
+        # of the load stage.
+        t = time.perf_counter()
+        _keep_renderer(spec.scene_path, scene, spec.lines)
+        stage["load scene + BVH"].seconds += time.perf_counter() - t
+    stream = FrameStream(spec, scene, res, stage, resume, progress)
+    try:
+        workers.map(stream.pending, stream.handle)
+        if spec.fail_fast and res.failures and stream.write_error is None:
+            stream.write_before_failure()
+    finally:
+        # The run manifest's update may fail too (a full disk): the clean-up of part-written
+        # frames must still run, and the first error is the one to say.
+        try:
+            stream.enter_written()
+        except OSError as e:
+            stream.write_failed(None, e)
+    if stream.write_error is None:
+        try:
+            write_sequence_glb(spec, scene, res, stage, stream)
+        except OSError as e:
+            stream.write_failed(None, e)
+    return stream.write_error
 
 
 def check_run(spec: RunSpec) -> None:
@@ -205,20 +238,36 @@ class FrameStream:
         self.ordered: list[int] = []  # frames with lines, in frame order, tracked when tracking is on
         self.n_done = self.n_written = 0
         self.cursor = 0
+        #: The first file that could not be written (an OSError naming it): the run stops there.
+        self.write_error: OSError | None = None
 
     def handle(self, r: dict) -> bool:
-        """Take one task result; False stops the run (--fail-fast after a failure)."""
+        """Take one task result; False stops the run (a file that cannot be written, or
+        --fail-fast after a failure)."""
         if r.get("stage") == "write":
             self.written(r)
         else:
             self.lines_done(r)
+        if self.write_error is not None:
+            return False
         return not (self.spec.fail_fast and ("error" in r or "error" in r.get("written", ())))
+
+    def write_failed(self, frame: int | None, error: OSError) -> None:
+        """A write failed (of `frame`'s files, or of a file of the run): the first one is kept
+        and said; the frame counts as failed (its files are removed by the clean-up)."""
+        if self.write_error is None:
+            self.write_error = error
+        if frame is not None:
+            self.res.failures.setdefault(frame, f"{error.filename}: {error.strerror}")
 
     def lines_done(self, r: dict) -> None:
         res = self.res
         self.n_done += 1
         f = r["frame"]
         self.finished.add(f)
+        if "write_error" in r:  # a raster PNG: the run stops, nothing more is tracked
+            self.write_failed(f, OSError(*r["write_error"]))
+            return
         if "error" in r:
             res.failures[f] = r["error"]
             self.lines_failed.add(f)
@@ -238,7 +287,7 @@ class FrameStream:
     def advance(self) -> None:
         """Track and queue for writing every frame whose earlier frames are all done."""
         need, done_before = self.need_lines, self.resume.done_before
-        while self.cursor < len(need) and need[self.cursor] in self.finished:
+        while self.cursor < len(need) and need[self.cursor] in self.finished and self.write_error is None:
             f = need[self.cursor]
             if f in self.lines_failed and self.spec.fail_fast:
                 return  # --fail-fast: no frame after a failed one is tracked or written
@@ -263,7 +312,9 @@ class FrameStream:
         res = self.res
         self.n_written += 1
         f = r["frame"]
-        if "error" in r:
+        if "write_error" in r:
+            self.write_failed(f, OSError(*r["write_error"]))
+        elif "error" in r:
             res.failures[f] = r["error"]
         else:
             res.outputs += r["files"]
@@ -287,6 +338,8 @@ class FrameStream:
         self.pending.clear()
         for item in rest:
             self.written(write_task(*item[1:]))
+            if self.write_error is not None:
+                break
 
     def enter_written(self) -> None:
         """Enter the frames written since the start in the run manifest (see ResumePlan)."""

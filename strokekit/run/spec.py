@@ -104,11 +104,15 @@ class RunResult:
     #: The occlusion backends the frames' lines came from (Occluder.backend: 'open3d', or a
     #: fallback whose drawing can differ in the last digits): one, unless processes differed.
     ray_tracers: set = field(default_factory=set)
+    #: The first file the run could not write ("PATH: strerror"; it stopped there, RunWriteError).
+    write_error: str | None = None
 
     @property
     def exit_code(self) -> int:
         if self.interrupted:
             return 130  # the shell's code for a process stopped by SIGINT
+        if self.write_error is not None:
+            return 1  # an unwritable output, as one found before the run
         if not self.failures:
             return 0
         return 3 if self.frames_ok or self.frames_skipped else 1
@@ -119,6 +123,18 @@ class RunResult:
         if self.interrupted:
             return "interrupted"
         return {0: "ok", 3: "partial"}.get(self.exit_code, "failed")
+
+
+class RunWriteError(OSError):
+    """A file of the run could not be written (disk full, no permission, a failing device). The
+    run stopped at the first such error (errno, strerror and filename are its), removed the files
+    of the frames it left part-written (a frame is on disk whole or not at all) and raises it;
+    `result` holds what was done before, with `result.write_error` set. An OSError, so code that
+    does not know it reports it as any unwritable file."""
+
+    def __init__(self, error: OSError, result: RunResult):
+        super().__init__(error.errno, error.strerror, error.filename)
+        self.result = result
 
 
 class RunInterrupted(KeyboardInterrupt):

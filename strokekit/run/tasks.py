@@ -22,10 +22,34 @@ from strokekit.writers.strokes_json import strokes_json
 from strokekit.writers.svg import bands_layer, svg_document
 
 
+class _WriteFailed(Exception):
+    """A file of the frame could not be written (atomic_write_bytes raised `error`): the task
+    reports it as a write error, which stops the run, not as a failed frame."""
+
+    def __init__(self, error: OSError):
+        super().__init__(str(error))
+        self.error = error
+
+
+def _write(path, data: bytes) -> str:
+    try:
+        return str(atomic_write_bytes(path, data))
+    except OSError as e:
+        raise _WriteFailed(e) from None
+
+
+def _write_error(e: OSError) -> tuple:
+    """(errno, strerror, filename) of a failed write: what a task result carries (picklable, and
+    the run raises it again as OSError(*...))."""
+    return (e.errno, e.strerror, e.filename)
+
+
 def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int, camera: Camera,
                outputs: OutputOptions, do_lines: bool = True, write: tuple | None = None) -> dict:
     """Per-frame work that needs no other frame: lines, and the raster outputs (written here).
-    Returns {'frame', 'strokes', 'seconds', 'files'}; errors come back as {'error': message}.
+    Returns {'frame', 'strokes', 'seconds', 'files'}; errors come back as {'error': message}, a
+    file that cannot be written (disk full, no permission) as {'write_error': (errno, strerror,
+    filename)}.
     `write` = (kinds, extra, keep_strokes): the frame needs nothing from other frames (no
     tracking), so its SVG/JSON/GLB are written here too, and the result carries the write
     task's result under 'written' (and the strokes only when `keep_strokes`): strokes are not
@@ -44,7 +68,7 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
             stem = outputs.out_dir / outputs.stem(frame)
             pngs, underlays = raster_outputs_with_bands_layer(r.scene, camera, r.occluder, outputs.raster_options)
             for suffix, data in pngs.items():
-                files.append(str(atomic_write_bytes(f"{stem}_{suffix}.png", data)))
+                files.append(_write(f"{stem}_{suffix}.png", data))
             timings["raster pass"] = time.perf_counter() - t1
         res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
                "timings": timings, "underlays": underlays or None, "ray_tracer": r.occluder.backend}
@@ -54,6 +78,8 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
             if not keep_strokes:
                 res["strokes"] = None
         return res
+    except _WriteFailed as w:
+        return {"frame": frame, "write_error": _write_error(w.error)}
     except StrokekitError as e:
         return {"frame": frame, "error": str(e)}
     except Exception as e:  # a failed frame must not lose the others
@@ -63,7 +89,8 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
 
 def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tuple[str, ...], extra: dict,
                underlays: list | None = None, scene_key: tuple | None = None, occluder=None) -> dict:
-    """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}.
+    """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}, or
+    {'frame', 'write_error': (errno, strerror, filename)} for a file that cannot be written.
     The GLB's world ribbons lie on the scene's surface (raster.surface_depth_at): `occluder`, or
     this process's renderer of `scene_key` = (scene path, scene hash, LineOptions)."""
     t0 = time.perf_counter()
@@ -75,20 +102,22 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
 
             text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
                                 stroke_width=outputs.stroke_width_px, underlays=underlays)
-            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".svg"), text.encode())))
+            files.append(_write(outputs.frame_file(frame, ".svg"), text.encode()))
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:
 
-            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".json"),
-                                                strokes_json(strokes, cam.width, cam.height, frame, extra=extra))))
+            files.append(_write(outputs.frame_file(frame, ".json"),
+                                strokes_json(strokes, cam.width, cam.height, frame, extra=extra)))
             timings["json"] = time.perf_counter() - t0 - sum(timings.values())
         if outputs.gltf and not outputs.gltf_sequence:
 
-            files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".glb"), glb_for_frame(
-                strokes, cam, outputs.gltf_options, _surface_depth(outputs, scene_key, occluder)))))
+            files.append(_write(outputs.frame_file(frame, ".glb"), glb_for_frame(
+                strokes, cam, outputs.gltf_options, _surface_depth(outputs, scene_key, occluder))))
             timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())
         return {"stage": "write", "frame": frame, "files": files, "seconds": time.perf_counter() - t0,
                 "timings": timings}
+    except _WriteFailed as w:
+        return {"stage": "write", "frame": frame, "write_error": _write_error(w.error)}
     except Exception as e:
         return {"stage": "write", "frame": frame, "error": f"frame {frame}: writing failed: {type(e).__name__}: {e}"}
 

@@ -4,6 +4,7 @@ its BVH once and keeps its renderer."""
 
 from __future__ import annotations
 
+import os
 import threading
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, wait
@@ -14,6 +15,10 @@ from strokekit.errors import InputError, UsageError
 from strokekit.lines.renderer import LineRenderer
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene, load_scene
+
+#: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
+#: than a few per core only share the cores.
+MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
 # --- worker side -----------------------------------------------------------------------------------
 

@@ -48,6 +48,9 @@ class Scene:
     dropped_degenerate: int = 0
     dropped_duplicate: int = 0
     input_vertices: int = 0
+    #: What is wrong with the file but does not change the drawing, one sentence each naming the
+    #: file (a .gltf whose texture image is missing): the command line prints them as warnings.
+    warnings: tuple[str, ...] = ()
 
     # --- geometry --------------------------------------------------------------------------
     @cached_property
@@ -203,7 +206,7 @@ class Scene:
 
 def build_scene(vertices: np.ndarray, faces: np.ndarray, face_object: np.ndarray | None = None,
                 face_material: np.ndarray | None = None, *, objects=("mesh",), materials=(Material("default"),),
-                source: str = "") -> Scene:
+                source: str = "", warnings: tuple[str, ...] = ()) -> Scene:
     """Weld vertices by position, drop degenerate and duplicate faces, return a Scene.
 
     vertices (V, 3) world units; faces (F, 3) vertex indices."""
@@ -246,7 +249,8 @@ def build_scene(vertices: np.ndarray, faces: np.ndarray, face_object: np.ndarray
     used2, f2 = np.unique(f, return_inverse=True)
     return Scene(vertices=uniq[used2], faces=f2.reshape(-1, 3).astype(np.int64), face_object=fo, face_material=fm,
                  objects=tuple(objects), materials=tuple(materials), source=source,
-                 dropped_degenerate=int(degenerate.sum()), dropped_duplicate=n_dup, input_vertices=len(v))
+                 dropped_degenerate=int(degenerate.sum()), dropped_duplicate=n_dup, input_vertices=len(v),
+                 warnings=tuple(warnings))
 
 
 def _material_of(geom) -> Material:
@@ -290,19 +294,25 @@ def load_scene(path: str | Path) -> Scene:
     cached = parts is not None
     if not cached:
         parts = _read_parts(p)
-    scene = build_scene(*parts[:4], objects=parts[4], materials=parts[5], source=str(p))
+    scene = build_scene(*parts[:4], objects=parts[4], materials=parts[5], source=str(p),
+                        warnings=tuple(f"{p}: {w}" for w in parts[6]))
     if not cached:
         _cache_write(cache, parts)  # once build_scene has accepted it (finite, has faces)
     return scene
 
 
 def _read_parts(p: Path) -> tuple:
-    """(vertices, faces, face_object, face_material, objects, materials) of a mesh file, world
-    space, through trimesh."""
+    """(vertices, faces, face_object, face_material, objects, materials, warnings) of a mesh
+    file, world space, through trimesh."""
+    warnings: tuple[str, ...] = ()
     if p.suffix.lower() in (".gltf", ".glb"):
-        _check_gltf(p, _gltf_document(p))
+        doc = _gltf_document(p)
+        _check_gltf(p, doc)
+        warnings = _gltf_missing_images(p, doc)
     if p.suffix.lower() == ".stl":
         _check_stl_length(p)
+    if p.suffix.lower() == ".ply":
+        _check_ply(p)
     try:
         loaded = _load_holding_interrupts(p)
     except Exception as e:  # trimesh raises many kinds on bad files
@@ -342,7 +352,7 @@ def _read_parts(p: Path) -> tuple:
     if not faces:
         raise InputError("no triangle faces in file (empty, or a point cloud)", p)
     return (np.concatenate(verts), np.concatenate(faces), np.concatenate(fobj), np.concatenate(fmat),
-            tuple(objects), tuple(materials))
+            tuple(objects), tuple(materials), warnings)
 
 
 #: The bytes of a text file (tab, newlines, printable ASCII).
@@ -372,6 +382,148 @@ def _check_stl_length(p: Path) -> None:
     if size < 84 + 50 * n:
         raise InputError(f"truncated binary STL: its header says {n} triangles ({84 + 50 * n} bytes), the file has "
                          f"{size} bytes", p)
+
+
+# --- PLY: a file cut short -------------------------------------------------------------------------
+
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+#: A PLY header longer than this is not looked at (the loader reads it).
+_PLY_HEADER_MAX = 1 << 20
+
+
+def _ply_rows(name: str, n: int) -> str:
+    """'80 faces', '42 vertices', "3 'edge' elements" for a message."""
+    return {"vertex": f"{n} vertices", "face": f"{n} faces"}.get(name, f"{n} '{name}' elements")
+
+
+def _ply_row(name: str, k: int) -> str:
+    return {"vertex": f"vertex {k}", "face": f"face {k}"}.get(name, f"'{name}' element {k}")
+
+
+def _check_ply(p: Path) -> None:
+    """InputError for a PLY file cut short, in words: a header without its end_header line, or a
+    body with fewer rows (ASCII) or bytes (binary) than the header's element counts need, or
+    whose last row is cut. trimesh said 'IndexError: list index out of range', 'KeyError', 'PLY is
+    unexpected length!', or read an ASCII file cut in its faces without the missing faces. Files
+    the check cannot size (a header of another shape) are left to the loader."""
+    try:
+        with open(p, "rb") as fh:
+            data = fh.read()
+    except OSError:
+        return
+    if not data.startswith(b"ply"):
+        raise InputError("not a PLY file: it does not start with the line 'ply'", p)
+    m = re.search(rb"^end_header[ \t]*\r?(\n|$)", data[:_PLY_HEADER_MAX], re.M)
+    if m is None:
+        if len(data) > _PLY_HEADER_MAX:
+            return
+        raise InputError("truncated PLY: the header ends before its 'end_header' line", p)
+    fmt, elements = None, []  # elements: [name, count, [(kind, count dtype or None, dtype)]]
+    for line in data[:m.start()].decode("latin-1").splitlines()[1:]:
+        w = line.split()
+        if not w or w[0] in ("comment", "obj_info"):
+            continue
+        try:
+            if w[0] == "format":
+                fmt = w[1]
+            elif w[0] == "element":
+                elements.append([w[1], int(w[2]), []])
+            elif w[0] == "property" and w[1] == "list":
+                elements[-1][2].append(("list", _PLY_TYPES[w[2]], _PLY_TYPES[w[3]]))
+            elif w[0] == "property":
+                elements[-1][2].append(("scalar", None, _PLY_TYPES[w[1]]))
+        except (IndexError, KeyError, ValueError):
+            raise InputError(f"broken PLY header: cannot read the line {line.strip()!r}", p) from None
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian") or any(n < 0 for _, n, _ in elements):
+        return  # not ours to judge: the loader says what it says
+    says = "its header says " + " and ".join(_ply_rows(name, n) for name, n, _ in elements if n)
+    body = data[m.end():]
+    where = _ply_ascii_end(body, elements) if fmt == "ascii" else \
+        _ply_binary_end(body, elements, "<" if fmt == "binary_little_endian" else ">")
+    if where is not None:
+        raise InputError(f"truncated PLY: {says}, but the file {where}", p)
+
+
+def _ply_ascii_end(body: bytes, elements: list) -> str | None:
+    """Where an ASCII PLY body falls short of its elements ('ends at face 21', 'has face 80 cut
+    short'), or None."""
+    rows = [r for r in body.split(b"\n") if r.strip()]
+    k = 0
+    for name, n, props in elements:
+        if k + n > len(rows):
+            return f"ends at {_ply_row(name, len(rows) - k + 1)} of {n}"
+        if n:
+            tokens = rows[k + n - 1].split()
+            need = 0
+            for kind, _, _ in props:
+                if kind == "scalar":
+                    need += 1
+                    continue
+                try:
+                    need += 1 + int(float(tokens[need]))
+                except (IndexError, ValueError, OverflowError):  # the list's count itself is missing or no number
+                    need = len(tokens) + 1
+                    break
+            if len(tokens) < need:
+                return f"has {_ply_row(name, n)} (its last) cut short"
+        k += n
+    return None
+
+
+def _ply_binary_end(body: bytes, elements: list, order: str) -> str | None:
+    """Where a binary PLY body falls short of its elements ('ends at face 53 of 80'), or None."""
+    pos = 0
+    for name, n, props in elements:
+        if all(kind == "scalar" for kind, _, _ in props):
+            size = sum(np.dtype(t).itemsize for _, _, t in props)
+            if len(body) - pos < n * size:
+                return f"ends at {_ply_row(name, (len(body) - pos) // max(size, 1) + 1)} of {n}"
+            pos += n * size
+            continue
+        if n == 0:
+            continue
+        # Rows of lists: every row as long as the first (a triangle mesh) is checked at once; rows
+        # of mixed lengths are walked.
+        first_counts, off = [], pos  # (offset in the row, count dtype, the first row's count) per list
+        for kind, c, t in props:
+            if kind == "scalar":
+                off += np.dtype(t).itemsize
+                continue
+            cd = np.dtype(order + c)
+            if len(body) < off + cd.itemsize:
+                return f"ends at {_ply_row(name, 1)} of {n}"
+            k = int(np.frombuffer(body, cd, 1, off)[0])
+            first_counts.append((off - pos, cd, k))
+            off += cd.itemsize + k * np.dtype(t).itemsize
+        row = off - pos
+        whole = min(n, (len(body) - pos) // row)
+        same = all(np.all(np.ndarray((whole,), cd, body, pos + o, (row,)) == k) for o, cd, k in first_counts)
+        if same and whole == n:
+            pos += n * row
+            continue
+        if same:
+            # Rows of the first row's length up to the end: the rest of them cannot fit unless
+            # they are shorter; walk from there.
+            start = whole
+            pos += whole * row
+        else:
+            start = 0
+        for r in range(start, n):
+            for kind, c, t in props:
+                size = np.dtype(t).itemsize
+                if kind == "scalar":
+                    pos += size
+                    continue
+                cd = np.dtype(order + c)
+                if len(body) < pos + cd.itemsize:
+                    return f"ends at {_ply_row(name, r + 1)} of {n}"
+                k = int(np.frombuffer(body, cd, 1, pos)[0])
+                pos += cd.itemsize + max(k, 0) * size
+            if pos > len(body):
+                return f"ends at {_ply_row(name, r + 1)} of {n}"
+    return None
 
 
 def _gltf_document(p: Path) -> dict | None:
@@ -440,6 +592,62 @@ def _check_gltf(p: Path, doc: dict | None) -> None:
         if isinstance(q, list) and len(q) == 4 and all(isinstance(x, (int, float)) for x in q):
             if not (0.5 < sum(float(x) * float(x) for x in q) < 2.0):
                 raise InputError(f"node {i} has rotation {q}, which is not a unit quaternion", p)
+    _check_gltf_accessors(p, doc, meshes)
+
+
+_GLTF_COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+_GLTF_TYPE_SIZE = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+
+
+def _check_gltf_accessors(p: Path, doc: dict, meshes: list) -> None:
+    """InputError for an accessor of a mesh primitive (attribute or indices) whose elements run
+    past the end of its bufferView: trimesh said 'cannot reshape array of size 24 into shape
+    (600,3)'. Matrix column padding is not counted (the need is a lower bound: no false alarm)."""
+    accessors, views = doc.get("accessors"), doc.get("bufferViews")
+    if not isinstance(accessors, list) or not isinstance(views, list):
+        return
+    used = set()
+    for m in meshes:
+        prims = m.get("primitives") if isinstance(m, dict) else None
+        for prim in prims if isinstance(prims, list) else []:
+            if not isinstance(prim, dict):
+                continue
+            attrs = prim.get("attributes")
+            used.update(a for a in (attrs.values() if isinstance(attrs, dict) else ()) if isinstance(a, int))
+            if isinstance(prim.get("indices"), int):
+                used.add(prim["indices"])
+    for i in sorted(used):
+        a = accessors[i] if 0 <= i < len(accessors) else None
+        if not isinstance(a, dict):
+            continue
+        v, count, offset = a.get("bufferView"), a.get("count"), a.get("byteOffset", 0)
+        comp, kind = _GLTF_COMPONENT_BYTES.get(a.get("componentType")), _GLTF_TYPE_SIZE.get(a.get("type"))
+        if not (isinstance(v, int) and 0 <= v < len(views) and isinstance(views[v], dict)) or comp is None \
+                or kind is None or not all(isinstance(x, int) and not isinstance(x, bool) for x in (count, offset)):
+            continue
+        view = views[v]
+        length, stride = view.get("byteLength"), view.get("byteStride") or comp * kind
+        if not (isinstance(length, int) and isinstance(stride, int)) or count <= 0:
+            continue
+        need = offset + (count - 1) * stride + comp * kind
+        if need > length:
+            raise InputError(f"accessor {i} does not fit its bufferView {v}: {count} {a['type']} elements of "
+                             f"{comp}-byte components from byte {offset} need {need} bytes, the view has {length}", p)
+
+
+def _gltf_missing_images(p: Path, doc: dict | None) -> tuple[str, ...]:
+    """Warnings (one line each, without the file's name: they are cached by content) for texture images the file refers to that are not there.
+    Not an error: strokekit draws from the geometry and the material colours and never samples a
+    texture, so the drawing is the same; but other tools will miss the image."""
+    images = doc.get("images") if isinstance(doc, dict) else None
+    missing = [(i, im["uri"]) for i, im in enumerate(images if isinstance(images, list) else [])
+               if isinstance(im, dict) and isinstance(im.get("uri"), str) and im["uri"]
+               and not im["uri"].startswith("data:") and not (p.parent / unquote(im["uri"])).is_file()]
+    if not missing:
+        return ()
+    names = ", ".join(f"image {i} ({uri})" for i, uri in missing[:3]) + (", ..." if len(missing) > 3 else "")
+    return (f"{names} not found beside the file: the drawing does not use textures, but other tools "
+            f"will miss {'it' if len(missing) == 1 else 'them'}",)
 
 
 # --- scene cache ----------------------------------------------------------------------------------
@@ -449,8 +657,9 @@ def _check_gltf(p: Path, doc: dict | None) -> None:
 # code that read them: the same bytes give the same arrays, so outputs do not change.
 
 #: Bump when the reading of files changes (naming, ordering, materials).
-_CACHE_FORMAT = 4  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans refused;
-#   4: glTF node cycles and non-unit rotations refused
+_CACHE_FORMAT = 5  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans refused;
+#   4: glTF node cycles and non-unit rotations refused; 5: warnings kept, truncated PLY and glTF accessors
+#   longer than their bufferView refused
 
 
 def _cache_dir() -> Path | None:
@@ -506,16 +715,15 @@ _MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+([^\r\n]*?)[ \t]*\r?$", re.M)
 
 def _referenced_files(p: Path, mtllib: list[bytes]) -> list[Path]:
     """The files that mesh file `p` refers to and trimesh reads with it: the material libraries of
-    an OBJ (`mtllib` lines), the external buffers and images of a .gltf."""
+    an OBJ (`mtllib` lines), the external buffers and images of a .gltf or .glb."""
     if p.suffix.lower() == ".obj":
         return [p.parent / n.decode("utf-8", "replace") for n in mtllib if n]
-    if p.suffix.lower() != ".gltf":
+    if p.suffix.lower() not in (".gltf", ".glb"):
         return []
-
     try:
-        doc = json.loads(p.read_bytes())
+        doc = _gltf_document(p)
         uris = [x.get("uri") for key in ("buffers", "images") for x in doc.get(key) or [] if isinstance(x, dict)]
-    except (ValueError, AttributeError, TypeError):
+    except (InputError, ValueError, AttributeError, TypeError):
         return []  # not parsed here: the load reports it
     return [p.parent / unquote(u) for u in uris if isinstance(u, str) and u and not u.startswith("data:")]
 
@@ -528,7 +736,8 @@ def _cache_read(f: Path | None) -> tuple | None:
 
             objects = tuple(json.loads(str(z["objects"])))
             materials = tuple(Material(m[0], tuple(m[1])) for m in json.loads(str(z["materials"])))
-            return (z["vertices"], z["faces"], z["face_object"], z["face_material"], objects, materials)
+            warnings = tuple(str(w) for w in json.loads(str(z["warnings"])))
+            return (z["vertices"], z["faces"], z["face_object"], z["face_material"], objects, materials, warnings)
     except Exception:  # absent, unreadable, truncated (BadZipFile, EOFError, zlib.error) or from
         return None  # another layout: a cache never breaks a load, the file is read again
 
@@ -540,7 +749,8 @@ def _cache_write(f: Path | None, parts: tuple) -> None:
     buf = io.BytesIO()
     np.savez(buf, vertices=parts[0], faces=parts[1], face_object=parts[2], face_material=parts[3],
              objects=np.array(json.dumps(list(parts[4]))),
-             materials=np.array(json.dumps([[m.name, list(m.base_color)] for m in parts[5]])))
+             materials=np.array(json.dumps([[m.name, list(m.base_color)] for m in parts[5]])),
+             warnings=np.array(json.dumps(list(parts[6]))))
     try:
         atomic_write_bytes(f, buf.getvalue())
     except OSError:  # a read-only home or a full disk only costs the next run its parse time
