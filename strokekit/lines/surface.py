@@ -21,8 +21,7 @@ def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
         return last[1]
     n = scene.face_normals
     if camera.is_ortho:
-        _, _, fwd = camera.basis
-        ff = (n @ -fwd) > 0.0
+        ff = (n @ -camera.ray_dir) > 0.0  # (fwd but for the oblique projections: their rays' direction)
     else:
         # n.eye > offset: the same test as n.eye - offset > 0 (a difference of doubles rounds to
         # zero only when they are equal), one pass fewer.

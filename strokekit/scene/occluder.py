@@ -199,7 +199,9 @@ class Occluder:
             # clipped out of the drawing (clip_segments) and hides nothing either (a section view,
             # a camera placed inside the scene).
             _, _, fwd = camera.basis
-            toward = np.broadcast_to(-fwd, points.shape)
+            # Along the projection rays (fwd but for the oblique projections), whose unit
+            # component along fwd makes `reach` the parameter that meets the near plane.
+            toward = np.broadcast_to(-camera.ray_dir, points.shape)
             reach = np.maximum((points - np.asarray(camera.eye, float)) @ fwd - camera.near_distance(self.radius), 0.0)
             origins = points + np.minimum(eps, 0.5 * reach)[:, None] * toward
             targets = points + reach[:, None] * toward

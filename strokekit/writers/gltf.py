@@ -253,7 +253,18 @@ class _Doc:
                     znear = min(znear, (0.999 if camera.near else 0.5) * depths[0])
                 cam = {"type": "perspective", "name": "camera", "perspective": {
                     "aspectRatio": aspect, "yfov": math.radians(camera.fov_y), "znear": znear}}
-            node = {"name": "camera", "translation": [float(x) for x in camera.eye], "rotation": _camera_quat(camera)}
+            node = {"name": "camera", "translation": [float(x) for x in _camera_position(camera)],
+                    "rotation": _camera_quat(camera)}
+            if camera.projection not in ("perspective", "orthographic"):
+                # glTF knows perspective and orthographic cameras only: an axonometric view is an
+                # orthographic camera (the one above, exact); an oblique one has no glTF form: the
+                # camera above is its image plane seen straight on, centred on the target.
+                cam["extras"] = {"projection": camera.projection, "azimuth": camera.azimuth,
+                                 "elevation": camera.elevation}
+                if camera.is_oblique:
+                    cam["extras"].update({"oblique_angle": camera.oblique_angle, "receding_shear": list(camera.shear),
+                                          "note": "glTF has no oblique projection: the drawing is sheared by "
+                                                  "receding_shear x depth; this camera is its unsheared front view"})
         node["camera"] = self.add("cameras", cam)
         return self.add("nodes", node)
 
@@ -270,6 +281,16 @@ class _Doc:
             chunks += [struct.pack("<I4s", len(blob), b"BIN\0"), blob]
         body = b"".join(chunks)
         return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+def _camera_position(camera: Camera) -> np.ndarray:
+    """Where the glTF camera node stands: the eye, but for an oblique projection (whose eye is on
+    its slanted ray through the target) the point as far before the target straight along fwd."""
+    if not camera.is_oblique:
+        return np.asarray(camera.eye, float)
+    _, _, fwd = camera.basis
+    depth = float(np.subtract(camera.target, camera.eye) @ fwd)
+    return np.asarray(camera.target, float) - depth * fwd
 
 
 def _camera_quat(camera: Camera) -> list[float]:
@@ -367,7 +388,7 @@ def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, 
     root_i = doc.add("nodes", {"name": "strokes", "children": children})
     cam_node = doc.camera_node(frames[0].camera, _depth_range(meshes))
     if n > 1 and opts.space == "world":
-        eyes = np.array([f.camera.eye for f in frames], float)
+        eyes = np.array([_camera_position(f.camera) for f in frames], float)
         quats = np.array([_camera_quat(f.camera) for f in frames])
         for k in range(1, n):  # shortest path between consecutive keys
             if np.dot(quats[k], quats[k - 1]) < 0:

@@ -140,8 +140,7 @@ def read_strokes_json(path) -> Strokes:
 
     cam = None
     if d.get("camera"):
-        c = dict(d["camera"])
-        cam = Camera(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in c.items()})
+        cam = Camera.from_json(dict(d["camera"]))
     st = Strokes(points=cat("points", 2), surface=cat("surface", 3),
                  face=np.asarray(cat("face", 1) if ss and "face" in ss[0] else np.full(offsets[-1], -1), np.int64),
                  offsets=offsets, kind=np.array([KIND_INDEX[s["kind"]] for s in ss], np.int8),
