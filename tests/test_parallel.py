@@ -96,18 +96,29 @@ def _drawn_edges(strokes, expected_px):
     return out
 
 
+@pytest.fixture(scope="module")
+def cube_hidden_renderer(cube_renderer):
+    return LineRenderer(cube_renderer.scene, LineOptions(occlusion=(0, 15)))
+
+
 @pytest.mark.parametrize("projection, angles, az, el, oblique", VIEWS)
 def test_cube_drawn_in_each_parallel_projection_has_its_corners_within_a_hundredth_of_a_pixel(
-        cube_renderer, projection, angles, az, el, oblique):
-    """The visible drawing of a unit cube: every drawn point is a corner within 0.01 px of the
-    textbook position, and the edges drawn are the nine not touching the far corner (the one
+        cube_renderer, cube_hidden_renderer, projection, angles, az, el, oblique):
+    """A unit cube with its hidden lines: every drawn point is a corner within 0.01 px of the
+    textbook position; the visible edges are the nine not touching the far corner (the one
     farthest along the rays; the oblique projections see the same three faces as the view they
-    slant)."""
+    slant), the hidden ones exactly the three of the far corner, each behind one face (level 1:
+    in isometric the far corner lies right behind the near one, where three faces meet, and the
+    rays from its edges run along face diagonals: still one surface each). The visible-only
+    drawing is the level-0 part."""
     cam = camera(projection, angles)
-    strokes = cube_renderer.render(cam)
+    px = textbook_pixels(CORNERS, az, el, oblique)
     far = int(np.argmax(CORNERS @ cam.view_dir))
-    expected = {e for e in EDGES if far not in e}
-    assert _drawn_edges(strokes, textbook_pixels(CORNERS, az, el, oblique)) == expected
+    strokes = cube_hidden_renderer.render(cam)
+    assert set(strokes.occlusion.tolist()) == {0, 1}
+    assert _drawn_edges(strokes.select(strokes.occlusion == 0), px) == {e for e in EDGES if far not in e}
+    assert _drawn_edges(strokes.select(strokes.occlusion == 1), px) == {e for e in EDGES if far in e}
+    assert _drawn_edges(cube_renderer.render(cam), px) == {e for e in EDGES if far not in e}
 
 
 def test_an_isometric_camera_foreshortens_the_three_axes_alike():

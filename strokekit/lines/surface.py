@@ -31,6 +31,35 @@ def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
     return ff
 
 
+#: A face is seen edge-on when the eye lies within this fraction of the eye's distance (plus the
+#: scene radius) of its plane (parallel cameras: the rays' direction within this of its plane):
+#: float64 rounding of an exactly edge-on face (the eye in a model's symmetry plane) and nothing
+#: a pixel could show (at 1e-12 rad a face 1e6 px long is 1e-6 px wide).
+EDGE_ON_TOL = 1e-12
+
+
+def edge_on_faces(scene: Scene, camera: Camera) -> np.ndarray:
+    """(F,) True where the frame sees the face exactly edge-on (EDGE_ON_TOL): the eye in its
+    plane, or for a parallel camera the projection rays along it. Such a face covers no area and
+    hides nothing (BRIEF 2): the renderer leaves it out of the occlusion rays. (It still counts
+    as back-facing for the contours: n.(eye - P) <= 0.) Kept per scene for the last camera."""
+    c = scene_cache(scene)
+    last = c.get("edge_on")
+    if last is not None and last[0] is camera:
+        return last[1]
+    n = scene.face_normals
+    if camera.is_ortho:
+        d = camera.ray_dir
+        on = np.abs(n @ d) <= EDGE_ON_TOL * np.linalg.norm(d)
+    else:
+        eye = np.asarray(camera.eye, float)
+        scale = np.linalg.norm(eye - scene.center) + scene.radius
+        on = np.abs(n @ eye - scene.face_offsets) <= EDGE_ON_TOL * scale
+    on.setflags(write=False)
+    c["edge_on"] = (camera, on)
+    return on
+
+
 def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float,
                  edge_index: np.ndarray | None = None, edge_faces: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) ray-origin offsets for mesh-edge features: `fraction` x scene radius along the mean

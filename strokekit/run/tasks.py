@@ -74,7 +74,8 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
         if outputs.svg:
 
             text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
-                                stroke_width=outputs.stroke_width_px, underlays=underlays)
+                                stroke_width=outputs.stroke_width_px, underlays=underlays,
+                                dashes=outputs.hidden_dashes)
             files.append(str(atomic_write_bytes(outputs.frame_file(frame, ".svg"), text.encode())))
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:

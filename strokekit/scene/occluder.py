@@ -45,8 +45,12 @@ class Occluder:
     """Occlusion queries against a scene. Backend: open3d RaycastingScene (Embree); trimesh's
     embreex intersector when open3d cannot be imported."""
 
-    def __init__(self, scene: Scene, backend: str | None = None):
+    def __init__(self, scene: Scene, backend: str | None = None, faces: np.ndarray | None = None):
+        """`faces`, if given: the scene faces (indices) that occlude; every face otherwise (see
+        `without_faces`)."""
         self.scene = scene
+        #: The scene face of each Embree primitive (None: the same numbers, every face).
+        self.face_index = None if faces is None else np.asarray(faces, np.int64)
         self.origin = scene.center.copy()
         self.radius = scene.radius
         #: world -> Embree frame: (X - origin) * inv_scale. Ray parameters (t in units of the
@@ -60,7 +64,8 @@ class Occluder:
                 o3d = import_open3d()
                 self._o3c = o3d.core
                 self._rs = o3d.t.geometry.RaycastingScene()
-                self._rs.add_triangles(o3d.core.Tensor(local), o3d.core.Tensor(scene.faces.astype(np.uint32)))
+                tris = scene.faces if faces is None else scene.faces[self.face_index]
+                self._rs.add_triangles(o3d.core.Tensor(local), o3d.core.Tensor(tris.astype(np.uint32)))
                 self.backend = "open3d"
                 return
             except ImportError:
@@ -68,9 +73,22 @@ class Occluder:
                     raise
         import trimesh
 
-        mesh = trimesh.Trimesh(local.astype(np.float64), scene.faces, process=False)
+        mesh = trimesh.Trimesh(local.astype(np.float64), scene.faces if faces is None else scene.faces[self.face_index],
+                               process=False)
         self._intersector = trimesh.ray.ray_pyembree.RayMeshIntersector(mesh) if _has_embreex() else mesh.ray
         self.backend = "embreex" if _has_embreex() else "trimesh"
+
+    def without_faces(self, drop: np.ndarray) -> "Occluder":
+        """An occluder of the same scene (same frame) in which the faces where `drop` (F,) is True
+        hide nothing: the faces a frame sees exactly edge-on (lines.surface.edge_on_faces). Its
+        first hits give scene face numbers too; its BVH is built now."""
+        keep = np.flatnonzero(~np.asarray(drop, bool))
+        return Occluder(self.scene, self.backend, faces=keep)
+
+    def _scene_faces(self, prim: np.ndarray) -> np.ndarray:
+        """Scene face numbers (int64) of Embree primitive ids."""
+        prim = np.asarray(prim).astype(np.int64)
+        return prim if self.face_index is None else self.face_index.take(prim)
 
     def _local_rays(self, origins: np.ndarray, targets: np.ndarray):
         """The segments origins -> targets (world, (N, 3)) in the Embree frame: an open3d ray
@@ -123,7 +141,10 @@ class Occluder:
                               axis=1).astype(np.float32)
         r = self._rs.cast_rays(self._o3c.Tensor(rays))
         ids = r["primitive_ids"].numpy().astype(np.int64)
-        ids[ids == np.iinfo(np.uint32).max] = -1
+        none = ids == np.iinfo(np.uint32).max
+        if self.face_index is not None:
+            ids = self.face_index.take(np.where(none, 0, ids))
+        ids[none] = -1
         return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
 
     def _first_hits_trimesh(self, origins: np.ndarray, directions: np.ndarray) -> dict:
@@ -139,7 +160,7 @@ class Occluder:
         if n:
             tri, ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False, return_locations=True)
             if len(ray):
-                f = self.scene.faces[tri]
+                f = self.scene.faces[self._scene_faces(tri)]
                 V = (self.scene.vertices - self.origin) * self.inv_scale
                 a, b, c = V[f[:, 0]], V[f[:, 1]], V[f[:, 2]]
                 # loc = a + u (b - a) + v (c - a): least squares on the two edge vectors.
@@ -151,7 +172,7 @@ class Occluder:
                 uvs[ray, 0] = (d22 * w1 - d12 * w2) / den
                 uvs[ray, 1] = (d11 * w2 - d12 * w1) / den
                 t[ray] = ((loc - o[ray]) * unit[ray]).sum(1) / np.where(length[ray] > 0, length[ray], 1)
-                ids[ray] = tri
+                ids[ray] = self._scene_faces(tri)
         return {"t_hit": t, "primitive_ids": ids, "primitive_uvs": uvs}
 
     def visible(self, points: np.ndarray, camera: Camera, offset: float = 1e-5,
@@ -225,6 +246,140 @@ class Occluder:
             t = self.segment_hits(origins, targets)
             return t * np.linalg.norm(targets - origins, axis=1)
         return ~self.occluded_segments(origins, targets)
+
+    # --- occlusion levels: how many surfaces hide a point ------------------------------------------
+
+    def count_crossings(self, origins: np.ndarray, targets: np.ndarray, limit: int) -> tuple[np.ndarray, np.ndarray]:
+        """(count (N,) int64, first (N,)): how many surfaces the segments origins -> targets (world,
+        (N, 3)) cross, at most `limit`, and the distance (world units) to the first crossing (inf:
+        none). Callers offset the origins; the target end is open.
+
+        Every hit along each segment comes from one Embree call (open3d's list_intersections).
+        A ray through an edge or a vertex that several triangles share may be reported by each of
+        them (float32 hit distances a little apart): consecutive hits on triangles that share a
+        vertex, facing the ray the same way, within 1e-5 of the scene radius of each other count
+        once, whichever triangles Embree reported (crossing a consistently wound surface twice in
+        a row flips the side it is crossed from, so two same-side hits in a row are one crossing;
+        a ray grazing a fold, in and out, keeps both). open3d's count_intersections counts each
+        reported triangle: twice along the diagonal of every face of a cube seen in isometric
+        (benchmarks/bench_hidden.py times the two)."""
+        n = len(origins)
+        count = np.zeros(n, np.int64)
+        first = np.full(n, np.inf)
+        if n == 0:
+            return count, first
+        if self.backend != "open3d":
+            return self._count_crossings_stepping(origins, targets, limit)
+        k = self.inv_scale
+        d_local = (np.asarray(targets, float) - origins) * k
+        rays = np.empty((n, 6), np.float32)
+        rays[:, :3] = (origins - self.origin) * k
+        rays[:, 3:] = d_local
+        lx = self._rs.list_intersections(self._o3c.Tensor(rays))
+        t = lx["t_hit"].numpy()
+        ray = lx["ray_ids"].numpy().astype(np.int64)
+        inside = t <= 1.0
+        if not inside.all():
+            t, ray = t[inside], ray[inside]
+            prim = lx["primitive_ids"].numpy()[inside]
+        else:
+            prim = lx["primitive_ids"].numpy()
+        if len(t) == 0:
+            return count, first
+        o = np.lexsort((t, ray))  # by ray, then along it
+        t, ray, face = t[o].astype(float), ray[o], self._scene_faces(prim[o])
+        length = np.sqrt(np.einsum("ij,ij->i", d_local, d_local))
+        head = np.empty(len(t), bool)
+        head[0] = True
+        np.not_equal(ray[1:], ray[:-1], out=head[1:])
+        close = ~head[1:] & ((t[1:] - t[:-1]) * length.take(ray[1:]) <= 1e-5)
+        dup = np.zeros(len(t), bool)
+        if close.any():
+            i = np.flatnonzero(close) + 1  # hit i repeats hit i - 1?
+            F = self.scene.faces
+            fa, fb = F.take(face[i - 1], axis=0), F.take(face[i], axis=0)
+            shared = (fa[:, :, None] == fb[:, None, :]).any(axis=(1, 2))
+            d = d_local.take(ray[i], axis=0)
+            nrm = self.scene.face_normals
+            side_a = np.einsum("ij,ij->i", nrm.take(face[i - 1], axis=0), d) > 0
+            side_b = np.einsum("ij,ij->i", nrm.take(face[i], axis=0), d) > 0
+            dup[i] = shared & (side_a == side_b)
+        count = np.minimum(np.bincount(ray[~dup], minlength=n), int(limit))
+        firsts = np.flatnonzero(head)
+        first[ray[firsts]] = t[firsts] * length.take(ray[firsts]) / k
+        return count, first
+
+    def _count_crossings_stepping(self, origins: np.ndarray, targets: np.ndarray, limit: int):
+        """count_crossings without open3d: the segment is cast again from just past each hit (1e-6
+        of the local size; a grazing ray can meet its last triangle again: a fallback, slower and
+        rougher than the open3d path)."""
+        n = len(origins)
+        count = np.zeros(n, np.int64)
+        first = np.full(n, np.inf)
+        active = np.arange(n)
+        o = np.asarray(origins, float)
+        tgt = np.asarray(targets, float)
+        for r in range(int(limit)):
+            seg = tgt - o
+            length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
+            t = self.segment_hits(o, tgt)
+            hit = np.isfinite(t)
+            if r == 0:
+                first[hit] = t[hit] * length[hit]
+            count[active[hit]] += 1
+            if r + 1 == limit or not hit.any():
+                break
+            at = o[hit] + t[hit, None] * seg[hit]
+            size = np.maximum(np.sqrt(np.einsum("ij,ij->i", at - self.origin, at - self.origin)), self.radius)
+            step = t[hit] + 1e-6 * size / np.where(length[hit] > 0, length[hit], 1.0)
+            go = step < 1.0
+            active = active[hit][go]
+            o = o[hit][go] + step[go, None] * seg[hit][go]
+            tgt = tgt[hit][go]
+            if len(active) == 0:
+                break
+        return count, first
+
+    def _segments(self, points: np.ndarray, camera: Camera, eps: np.ndarray, offset: float):
+        """The open segments from points toward the eye (perspective) or along the projection
+        rays to the near plane (parallel), started eps along: (origins, targets), as
+        _visible_from casts them; a point on the near plane itself gets an empty segment."""
+        if camera.is_ortho:
+            _, _, fwd = camera.basis
+            toward = np.broadcast_to(-camera.ray_dir, points.shape)
+            reach = np.maximum((points - np.asarray(camera.eye, float)) @ fwd - camera.near_distance(self.radius), 0.0)
+            origins = points + np.minimum(eps, 0.5 * reach)[:, None] * toward
+            targets = points + reach[:, None] * toward
+            return origins, targets
+        eye = np.asarray(camera.eye, float)
+        d = eye - points
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        toward = d / np.where(dist > 0, dist, 1.0)[:, None]
+        origins = points + np.minimum(eps, 0.5 * dist)[:, None] * toward
+        tail = np.minimum(np.maximum(eps, offset * np.linalg.norm(eye - self.origin)), 0.25 * dist)
+        return origins, eye - tail[:, None] * toward
+
+    def levels(self, points: np.ndarray, camera: Camera, offset: float, lift: np.ndarray | None,
+               scale: np.ndarray, limit: int) -> np.ndarray:
+        """(N,) occlusion level of world points (N, 3): how many surfaces the open segment from
+        each point to the eye (parallel cameras: along the projection rays to the near plane)
+        crosses, up to `limit`. Level 0 is `visible`'s visible, by its rules: the ray starts
+        off the surface (`lift`) and `offset` x the local size (`scale`) along; where the lifted
+        ray meets something right at its start (it may start inside an object the surface rests
+        on), the plain ray from the point is counted too and the smaller count holds (each ray's
+        failure only ever adds a crossing near its start, a real occluder is crossed by both)."""
+        c = points - self.origin
+        eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
+        start = points if lift is None else points + lift
+        count, first = self.count_crossings(*self._segments(start, camera, eps, offset), limit)
+        if lift is None:
+            return count
+        reach = 100.0 * np.linalg.norm(lift, axis=1) + eps
+        again = np.flatnonzero((count > 0) & (first <= reach))
+        if len(again):
+            plain, _ = self.count_crossings(*self._segments(points[again], camera, eps[again], offset), limit)
+            count[again] = np.minimum(count[again], plain)
+        return count
 
     # --- the same queries on (3, N) coordinate rows (perspective, lifted) -------------------------
     # visible_runs' hot path. Every value is computed by the same float64 operations, in the same
@@ -308,7 +463,7 @@ class Occluder:
         if not retest_front_hits and len(again):
             # Back side: the triangle's normal points along the ray (toward the eye). A normal
             # perpendicular to the ray (dot 0) keeps its re-test too.
-            n = np.take(self.scene.face_normals, tri.take(again).astype(np.int64), axis=0)
+            n = np.take(self.scene.face_normals, self._scene_faces(tri.take(again)), axis=0)
             again = again[np.einsum("ij,ji->i", n, d[:, again]) >= 0.0]
         if len(again):
             vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
@@ -343,7 +498,7 @@ class Occluder:
         reach = 100.0 * np.sqrt(_sq3(lift.take(hidden, axis=1))) + eps[hidden]
         again = hidden[f[hidden] * seg_len[hidden] <= reach]
         if not retest_front_hits and len(again):
-            tri = r["primitive_ids"].numpy().take(again)
+            tri = self._scene_faces(r["primitive_ids"].numpy().take(again))
             again = again[_dot3(self.scene.face_normal_rows.take(tri, axis=1), d.take(again, axis=1)) >= 0.0]
         if len(again):
             # The plain rays (no lift), from the same points.

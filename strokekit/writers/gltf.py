@@ -38,7 +38,7 @@ import numpy as np
 from strokekit.camera.view import Camera
 from strokekit.colour import srgb_decode
 from strokekit.errors import UsageError
-from strokekit.model import KINDS, Strokes
+from strokekit.model import KINDS, N_KINDS, Strokes, layer_name
 from strokekit.ribbons.brushes import Brush, get_brush
 from strokekit.ribbons.mesh import RibbonMesh, RibbonOptions, build_ribbons
 from strokekit.writers.svg import KIND_COLORS
@@ -164,11 +164,11 @@ class _Doc:
                                       "name": self.brush.name})
             smp = self.add("samplers", {"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071})
             self.texture = self.add("textures", {"source": img, "sampler": smp})
-        name = KINDS[kind] if 0 <= kind < len(KINDS) else f"kind{kind}"
+        name = layer_name(kind) if 0 <= kind else f"kind{kind}"  # (hidden-<kind> for hidden lines)
         if self.opts.color is not None:
             rgba = _hex_rgba(self.opts.color)
         elif self.brush.tinted:
-            rgba = _hex_rgba(KIND_COLORS.get(name, "#000000"))
+            rgba = _hex_rgba(KIND_COLORS.get(name.removeprefix("hidden-"), "#000000"))
         else:
             rgba = [1.0, 1.0, 1.0, 1.0]
         m = {"name": name, "doubleSided": True, "alphaMode": self.opts.alpha_mode,
@@ -212,7 +212,8 @@ class _Doc:
                          "TEXCOORD_0": self.accessor(mesh.uv[v0:v1], "VEC2")}
                 if self.opts.level_texcoord:
                     attrs["TEXCOORD_1"] = self.accessor(mesh.level_uv[v0:v1], "VEC2")
-                extras = {"kind": KINDS[k] if 0 <= k < len(KINDS) else int(k),
+                extras = {"kind": KINDS[k % N_KINDS] if 0 <= k else int(k),
+                          **({"occlusion": int(k) // N_KINDS} if k >= N_KINDS else {}),
                           "strokes": {"id": mesh.ids[strokes_k].tolist(),
                                       "first_triangle": (np.cumsum(tcount) - tcount).tolist(),
                                       "triangle_count": tcount.tolist(),
