@@ -73,9 +73,11 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
             lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
         return A[seg_i] + lam[:, None] * (B[seg_i] - A[seg_i])
 
+    own, ends = own_faces(scene, features, idx)
+
     def level_at(seg_i, s_i):
         return occluder.levels(world_at(seg_i, s_i), camera, options.occlusion_offset,
-                               None if lift is None else lift[seg_i], size[seg_i], limit)
+                               None if lift is None else lift[seg_i], size[seg_i], limit, own[seg_i], ends[seg_i])
 
     # Pieces between the outline crossings; samples at the middles of equal parts of each piece,
     # one part per sample_spacing_px (whole_edge_px: a short segment is one piece, one sample).
@@ -137,6 +139,27 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     code = runs.kind.astype(np.int64) + N_KINDS * np.minimum(level, MAX_OCCLUSION)
     return VisibleRuns(edge=runs.edge, X0=runs.X0, X1=runs.X1, p0=runs.p0, p1=runs.p1, key0=runs.key0,
                        key1=runs.key1, kind=code.astype(np.int8), face=runs.face)
+
+
+def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(faces (n, 2), vertices (n, 2)) of the features idx: a mesh edge's two faces (the first two
+    of a non-manifold one) and end vertices; a line inside a face, that face and no vertex (-1)."""
+    V = len(scene.vertices)
+    va, vb = features.va[idx], features.vb[idx]
+    faces = np.full((len(idx), 2), -1, np.int64)
+    faces[:, 0] = features.face[idx]
+    ends = np.full((len(idx), 2), -1, np.int64)
+    mesh = (va >= 0) & (vb >= 0) & (va < V) & (vb < V)
+    if mesh.any():
+        lo, hi = np.minimum(va[mesh], vb[mesh]), np.maximum(va[mesh], vb[mesh])
+        keys = scene.edges[:, 0].astype(np.int64) * (V + 1) + scene.edges[:, 1]
+        q = lo * (V + 1) + hi
+        pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
+        found = keys[pos] == q
+        m = np.flatnonzero(mesh)[found]
+        faces[m] = scene.edge_faces[pos[found]][:, :2]
+        ends[m, 0], ends[m, 1] = va[m], vb[m]
+    return faces, ends
 
 
 def outline_edges(scene: Scene, camera: Camera) -> np.ndarray:

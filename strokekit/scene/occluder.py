@@ -249,10 +249,17 @@ class Occluder:
 
     # --- occlusion levels: how many surfaces hide a point ------------------------------------------
 
-    def count_crossings(self, origins: np.ndarray, targets: np.ndarray, limit: int) -> tuple[np.ndarray, np.ndarray]:
+    def count_crossings(self, origins: np.ndarray, targets: np.ndarray, limit: int, skip: np.ndarray | None = None,
+                        near: tuple[np.ndarray, np.ndarray] | None = None,
+                        verify: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(count (N,) int64, first (N,)): how many surfaces the segments origins -> targets (world,
         (N, 3)) cross, at most `limit`, and the distance (world units) to the first crossing (inf:
-        none). Callers offset the origins; the target end is open.
+        none). Callers offset the origins; the target end is open. Hits on the faces `skip`
+        (N, 2) of each ray (-1: none) are not crossings; nor, with `near` = (vertices (N, 2),
+        distances (N,)), those on faces around those vertices closer than that to the origin; with
+        `verify` = (points (N, 3), targets (N, 3), distances (N,)), hits closer than that to the
+        origin count only where the segment from the point to the target crosses the triangle in
+        float64 (`_crosses`).
 
         Every hit along each segment comes from one Embree call (open3d's list_intersections).
         A ray through an edge or a vertex that several triangles share may be reported by each of
@@ -269,7 +276,7 @@ class Occluder:
         if n == 0:
             return count, first
         if self.backend != "open3d":
-            return self._count_crossings_stepping(origins, targets, limit)
+            return self._count_crossings_stepping(origins, targets, limit, skip, near, verify)
         k = self.inv_scale
         d_local = (np.asarray(targets, float) - origins) * k
         rays = np.empty((n, 6), np.float32)
@@ -289,6 +296,18 @@ class Occluder:
         o = np.lexsort((t, ray))  # by ray, then along it
         t, ray, face = t[o].astype(float), ray[o], self._scene_faces(prim[o])
         length = np.sqrt(np.einsum("ij,ij->i", d_local, d_local))
+        drop = self._skipped(ray, face, t * length.take(ray) / k, skip, near)
+        if verify is not None:
+            close = np.flatnonzero(t * length.take(ray) / k <= verify[2].take(ray))
+            if len(close):
+                if drop is None:
+                    drop = np.zeros(len(t), bool)
+                r_c = ray[close]
+                drop[close] |= ~self._crosses(verify[0].take(r_c, axis=0), verify[1].take(r_c, axis=0), face[close])
+        if drop is not None:
+            t, ray, face = t[~drop], ray[~drop], face[~drop]
+            if len(t) == 0:
+                return count, first
         head = np.empty(len(t), bool)
         head[0] = True
         np.not_equal(ray[1:], ray[:-1], out=head[1:])
@@ -309,7 +328,47 @@ class Occluder:
         first[ray[firsts]] = t[firsts] * length.take(ray[firsts]) / k
         return count, first
 
-    def _count_crossings_stepping(self, origins: np.ndarray, targets: np.ndarray, limit: int):
+    def _crosses(self, a: np.ndarray, b: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(M,) whether the open segments a -> b (world, (M, 3)) cross the scene faces `face` (M,)
+        in float64 (Moller-Trumbore on the closed triangle; a face seen edge-on crosses nothing)."""
+        F, V = self.scene.faces, self.scene.vertices
+        A = V.take(F.take(face, axis=0)[:, 0], axis=0)
+        e1 = V.take(F.take(face, axis=0)[:, 1], axis=0) - A
+        e2 = V.take(F.take(face, axis=0)[:, 2], axis=0) - A
+        d = b - a
+        pv = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, pv)
+        scale = np.linalg.norm(np.cross(e1, e2), axis=1) * np.linalg.norm(d, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / det
+            tv = a - A
+            u = np.einsum("ij,ij->i", tv, pv) * inv
+            qv = np.cross(tv, e1)
+            v = np.einsum("ij,ij->i", d, qv) * inv
+            t = np.einsum("ij,ij->i", e2, qv) * inv
+        return (np.abs(det) > 1e-12 * scale) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
+
+    def _skipped(self, ray, face, dist, skip, near) -> np.ndarray | None:
+        """Which hits (ray, scene face, world distance from the origin) are not crossings (see
+        count_crossings); None for none."""
+        drop = None
+        if skip is not None:
+            drop = (face == skip[ray, 0]) | (face == skip[ray, 1])
+        if near is not None:
+            verts, reach = near
+            close = dist <= reach[ray]
+            if close.any():
+                i = np.flatnonzero(close)
+                f = self.scene.faces.take(face[i], axis=0)
+                v = verts[ray[i]]
+                touch = ((f == v[:, :1]) | (f == v[:, 1:])).any(axis=1) & ((v >= 0).any(axis=1))
+                hit = np.zeros(len(face), bool)
+                hit[i[touch]] = True
+                drop = hit if drop is None else drop | hit
+        return drop
+
+    def _count_crossings_stepping(self, origins: np.ndarray, targets: np.ndarray, limit: int, skip=None,
+                                  near=None, verify=None):
         """count_crossings without open3d: the segment is cast again from just past each hit (1e-6
         of the local size; a grazing ray can meet its last triangle again: a fallback, slower and
         rougher than the open3d path)."""
@@ -322,11 +381,24 @@ class Occluder:
         for r in range(int(limit)):
             seg = tgt - o
             length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
-            t = self.segment_hits(o, tgt)
+            hits = self.first_hits(o, tgt - o)
+            t = np.where(hits["t_hit"] <= 1.0, hits["t_hit"], np.inf).astype(float)
             hit = np.isfinite(t)
+            ray_h, face_h, dist_h = active[hit], hits["primitive_ids"][hit], t[hit] * length[hit]
+            drop = self._skipped(ray_h, face_h, dist_h, skip, near)
+            if verify is not None:
+                base = np.linalg.norm(o[hit] - origins[ray_h], axis=1)  # how far this round started
+                close = np.flatnonzero(base + dist_h <= verify[2][ray_h])
+                if len(close):
+                    drop = np.zeros(len(ray_h), bool) if drop is None else drop
+                    r_c = ray_h[close]
+                    drop[close] |= ~self._crosses(verify[0][r_c], verify[1][r_c], face_h[close])
+            counted = hit.copy()
+            if drop is not None:
+                counted[np.flatnonzero(hit)[drop]] = False
             if r == 0:
-                first[hit] = t[hit] * length[hit]
-            count[active[hit]] += 1
+                first[active[counted]] = t[counted] * length[counted]
+            count[active[counted]] += 1
             if r + 1 == limit or not hit.any():
                 break
             at = o[hit] + t[hit, None] * seg[hit]
@@ -360,25 +432,48 @@ class Occluder:
         return origins, eye - tail[:, None] * toward
 
     def levels(self, points: np.ndarray, camera: Camera, offset: float, lift: np.ndarray | None,
-               scale: np.ndarray, limit: int) -> np.ndarray:
+               scale: np.ndarray, limit: int, own: np.ndarray | None = None,
+               ends: np.ndarray | None = None) -> np.ndarray:
         """(N,) occlusion level of world points (N, 3): how many surfaces the open segment from
         each point to the eye (parallel cameras: along the projection rays to the near plane)
-        crosses, up to `limit`. Level 0 is `visible`'s visible, by its rules: the ray starts
-        off the surface (`lift`) and `offset` x the local size (`scale`) along; where the lifted
-        ray meets something right at its start (it may start inside an object the surface rests
-        on), the plain ray from the point is counted too and the smaller count holds (each ray's
-        failure only ever adds a crossing near its start, a real occluder is crossed by both)."""
+        crosses, up to `limit`, the point's own faces `own` (N, 2), -1 for none, excluded.
+
+        A point on a mesh edge (`ends` (N, 2): its end vertices, -1 for none) is counted along the
+        ray from the point itself (started `offset` x the local size `scale` along): the geometry
+        of the definition. That ray grazes the point's own neighbourhood within float32 rounding,
+        so its hits closer than 100 lifts to its start are tested again in float64 against the
+        exact segment and count only if they are crossings there (a box standing on a floor is not
+        hidden by it). A lifted ray would skip a real surface within its lift, and one leaving a
+        contour whose back face is nearly edge-on dips under the nearly flat surface beyond (a
+        crossing the point does not have). Other points (lines inside faces, whose rays rise off
+        the facets by design: lines.contours.view_lift) take the smaller count of the lifted ray
+        and of the plain ray: each ray's failures there add crossings."""
         c = points - self.origin
         eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
-        start = points if lift is None else points + lift
-        count, first = self.count_crossings(*self._segments(start, camera, eps, offset), limit)
-        if lift is None:
+        n = len(points)
+        count = np.zeros(n, np.int64)
+        on_edge = np.zeros(n, bool) if ends is None or lift is None else ends[:, 0] >= 0
+        e = np.flatnonzero(on_edge)
+        if len(e):
+            P = points[e]
+            o, t = self._segments(P, camera, eps[e], offset)
+            reach = 100.0 * np.linalg.norm(lift[e], axis=1) + eps[e]
+            count[e], _ = self.count_crossings(o, t, limit, skip=None if own is None else own[e],
+                                               verify=(P, t, reach))
+        rest = np.flatnonzero(~on_edge)
+        if len(rest) == 0:
             return count
-        reach = 100.0 * np.linalg.norm(lift, axis=1) + eps
-        again = np.flatnonzero((count > 0) & (first <= reach))
-        if len(again):
-            plain, _ = self.count_crossings(*self._segments(points[again], camera, eps[again], offset), limit)
-            count[again] = np.minimum(count[again], plain)
+        P = points[rest]
+        start = P if lift is None else P + lift[rest]
+        c_rest, _ = self.count_crossings(*self._segments(start, camera, eps[rest], offset), limit,
+                                         skip=None if own is None else own[rest])
+        if lift is not None:
+            again = np.flatnonzero(c_rest > 0)
+            if len(again):
+                plain, _ = self.count_crossings(*self._segments(P[again], camera, eps[rest][again], offset), limit,
+                                                skip=None if own is None else own[rest][again])
+                c_rest[again] = np.minimum(c_rest[again], plain)
+        count[rest] = c_rest
         return count
 
     # --- the same queries on (3, N) coordinate rows (perspective, lifted) -------------------------
