@@ -215,6 +215,9 @@ def test_bad_occlusion_range_is_one_usage_line(tmp_path, capsys, value, needle):
     (["--hidden", "--occlusion", "1-2"], "--hidden and --occlusion both"),
     (["--hidden", "--dashes", "6"], "bad --dashes"),
     (["--occlusion", "0", "--dashes", "6,3"], "--dashes styles the hidden lines"),
+    (["--dash-paths"], "--dash-paths styles the hidden lines"),
+    (["--hidden", "--dash-paths", "--dashes", "solid"], "no dashes to write"),
+    (["--hidden", "--dash-paths", "--no-svg"], "cannot go with --no-svg"),
 ])
 def test_options_the_run_would_ignore_or_that_clash_are_usage_errors(tmp_path, capsys, args, needle):
     v, f = box_mesh((0, 0, 0), (1, 1, 1))
@@ -274,3 +277,21 @@ def test_hidden_lines_of_a_fandisk_orbit_keep_their_ids(tmp_path, capsys):
             main(["coherence", str(out), "--json", *extra])
         total = json.loads(capsys.readouterr().out)["overall"]
         assert total["M1"] >= 0.95, (extra, total)
+
+
+def test_dash_paths_write_the_dashes_as_geometry():
+    """--dash-paths: one path per hidden stroke (its id), a subpath per dash, the dashes' total
+    length the pattern's share of the stroke (exact for a straight stroke a whole number of
+    periods long), starting `phase` into the pattern; no dash style left for a viewer to apply."""
+    sil = KIND_INDEX["silhouette"]
+    pts = np.array([[0, 0], [45, 0], [0, 5], [10, 5.0]])
+    st = Strokes.build(pts, np.c_[pts, np.zeros(4)], np.zeros(4), [0, 2, 4], [sil + N_KINDS] * 2,
+                       camera=Camera(eye=(0, 0, 5), target=(0, 0, 0), width=60, height=20))
+    text = svg_document(st, 60, 20, ("hidden-silhouette",), dash_paths=True)  # ISO 18 on, 4.5 off
+    assert "dasharray" not in text and "dashoffset" not in text
+    d0 = text.split('id="s0"')[0].rsplit('d="', 1)[1]
+    assert d0 == 'M0.00 0.00 18.00 0.00 M22.50 0.00 40.50 0.00" '
+    st = st.replace(u=st.u + 20.0 / 30.0)  # 20 px into the pattern: a 2.5 px gap first, then 18 on
+    text = svg_document(st, 60, 20, ("hidden-silhouette",), dash_paths=True)
+    d1 = text.split('id="s1"')[0].rsplit('d="', 1)[1]
+    assert d1 == 'M2.50 5.00 10.00 5.00" '

@@ -88,12 +88,14 @@ def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis.")
 @click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout.")
 def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width, height, up, out):
-    """A parallel projection of technical drawing that frames the whole scene: isometric, dimetric,
-    trimetric, cavalier, cabinet, or orthographic from --azimuth / --elevation."""
+    """A parallel projection of technical drawing that frames the whole scene (its drawing centred,
+    5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
+    from --azimuth / --elevation."""
     s = load_scene(scene)
     try:
         path = parallel_path(s.center, s.radius, projection, azimuth=azimuth, elevation=elevation,
-                             oblique_angle=oblique_angle, frames=frames, width=width, height=height, up_axis=up)
+                             oblique_angle=oblique_angle, frames=frames, width=width, height=height, up_axis=up,
+                             points=s.vertices)
     except InputError as e:  # an angle the projection does not take: the options' fault (exit 2)
         raise UsageError(f"--projection {projection}: {e}") from None
     _emit(path, out)

@@ -240,7 +240,7 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
                             gltf=gltf_options is not None, gltf_sequence=bool(o.get("gltf_sequence")),
                             gltf_options=gltf_options,
                             raster_options=raster_options_from(o, o["quality"], lines.crease_angle_deg),
-                            hidden_dashes=dashes_from(o, lines.occlusion))
+                            hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"])
     return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
                    tracking=tracking_options_from(o, len(frames)), workers=workers,
                    scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],

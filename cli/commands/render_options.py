@@ -79,6 +79,9 @@ _HIDDEN = [
     click.option("--dashes", default=None,
                  help="Hidden lines' dash and gap in px (SVG stroke-dasharray), e.g. 6,3, or 'solid' [ISO 128 "
                       "dashed: 12 and 3 stroke widths]."),
+    click.option("--dash-paths", is_flag=True,
+                 help="Write the hidden lines' dashes as geometry (a subpath per dash) instead of a dash style: "
+                      "for plotters (vpype draws a styled dash pattern solid)."),
 ]
 
 
@@ -116,13 +119,16 @@ def dashes_from(extra: dict, occlusion: tuple[int, int] | None) -> tuple[float, 
     """OutputOptions.hidden_dashes from --dashes (None: the ISO 128 default); a usage error when
     no hidden line is drawn (the option would be ignored) or the pattern is not one."""
     text = extra.get("dashes")
+    for flag, on in (("--dashes", text is not None), ("--dash-paths", extra.get("dash_paths"))):
+        if on and (occlusion is None or occlusion[1] < 1):
+            raise UsageError(f"{flag} styles the hidden lines: it needs --hidden or an --occlusion range with levels >= 1")
+        if on and not extra.get("svg", True):
+            raise UsageError(f"{flag} styles the SVG's hidden layers: it cannot go with --no-svg")
     if text is None:
         return None
-    if occlusion is None or occlusion[1] < 1:
-        raise UsageError("--dashes styles the hidden lines: it needs --hidden or an --occlusion range with levels >= 1")
-    if not extra.get("svg", True):
-        raise UsageError("--dashes styles the SVG's hidden layers: it cannot go with --no-svg")
     if text.strip().lower() == "solid":
+        if extra.get("dash_paths"):
+            raise UsageError("--dash-paths with --dashes solid: there are no dashes to write")
         return ()
     vals = _floats(text, "--dashes")
     if len(vals) % 2 or any(not (math.isfinite(v) and v >= 0) for v in vals) or not sum(vals) > 0:

@@ -368,10 +368,12 @@ def dolly_path(center: np.ndarray, radius: float, frames: int, *, start: float =
 
 def parallel_path(center: np.ndarray, radius: float, projection: str, *, azimuth: float | None = None,
                   elevation: float | None = None, oblique_angle: float | None = None, frames: int = 1,
-                  width: int = 1024, height: int = 1024, fps: float = 24.0, up_axis: str = "y") -> CameraPath:
+                  width: int = 1024, height: int = 1024, fps: float = 24.0, up_axis: str = "y",
+                  points: np.ndarray | None = None, margin: float = 0.05) -> CameraPath:
     """`frames` frames of one parallel view (an angled projection, see camera.view, or
     orthographic from `azimuth` / `elevation`, default 0: the front view) that frame a sphere
-    of `radius` around `center`, the camera 3 radii before it."""
+    of `radius` around `center`, the camera 3 radii before it; with `points` (the scene's
+    vertices), their image instead, centred with `margin` (a fraction of the image) around it."""
     if not (np.isfinite(radius) and radius > 0):
         raise InputError("cannot frame an empty or degenerate scene")
     up = (0.0, 1.0, 0.0) if up_axis == "y" else (0.0, 0.0, 1.0)
@@ -392,4 +394,20 @@ def parallel_path(center: np.ndarray, radius: float, projection: str, *, azimuth
         size = 2.3 * radius * max(math.sqrt(1.0 + ky * ky), math.sqrt(1.0 + kx * kx) * height / width)
         cam = Camera.parallel(projection, c, 3.0 * radius, up=up, ortho_height=size, width=width, height=height,
                               azimuth=probe.azimuth, elevation=probe.elevation, oblique_angle=probe.oblique_angle)
+    if points is not None and len(points):
+        # Fit the drawing: the points' image box, centred, `margin` of the image left around it.
+        p, _ = cam.project(np.asarray(points, float))
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        span = max((hi[0] - lo[0]) / (width * (1 - 2 * margin)), (hi[1] - lo[1]) / (height * (1 - 2 * margin)))
+        mid = 0.5 * (lo + hi)
+        right, up_v, _ = cam.basis
+        shift = ((mid[0] - width / 2.0) * right - (mid[1] - height / 2.0) * up_v) / cam.focal_px
+        size = cam.ortho_height * max(span, 1e-12)
+        target = tuple(np.asarray(cam.target) + shift)
+        if projection == "orthographic":
+            cam = replace(cam, eye=tuple(np.asarray(cam.eye) + shift), target=target, ortho_height=size)
+        else:
+            cam = Camera.parallel(projection, target, 3.0 * radius, up=up, ortho_height=size, width=width,
+                                  height=height, azimuth=cam.azimuth, elevation=cam.elevation,
+                                  oblique_angle=cam.oblique_angle)
     return CameraPath(cameras=(cam,) * frames, fps=fps, source=projection)

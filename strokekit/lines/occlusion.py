@@ -26,7 +26,6 @@ apart too, and a stroke has one level.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from strokekit.camera.view import Camera
 from strokekit.lines.features import silhouette_mask
@@ -35,11 +34,12 @@ from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, r
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
+from strokekit.scene.tables import scene_cache
 
 #: Halvings at most (a 2^60 px bracket): the loop ends when every bracket is within tolerance.
 MAX_HALVINGS = 60
-#: Image-space chunk length (px) for finding the pairs of edges that may cross.
-CHUNK_PX = 4.0
+#: Image-space grid cell (px) for finding the pairs of edges that may cross.
+GRID_PX = 8.0
 
 
 def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
@@ -162,10 +162,15 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
     return faces, ends
 
 
-def outline_edges(scene: Scene, camera: Camera) -> np.ndarray:
+def outline_edges(scene: Scene, camera: Camera, silhouettes: np.ndarray | None = None) -> np.ndarray:
     """The scene edges where what hides a point can change: contour edges (a front and a back
-    face), borders and non-manifold edges."""
-    return np.flatnonzero(silhouette_mask(scene, camera) | scene.is_border | scene.is_nonmanifold)
+    face; `silhouettes`, the frame's silhouette_mask, when known), borders and non-manifold edges."""
+    sil = silhouette_mask(scene, camera) if silhouettes is None else silhouettes
+    fixed = scene_cache(scene).get("outline_fixed")
+    if fixed is None:
+        fixed = scene.is_border | scene.is_nonmanifold
+        scene_cache(scene)["outline_fixed"] = fixed
+    return np.flatnonzero(sil | fixed)
 
 
 def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb, va, vb):
@@ -190,19 +195,22 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     f_pair, c_pair = _close_pairs(pa, pb, qa, qb)
     if len(f_pair) == 0:
         return none
-    # Not the outline edges at the segment's own vertices (they meet it at an end).
-    own = ((E[c_pair, 0] == va[f_pair]) | (E[c_pair, 0] == vb[f_pair]) | (E[c_pair, 1] == va[f_pair])
-           | (E[c_pair, 1] == vb[f_pair]))
-    f_pair, c_pair = f_pair[~own], c_pair[~own]
-    d1 = pb[f_pair] - pa[f_pair]
-    d2 = qb[c_pair] - qa[c_pair]
-    w = qa[c_pair] - pa[f_pair]
-    den = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    # Columns gathered per pair (take: fancy indexing of rows costs several times more).
+    pax, pay, d1x, d1y = pa[:, 0], pa[:, 1], pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1]
+    qax, qay, d2x, d2y = qa[:, 0], qa[:, 1], qb[:, 0] - qa[:, 0], qb[:, 1] - qa[:, 1]
+    ax, ay, ex, ey = d1x.take(f_pair), d1y.take(f_pair), d2x.take(c_pair), d2y.take(c_pair)
+    wx = qax.take(c_pair) - pax.take(f_pair)
+    wy = qay.take(c_pair) - pay.take(f_pair)
+    den = ax * ey - ay * ex
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = (w[:, 0] * d2[:, 1] - w[:, 1] * d2[:, 0]) / den
-        u = (w[:, 0] * d1[:, 1] - w[:, 1] * d1[:, 0]) / den
-    hit = (den != 0) & (s > 0) & (s < 1) & (u >= 0) & (u <= 1)
+        s = (wx * ey - wy * ex) / den
+        u = (wx * ay - wy * ax) / den
+    hit = np.flatnonzero((den != 0) & (s > 0) & (s < 1) & (u >= 0) & (u <= 1))
     f_pair, c_pair, s, u = f_pair[hit], c_pair[hit], s[hit], u[hit]
+    # Not the outline edges at the segment's own vertices (they meet it at an end).
+    e0, e1, a_, b_ = E[c_pair, 0], E[c_pair, 1], va[f_pair], vb[f_pair]
+    keep = ~((e0 == a_) | (e0 == b_) | (e1 == a_) | (e1 == b_))
+    f_pair, c_pair, s, u = f_pair[keep], c_pair[keep], s[keep], u[keep]
     # In front: the outline's view depth there below the segment's (1/z is linear on screen under
     # perspective, z under a parallel projection).
     if camera.is_ortho:
@@ -215,40 +223,49 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     f_pair, s = f_pair[front], s[front]
     o = np.lexsort((s, f_pair))
     f_pair, s = f_pair[o], s[o]
-    # One place once: two outline edges meeting at a vertex on the segment both report it.
+    # One place once: a pair found in two cells, or two outline edges meeting at a vertex on the
+    # segment, report it twice.
     new = np.ones(len(s), bool)
     new[1:] = (f_pair[1:] != f_pair[:-1]) | (s[1:] - s[:-1] > 1e-12)
     return f_pair[new], s[new]
 
 
-def _chunks(pa, pb):
-    """Midpoints (M, 2) of the pieces of at most CHUNK_PX each segment pa -> pb is cut into, their
-    half lengths (M,), and the segment of each."""
-    L = row_norm(pb - pa)
-    m = np.maximum(1, np.ceil(L / CHUNK_PX)).astype(np.int64)
+def _cells(pa, pb):
+    """(cell keys, segment of each): the GRID_PX cells that each segment pa -> pb (px) may pass
+    through: cut into pieces at most GRID_PX long, each piece's bounding box (at most 2 x 2
+    cells). Non-finite segments have none."""
+    fin = np.isfinite(pa).all(axis=1) & np.isfinite(pb).all(axis=1)
+    L = np.where(fin, row_norm(pb - pa), 0.0)
+    m = np.where(fin, np.maximum(1, np.ceil(L / GRID_PX)), 0).astype(np.int64)
     owner = np.repeat(np.arange(len(pa)), m)
     k = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)
-    t = ((k + 0.5) / m[owner])[:, None]
-    return pa[owner] + t * (pb[owner] - pa[owner]), (0.5 * L / m)[owner], owner
+    d = (pb - pa)[owner]
+    a = pa[owner] + (k / m[owner])[:, None] * d
+    b = pa[owner] + ((k + 1) / m[owner])[:, None] * d
+    lo = np.floor(np.minimum(a, b) / GRID_PX).astype(np.int64)
+    hi = np.floor(np.maximum(a, b) / GRID_PX).astype(np.int64)
+    keys, owners = [], []
+    for dx in (0, 1):
+        for dy in (0, 1):
+            cx, cy = lo[:, 0] + dx, lo[:, 1] + dy
+            ok = (cx <= hi[:, 0]) & (cy <= hi[:, 1])
+            keys.append(cx[ok] * (1 << 32) + cy[ok])
+            owners.append(owner[ok])
+    return np.concatenate(keys), np.concatenate(owners)
 
 
 def _close_pairs(pa, pb, qa, qb):
-    """(i, j): the segments pa -> pb and qa -> qb (px) whose images may cross: some chunk of each
-    (CHUNK_PX long at most) has its middle within CHUNK_PX of the other's (two chunks that cross
-    do). Each pair once, sorted."""
-    fin_f = np.isfinite(pa).all(axis=1) & np.isfinite(pb).all(axis=1)
-    fin_c = np.isfinite(qa).all(axis=1) & np.isfinite(qb).all(axis=1)
-    mf, hf, of = _chunks(pa, pb)
-    mc, hc, oc = _chunks(qa, qb)
-    of, mf, hf = of[fin_f[of]], mf[fin_f[of]], hf[fin_f[of]]
-    oc, mc, hc = oc[fin_c[oc]], mc[fin_c[oc]], hc[fin_c[oc]]
-    if len(mf) == 0 or len(mc) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    pairs = cKDTree(mf).sparse_distance_matrix(cKDTree(mc), CHUNK_PX, output_type="ndarray")
-    i, j = pairs["i"], pairs["j"]
-    near = pairs["v"] <= hf[i] + hc[j]  # two chunks that cross have their middles this close
-    key = np.unique(of[i[near]].astype(np.int64) * len(qa) + oc[j[near]])
-    return key // len(qa), key % len(qa)
+    """(i, j): the segments pa -> pb and qa -> qb (px) whose images may cross: they pass through a
+    common GRID_PX cell (a pair may come more than once)."""
+    kf, of = _cells(pa, pb)
+    kc, oc = _cells(qa, qb)
+    o = np.argsort(kc, kind="stable")
+    kc, oc = kc[o], oc[o]
+    lo = np.searchsorted(kc, kf, "left")
+    n = np.searchsorted(kc, kf, "right") - lo
+    i = np.repeat(of, n)
+    j = oc[np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + np.repeat(lo, n)]
+    return i, j
 
 
 def _bisect_levels(cs, lo, hi, lev_lo, lev_hi, L, level_at, tol_px):

@@ -32,6 +32,7 @@ class OutputOptions:
     # Hidden layers' dash pattern (px, on and off: writers.svg.svg_document); None: ISO 128's for
     # the stroke width, (): solid.
     hidden_dashes: tuple[float, ...] | None = None
+    dash_paths: bool = False  # the dashes as geometry (a subpath each), for plotters: svg_document
 
     def stem(self, frame: int) -> str:
         return self.pattern.format(frame=frame)
