@@ -229,3 +229,38 @@ def test_the_raster_pass_casts_along_the_projection_rays(cube_renderer, projecti
     lines = cube_renderer.render(cam).points
     assert np.abs([cols.min() / 2 - lines[:, 0].min(), rows.min() / 2 - lines[:, 1].min(),
                    (cols.max() + 1) / 2 - lines[:, 0].max(), (rows.max() + 1) / 2 - lines[:, 1].max()]).max() <= 1.0
+
+
+def _glb_json(data: bytes) -> dict:
+    import struct
+
+    jlen, _ = struct.unpack_from("<I4s", data, 12)
+    return json.loads(data[20:20 + jlen])
+
+
+@pytest.mark.parametrize("projection, angles", [("isometric", {}), ("cavalier", {"oblique_angle": 30.0})])
+def test_the_glb_camera_says_what_gltf_can(cube_renderer, projection, angles):
+    """glTF has perspective and orthographic cameras only: an axonometric frame's GLB camera is the
+    exact orthographic one (looking along the rays, centred on the target, ortho_height tall); an
+    oblique frame's is the orthographic view of its image plane from straight on, centred on the
+    target, with the projection and its receding shear in the camera's extras."""
+    from strokekit.writers.gltf import glb_for_frame
+
+    cam = camera(projection, angles)
+    doc = _glb_json(glb_for_frame(cube_renderer.render(cam), cam))
+    gcam = doc["cameras"][0]
+    assert gcam["type"] == "orthographic" and gcam["orthographic"]["ymag"] == pytest.approx(SIZE / 2)
+    assert gcam["extras"]["projection"] == projection
+    node = next(n for n in doc["nodes"] if "camera" in n)
+    right, up, fwd = cam.basis
+    x, y, z, w = node["rotation"]
+    # The node's -Z axis (rotated by the quaternion) is fwd, and the target lies on that axis.
+    minus_z = -np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    assert np.allclose(minus_z, fwd, atol=1e-9)
+    to_target = np.subtract(cam.target, node["translation"])
+    assert np.allclose(to_target - (to_target @ fwd) * fwd, 0.0, atol=1e-9)
+    if cam.is_oblique:
+        assert gcam["extras"]["receding_shear"] == pytest.approx(list(cam.shear))
+        assert "no oblique projection" in gcam["extras"]["note"]
+    else:
+        assert np.allclose(node["translation"], cam.eye)

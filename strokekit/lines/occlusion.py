@@ -10,7 +10,7 @@ Where levels change (Appel's observation, the basis of Freestyle's QI): a ray fr
 the edge gains or loses surfaces where the point passes behind the outline of the scene (its
 contour edges, borders, non-manifold edges) in the image. So every clipped edge is cut where its
 image crosses the image of an outline edge lying in front of it (`outline_crossings`: exact to
-float64, no tolerance), and one level is counted per piece. On the 8-frame bunny orbit 98.7% of
+float64, no tolerance), and one level is counted per piece. On a bunny orbit frame 98.7% of
 the level changes that bisection found lay within 0.05 px of such a crossing. The other changes
 (an edge that pierces a surface, faces the camera sees edge-on, the rounding at a grazing ray)
 are caught as in `visibility.visible_runs`: a piece longer than `sample_spacing_px` gets a
