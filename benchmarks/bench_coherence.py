@@ -18,6 +18,9 @@ frame against the lines-only time per frame (process CPU time, medians over fram
 between steadier ids and drawing every visible contour edge (README, coherence section).
 
 `strokes` is the mean number of strokes per tracked frame (the input lines: `strokes_in` in the JSON).
+
+`--hidden` renders the hidden lines too (LineOptions(occlusion=(0, 15)), `strokekit render --hidden`),
+tracked like the rest; each row is followed by M1 of the hidden lines alone (levels >= 1).
 """
 
 from __future__ import annotations
@@ -83,7 +86,9 @@ def main() -> None:
     ap.add_argument("--doubled", type=float, default=LineOptions.doubled_px,
                     help="LineOptions.doubled_px of the line pass (the trade-off in the README's coherence section)")
     ap.add_argument("--methods", default=",".join(VARIANTS), help="rows: " + ", ".join(VARIANTS))
+    ap.add_argument("--hidden", action="store_true", help="draw hidden lines too (every occlusion level)")
     a = ap.parse_args()
+    hidden = {"occlusion": (0, 15)} if a.hidden else {}
     rows = []
     print(BARS)
     head = (f"{'model':8} {'method':11} {'M1':>6} {'M2 med':>7} {'M4 med':>7} {'M4 p95':>7} {'M4 max':>7} "
@@ -91,7 +96,7 @@ def main() -> None:
     print(head)
     for name in a.models.split(","):
         sc = load_scene(MODELS / FILES[name])
-        r = LineRenderer(sc, LineOptions(doubled_px=a.doubled))
+        r = LineRenderer(sc, LineOptions(doubled_px=a.doubled, **hidden))
         orbit = orbit_path(sc.center, sc.radius, a.frames, degrees_per_frame=3.0, width=a.size, height=a.size)
         dolly = dolly_path(sc.center, sc.radius, a.frames, start=1.0, end=8.0, width=a.size, height=a.size)
         frames, t_lines = render(r, orbit)
@@ -105,7 +110,7 @@ def main() -> None:
             f_in, d_in = frames, dframes
             if method in RAW_LINES:
                 if method not in raw:
-                    r_raw = LineRenderer(sc, LineOptions(**RAW_LINES[method]))
+                    r_raw = LineRenderer(sc, LineOptions(**RAW_LINES[method], **hidden))
                     raw[method] = (render(r_raw, orbit)[0], render(r_raw, dolly)[0])
                 f_in, d_in = raw[method]
             out, t_track = track(f_in, method, a.repeat)
@@ -123,6 +128,10 @@ def main() -> None:
                   f"{ov['M4_p95']:7.2f} {ov['M4_max']:7.2f} {ov['M5']:6.3f} ({ov['M5_raw']:4.2f}) "
                   f"{dv['M5']:6.3f} ({dv['M5_raw']:5.2f}) {ov['M7_median']:7.2f} {row['strokes_out']:7.0f} {lm:9.1f} {tm:9.2f} "
                   f"{100 * tm / lm:5.0f}%", flush=True)
+            if a.hidden:
+                _, hv = sequence_metrics([f.select(f.occlusion >= 1) for f in out])
+                row["M1_hidden"] = hv["M1"]
+                print(f"{'':8} {'':11} hidden lines alone: M1 {hv['M1']:.3f}", flush=True)
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
 

@@ -18,6 +18,29 @@ if TYPE_CHECKING:  # the model holds a frame's Camera; the camera stage imports 
 KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmanifold",
                           "smooth_contour", "suggestive", "intersection")
 KIND_INDEX = {k: i for i, k in enumerate(KINDS)}
+N_KINDS = len(KINDS)
+#: Hidden lines (LineOptions.occlusion) carry their occlusion level in the kind arrays: code =
+#: kind + N_KINDS * level, so every stage that keeps kinds apart (chaining, the cleanup of doubled
+#: lines, tracking's joins) keeps levels apart. int8 codes hold levels 0..15; deeper pieces count
+#: as 15.
+MAX_OCCLUSION = (127 - (N_KINDS - 1)) // N_KINDS
+
+
+def kind_of(code) -> np.ndarray:
+    """The line kind (index into KINDS) of kind codes (see MAX_OCCLUSION)."""
+    return np.asarray(code) % N_KINDS
+
+
+def occlusion_of(code) -> np.ndarray:
+    """The occlusion level of kind codes: 0 visible, n hidden by n surfaces."""
+    return np.asarray(code) // N_KINDS
+
+
+def layer_name(code: int) -> str:
+    """The SVG layer (and glTF material) of a kind code: the kind, or hidden-<kind> for any level
+    >= 1 (the levels of one kind share its hidden layer; the JSON gives each stroke's level)."""
+    code = int(code)
+    return KINDS[code % N_KINDS] if code < N_KINDS else "hidden-" + KINDS[code % N_KINDS]
 
 
 try:  # the clip ufunc itself: np.clip(a, lo, hi) with both bounds given is this call, behind ~1 us
@@ -179,6 +202,12 @@ class Strokes:
 
     def stroke(self, s: int) -> slice:
         return slice(int(self.offsets[s]), int(self.offsets[s + 1]))
+
+    @property
+    def occlusion(self) -> np.ndarray:
+        """(S,) occlusion level of each stroke: 0 visible, n hidden by n surfaces (from its kind
+        code, see MAX_OCCLUSION)."""
+        return occlusion_of(self.kind).astype(np.int64)
 
     def replace(self, **changes) -> "Strokes":
         """dataclasses.replace that keeps the cached arc lengths (and stroke_of_point) when the new

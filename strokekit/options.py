@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+import numpy as np
+
 from strokekit.errors import UsageError
-from strokekit.model import KINDS
+from strokekit.model import KINDS, MAX_OCCLUSION
 
 #: Accuracy knobs per preset. whole_edge_px: edges shorter than this on screen get one
 #: visibility ray at their middle and are drawn whole or not at all (0: none);
@@ -81,6 +83,10 @@ class LineOptions:
     suggestive_kr_threshold: float = 0.0  # dimensionless (x 1/scene radius): skip faces with flatter radial curvature
     suggestive_derivative_threshold: float = 50.0  # dimensionless (scaled by the scene radius): min R^2 D_w k_r tan(theta)
     period_px: float = 30.0  # texture period for u
+    # Hidden lines (issue 20): None draws the visible lines (level 0, the occlusion test alone);
+    # (lo, hi) draws the pieces whose occlusion level (the number of surfaces in front of them)
+    # is in lo..hi, each stroke with its level (lines.occlusion). hi = MAX_OCCLUSION: any depth.
+    occlusion: tuple[int, int] | None = None
 
     def __post_init__(self):
         unknown = [k for k in self.kinds if k not in KINDS]
@@ -121,6 +127,13 @@ class LineOptions:
                              option="split_angle_deg")
         if self.contours not in ("mesh", "smooth"):
             raise UsageError(f"contours must be 'mesh' or 'smooth', got {self.contours!r}")
+        if self.occlusion is not None:
+            rng = tuple(self.occlusion)
+            if (len(rng) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in rng)
+                    or not 0 <= rng[0] <= rng[1] <= MAX_OCCLUSION):
+                raise UsageError(f"occlusion must be two whole levels lo <= hi within 0-{MAX_OCCLUSION} (deeper "
+                                 f"pieces count as {MAX_OCCLUSION}), got {self.occlusion!r}", option="occlusion")
+            object.__setattr__(self, "occlusion", (int(rng[0]), int(rng[1])))
         for name in ("suggestive_derivative_threshold", "suggestive_kr_threshold"):  # thresholds on magnitudes
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
@@ -139,5 +152,16 @@ class LineOptions:
             base["bisect_changes"] = True  # a tolerance asked for is a bisection asked for (draft has none)
         return LineOptions(**base)
 
+    @property
+    def layers(self) -> tuple[str, ...]:
+        """The SVG layers this drawing has, hidden ones (under the visible lines) first: the kinds,
+        then, with hidden levels, hidden-<kind> for each (writers.svg.svg_document)."""
+        if self.occlusion is None:
+            return self.kinds
+        lo, hi = self.occlusion
+        return (tuple("hidden-" + k for k in self.kinds) if hi >= 1 else ()) + (self.kinds if lo == 0 else ())
+
     def to_json(self) -> dict:
-        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v) for f in fields(self)}
+        """Every option (occlusion only when set: a visible-only run's digest stays as it was)."""
+        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v) for f in fields(self)
+                if not (f.name == "occlusion" and self.occlusion is None)}

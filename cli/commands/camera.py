@@ -6,8 +6,9 @@ import json
 
 import click
 
-from strokekit.camera.paths import dolly_path, orbit_path
-from strokekit.camera.view import MAX_IMAGE_PX, MAX_PATH_FRAMES
+from strokekit.camera.paths import dolly_path, orbit_path, parallel_path
+from strokekit.camera.view import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
+from strokekit.errors import InputError, UsageError
 from strokekit.fileio import atomic_write_text
 from strokekit.scene.load import load_scene
 
@@ -41,7 +42,7 @@ def _with_common(f):
     return f
 
 
-@click.group("camera", short_help="Write camera path files (orbit, dolly).")
+@click.group("camera", short_help="Write camera path files (orbit, dolly, parallel projections).")
 def command():
     """Generate camera path files (JSON, see the README) so every run can be reproduced from a file."""
 
@@ -69,3 +70,35 @@ def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
     say_warnings(s)
     _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)
+
+
+@command.command("parallel")
+@click.argument("scene", type=click.Path())
+@click.option("--projection", type=click.Choice(list(ANGLED) + ["orthographic"]), default="isometric",
+              show_default=True, help="The parallel projection (README: parallel projections).")
+@click.option("--azimuth", type=FINITE, default=None,
+              help="Degrees about the up axis (isometric, dimetric: 45, 135, 225 or 315 [45]; trimetric: needed; "
+                   "oblique and orthographic: [0], the front view).")
+@click.option("--elevation", type=FiniteFloatRange(-90, 90, min_open=True, max_open=True), default=None,
+              help="Degrees above the horizontal plane (dimetric, trimetric: needed; oblique and orthographic "
+                   "[0]; isometric: fixed).")
+@click.option("--oblique-angle", type=FINITE, default=None,
+              help="Cavalier, cabinet: the receding axis's angle above the image horizontal, degrees [45].")
+@click.option("--frames", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Number of frames (the same view in each: a still for a sequence).")
+@click.option("--width", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True)
+@click.option("--height", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True)
+@click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis.")
+@click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout.")
+def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width, height, up, out):
+    """A parallel projection of technical drawing that frames the whole scene (its drawing centred,
+    5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
+    from --azimuth / --elevation."""
+    s = load_scene(scene)
+    try:
+        path = parallel_path(s.center, s.radius, projection, azimuth=azimuth, elevation=elevation,
+                             oblique_angle=oblique_angle, frames=frames, width=width, height=height, up_axis=up,
+                             points=s.vertices)
+    except InputError as e:  # an angle the projection does not take: the options' fault (exit 2)
+        raise UsageError(f"--projection {projection}: {e}") from None
+    _emit(path, out)

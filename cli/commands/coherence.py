@@ -10,6 +10,7 @@ from rich.table import Table
 from strokekit.metrics.coherence import folder_metrics
 
 from ..common import FiniteFloatRange
+from .render_options import occlusion_from
 
 _COLUMNS = [("frame", "pair", "{:d}"), ("M1", "M1 ids", "{:.3f}"), ("M2", "M2 pop", "{:.4f}"),
             ("M4_median", "M4 med px", "{:.2f}"), ("M4_p95", "M4 p95 px", "{:.2f}"), ("M4_max", "M4 max px", "{:.2f}"),
@@ -26,11 +27,14 @@ _COLUMNS = [("frame", "pair", "{:d}"), ("M1", "M1 ids", "{:.3f}"), ("M2", "M2 po
               help="Minimum |t.t'| of a match (0 to 1).")
 @click.option("--pattern", default="frame_{frame:04d}", show_default=True,
               help="File name pattern of the frames (as given to render --pattern).")
-def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern: str):
+@click.option("--occlusion", "occlusion_range", default=None,
+              help="Only the strokes of occlusion levels A-B (a --hidden render: 1- measures the hidden lines).")
+def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern: str, occlusion_range: str | None):
     """Per frame pair and overall: M1 id persistence, M2 popping, M4 sliding (median/p95/max px),
     M5 flatness (octaves, with self-similar levels and raw u), M7 end growth, from the
     frame JSON files of OUT_DIR (README: what each metric measures)."""
-    pairs, total = folder_metrics(out_dir, pattern, radius_px=radius, min_tangent_dot=min_dot)
+    levels = occlusion_from({"occlusion_range": occlusion_range}) if occlusion_range is not None else None
+    pairs, total = folder_metrics(out_dir, pattern, occlusion=levels, radius_px=radius, min_tangent_dot=min_dot)
     for p in pairs:
         if p.frame - p.prev_frame != 1:
             click.echo(f"strokekit: warning: frame {p.frame} is compared with frame {p.prev_frame} "

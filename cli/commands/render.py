@@ -32,7 +32,14 @@ from strokekit.run.workers import MAX_WORKERS, make_executor
 from strokekit.scene.load import load_scene
 
 from ..common import FINITE, FiniteFloatRange, is_interactive, say_warnings, split_list
-from .render_options import gltf_options_from, raster_options_from, render_extra_options, tracking_options_from
+from .render_options import (
+    dashes_from,
+    gltf_options_from,
+    occlusion_from,
+    raster_options_from,
+    render_extra_options,
+    tracking_options_from,
+)
 
 #: Options that only mean something beside another: (options, what they need, when it is there).
 _NEEDS = (
@@ -237,7 +244,7 @@ def _line_options(o: dict) -> LineOptions:
                               min_length_px=o["min_length"], simplify_tol_px=o["simplify_tol"],
                               doubled_px=o["doubled"], merge_overlaps=o["drop_retraced"], period_px=o["period"],
                               suggestive_derivative_threshold=o["suggestive_threshold"],
-                              suggestive_kr_threshold=o["suggestive_kr_threshold"])
+                              suggestive_kr_threshold=o["suggestive_kr_threshold"], occlusion=occlusion_from(o))
 
 
 def _camera_file_path(o: dict, size: tuple[int, int] | None) -> CameraPath | None:
@@ -257,7 +264,8 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
                             decimals=o["decimals"], stroke_width_px=o["stroke_width"],
                             gltf=gltf_options is not None, gltf_sequence=bool(o.get("gltf_sequence")),
                             gltf_options=gltf_options,
-                            raster_options=raster_options_from(o, o["quality"], lines.crease_angle_deg))
+                            raster_options=raster_options_from(o, o["quality"], lines.crease_angle_deg),
+                            hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"])
     return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
                    tracking=tracking_options_from(o, len(frames)), workers=workers,
                    scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],

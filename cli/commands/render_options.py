@@ -4,9 +4,12 @@ values into the library's options dataclass, or None when that stage is off."""
 
 from __future__ import annotations
 
+import math
+
 import click
 
 from strokekit.errors import UsageError
+from strokekit.model import MAX_OCCLUSION
 from strokekit.options import QUALITY_PRESETS
 from strokekit.raster.bands import RasterOptions
 from strokekit.ribbons.brushes import get_brush
@@ -65,10 +68,73 @@ _RASTER = [
     click.option("--band-polygons", is_flag=True, help="Also the bands as vector polygons in an SVG layer under the lines."),
 ]
 
+_HIDDEN = [
+    click.option("--hidden", is_flag=True,
+                 help="Also draw the hidden lines (occlusion level >= 1: behind 1, 2, ... surfaces), dashed, in "
+                      "hidden-<kind> layers under the visible ones; each JSON stroke gets its level."),
+    click.option("--occlusion", "occlusion_range", default=None,
+                 help="Draw the pieces whose occlusion level is in A-B (Line Art's range): 0-2, 1 (just behind one "
+                      f"surface), 2- (two or more); 0 is visible; levels deeper than {MAX_OCCLUSION} count as "
+                      f"{MAX_OCCLUSION}."),
+    click.option("--dashes", default=None,
+                 help="Hidden lines' dash and gap in px (SVG stroke-dasharray), e.g. 6,3, or 'solid' [ISO 128 "
+                      "dashed: 12 and 3 stroke widths]."),
+    click.option("--dash-paths", is_flag=True,
+                 help="Write the hidden lines' dashes as geometry (a subpath per dash) instead of a dash style: "
+                      "for plotters (vpype draws a styled dash pattern solid)."),
+]
+
+
 def render_extra_options(f):
-    for deco in reversed(_TRACKING + _GLTF + _RASTER):
+    for deco in reversed(_TRACKING + _GLTF + _RASTER + _HIDDEN):
         f = deco(f)
     return f
+
+
+def occlusion_from(extra: dict) -> tuple[int, int] | None:
+    """LineOptions.occlusion from --hidden (every level) or --occlusion A-B; None: visible lines."""
+    text = extra.get("occlusion_range")
+    if extra.get("hidden") and text is not None:
+        raise UsageError("--hidden and --occlusion both choose the levels drawn: give one (--hidden is "
+                         f"--occlusion 0-{MAX_OCCLUSION})")
+    if extra.get("hidden"):
+        return 0, MAX_OCCLUSION
+    if text is None:
+        return None
+    lo, sep, hi = text.strip().partition("-")
+    try:
+        a = int(lo)
+        b = (MAX_OCCLUSION if not hi.strip() else int(hi)) if sep else a
+    except ValueError:
+        raise UsageError(f"bad --occlusion {text!r}: give levels A-B (whole numbers >= 0), A, or A-") from None
+    if not 0 <= a <= b:
+        raise UsageError(f"bad --occlusion {text!r}: give levels A-B with 0 <= A <= B")
+    if b > MAX_OCCLUSION:
+        raise UsageError(f"bad --occlusion {text!r}: levels go to {MAX_OCCLUSION} (deeper pieces count as "
+                         f"{MAX_OCCLUSION}: write {a}- for every level from {a})")
+    return a, b
+
+
+def dashes_from(extra: dict, occlusion: tuple[int, int] | None) -> tuple[float, ...] | None:
+    """OutputOptions.hidden_dashes from --dashes (None: the ISO 128 default); a usage error when
+    no hidden line is drawn (the option would be ignored) or the pattern is not one."""
+    text = extra.get("dashes")
+    for flag, on in (("--dashes", text is not None), ("--dash-paths", extra.get("dash_paths"))):
+        if on and (occlusion is None or occlusion[1] < 1):
+            raise UsageError(f"{flag} styles the hidden lines: it needs --hidden or an --occlusion range with levels >= 1")
+        if on and not extra.get("svg", True):
+            raise UsageError(f"{flag} styles the SVG's hidden layers: it cannot go with --no-svg")
+    if text is None:
+        return None
+    if text.strip().lower() == "solid":
+        if extra.get("dash_paths"):
+            raise UsageError("--dash-paths with --dashes solid: there are no dashes to write")
+        return ()
+    vals = _floats(text, "--dashes")
+    if len(vals) % 2 or any(not (math.isfinite(v) and v >= 0) for v in vals) or not sum(vals) > 0:
+        raise UsageError(f"bad --dashes {text!r}: give dash and gap lengths in px (pairs of numbers >= 0, not all 0), "
+                         "or 'solid'")
+    return vals
 
 
 def tracking_options_from(extra: dict, n_frames: int):

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from strokekit.camera.gltf import gltf_camera_path
-from strokekit.camera.view import _FALLBACK_UPS, MAX_IMAGE_PX, MAX_PATH_FRAMES, Camera, CameraPath
+from strokekit.camera.view import _FALLBACK_UPS, ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES, Camera, CameraPath, angled_basis
 from strokekit.errors import InputError, UsageError
 
 # --- keyframes ----------------------------------------------------------------------------------
@@ -99,12 +99,20 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
         up = _turn(ups[i], ups[i + 1], t, spare_axis=a.basis[2])
         if a.is_ortho:  # (only the lens of the path's projection: the other is never checked)
             lens = {"ortho_height": (1 - t) * a.ortho_height + t * b.ortho_height}
+            if a.projection in ANGLED:  # the angles that give the direction turn linearly too
+                lens.update({k: (1 - t) * getattr(a, k) + t * getattr(b, k) for k in ("azimuth", "elevation")
+                             if getattr(a, k) != getattr(b, k)})
+                if a.oblique_angle != b.oblique_angle:
+                    lens["oblique_angle"] = (1 - t) * a.oblique_angle + t * b.oblique_angle
         else:
             lens = {"fov_y": (1 - t) * a.fov_y + t * b.fov_y}
         near = None if a.near is None else (1 - t) * a.near + t * b.near
         between = f"frame {f}, between the keyframes at frame {keys[i][0]} and frame {keys[i + 1][0]}"
         try:
             cam = replace(a, eye=tuple(eye), target=tuple(target), up=tuple(up), near=near, **lens)
+            if a.projection in ANGLED:  # the distance before the target changes linearly, not the eye
+                depth = (1 - t) * _depth(a) + t * _depth(b)
+                cam = replace(cam, eye=tuple(np.asarray(cam.target) - depth * cam.ray_dir))
         except InputError as e:  # the eye passes through the target
             raise InputError(f"{between}: {e}", source or None) from None
         if cam.up_along_view:  # e.g. an eye that passes straight over the target
@@ -113,6 +121,11 @@ def interpolate_keyframes(keys: list[tuple[int, Camera]], frame_count: int, smoo
                              source or None)
         out.append(cam)
     return out
+
+
+def _depth(cam: Camera) -> float:
+    """How far the target lies before the camera, along its view."""
+    return float(np.subtract(cam.target, cam.eye) @ cam.basis[2])
 
 
 # --- camera path files ----------------------------------------------------------------------------
@@ -137,7 +150,8 @@ def _image_side(value, what: str) -> int:
 #: The keys of a camera path file (BRIEF 1.2): the file, and each frame or keyframe. Keys that
 #: start with "_" (comments) and "extras" are the user's own and are not read.
 _PATH_KEYS = ("width", "height", "fps", "frames", "keyframes", "frame_count", "interpolation")
-_CAMERA_KEYS = ("eye", "target", "up", "fov_y", "projection", "ortho_height", "near", "width", "height")
+_CAMERA_KEYS = ("eye", "target", "up", "fov_y", "projection", "ortho_height", "near", "width", "height",
+                "distance", "azimuth", "elevation", "oblique_angle")
 
 
 def _check_keys(d: dict, known: tuple[str, ...], where: str, source: str) -> None:
@@ -157,6 +171,12 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str,
     if not isinstance(d, dict):
         raise InputError(f"{where} must be an object", source)
     _check_keys(d, _CAMERA_KEYS + tuple(extra_keys), f"{where}: ", source)
+    if d.get("projection") in ANGLED:
+        return _angled_camera_from_dict(d, width, height, where, source)
+    angled_keys = [k for k in ("distance", "azimuth", "elevation", "oblique_angle") if k in d]
+    if angled_keys:
+        raise InputError(f"{where}: '{angled_keys[0]}' belongs to the projections {', '.join(ANGLED)}, not to a "
+                         f"{d.get('projection', 'perspective')} camera", source)
     for key in ("eye", "target"):
         if key not in d:
             raise InputError(f"{where} has no '{key}'", source)
@@ -188,6 +208,37 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str,
 
 def _show_vec(v) -> str:
     return "(" + ", ".join(f"{float(x):g}" for x in v) + ")"
+
+
+def _angled_camera_from_dict(d: dict, width: int, height: int, where: str, source: str) -> Camera:
+    """A frame of an angled parallel projection (isometric ... cabinet): its direction comes from
+    the projection and its angles, so it gives a 'distance' before 'target', never an 'eye'."""
+    p = d["projection"]
+    if "fov_y" in d:
+        raise InputError(f"{where}: {_a(p)} camera is a parallel projection: it has no 'fov_y' (its size is "
+                         "'ortho_height')", source)
+    if "eye" in d:
+        raise InputError(f"{where}: {_a(p)} camera takes its direction from its projection: give 'distance' (world "
+                         "units before the target) instead of 'eye'", source)
+    for key in ("target", "ortho_height", "distance"):
+        if key not in d:
+            raise InputError(f"{where}: {_a(p)} camera needs '{key}'", source)
+    try:
+        return Camera.parallel(p, tuple(d["target"]), d["distance"], up=tuple(d.get("up", (0.0, 1.0, 0.0))),
+                               ortho_height=float(d["ortho_height"]),
+                               width=_image_side(d.get("width", width), "width"),
+                               height=_image_side(d.get("height", height), "height"),
+                               azimuth=d.get("azimuth"), elevation=d.get("elevation"),
+                               oblique_angle=d.get("oblique_angle"),
+                               near=(float(d["near"]) if d.get("near") is not None else None))
+    except InputError as e:
+        raise InputError(f"{where}: {e}", source) from None
+    except (TypeError, ValueError, OverflowError) as e:
+        raise InputError(f"{where}: bad value ({e})", source) from None
+
+
+def _a(word: str) -> str:
+    return ("an " if word[0] in "aeiou" else "a ") + word
 
 
 def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
@@ -333,3 +384,50 @@ def dolly_path(center: np.ndarray, radius: float, frames: int, *, start: float =
         s = start * (end / start) ** (k / max(frames - 1, 1))
         cams.append(replace(cam0, eye=tuple(c + s * d)))
     return CameraPath(cameras=tuple(cams), source="dolly")
+
+
+def parallel_path(center: np.ndarray, radius: float, projection: str, *, azimuth: float | None = None,
+                  elevation: float | None = None, oblique_angle: float | None = None, frames: int = 1,
+                  width: int = 1024, height: int = 1024, fps: float = 24.0, up_axis: str = "y",
+                  points: np.ndarray | None = None, margin: float = 0.05) -> CameraPath:
+    """`frames` frames of one parallel view (an angled projection, see camera.view, or
+    orthographic from `azimuth` / `elevation`, default 0: the front view) that frame a sphere
+    of `radius` around `center`, the camera 3 radii before it; with `points` (the scene's
+    vertices), their image instead, centred with `margin` (a fraction of the image) around it."""
+    if not (np.isfinite(radius) and radius > 0):
+        raise InputError("cannot frame an empty or degenerate scene")
+    up = (0.0, 1.0, 0.0) if up_axis == "y" else (0.0, 0.0, 1.0)
+    c = tuple(float(x) for x in center)
+    if projection == "orthographic":
+        if oblique_angle is not None:
+            raise UsageError("--oblique-angle belongs to the oblique projections (cavalier, cabinet)")
+        el = 0.0 if elevation is None else elevation
+        if not abs(el) < 90.0:
+            raise UsageError(f"elevation must be strictly between -90 and 90 degrees, got {el:g}")
+        _, _, fwd = angled_basis(up, 0.0 if azimuth is None else azimuth, el)
+        cam = Camera(eye=tuple(np.asarray(c) - 3.0 * radius * fwd), target=c, up=up, projection="orthographic",
+                     ortho_height=2.3 * radius * max(1.0, height / width), width=width, height=height)
+    else:
+        probe = Camera.parallel(projection, c, 1.0, up=up, azimuth=azimuth, elevation=elevation,
+                                oblique_angle=oblique_angle)
+        kx, ky = probe.shear  # the sphere's image: an ellipse R sqrt(1 + kx^2) wide, R sqrt(1 + ky^2) high
+        size = 2.3 * radius * max(math.sqrt(1.0 + ky * ky), math.sqrt(1.0 + kx * kx) * height / width)
+        cam = Camera.parallel(projection, c, 3.0 * radius, up=up, ortho_height=size, width=width, height=height,
+                              azimuth=probe.azimuth, elevation=probe.elevation, oblique_angle=probe.oblique_angle)
+    if points is not None and len(points):
+        # Fit the drawing: the points' image box, centred, `margin` of the image left around it.
+        p, _ = cam.project(np.asarray(points, float))
+        lo, hi = p.min(axis=0), p.max(axis=0)
+        span = max((hi[0] - lo[0]) / (width * (1 - 2 * margin)), (hi[1] - lo[1]) / (height * (1 - 2 * margin)))
+        mid = 0.5 * (lo + hi)
+        right, up_v, _ = cam.basis
+        shift = ((mid[0] - width / 2.0) * right - (mid[1] - height / 2.0) * up_v) / cam.focal_px
+        size = cam.ortho_height * max(span, 1e-12)
+        target = tuple(np.asarray(cam.target) + shift)
+        if projection == "orthographic":
+            cam = replace(cam, eye=tuple(np.asarray(cam.eye) + shift), target=target, ortho_height=size)
+        else:
+            cam = Camera.parallel(projection, target, 3.0 * radius, up=up, ortho_height=size, width=width,
+                                  height=height, azimuth=cam.azimuth, elevation=cam.elevation,
+                                  oblique_angle=cam.oblique_angle)
+    return CameraPath(cameras=(cam,) * frames, fps=fps, source=projection)

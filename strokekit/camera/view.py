@@ -1,6 +1,21 @@
-"""A frame's view (`Camera`: eye, target, up, lens, image size; perspective or orthographic)
-and a sequence of them (`CameraPath`). Image space: x to the right, y down, origin at the
-top-left corner, in pixels (BRIEF 1.1)."""
+"""A frame's view (`Camera`: eye, target, up, lens, image size; perspective, orthographic, or one
+of the parallel projections of technical drawing) and a sequence of them (`CameraPath`). Image
+space: x to the right, y down, origin at the top-left corner, in pixels (BRIEF 1.1).
+
+Parallel projections (seed 001, 3.2): the observer is at infinity, every projection ray has one
+direction. `orthographic` takes its direction from eye -> target. The axonometric projections
+(the image plane perpendicular to the rays) take theirs from angles measured on the world axes,
+with `up` the vertical axis: `azimuth` turns the view about `up` (0: from the front axis, +z for
+a y up, -y for a z up, as `orbit_path`), `elevation` lifts it above the horizontal plane:
+`isometric` (the three axes equally foreshortened: elevation atan(1/sqrt 2) = 35.26 degrees,
+azimuth 45 + k 90), `dimetric` (the two horizontal axes alike: azimuth 45 + k 90, elevation
+given), `trimetric` (both given). The oblique projections (`cavalier`, `cabinet`) keep the image
+plane perpendicular to the view of `azimuth` / `elevation` (default: the front view) and slant
+the rays: a point `z` deeper than the target is drawn `scale * z` along the receding axis, at
+`oblique_angle` (default 45 degrees) above the image's horizontal, scale 1 (cavalier) or 1/2
+(cabinet, "les distances fuyantes sont divisees par 2"). For these five, the camera stands
+`distance` before the target along the projection rays (the eye, on the ray through the target,
+which stays at the image centre); the eye sets the near plane as for an orthographic camera."""
 
 from __future__ import annotations
 
@@ -19,6 +34,13 @@ MAX_IMAGE_PX = 100_000  # per side
 #: `up` counts as parallel to the view direction when |fwd x up| <= this x |up| (fwd a unit
 #: vector): Camera.basis then picks a fallback up, and a camera file refuses it.
 UP_PARALLEL_TOL = 1e-6
+
+#: Projections a camera may have. The five after "orthographic" take their direction from angles.
+PROJECTIONS = ("perspective", "orthographic", "isometric", "dimetric", "trimetric", "cavalier", "cabinet")
+ANGLED = PROJECTIONS[2:]
+OBLIQUE_SCALE = {"cavalier": 1.0, "cabinet": 0.5}
+#: The isometric elevation: atan(1 / sqrt(2)), in degrees (35.264...).
+ISOMETRIC_ELEVATION = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -39,6 +61,10 @@ class Camera:
     projection: str = "perspective"  # or "orthographic"
     ortho_height: float = 1.0
     near: float | None = None  # world units; None: a small fraction of the eye-target distance
+    # The angled parallel projections (ANGLED; see the module doc), degrees. None: the default.
+    azimuth: float | None = None
+    elevation: float | None = None
+    oblique_angle: float | None = None
 
     def __post_init__(self):
         for name in ("eye", "target", "up"):
@@ -46,11 +72,11 @@ class Camera:
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise InputError(f"camera {name} must be 3 finite numbers, got {_show(getattr(self, name))}")
             object.__setattr__(self, name, tuple(float(x) for x in v))
-        if self.projection not in ("perspective", "orthographic"):
-            raise InputError(f"camera projection must be 'perspective' or 'orthographic', got {self.projection!r}")
+        if self.projection not in PROJECTIONS:
+            raise InputError(f"camera projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
         if self.projection == "perspective" and not (0.0 < float(self.fov_y) < 180.0):
             raise InputError(f"camera fov_y must be in (0, 180) degrees, got {self.fov_y!r}")
-        if self.projection == "orthographic" and not (math.isfinite(self.ortho_height) and self.ortho_height > 0):
+        if self.projection != "perspective" and not (math.isfinite(self.ortho_height) and self.ortho_height > 0):
             raise InputError(f"camera ortho_height must be > 0, got {self.ortho_height!r}")
         if self.near is not None and not (math.isfinite(self.near) and self.near > 0):
             raise InputError(f"camera near must be a distance > 0, got {self.near!r}")
@@ -58,12 +84,69 @@ class Camera:
             raise InputError(f"image size must be positive, got {self.width} x {self.height}")
         if np.linalg.norm(np.subtract(self.target, self.eye)) == 0.0:
             raise InputError("camera target equals eye: the view direction has zero length")
+        if self.projection in ANGLED:
+            self._set_angles()
+        else:
+            for name in ("azimuth", "elevation", "oblique_angle"):
+                if getattr(self, name) is not None:
+                    raise InputError(f"camera {name} belongs to the projections {', '.join(ANGLED)}, not to a "
+                                     f"{self.projection} camera")
+
+    def _set_angles(self) -> None:
+        """An angled parallel projection: check and complete its angles, then put the eye on the
+        projection ray through the target at its depth (target - eye).fwd (keyframes move eye and
+        target; the angles, not their line, give the direction)."""
+        az, el, ob = _complete_angles(self.projection, self.azimuth, self.elevation, self.oblique_angle)
+        object.__setattr__(self, "azimuth", az)
+        object.__setattr__(self, "elevation", el)
+        object.__setattr__(self, "oblique_angle", ob)
+        depth = float(np.subtract(self.target, self.eye) @ self.basis[2])
+        if depth == 0.0:
+            raise InputError("camera eye and target are at the same depth: the camera has no distance")
+        eye = np.asarray(self.target, float) - depth * self.ray_dir
+        object.__setattr__(self, "eye", tuple(float(x) for x in eye))
+
+    @staticmethod
+    def parallel(projection: str, target, distance: float, *, up=(0.0, 1.0, 0.0), ortho_height: float = 1.0,
+                 width: int = 1024, height: int = 1024, azimuth: float | None = None,
+                 elevation: float | None = None, oblique_angle: float | None = None,
+                 near: float | None = None) -> "Camera":
+        """A camera of an angled parallel projection (ANGLED) `distance` (> 0, world units, along
+        the view) before `target`."""
+        if projection not in ANGLED:
+            raise InputError(f"parallel projections are {', '.join(ANGLED)}, got {projection!r}")
+        if isinstance(distance, bool) or not (isinstance(distance, (int, float)) and math.isfinite(distance)
+                                              and distance > 0):
+            raise InputError(f"camera distance must be a number > 0, got {distance!r}")
+        t = np.asarray(target, float)
+        if t.shape != (3,) or not np.all(np.isfinite(t)):
+            raise InputError(f"camera target must be 3 finite numbers, got {_show(target)}")
+        u = np.asarray(up, float)
+        if u.shape != (3,) or not np.all(np.isfinite(u)) or not np.any(u):
+            raise InputError(f"camera up must be 3 finite numbers, not all 0, got {_show(up)}")
+        az, el, ob = _complete_angles(projection, azimuth, elevation, oblique_angle)
+        _, _, fwd = angled_basis(u, az, el)
+        return Camera(eye=tuple(t - float(distance) * fwd), target=tuple(t), up=tuple(u), projection=projection,
+                      ortho_height=ortho_height, width=width, height=height, azimuth=az, elevation=el,
+                      oblique_angle=ob, near=near)
+
+    @staticmethod
+    def from_json(d: dict) -> "Camera":
+        """The camera `to_json` wrote (an angled parallel projection gives its distance, not its eye)."""
+        d = {k: (tuple(v) if isinstance(v, list) else v) for k, v in d.items()}
+        if "distance" in d:
+            dist = d.pop("distance")
+            d.pop("fov_y", None)
+            return Camera.parallel(d.pop("projection"), d.pop("target"), dist, **d)
+        return Camera(**d)
 
     # --- frame -------------------------------------------------------------------------------
     @cached_property  # frozen: computed once per camera (the tracker asks for it often)
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(right, up', fwd) unit vectors, float64. A stable fallback up is used when up is
         (nearly) parallel to the view direction."""
+        if self.projection in ANGLED:
+            return angled_basis(self.up, self.azimuth, self.elevation)
         fwd = _unit(np.subtract(self.target, self.eye))
         candidates = [np.asarray(self.up, float)] + list(_FALLBACK_UPS)
         for up in candidates:
@@ -97,7 +180,38 @@ class Camera:
 
     @property
     def is_ortho(self) -> bool:
-        return self.projection == "orthographic"
+        """Every parallel projection (orthographic, axonometric, oblique): one ray direction."""
+        return self.projection != "perspective"
+
+    @property
+    def is_oblique(self) -> bool:
+        return self.projection in OBLIQUE_SCALE
+
+    @cached_property
+    def shear(self) -> tuple[float, float]:
+        """(kx, ky): a parallel camera draws a point z deeper (along fwd) kx z px / focal_px
+        further right and ky z further up than its image-plane position; (0, 0) but for the oblique
+        projections (scale x (cos, sin) of the receding axis angle)."""
+        if not self.is_oblique:
+            return 0.0, 0.0
+        s, a = OBLIQUE_SCALE[self.projection], math.radians(self.oblique_angle)
+        return s * math.cos(a), s * math.sin(a)
+
+    @cached_property
+    def ray_dir(self) -> np.ndarray:
+        """The direction of a parallel camera's projection rays, into the scene, with a unit
+        component along fwd: fwd itself but for the oblique projections (fwd - kx right - ky up)."""
+        right, up, fwd = self.basis
+        if not self.is_oblique:
+            return fwd
+        kx, ky = self.shear
+        return fwd - kx * right - ky * up
+
+    @cached_property
+    def view_dir(self) -> np.ndarray:
+        """The unit direction of a parallel camera's rays into the scene (fwd but for oblique)."""
+        d = self.ray_dir
+        return d if not self.is_oblique else d / np.linalg.norm(d)
 
     def depth(self, points: np.ndarray) -> np.ndarray:
         """z = (P - eye).fwd for (N, 3) points; shape (N,)."""
@@ -113,6 +227,9 @@ class Camera:
         xr, yu = q @ right, q @ up
         f = self.focal_px
         if self.is_ortho:
+            if self.is_oblique:
+                kx, ky = self.shear
+                xr, yu = xr + kx * z, yu + ky * z
             return np.stack([self.width / 2.0 + f * xr, self.height / 2.0 - f * yu], axis=-1), z
         if q.ndim != 2:
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -147,6 +264,18 @@ class Camera:
         return 1e-4 * max(min(scene_radius, dist), 1e-300)
 
     def to_json(self) -> dict:
+        """The camera as a camera file's frame (plus width and height). An angled parallel
+        projection gives its distance and angles instead of an eye (which they fix)."""
+        if self.projection in ANGLED:
+            d = {"target": list(self.target), "up": list(self.up), "width": int(self.width),
+                 "height": int(self.height), "projection": self.projection, "ortho_height": self.ortho_height,
+                 "distance": float(np.subtract(self.target, self.eye) @ self.basis[2]),
+                 "azimuth": self.azimuth, "elevation": self.elevation}
+            if self.is_oblique:
+                d["oblique_angle"] = self.oblique_angle
+            if self.near is not None:
+                d["near"] = self.near
+            return d
         d = {"eye": list(self.eye), "target": list(self.target), "up": list(self.up), "fov_y": self.fov_y,
              "width": int(self.width), "height": int(self.height), "projection": self.projection}
         if self.is_ortho:
@@ -187,6 +316,62 @@ class CameraPath:
                 raise InputError(f"frame {n} is outside the camera path (1-{len(self.cameras)})", self.source or None)
             out.append((n, self.cameras[n - 1]))
         return out
+
+
+def _a(word: str) -> str:
+    return ("an " if word[0] in "aeiou" else "a ") + word
+
+
+def _complete_angles(p: str, az, el, ob) -> tuple[float, float, float | None]:
+    """(azimuth, elevation, oblique_angle) of an angled parallel projection `p`, defaults filled
+    in; InputError for a value the projection does not allow."""
+    for k, v in (("azimuth", az), ("elevation", el), ("oblique_angle", ob)):
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)):
+            raise InputError(f"camera {k} must be a finite number of degrees, got {v!r}")
+    if p in ("isometric", "dimetric"):
+        az = 45.0 if az is None else float(az)
+        if (az - 45.0) % 90.0 != 0.0:
+            raise InputError(f"{_a(p)} camera's azimuth must be 45, 135, 225 or 315 degrees (the two horizontal "
+                             f"axes equally foreshortened), got {az:g}")
+    if p == "isometric":
+        if el is not None and abs(abs(el) - ISOMETRIC_ELEVATION) > 1e-9:
+            raise InputError(f"an isometric camera's elevation is +-{ISOMETRIC_ELEVATION:.6f} degrees (the three "
+                             f"axes equally foreshortened), got {el:g}: a dimetric camera takes another")
+        el = ISOMETRIC_ELEVATION if el is None else math.copysign(ISOMETRIC_ELEVATION, el)
+    elif p in ("dimetric", "trimetric"):
+        missing = [k for k, v in (("azimuth", az), ("elevation", el)) if v is None]
+        if missing:
+            raise InputError(f"{_a(p)} camera needs {' and '.join(missing)} (degrees)")
+        if not 0.0 < abs(el) < 90.0:
+            raise InputError(f"{_a(p)} camera's elevation must be strictly between -90 and 90 degrees and not 0 "
+                             f"(an axis would collapse to a point), got {el:g}")
+    else:  # oblique: the front view unless said
+        az = 0.0 if az is None else az
+        el = 0.0 if el is None else el
+        ob = 45.0 if ob is None else float(ob)
+        if not abs(el) < 90.0:
+            raise InputError(f"{_a(p)} camera's elevation must be strictly between -90 and 90 degrees, got {el:g}")
+    if p not in OBLIQUE_SCALE and ob is not None:
+        raise InputError(f"oblique_angle belongs to the oblique projections (cavalier, cabinet), not to {p}")
+    return float(az), float(el), ob
+
+
+def angled_basis(up, azimuth: float, elevation: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(right, up', fwd) of a view from `azimuth` / `elevation` degrees about the unit `up`: the
+    front axis is the first of +z, -y, +x not along up (orbit_path's convention: y up looks from
+    +z at azimuth 0, z up from -y), the side axis up x front (+x for both)."""
+    U = _unit(np.asarray(up, float))
+    for F0 in (np.array([0.0, 0.0, 1.0]), np.array([0.0, -1.0, 0.0]), np.array([1.0, 0.0, 0.0])):
+        F = F0 - (F0 @ U) * U
+        if np.linalg.norm(F) > 1e-6:
+            F = _unit(F)
+            break
+    X = np.cross(U, F)
+    az, el = math.radians(azimuth), math.radians(elevation)
+    toward_eye = math.cos(el) * (math.sin(az) * X + math.cos(az) * F) + math.sin(el) * U
+    fwd = -toward_eye
+    right = _unit(np.cross(fwd, U))
+    return right, np.cross(right, fwd), fwd
 
 
 def _show(value) -> str:

@@ -70,7 +70,7 @@ def chain_runs(runs: VisibleRuns, options: LineOptions, camera=None, frame: int 
     R = len(runs)
     if R == 0:
         return Strokes.empty(camera, frame, options.period_px)
-    nk = len(KINDS)
+    nk = len(KINDS) if not len(runs.kind) or runs.kind.max() < len(KINDS) else 128  # (hidden: kind codes)
     # Node ids: a mesh vertex seen by one kind; unique (negative) keys never match anything.
     k0 = np.where(runs.key0 >= 0, runs.key0 * nk + runs.kind, runs.key0)
     k1 = np.where(runs.key1 >= 0, runs.key1 * nk + runs.kind, runs.key1)

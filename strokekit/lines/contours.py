@@ -174,6 +174,9 @@ def screen_side(camera: Camera, points: np.ndarray, tangents: np.ndarray, normal
     def jac(u):  # screen velocity (y down) of a world direction u at the points, up to a positive factor
         ux, uy, uz = u @ right, u @ up, u @ fwd
         if camera.is_ortho:
+            if camera.is_oblique:
+                kx, ky = camera.shear
+                ux, uy = ux + kx * uz, uy + ky * uz
             return np.stack([ux, -uy], axis=1)
         x, y, z = q @ right, q @ up, q @ fwd
         return np.stack([ux * z - x * uz, -(uy * z - y * uz)], axis=1)
@@ -392,8 +395,7 @@ def contour_lift(scene: Scene, camera: Camera, faces: np.ndarray, mid: np.ndarra
     `scale` (F,): the chord error scales to use (default `face_scale(scene)`, vertex normals)."""
     view = (VIEW_LIFT_GAIN if view_gain is None else view_gain) * face_size(scene)[faces]
     if camera.is_ortho:
-        _, _, fwd = camera.basis
-        toward = np.broadcast_to(-fwd, mid.shape)
+        toward = np.broadcast_to(-camera.view_dir, mid.shape)  # (-fwd but for oblique rays)
     else:
         toward = np.asarray(camera.eye, float) - mid
         dist = np.linalg.norm(toward, axis=1)

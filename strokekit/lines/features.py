@@ -79,10 +79,18 @@ def _static_kinds(scene: Scene, static: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def silhouette_mask(scene: Scene, camera: Camera) -> np.ndarray:
-    """(E,) manifold edges whose two faces face opposite ways."""
+    """(E,) manifold edges whose two faces face opposite ways. Read-only; the last camera's
+    answer is kept per scene (the hidden-line pass asks again for the outline)."""
+    c = scene_cache(scene)
+    last = c.get("silhouette_mask")
+    if last is not None and last[0] is camera:
+        return last[1]
     ff = np.append(front_facing(scene, camera), False)
     f0, f1 = _manifold_face_pairs(scene)
-    return np.take(ff, f0, mode="wrap") != np.take(ff, f1, mode="wrap")  # in range: no bounds check
+    mask = np.take(ff, f0, mode="wrap") != np.take(ff, f1, mode="wrap")  # in range: no bounds check
+    mask.setflags(write=False)
+    c["silhouette_mask"] = (camera, mask)
+    return mask
 
 
 def feature_edges(scene: Scene, camera: Camera, options: LineOptions,

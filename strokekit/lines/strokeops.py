@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from strokekit.model import KIND_INDEX, Strokes, bracket, uclip
+from strokekit.model import KIND_INDEX, Strokes, bracket, kind_of, uclip
 from strokekit.sampling import resample_strokes, split_lengths, surface_between
 
 
@@ -317,7 +317,7 @@ def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float 
     covered = gone[st]
     if doubled_px > 0:
         ok = ~gone[st[a]] & ~gone[st[b]] & (d2 <= doubled_px * doubled_px)
-        ok &= np.isin(sk[a], [KIND_INDEX[k] for k in kinds])
+        ok &= np.isin(kind_of(sk[a]), [KIND_INDEX[k] for k in kinds])  # (of any occlusion level)
         along = np.abs(np.einsum("ij,ij->i", dp, smp.t[a]))
         ok &= along <= 0.5 * (smp.w[a] + smp.w[b]) - 0.25  # beside, not one stroke continuing the other
         ok &= np.abs(np.einsum("ij,ij->i", smp.t[b], smp.t[a])) >= 0.65

@@ -106,8 +106,7 @@ def radial_curvature(scene: Scene, camera: Camera, smooth_passes: int = SMOOTH_P
     (1 / world unit; 0 where w vanishes)."""
     n = vertex_normals(scene)
     if camera.is_ortho:
-        _, _, fwd = camera.basis
-        view = np.broadcast_to(-fwd, n.shape)
+        view = np.broadcast_to(-camera.view_dir, n.shape)  # (-fwd but for oblique rays)
     else:
         view = np.asarray(camera.eye, float) - scene.vertices
         view = view / np.linalg.norm(view, axis=1)[:, None]

@@ -11,25 +11,51 @@ from strokekit.model import KIND_INDEX, FeatureEdges, row_norm
 from strokekit.scene.load import Scene
 from strokekit.scene.tables import scene_cache
 
+#: A face is seen edge-on when the eye lies within this fraction of the eye's distance (plus the
+#: scene radius) of its plane (parallel cameras: the rays' direction within this of its plane):
+#: float64 rounding of an exactly edge-on face (the eye in a model's symmetry plane) and nothing
+#: a pixel could show (at 1e-12 rad a face 1e6 px long is 1e-6 px wide).
+EDGE_ON_TOL = 1e-12
+
 
 def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
     """(F,) True where the face's front side faces the eye (perspective) or the view (ortho).
-    Read-only; the last camera's answer is kept per scene (a frame asks for it several times)."""
+    A face seen exactly edge-on (`edge_on_faces`) faces neither way and counts as back-facing,
+    whatever the rounding of its n.(eye - P) says. Read-only; the last camera's answer is kept
+    per scene (a frame asks for it several times)."""
+    return _facing(scene, camera)[0]
+
+
+def edge_on_faces(scene: Scene, camera: Camera) -> np.ndarray:
+    """(F,) True where the frame sees the face exactly edge-on (EDGE_ON_TOL): the eye in its
+    plane, or for a parallel camera the projection rays along it. Such a face covers no area and
+    hides nothing (BRIEF 2): the renderer leaves it out of the occlusion rays, and it counts as
+    back-facing. Kept per scene for the last camera."""
+    return _facing(scene, camera)[1]
+
+
+def _facing(scene: Scene, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """(front_facing, edge_on) of the faces for the camera, cached together."""
     c = scene_cache(scene)
     last = c.get("front_facing")
     if last is not None and last[0] is camera:
-        return last[1]
+        return last[1], last[2]
     n = scene.face_normals
     if camera.is_ortho:
-        _, _, fwd = camera.basis
-        ff = (n @ -fwd) > 0.0
+        d = camera.ray_dir  # (fwd but for the oblique projections: their rays' direction)
+        g = n @ -d
+        tol = EDGE_ON_TOL * float(np.linalg.norm(d))
     else:
-        # n.eye > offset: the same test as n.eye - offset > 0 (a difference of doubles rounds to
-        # zero only when they are equal), one pass fewer.
-        ff = np.greater(n @ np.asarray(camera.eye, float), scene.face_offsets)
+        # n.eye - offset > 0 (a difference of doubles is 0 only when they are equal).
+        eye = np.asarray(camera.eye, float)
+        g = n @ eye - scene.face_offsets
+        tol = EDGE_ON_TOL * float(np.linalg.norm(eye - scene.center) + scene.radius)
+    ff = g > tol
+    on = np.abs(g) <= tol
     ff.setflags(write=False)
-    c["front_facing"] = (camera, ff)  # holds the camera: its id cannot be reused while cached
-    return ff
+    on.setflags(write=False)
+    c["front_facing"] = (camera, ff, on)  # holds the camera: its id cannot be reused while cached
+    return ff, on
 
 
 def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float,

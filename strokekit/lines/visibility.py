@@ -30,6 +30,9 @@ def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> 
     cam_b = np.stack([qb @ right, qb @ up, qb @ fwd], axis=1)
     xa, ya, za = cam_a.T
     xb, yb, zb = cam_b.T
+    if camera.is_oblique:  # the image-plane offsets of a sheared parallel projection
+        kx, ky = camera.shear
+        xa, ya, xb, yb = xa + kx * za, ya + ky * za, xb + kx * zb, yb + ky * zb
     # g >= 0 inside, linear along the segment: near plane, then left, right, top, bottom.
     if camera.is_ortho:
         planes = [(za - near, zb - near), (f * xa + W / 2, f * xb + W / 2), (W / 2 - f * xa, W / 2 - f * xb),

@@ -226,9 +226,11 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
     return files
 
 
-def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", **kw) -> tuple[list[PairMetrics], dict]:
+def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[int, int] | None = None,
+                   **kw) -> tuple[list[PairMetrics], dict]:
     """Read every frame JSON of `out_dir` named by `pattern` (strokekit.writers.strokes_json
-    format), in frame order, and return (per pair metrics, overall summary)."""
+    format), in frame order, and return (per pair metrics, overall summary). `occlusion` (lo, hi):
+    only the strokes of those occlusion levels (hidden-line runs: 1-15 measures the hidden lines)."""
 
     frames = []
     for f in frame_files(out_dir, pattern):
@@ -238,6 +240,8 @@ def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", **kw) -> tuple[l
             raise InputError(f"not a strokekit frame JSON ({type(e).__name__}: {e})", f) from None
         if st.camera is None:
             raise InputError("frame JSON has no camera: cannot project surface points", f)
+        if occlusion is not None:
+            st = st.select((st.occlusion >= occlusion[0]) & (st.occlusion <= occlusion[1]))
         frames.append(st)
     frames.sort(key=lambda s: s.frame)
     return sequence_metrics(frames, **kw)

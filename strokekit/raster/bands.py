@@ -122,8 +122,9 @@ def _facing_sign(scene: Scene, camera: Camera, fi: np.ndarray, ax: np.ndarray, a
     ax, ay (M,) the samples' camera-plane offsets (see raster.cast_samples)."""
     right, up, fwd = camera.basis
     nf = scene.face_normals
-    # n.d for d = fwd + x right + y up (perspective) or fwd (ortho), from per-face dot products.
-    s = (nf @ fwd)[fi]
+    # n.d for d = fwd + x right + y up (perspective) or the rays' direction (parallel: fwd but for
+    # the oblique projections), from per-face dot products.
+    s = (nf @ (camera.ray_dir if camera.is_ortho else fwd))[fi]
     if not camera.is_ortho:
         s = s + ax * (nf @ right)[fi] + ay * (nf @ up)[fi]
     return np.where(s > 0, -1.0, 1.0)
@@ -561,7 +562,7 @@ def _face_band_range(frame: RasterFrame, vnormals: np.ndarray | None) -> tuple[n
     scene, cam, o = frame.scene, frame.camera, frame.options
     nf = scene.face_normals
     if cam.is_ortho:
-        back = nf @ cam.basis[2] > 0
+        back = nf @ cam.ray_dir > 0  # (fwd but for the oblique projections)
     else:
         back = scene.face_offsets - nf @ np.asarray(cam.eye, float) > 0
     if o.shading == "flat":

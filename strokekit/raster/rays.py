@@ -72,10 +72,13 @@ class RasterHits:
         xr = self.ray_dir_x[None, :]
         yu = self.ray_dir_y[:, None]
         if self.camera.is_ortho:
-            # Origin moves across the image plane, direction is fwd.
+            # Origin moves across the image plane, direction is fwd (oblique: sheared).
             a = np.broadcast_to(xr, z.shape)
             b = np.broadcast_to(yu, z.shape)
             c = z
+            if self.camera.is_oblique:
+                kx, ky = self.camera.shear
+                a, b = a - kx * z, b - ky * z
         else:
             # Direction (fwd + x right + y up) scaled by z.
             a, b, c = xr * z, yu * z, z
@@ -131,6 +134,20 @@ def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndar
     base = ((eye - occluder.origin) * k).astype(np.float32)
     right, up, fwd = right * k, up * k, fwd * k
     axc, ayr = np.asarray(ax, np.float32), np.asarray(ay, np.float32)
+    if camera.is_oblique:
+        # The rays run along the projection direction (fwd - kx right - ky up, unit component
+        # along fwd: t_hit is still the view depth past the near plane); the ray of image point
+        # (ax, ay) crosses the near plane at (ax - kx near, ay - ky near) in the plane.
+        kx, ky = camera.shear
+        d = camera.ray_dir * k
+        o = base.astype(float) + (np.asarray(ax, float) - kx * near)[:, None] * right \
+            + (np.asarray(ay, float) - ky * near)[:, None] * up + near * fwd
+        rays[:, :3] = o
+        rays[:, 3:] = d
+        hits = _cast(occluder, rays)
+        fw = hits["primitive_ids"]
+        depth = np.where(fw >= 0, hits["t_hit"] + np.float32(near), np.float32(np.inf)).astype(np.float32)
+        return {"face": fw, "bary": hits["primitive_uvs"], "depth": depth}
     for c in range(3):
         if camera.is_ortho:
             # Orthographic: ax, ay are world offsets; t_hit is in units of |fwd| = 1 world unit.

@@ -471,6 +471,9 @@ def unproject(camera: Camera, pixels: np.ndarray, depth: np.ndarray, pull: float
     y = (camera.height / 2.0 - pixels[:, 1]) / f  # or in world units (orthographic)
     if camera.is_ortho:
         z = depth * (1.0 - pull)
+        if camera.is_oblique:  # the point drawn at (x, y) at depth z lies kx z, ky z back in the plane
+            kx, ky = camera.shear
+            x, y = x - kx * z, y - ky * z
     else:
         z = depth * (1.0 - pull)
         x, y = x * z, y * z

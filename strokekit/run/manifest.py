@@ -50,7 +50,9 @@ def run_manifest(spec: RunSpec, scene: Scene, tracking_on: bool) -> dict:
     scene_d = _digest({"content_hash": scene.content_hash, "objects": len(scene.objects),
                        "materials": [m.base_color for m in scene.materials]})
     o = spec.outputs
-    outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"}
+    outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
+               and not (f.name == "hidden_dashes" and o.hidden_dashes is None)  # (digested as before them)
+               and not (f.name == "dash_paths" and not o.dash_paths)}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
     if o.gltf and brush is not None:
 

@@ -222,10 +222,12 @@ class FrameStream:
                            if f not in done_before or tracking_on or (out.gltf and out.gltf_sequence)]
         self.to_write = [f for f in self.need_lines if f not in done_before]
         self.extra = {"contours": spec.lines.contours, "tracking": spec.tracking.method if tracking_on else "none"}
+        if spec.lines.occlusion is not None:  # (the strokes then carry their levels: writers.strokes_json)
+            self.extra["occlusion"] = list(spec.lines.occlusion)
         self.keep_strokes = out.gltf and out.gltf_sequence
         self.scene_key = (spec.scene_path, scene.content_hash, spec.lines)
         # Without tracking a frame needs no other: it is written where its lines are computed.
-        self.write_in_task = None if tracking_on else (spec.lines.kinds, self.extra, self.keep_strokes)
+        self.write_in_task = None if tracking_on else (spec.lines.layers, self.extra, self.keep_strokes)
         self.pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
                               out if f not in done_before else replace(out, raster_options=None), True,
                               self.write_in_task if f not in done_before else None) for f in self.need_lines)
@@ -303,7 +305,7 @@ class FrameStream:
                 continue  # written by its frame task
             if f not in done_before:
                 self.pending.appendleft((write_task, self.lines_results[f], f, self.spec.outputs,
-                                         self.spec.lines.kinds, self.extra, self.underlays.pop(f, None),
+                                         self.spec.lines.layers, self.extra, self.underlays.pop(f, None),
                                          self.scene_key))
             if not self.keep_strokes and f in done_before:
                 self.lines_results.pop(f)

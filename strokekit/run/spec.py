@@ -29,6 +29,10 @@ class OutputOptions:
     stroke_width_px: float = 1.5
     gltf_options: GltfOptions | None = None  # None: GltfOptions()
     raster_options: RasterOptions | None = None  # None: no raster pass
+    # Hidden layers' dash pattern (px, on and off: writers.svg.svg_document); None: ISO 128's for
+    # the stroke width, (): solid.
+    hidden_dashes: tuple[float, ...] | None = None
+    dash_paths: bool = False  # the dashes as geometry (a subpath each), for plotters: svg_document
 
     def stem(self, frame: int) -> str:
         return self.pattern.format(frame=frame)
@@ -175,7 +179,14 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
         "requested and non-manifold edges exist", "not requested or no non-manifold edge")
     add("  suggestive contour", "suggestive" in kinds, "requested", "not requested")
     add("  intersection", "intersection" in kinds, "requested", "not requested")
-    st.append(StageRecord("visibility", True, "Embree occlusion samples and bisection of every change"))
+    if L.occlusion is None:
+        st.append(StageRecord("visibility", True, "Embree occlusion samples and bisection of every change"))
+    else:
+        lo, hi = L.occlusion
+        st.append(StageRecord("visibility", False, "replaced by the occlusion levels (their level 0)"))
+        st.append(StageRecord("occlusion levels", True,
+                              f"--hidden / --occlusion {lo}-{hi}: surfaces in front of every sample counted "
+                              "(rays continued past each hit), every change of level bisected"))
     st.append(StageRecord("chaining", True, "visible runs linked into strokes"))
     n = len(spec.cameras)
     add("tracking", spec.tracking is not None and n > 1,

@@ -101,7 +101,8 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
         if outputs.svg:
 
             text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
-                                stroke_width=outputs.stroke_width_px, underlays=underlays)
+                                stroke_width=outputs.stroke_width_px, underlays=underlays,
+                                dashes=outputs.hidden_dashes, dash_paths=outputs.dash_paths)
             files.append(_write(outputs.frame_file(frame, ".svg"), text.encode()))
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:

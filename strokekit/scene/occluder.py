@@ -45,8 +45,12 @@ class Occluder:
     """Occlusion queries against a scene. Backend: open3d RaycastingScene (Embree); trimesh's
     embreex intersector when open3d cannot be imported."""
 
-    def __init__(self, scene: Scene, backend: str | None = None):
+    def __init__(self, scene: Scene, backend: str | None = None, faces: np.ndarray | None = None):
+        """`faces`, if given: the scene faces (indices) that occlude; every face otherwise (see
+        `without_faces`)."""
         self.scene = scene
+        #: The scene face of each Embree primitive (None: the same numbers, every face).
+        self.face_index = None if faces is None else np.asarray(faces, np.int64)
         self.origin = scene.center.copy()
         self.radius = scene.radius
         #: world -> Embree frame: (X - origin) * inv_scale. Ray parameters (t in units of the
@@ -60,7 +64,8 @@ class Occluder:
                 o3d = import_open3d()
                 self._o3c = o3d.core
                 self._rs = o3d.t.geometry.RaycastingScene()
-                self._rs.add_triangles(o3d.core.Tensor(local), o3d.core.Tensor(scene.faces.astype(np.uint32)))
+                tris = scene.faces if faces is None else scene.faces[self.face_index]
+                self._rs.add_triangles(o3d.core.Tensor(local), o3d.core.Tensor(tris.astype(np.uint32)))
                 self.backend = "open3d"
                 return
             except ImportError:
@@ -68,9 +73,22 @@ class Occluder:
                     raise
         import trimesh
 
-        mesh = trimesh.Trimesh(local.astype(np.float64), scene.faces, process=False)
+        mesh = trimesh.Trimesh(local.astype(np.float64), scene.faces if faces is None else scene.faces[self.face_index],
+                               process=False)
         self._intersector = trimesh.ray.ray_pyembree.RayMeshIntersector(mesh) if _has_embreex() else mesh.ray
         self.backend = "embreex" if _has_embreex() else "trimesh"
+
+    def without_faces(self, drop: np.ndarray) -> "Occluder":
+        """An occluder of the same scene (same frame) in which the faces where `drop` (F,) is True
+        hide nothing: the faces a frame sees exactly edge-on (lines.surface.edge_on_faces). Its
+        first hits give scene face numbers too; its BVH is built now."""
+        keep = np.flatnonzero(~np.asarray(drop, bool))
+        return Occluder(self.scene, self.backend, faces=keep)
+
+    def _scene_faces(self, prim: np.ndarray) -> np.ndarray:
+        """Scene face numbers (int64) of Embree primitive ids."""
+        prim = np.asarray(prim).astype(np.int64)
+        return prim if self.face_index is None else self.face_index.take(prim)
 
     def _local_rays(self, origins: np.ndarray, targets: np.ndarray):
         """The segments origins -> targets (world, (N, 3)) in the Embree frame: an open3d ray
@@ -123,7 +141,10 @@ class Occluder:
                               axis=1).astype(np.float32)
         r = self._rs.cast_rays(self._o3c.Tensor(rays))
         ids = r["primitive_ids"].numpy().astype(np.int64)
-        ids[ids == np.iinfo(np.uint32).max] = -1
+        none = ids == np.iinfo(np.uint32).max
+        if self.face_index is not None:
+            ids = self.face_index.take(np.where(none, 0, ids))
+        ids[none] = -1
         return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
 
     def _first_hits_trimesh(self, origins: np.ndarray, directions: np.ndarray) -> dict:
@@ -139,7 +160,7 @@ class Occluder:
         if n:
             tri, ray, loc = self._intersector.intersects_id(o, unit, multiple_hits=False, return_locations=True)
             if len(ray):
-                f = self.scene.faces[tri]
+                f = self.scene.faces[self._scene_faces(tri)]
                 V = (self.scene.vertices - self.origin) * self.inv_scale
                 a, b, c = V[f[:, 0]], V[f[:, 1]], V[f[:, 2]]
                 # loc = a + u (b - a) + v (c - a): least squares on the two edge vectors.
@@ -151,7 +172,7 @@ class Occluder:
                 uvs[ray, 0] = (d22 * w1 - d12 * w2) / den
                 uvs[ray, 1] = (d11 * w2 - d12 * w1) / den
                 t[ray] = ((loc - o[ray]) * unit[ray]).sum(1) / np.where(length[ray] > 0, length[ray], 1)
-                ids[ray] = tri
+                ids[ray] = self._scene_faces(tri)
         return {"t_hit": t, "primitive_ids": ids, "primitive_uvs": uvs}
 
     def visible(self, points: np.ndarray, camera: Camera, offset: float = 1e-5,
@@ -199,7 +220,9 @@ class Occluder:
             # clipped out of the drawing (clip_segments) and hides nothing either (a section view,
             # a camera placed inside the scene).
             _, _, fwd = camera.basis
-            toward = np.broadcast_to(-fwd, points.shape)
+            # Along the projection rays (fwd but for the oblique projections), whose unit
+            # component along fwd makes `reach` the parameter that meets the near plane.
+            toward = np.broadcast_to(-camera.ray_dir, points.shape)
             reach = np.maximum((points - np.asarray(camera.eye, float)) @ fwd - camera.near_distance(self.radius), 0.0)
             origins = points + np.minimum(eps, 0.5 * reach)[:, None] * toward
             targets = points + reach[:, None] * toward
@@ -223,6 +246,238 @@ class Occluder:
             t = self.segment_hits(origins, targets)
             return t * np.linalg.norm(targets - origins, axis=1)
         return ~self.occluded_segments(origins, targets)
+
+    # --- occlusion levels: how many surfaces hide a point ------------------------------------------
+
+    def count_crossings(self, origins: np.ndarray, targets: np.ndarray, limit: int, skip: np.ndarray | None = None,
+                        near: tuple[np.ndarray, np.ndarray] | None = None,
+                        verify: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(count (N,) int64, first (N,)): how many surfaces the segments origins -> targets (world,
+        (N, 3)) cross, at most `limit`, and the distance (world units) to the first crossing (inf:
+        none). Callers offset the origins; the target end is open. Hits on the faces `skip`
+        (N, 2) of each ray (-1: none) are not crossings; nor, with `near` = (vertices (N, 2),
+        distances (N,)), those on faces around those vertices closer than that to the origin; with
+        `verify` = (points (N, 3), targets (N, 3), distances (N,)), hits closer than that to the
+        origin count only where the segment from the point to the target crosses the triangle in
+        float64 (`_crosses`).
+
+        Every hit along each segment comes from one Embree call (open3d's list_intersections).
+        A ray through an edge or a vertex that several triangles share may be reported by each of
+        them (float32 hit distances a little apart): consecutive hits on triangles that share a
+        vertex, facing the ray the same way, within 1e-5 of the scene radius of each other count
+        once, whichever triangles Embree reported (crossing a consistently wound surface twice in
+        a row flips the side it is crossed from, so two same-side hits in a row are one crossing;
+        a ray grazing a fold, in and out, keeps both). open3d's count_intersections is about twice
+        as fast but returns a number only: it cannot leave out a ray's own faces (0.9% of a bunny
+        frame's level samples come out wrong) and counts a shared edge twice when Embree reports
+        both triangles at float32 distances a little apart; rays continued past each hit
+        (`_count_crossings_stepping`, the path without open3d) are slower and meet a grazed
+        triangle again (benchmarks/bench_hidden.py, table 3)."""
+        n = len(origins)
+        count = np.zeros(n, np.int64)
+        first = np.full(n, np.inf)
+        if n == 0:
+            return count, first
+        if self.backend != "open3d":
+            return self._count_crossings_stepping(origins, targets, limit, skip, near, verify)
+        k = self.inv_scale
+        d_local = (np.asarray(targets, float) - origins) * k
+        rays = np.empty((n, 6), np.float32)
+        rays[:, :3] = (origins - self.origin) * k
+        rays[:, 3:] = d_local
+        lx = self._rs.list_intersections(self._o3c.Tensor(rays))
+        t = lx["t_hit"].numpy()
+        ray = lx["ray_ids"].numpy().astype(np.int64)
+        inside = t <= 1.0
+        if not inside.all():
+            t, ray = t[inside], ray[inside]
+            prim = lx["primitive_ids"].numpy()[inside]
+        else:
+            prim = lx["primitive_ids"].numpy()
+        if len(t) == 0:
+            return count, first
+        o = np.lexsort((t, ray))  # by ray, then along it
+        t, ray, face = t[o].astype(float), ray[o], self._scene_faces(prim[o])
+        length = np.sqrt(np.einsum("ij,ij->i", d_local, d_local))
+        drop = self._skipped(ray, face, t * length.take(ray) / k, skip, near)
+        if verify is not None:
+            close = np.flatnonzero(t * length.take(ray) / k <= verify[2].take(ray))
+            if len(close):
+                if drop is None:
+                    drop = np.zeros(len(t), bool)
+                r_c = ray[close]
+                drop[close] |= ~self._crosses(verify[0].take(r_c, axis=0), verify[1].take(r_c, axis=0), face[close])
+        if drop is not None:
+            t, ray, face = t[~drop], ray[~drop], face[~drop]
+            if len(t) == 0:
+                return count, first
+        head = np.empty(len(t), bool)
+        head[0] = True
+        np.not_equal(ray[1:], ray[:-1], out=head[1:])
+        close = ~head[1:] & ((t[1:] - t[:-1]) * length.take(ray[1:]) <= 1e-5)
+        dup = np.zeros(len(t), bool)
+        if close.any():
+            i = np.flatnonzero(close) + 1  # hit i repeats hit i - 1?
+            F = self.scene.faces
+            fa, fb = F.take(face[i - 1], axis=0), F.take(face[i], axis=0)
+            shared = (fa[:, :, None] == fb[:, None, :]).any(axis=(1, 2))
+            d = d_local.take(ray[i], axis=0)
+            nrm = self.scene.face_normals
+            side_a = np.einsum("ij,ij->i", nrm.take(face[i - 1], axis=0), d) > 0
+            side_b = np.einsum("ij,ij->i", nrm.take(face[i], axis=0), d) > 0
+            dup[i] = shared & (side_a == side_b)
+        count = np.minimum(np.bincount(ray[~dup], minlength=n), int(limit))
+        firsts = np.flatnonzero(head)
+        first[ray[firsts]] = t[firsts] * length.take(ray[firsts]) / k
+        return count, first
+
+    def _crosses(self, a: np.ndarray, b: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(M,) whether the open segments a -> b (world, (M, 3)) cross the scene faces `face` (M,)
+        in float64 (Moller-Trumbore on the closed triangle; a face seen edge-on crosses nothing)."""
+        F, V = self.scene.faces, self.scene.vertices
+        A = V.take(F.take(face, axis=0)[:, 0], axis=0)
+        e1 = V.take(F.take(face, axis=0)[:, 1], axis=0) - A
+        e2 = V.take(F.take(face, axis=0)[:, 2], axis=0) - A
+        d = b - a
+        pv = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, pv)
+        scale = np.linalg.norm(np.cross(e1, e2), axis=1) * np.linalg.norm(d, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / det
+            tv = a - A
+            u = np.einsum("ij,ij->i", tv, pv) * inv
+            qv = np.cross(tv, e1)
+            v = np.einsum("ij,ij->i", d, qv) * inv
+            t = np.einsum("ij,ij->i", e2, qv) * inv
+        return (np.abs(det) > 1e-12 * scale) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
+
+    def _skipped(self, ray, face, dist, skip, near) -> np.ndarray | None:
+        """Which hits (ray, scene face, world distance from the origin) are not crossings (see
+        count_crossings); None for none."""
+        drop = None
+        if skip is not None:
+            drop = (face == skip[ray, 0]) | (face == skip[ray, 1])
+        if near is not None:
+            verts, reach = near
+            close = dist <= reach[ray]
+            if close.any():
+                i = np.flatnonzero(close)
+                f = self.scene.faces.take(face[i], axis=0)
+                v = verts[ray[i]]
+                touch = ((f == v[:, :1]) | (f == v[:, 1:])).any(axis=1) & ((v >= 0).any(axis=1))
+                hit = np.zeros(len(face), bool)
+                hit[i[touch]] = True
+                drop = hit if drop is None else drop | hit
+        return drop
+
+    def _count_crossings_stepping(self, origins: np.ndarray, targets: np.ndarray, limit: int, skip=None,
+                                  near=None, verify=None):
+        """count_crossings without open3d: the segment is cast again from just past each hit (1e-6
+        of the local size; a grazing ray can meet its last triangle again: a fallback, slower and
+        rougher than the open3d path)."""
+        n = len(origins)
+        count = np.zeros(n, np.int64)
+        first = np.full(n, np.inf)
+        active = np.arange(n)
+        o = np.asarray(origins, float)
+        tgt = np.asarray(targets, float)
+        for r in range(int(limit)):
+            seg = tgt - o
+            length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
+            hits = self.first_hits(o, tgt - o)
+            t = np.where(hits["t_hit"] <= 1.0, hits["t_hit"], np.inf).astype(float)
+            hit = np.isfinite(t)
+            ray_h, face_h, dist_h = active[hit], hits["primitive_ids"][hit], t[hit] * length[hit]
+            drop = self._skipped(ray_h, face_h, dist_h, skip, near)
+            if verify is not None:
+                base = np.linalg.norm(o[hit] - origins[ray_h], axis=1)  # how far this round started
+                close = np.flatnonzero(base + dist_h <= verify[2][ray_h])
+                if len(close):
+                    drop = np.zeros(len(ray_h), bool) if drop is None else drop
+                    r_c = ray_h[close]
+                    drop[close] |= ~self._crosses(verify[0][r_c], verify[1][r_c], face_h[close])
+            counted = hit.copy()
+            if drop is not None:
+                counted[np.flatnonzero(hit)[drop]] = False
+            if r == 0:
+                first[active[counted]] = t[counted] * length[counted]
+            count[active[counted]] += 1
+            if r + 1 == limit or not hit.any():
+                break
+            at = o[hit] + t[hit, None] * seg[hit]
+            size = np.maximum(np.sqrt(np.einsum("ij,ij->i", at - self.origin, at - self.origin)), self.radius)
+            step = t[hit] + 1e-6 * size / np.where(length[hit] > 0, length[hit], 1.0)
+            go = step < 1.0
+            active = active[hit][go]
+            o = o[hit][go] + step[go, None] * seg[hit][go]
+            tgt = tgt[hit][go]
+            if len(active) == 0:
+                break
+        return count, first
+
+    def _segments(self, points: np.ndarray, camera: Camera, eps: np.ndarray, offset: float):
+        """The open segments from points toward the eye (perspective) or along the projection
+        rays to the near plane (parallel), started eps along: (origins, targets), as
+        _visible_from casts them; a point on the near plane itself gets an empty segment."""
+        if camera.is_ortho:
+            _, _, fwd = camera.basis
+            toward = np.broadcast_to(-camera.ray_dir, points.shape)
+            reach = np.maximum((points - np.asarray(camera.eye, float)) @ fwd - camera.near_distance(self.radius), 0.0)
+            origins = points + np.minimum(eps, 0.5 * reach)[:, None] * toward
+            targets = points + reach[:, None] * toward
+            return origins, targets
+        eye = np.asarray(camera.eye, float)
+        d = eye - points
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        toward = d / np.where(dist > 0, dist, 1.0)[:, None]
+        origins = points + np.minimum(eps, 0.5 * dist)[:, None] * toward
+        tail = np.minimum(np.maximum(eps, offset * np.linalg.norm(eye - self.origin)), 0.25 * dist)
+        return origins, eye - tail[:, None] * toward
+
+    def levels(self, points: np.ndarray, camera: Camera, offset: float, lift: np.ndarray | None,
+               scale: np.ndarray, limit: int, own: np.ndarray | None = None,
+               ends: np.ndarray | None = None) -> np.ndarray:
+        """(N,) occlusion level of world points (N, 3): how many surfaces the open segment from
+        each point to the eye (parallel cameras: along the projection rays to the near plane)
+        crosses, up to `limit`, the point's own faces `own` (N, 2), -1 for none, excluded.
+
+        A point on a mesh edge (`ends` (N, 2): its end vertices, -1 for none) is counted along the
+        ray from the point itself (started `offset` x the local size `scale` along): the geometry
+        of the definition. That ray grazes the point's own neighbourhood within float32 rounding,
+        so its hits closer than 100 lifts to its start are tested again in float64 against the
+        exact segment and count only if they are crossings there (a box standing on a floor is not
+        hidden by it). A lifted ray would skip a real surface within its lift, and one leaving a
+        contour whose back face is nearly edge-on dips under the nearly flat surface beyond (a
+        crossing the point does not have). Other points (lines inside faces, whose rays rise off
+        the facets by design: lines.contours.view_lift) take the smaller count of the lifted ray
+        and of the plain ray: each ray's failures there add crossings."""
+        c = points - self.origin
+        eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
+        n = len(points)
+        count = np.zeros(n, np.int64)
+        on_edge = np.zeros(n, bool) if ends is None or lift is None else ends[:, 0] >= 0
+        e = np.flatnonzero(on_edge)
+        if len(e):
+            P = points[e]
+            o, t = self._segments(P, camera, eps[e], offset)
+            reach = 100.0 * np.linalg.norm(lift[e], axis=1) + eps[e]
+            count[e], _ = self.count_crossings(o, t, limit, skip=None if own is None else own[e],
+                                               verify=(P, t, reach))
+        rest = np.flatnonzero(~on_edge)
+        if len(rest) == 0:
+            return count
+        P = points[rest]
+        start = P if lift is None else P + lift[rest]
+        c_rest, _ = self.count_crossings(*self._segments(start, camera, eps[rest], offset), limit,
+                                         skip=None if own is None else own[rest])
+        if lift is not None:
+            again = np.flatnonzero(c_rest > 0)
+            if len(again):
+                plain, _ = self.count_crossings(*self._segments(P[again], camera, eps[rest][again], offset), limit,
+                                                skip=None if own is None else own[rest][again])
+                c_rest[again] = np.minimum(c_rest[again], plain)
+        count[rest] = c_rest
+        return count
 
     # --- the same queries on (3, N) coordinate rows (perspective, lifted) -------------------------
     # visible_runs' hot path. Every value is computed by the same float64 operations, in the same
@@ -303,7 +558,7 @@ class Occluder:
         if not retest_front_hits and len(again):
             # Back side: the triangle's normal points along the ray (toward the eye). A normal
             # perpendicular to the ray (dot 0) keeps its re-test too.
-            n = np.take(self.scene.face_normals, tri.take(again).astype(np.int64), axis=0)
+            n = np.take(self.scene.face_normals, self._scene_faces(tri.take(again)), axis=0)
             again = again[np.einsum("ij,ji->i", n, d[:, again]) >= 0.0]
         if len(again):
             vis[again] = self._visible_from_rows(P[:, again], eye, eps[again], eye_eps)
@@ -338,7 +593,7 @@ class Occluder:
         reach = 100.0 * np.sqrt(_sq3(lift.take(hidden, axis=1))) + eps[hidden]
         again = hidden[f[hidden] * seg_len[hidden] <= reach]
         if not retest_front_hits and len(again):
-            tri = r["primitive_ids"].numpy().take(again)
+            tri = self._scene_faces(r["primitive_ids"].numpy().take(again))
             again = again[_dot3(self.scene.face_normal_rows.take(tri, axis=1), d.take(again, axis=1)) >= 0.0]
         if len(again):
             # The plain rays (no lift), from the same points.

@@ -192,8 +192,7 @@ def view_function(scene: Scene, camera: Camera, normals: np.ndarray | None = Non
     normals) or, with `vertex` (N,) the mesh vertex of each node, split-normal nodes."""
     n = vertex_normals(scene) if normals is None else normals
     if camera.is_ortho:
-        _, _, fwd = camera.basis
-        return n @ fwd
+        return n @ camera.ray_dir  # (fwd but for the oblique projections: their rays' direction)
     # Relative to the scene centre for precision far from the origin.
     c = scene.center
     rel = scene.vertices - c if vertex is None else scene.vertices[vertex] - c

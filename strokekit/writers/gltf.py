@@ -38,7 +38,7 @@ import numpy as np
 from strokekit.camera.view import Camera
 from strokekit.colour import srgb_decode
 from strokekit.errors import UsageError
-from strokekit.model import KINDS, Strokes
+from strokekit.model import KINDS, N_KINDS, Strokes, layer_name
 from strokekit.ribbons.brushes import Brush, get_brush
 from strokekit.ribbons.mesh import RibbonMesh, RibbonOptions, build_ribbons
 from strokekit.writers.svg import KIND_COLORS
@@ -164,11 +164,11 @@ class _Doc:
                                       "name": self.brush.name})
             smp = self.add("samplers", {"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071})
             self.texture = self.add("textures", {"source": img, "sampler": smp})
-        name = KINDS[kind] if 0 <= kind < len(KINDS) else f"kind{kind}"
+        name = layer_name(kind) if 0 <= kind else f"kind{kind}"  # (hidden-<kind> for hidden lines)
         if self.opts.color is not None:
             rgba = _hex_rgba(self.opts.color)
         elif self.brush.tinted:
-            rgba = _hex_rgba(KIND_COLORS.get(name, "#000000"))
+            rgba = _hex_rgba(KIND_COLORS.get(name.removeprefix("hidden-"), "#000000"))
         else:
             rgba = [1.0, 1.0, 1.0, 1.0]
         m = {"name": name, "doubleSided": True, "alphaMode": self.opts.alpha_mode,
@@ -212,7 +212,8 @@ class _Doc:
                          "TEXCOORD_0": self.accessor(mesh.uv[v0:v1], "VEC2")}
                 if self.opts.level_texcoord:
                     attrs["TEXCOORD_1"] = self.accessor(mesh.level_uv[v0:v1], "VEC2")
-                extras = {"kind": KINDS[k] if 0 <= k < len(KINDS) else int(k),
+                extras = {"kind": KINDS[k % N_KINDS] if 0 <= k else int(k),
+                          **({"occlusion": int(k) // N_KINDS} if k >= N_KINDS else {}),
                           "strokes": {"id": mesh.ids[strokes_k].tolist(),
                                       "first_triangle": (np.cumsum(tcount) - tcount).tolist(),
                                       "triangle_count": tcount.tolist(),
@@ -253,7 +254,18 @@ class _Doc:
                     znear = min(znear, (0.999 if camera.near else 0.5) * depths[0])
                 cam = {"type": "perspective", "name": "camera", "perspective": {
                     "aspectRatio": aspect, "yfov": math.radians(camera.fov_y), "znear": znear}}
-            node = {"name": "camera", "translation": [float(x) for x in camera.eye], "rotation": _camera_quat(camera)}
+            node = {"name": "camera", "translation": [float(x) for x in _camera_position(camera)],
+                    "rotation": _camera_quat(camera)}
+            if camera.projection not in ("perspective", "orthographic"):
+                # glTF knows perspective and orthographic cameras only: an axonometric view is an
+                # orthographic camera (the one above, exact); an oblique one has no glTF form: the
+                # camera above is its image plane seen straight on, centred on the target.
+                cam["extras"] = {"projection": camera.projection, "azimuth": camera.azimuth,
+                                 "elevation": camera.elevation}
+                if camera.is_oblique:
+                    cam["extras"].update({"oblique_angle": camera.oblique_angle, "receding_shear": list(camera.shear),
+                                          "note": "glTF has no oblique projection: the drawing is sheared by "
+                                                  "receding_shear x depth; this camera is its unsheared front view"})
         node["camera"] = self.add("cameras", cam)
         return self.add("nodes", node)
 
@@ -270,6 +282,16 @@ class _Doc:
             chunks += [struct.pack("<I4s", len(blob), b"BIN\0"), blob]
         body = b"".join(chunks)
         return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+def _camera_position(camera: Camera) -> np.ndarray:
+    """Where the glTF camera node stands: the eye, but for an oblique projection (whose eye is on
+    its slanted ray through the target) the point as far before the target straight along fwd."""
+    if not camera.is_oblique:
+        return np.asarray(camera.eye, float)
+    _, _, fwd = camera.basis
+    depth = float(np.subtract(camera.target, camera.eye) @ fwd)
+    return np.asarray(camera.target, float) - depth * fwd
 
 
 def _camera_quat(camera: Camera) -> list[float]:
@@ -367,7 +389,7 @@ def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, 
     root_i = doc.add("nodes", {"name": "strokes", "children": children})
     cam_node = doc.camera_node(frames[0].camera, _depth_range(meshes))
     if n > 1 and opts.space == "world":
-        eyes = np.array([f.camera.eye for f in frames], float)
+        eyes = np.array([_camera_position(f.camera) for f in frames], float)
         quats = np.array([_camera_quat(f.camera) for f in frames])
         for k in range(1, n):  # shortest path between consecutive keys
             if np.dot(quats[k], quats[k - 1]) < 0:

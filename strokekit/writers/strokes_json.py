@@ -8,7 +8,7 @@ import numpy as np
 import orjson
 
 from strokekit.camera.view import Camera
-from strokekit.model import KIND_INDEX, KINDS, Strokes
+from strokekit.model import KIND_INDEX, KINDS, N_KINDS, Strokes
 
 
 def round_list(x: np.ndarray, ndigits: int) -> list[float]:
@@ -31,13 +31,16 @@ def round_list(x: np.ndarray, ndigits: int) -> list[float]:
 
 _STROKE = (b'{"id":%d,"kind":"%s","points":[%s],"u":[%s],"surface":[%s],"face":[%s],'
            b'"length_px":%s,"level":%s,"level_weight":%s}')
+_STROKE_OCCLUSION = _STROKE.replace(b'"kind":"%s",', b'"kind":"%s","occlusion":%d,')
 _KIND_BYTES = [k.encode() for k in KINDS]
 _NP = orjson.OPT_SERIALIZE_NUMPY
 
 
 def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra: dict | None = None) -> bytes:
     """JSON bytes: frame, size, camera and every stroke with points (px, 4 decimals), u, surface
-    (world), face, length_px, self-similar level and weight. Deterministic.
+    (world), face, length_px, self-similar level and weight. Deterministic. Hidden-line runs
+    (`extra` holds "occlusion", the range of levels drawn; or a stroke is hidden) give each stroke
+    its "occlusion" level after its kind (0: visible; "level" is the texture octave).
 
     The bytes of orjson.dumps of the document (see _strokes_json_nested), built without a numpy
     view and an orjson array call per stroke and field (the costly part): orjson writes each
@@ -58,10 +61,19 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
     if cuts is None:  # unusual arrays (empty strokes, shapes that do not match): the plain way
         return _strokes_json_nested(strokes, width, height, frame, extra=extra)
     n = len(strokes)
-    kinds = [_KIND_BYTES[k] for k in strokes.kind.tolist()]
-    args = tuple(chain.from_iterable(zip(strokes.ids.tolist(), kinds, *cuts, _number_texts(strokes.lengths, 4, n),
+    codes = strokes.kind.tolist()
+    kinds = [_KIND_BYTES[k % N_KINDS] for k in codes]
+    lead, template = [strokes.ids.tolist(), kinds], _STROKE
+    if _with_occlusion(strokes, extra):
+        lead, template = lead + [[k // N_KINDS for k in codes]], _STROKE_OCCLUSION
+    args = tuple(chain.from_iterable(zip(*lead, *cuts, _number_texts(strokes.lengths, 4, n),
                                          _number_texts(strokes.level, 6, n), _number_texts(strokes.level_weight, 6, n))))
-    return b"".join((head[:-2], b",".join([_STROKE] * n) % args, b"]}\n"))
+    return b"".join((head[:-2], b",".join([template] * n) % args, b"]}\n"))
+
+
+def _with_occlusion(strokes: Strokes, extra: dict | None) -> bool:
+    """Whether the strokes get their "occlusion" level: a hidden-line run, or hidden strokes."""
+    return bool(extra and "occlusion" in extra) or bool(len(strokes.kind) and strokes.kind.max() >= N_KINDS)
 
 
 def _number_texts(x: np.ndarray, ndigits: int, n: int) -> list[bytes]:
@@ -110,8 +122,9 @@ def _strokes_json_nested(strokes: Strokes, width: int, height: int, frame: int, 
     off = strokes.offsets.tolist()
     lengths = round_list(strokes.lengths, 4)
     level, weight = round_list(strokes.level, 6), round_list(strokes.level_weight, 6)
+    occ = _with_occlusion(strokes, extra)
     out = [{
-        "id": i, "kind": KINDS[k],
+        "id": i, "kind": KINDS[k % N_KINDS], **({"occlusion": k // N_KINDS} if occ else {}),
         "points": pts[a:b], "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
         "length_px": ln, "level": lv, "level_weight": w,
     } for i, k, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), off[:-1], off[1:],
@@ -140,11 +153,11 @@ def read_strokes_json(path) -> Strokes:
 
     cam = None
     if d.get("camera"):
-        c = dict(d["camera"])
-        cam = Camera(**{k: (tuple(v) if isinstance(v, list) else v) for k, v in c.items()})
+        cam = Camera.from_json(dict(d["camera"]))
     st = Strokes(points=cat("points", 2), surface=cat("surface", 3),
                  face=np.asarray(cat("face", 1) if ss and "face" in ss[0] else np.full(offsets[-1], -1), np.int64),
-                 offsets=offsets, kind=np.array([KIND_INDEX[s["kind"]] for s in ss], np.int8),
+                 offsets=offsets,
+                 kind=np.array([KIND_INDEX[s["kind"]] + N_KINDS * s.get("occlusion", 0) for s in ss], np.int8),
                  ids=np.array([s["id"] for s in ss], np.int64), u=cat("u", 1),
                  level=np.array([s.get("level", 0.0) for s in ss], float),
                  level_weight=np.array([s.get("level_weight", 1.0) for s in ss], float),

@@ -7,10 +7,12 @@ element tree per stroke costs several times more for the same bytes.
 
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 
 from strokekit.colour import srgb_encode
-from strokekit.model import KINDS, BandRegion, Strokes
+from strokekit.model import KINDS, N_KINDS, BandRegion, Strokes
 
 
 def _ring_path(coords: np.ndarray, decimals: int) -> str:
@@ -138,30 +140,119 @@ _DIGIT_OR_FILL = np.array([48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 255], np.uint
 _POINT_FORMATS: dict[int, dict[int, str]] = {}
 
 
+def iso_dashes(stroke_width: float) -> tuple[float, float]:
+    """ISO 128-20 line type 02 (dashed: hidden outlines and edges): dashes 12 line widths long,
+    gaps of 3 (px)."""
+    return 12.0 * stroke_width, 3.0 * stroke_width
+
+
+def dash_path_data(strokes: Strokes, members: list[int], phase: np.ndarray, pattern: tuple[float, ...],
+                   decimals: int = 2) -> list[str]:
+    """Each member stroke's dashes as the text after "M" of one path, a subpath per dash: the
+    pattern (on, off, ...; px) laid along the stroke from `phase` (px into the pattern at its
+    start), dash ends interpolated on the polyline, the points between kept (a dash follows
+    the curve)."""
+    period = sum(pattern)
+    on = np.cumsum(pattern)[0::2] - np.asarray(pattern[0::2])  # where each dash starts in the pattern
+    on_len = np.asarray(pattern[0::2])
+    L = strokes.lengths[members]
+    n_rep = np.ceil((L + phase) / period).astype(np.int64) + 1
+    m = np.repeat(np.arange(len(members)), n_rep * len(on))
+    k = np.repeat(np.arange(n_rep.sum()) - np.repeat(np.cumsum(n_rep) - n_rep, n_rep), len(on))
+    j = np.tile(np.arange(len(on)), int(n_rep.sum()))
+    a = k * period + on[j] - phase[m]
+    b = a + on_len[j]
+    a, b = np.maximum(a, 0.0), np.minimum(b, L[m])
+    keep = b > a
+    m, a, b = m[keep], a[keep], b[keep]
+    base, G = strokes.global_arc
+    st = np.asarray(members, np.int64)[m]
+    ga, gb = base[st] + a, base[st] + b
+    first, last = strokes.offsets[st], strokes.offsets[st + 1] - 1
+    i0 = np.clip(np.searchsorted(G, ga, side="right"), first + 1, last)  # segment (i0 - 1, i0) holds a
+    i1 = np.clip(np.searchsorted(G, gb, side="left"), first + 1, last)  # segment (i1 - 1, i1) holds b
+    P = strokes.points
+
+    def at(g, i):
+        t = np.where(G[i] > G[i - 1], (g - G[i - 1]) / np.where(G[i] > G[i - 1], G[i] - G[i - 1], 1.0), 0.0)
+        return P[i - 1] + t[:, None] * (P[i] - P[i - 1])
+
+    inner = np.maximum(i1 - i0, 0)  # stroke points strictly inside the dash
+    counts = inner + 2
+    off = np.concatenate([[0], np.cumsum(counts)])
+    pts = np.empty((int(off[-1]), 2))
+    pts[off[:-1]] = at(ga, i0)
+    pts[off[1:] - 1] = at(gb, i1)
+    r = np.repeat(np.arange(len(m)), inner)
+    q = np.arange(int(inner.sum())) - np.repeat(np.cumsum(inner) - inner, inner)
+    pts[off[:-1][r] + 1 + q] = P[i0[r] + q]
+    text = stroke_path_data(Strokes.build(pts, np.zeros((len(pts), 3)), np.zeros(len(pts)), off,
+                                          np.zeros(len(m))), decimals)
+    out = [[] for _ in members]
+    for owner, t in zip(m.tolist(), text):
+        out[owner].append(t)
+    return [" M".join(parts) if parts else "" for parts in out]
+
+
 def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ...], *, decimals: int = 2,
-                 stroke_width: float = 1.5, underlays: list[str] | None = None) -> str:
-    """The SVG text of one frame. `kinds` lists the layers to write (in KINDS order), even when empty.
-    `underlays` is a list of SVG elements (text) placed under the line layers (e.g. `bands_layer`)."""
+                 stroke_width: float = 1.5, underlays: list[str] | None = None,
+                 dashes: tuple[float, ...] | None = None, dash_paths: bool = False) -> str:
+    """The SVG text of one frame. `kinds` lists the layers to write (the kinds, and hidden-<kind>
+    for hidden lines: LineOptions.layers), even when empty; hidden layers come first, under the
+    visible lines. `underlays` is a list of SVG elements (text) placed under the line layers (e.g.
+    `bands_layer`).
+
+    Hidden layers are dashed with `dashes` (px, SVG stroke-dasharray, on the layer; None: the ISO
+    128 pattern for the stroke width, (): solid): the dashes are the viewer's, so the path stays
+    one continuous line (strokekit diff compares it, and a dash that moves is no change). Each
+    hidden path starts its pattern where its texture coordinate says (stroke-dashoffset = u at its
+    first point x the period, modulo the pattern): with tracking on, the dashes stay on the
+    surface as the stroke grows at either end instead of sliding along it. `dash_paths`: the dashes
+    are written as geometry instead (one path per stroke, a subpath per dash, same phase), for
+    tools that ignore stroke-dasharray (vpype draws such a path solid)."""
     out = [_HEAD.format(w=int(width), h=int(height))]
     out += underlays or []
     data = stroke_path_data(strokes, decimals)
-    # Strokes by kind, in stroke order within each kind.
-    order = np.argsort(strokes.kind, kind="stable")
-    kind_sorted = strokes.kind[order]
-    present = np.unique(kind_sorted).tolist()
-    bounds = np.searchsorted(kind_sorted, present).tolist() + [len(order)]
-    by_kind = {k: order[a:b].tolist() for k, a, b in zip(present, bounds[:-1], bounds[1:])}
+    # Strokes by layer (a hidden layer holds every level of its kind), in stroke order within each.
+    code = strokes.kind
+    lay = code if not len(code) or code.max() < N_KINDS else np.where(code < N_KINDS, code, N_KINDS + code % N_KINDS)
+    order = np.argsort(lay, kind="stable")
+    lay_sorted = lay[order]
+    present = np.unique(lay_sorted).tolist()
+    bounds = np.searchsorted(lay_sorted, present).tolist() + [len(order)]
+    by_layer = {k: order[a:b].tolist() for k, a, b in zip(present, bounds[:-1], bounds[1:])}
     ids = strokes.ids.tolist()
-    for name in (k for k in KINDS if k in kinds or KINDS.index(k) in by_kind):
+    names = [(N_KINDS + i, "hidden-" + k, k) for i, k in enumerate(KINDS)
+             if "hidden-" + k in kinds or N_KINDS + i in by_layer]
+    names += [(i, k, k) for i, k in enumerate(KINDS) if k in kinds or i in by_layer]
+    pattern = iso_dashes(stroke_width) if dashes is None else tuple(float(x) for x in dashes)
+    period = sum(pattern)
+    for index, name, kind in names:
+        hidden = index >= N_KINDS
+        dash = ""
+        if hidden and period > 0 and not dash_paths:
+            dash = ' stroke-dasharray="' + " ".join(f"{x:g}" for x in pattern) + '"'
         group = (f'<g fill="none" id="layer-{name}" inkscape:groupmode="layer" inkscape:label="{name}" '
-                 f'stroke="{KIND_COLORS.get(name, "#000000")}" stroke-linecap="round" stroke-linejoin="round" '
+                 f'stroke="{KIND_COLORS.get(kind, "#000000")}"{dash} stroke-linecap="round" stroke-linejoin="round" '
                  f'stroke-width="{stroke_width:g}"')
-        members = by_kind.get(KINDS.index(name), [])
+        members = by_layer.get(index, [])
         if not members:
             out.append(group + " />")
             continue
         out.append(group + ">")
-        out += [f'<path d="M{data[s]}" id="s{ids[s]}" />' for s in members]
+        if hidden and period > 0 and dash_paths:
+            u0 = strokes.u[strokes.offsets[:-1][members]] * strokes.period_px
+            phase = np.mod(np.where(np.isfinite(u0), u0, 0.0), period)
+            d = dash_path_data(strokes, members, phase, pattern, decimals)
+            out += [f'<path d="M{t}" id="s{ids[s]}" />' for s, t in zip(members, d) if t]
+        elif dash:
+            u0 = strokes.u[strokes.offsets[:-1][members]] * strokes.period_px
+            phase = np.round(np.mod(np.where(np.isfinite(u0), u0, 0.0), period), decimals) + 0.0
+            template = f'<path d="M%s" id="s%d" stroke-dashoffset="%.{decimals}f" />'
+            out.append((template * len(members)) % tuple(
+                chain.from_iterable(zip([data[s] for s in members], [ids[s] for s in members], phase.tolist()))))
+        else:
+            out += [f'<path d="M{data[s]}" id="s{ids[s]}" />' for s in members]
         out.append("</g>")
     out.append("</svg>\n")
     return "".join(out)
