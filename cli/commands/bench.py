@@ -45,7 +45,6 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
         if not values or min(values) <= 0:
             raise UsageError("--sweep values must be > 0")
     if plot_path is not None:
-
         check_output_file(plot_path)  # said now, not after a minute of timing
     scene = load_scene(scene_path)
     say_warnings(scene)

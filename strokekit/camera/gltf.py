@@ -81,7 +81,6 @@ class _GltfData:
             if data is None:
                 raise self.error(f"buffer {i} has no uri and the file has no binary chunk")
         elif uri.startswith("data:"):
-
             head, sep, payload = uri.partition(",")
             if not sep or not head.endswith(";base64"):
                 raise self.error(f"buffer {i}: data URI is not base64")
@@ -90,7 +89,6 @@ class _GltfData:
             except (binascii.Error, ValueError) as e:
                 raise self.error(f"buffer {i}: bad base64 data URI ({e})") from None
         else:
-
             f = self.path.parent / unquote(uri)
             try:
                 data = f.read_bytes()

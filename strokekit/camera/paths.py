@@ -159,7 +159,6 @@ def _check_keys(d: dict, known: tuple[str, ...], where: str, source: str) -> Non
     default instead (40 degrees)."""
     unknown = [k for k in d if k not in known and not (isinstance(k, str) and (k.startswith("_") or k == "extras"))]
     if unknown:
-
         k = unknown[0]
         close = difflib.get_close_matches(str(k), known, n=1)
         hint = f"did you mean '{close[0]}'? " if close else ""

@@ -55,7 +55,6 @@ def run_manifest(spec: RunSpec, scene: Scene, tracking_on: bool) -> dict:
                and not (f.name == "dash_paths" and not o.dash_paths)}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
     if o.gltf and brush is not None:
-
         if brush not in BUNDLED:  # a user's image: its bytes go into every GLB
             try:
                 outputs["brush_sha256"] = hashlib.sha256(Path(brush).read_bytes()).hexdigest()

@@ -63,7 +63,6 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
         files = []
         underlays = None
         if outputs.raster_options is not None:
-
             t1 = time.perf_counter()
             stem = outputs.out_dir / outputs.stem(frame)
             pngs, underlays = raster_outputs_with_bands_layer(r.scene, camera, r.occluder, outputs.raster_options)
@@ -99,19 +98,16 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
         files = []
         timings: dict = {}
         if outputs.svg:
-
             text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
                                 stroke_width=outputs.stroke_width_px, underlays=underlays,
                                 dashes=outputs.hidden_dashes, dash_paths=outputs.dash_paths)
             files.append(_write(outputs.frame_file(frame, ".svg"), text.encode()))
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:
-
             files.append(_write(outputs.frame_file(frame, ".json"),
                                 strokes_json(strokes, cam.width, cam.height, frame, extra=extra)))
             timings["json"] = time.perf_counter() - t0 - sum(timings.values())
         if outputs.gltf and not outputs.gltf_sequence:
-
             files.append(_write(outputs.frame_file(frame, ".glb"), glb_for_frame(
                 strokes, cam, outputs.gltf_options, _surface_depth(outputs, scene_key, occluder))))
             timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())

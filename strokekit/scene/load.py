@@ -733,7 +733,6 @@ def _cache_read(f: Path | None) -> tuple | None:
         return None
     try:
         with np.load(f, allow_pickle=False) as z:
-
             objects = tuple(json.loads(str(z["objects"])))
             materials = tuple(Material(m[0], tuple(m[1])) for m in json.loads(str(z["materials"])))
             warnings = tuple(str(w) for w in json.loads(str(z["warnings"])))

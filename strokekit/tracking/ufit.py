@@ -153,7 +153,6 @@ class PiecewiseU:
 
         _, x, info = dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
         if info > 0:
-
             raise LinAlgError(f"{info}th leading minor not positive definite")
         if info < 0:
             raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
