@@ -60,7 +60,7 @@ def exr_run(tmp_path_factory):
 
 def test_exr_has_every_layer_and_the_cryptomatte_header(exr_run):
     ch, hdr = read_exr(exr_run / "frame_0001.exr")
-    crypto = {f"{t}{i:02d}.{c}" for t in ("CryptoObject", "CryptoMaterial") for i in range(3) for c in "RGBA"}
+    crypto = {f"{t}{i:02d}.{c}" for t in ("CryptoObject", "CryptoMaterial") for i in range(2) for c in "RGBA"}
     lines = {f"lines{k}.{c}" for k in ("", "_silhouette", "_border", "_crease") for c in "RGBA"}
     assert set(ch) == {"Z", "N.X", "N.Y", "N.Z", "R", "G", "B", "A", "bands.V"} | crypto | lines
     assert ch["Z"].dtype == np.float32 and ch["CryptoObject00.R"].dtype == np.float32
@@ -72,19 +72,19 @@ def test_exr_has_every_layer_and_the_cryptomatte_header(exr_run):
 def test_exr_layers_asked_for_and_no_others(tmp_path):
     out = render(tmp_path, "--size", "64x48", "--exr", "--exr-layers", "depth,crypto", "--no-svg")
     ch, _ = read_exr(out / "frame_0001.exr")
-    assert {c.split(".")[0] for c in ch} == {"Z", "CryptoObject00", "CryptoObject01", "CryptoObject02",
-                                             "CryptoMaterial00", "CryptoMaterial01", "CryptoMaterial02"}
+    assert {c.split(".")[0] for c in ch} == {"Z", "CryptoObject00", "CryptoObject01",
+                                             "CryptoMaterial00", "CryptoMaterial01"}
     assert not (out / "bands").exists(), "the EXR alone asks for no PNG"
 
 
 def test_cryptomatte_coverage_sums_to_alpha_and_picks_objects(exr_run):
     ch, _ = read_exr(exr_run / "frame_0001.exr")
-    total = sum(ch[f"CryptoObject{i:02d}.{c}"].astype(np.float64) for i in range(3) for c in "GA")
+    total = sum(ch[f"CryptoObject{i:02d}.{c}"].astype(np.float64) for i in range(2) for c in "GA")
     assert np.abs(total - ch["A"].astype(np.float64)).max() <= 1 / 255
     # Each object's matte: where it has coverage, the object-id PNG sees it at the pixel centre
     # somewhere; a name not in the scene has no matte.
     oid = np.asarray(Image.open(exr_run / "objectid" / "frame_0001.png"))
-    ids = [ch[f"CryptoObject{i:02d}.{c}"] for i in range(3) for c in "RB"]
+    ids = [ch[f"CryptoObject{i:02d}.{c}"] for i in range(2) for c in "RB"]
     for k, name in enumerate(OBJECTS):
         matte = sum(np.where(i.view(np.uint32) == np.float32(name_to_id(name)).view(np.uint32), 1.0, 0.0) for i in ids)
         full = (oid == k + 1)
