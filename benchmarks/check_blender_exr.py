@@ -6,9 +6,13 @@
    IMAGE, layer set explicitly) per object name (and per material name), their Matte outputs and
    the image's Depth into a File Output node (multilayer EXR, float32); renders the compositor.
    Each object's matte is compared with its coverage decoded from the EXR's own rank channels
-   (the sum of the coverages of the ranks whose id has the name's float32 bits) and with the
-   object-id PNG (the id at the sample nearest each pixel centre): soft IoU (sum min / sum max)
-   >= 0.99 per object. Materials: against the rank data only (there is no material PNG).
+   (the sum of the coverages of the ranks whose id has the name's float32 bits): soft IoU (sum
+   min / sum max) >= 0.99 per object; materials too. And with the object-id PNG (the id of the
+   sample nearest each pixel centre, one of the K x K samples the matte counts): its soft IoU is
+   reported but not held to 0.99 (a one-sample mask against a K x K coverage differs on every
+   edge pixel: thin objects such as the truck's window trim land near 0.8 with nothing wrong);
+   the bar is what must hold exactly: IoU 1 off edge pixels (matte 0 or 1), and no pixel whose
+   PNG object has matte < 1/K^2 or whose matte is 1 with another object in the PNG.
 3. Reads Z as Blender gives it (the Depth output, through the File Output node) and compares it
    with view depths ray-cast again (strokekit.raster.rays.cast_samples with the frame JSON's camera
    and a fresh Occluder of the scene) at the sample the EXR keeps per pixel (offset
@@ -23,6 +27,8 @@
    sequence through the compositor (Image node, frames 1-24, into a File Output node) and checks
    that frame f of Blender's output is file f: data passes (read as Non-Color) equal to the file's
    values, colour passes' alpha a monotone function of the file's alpha, EXR depth bit for bit.
+   Control: the mask files renamed to the old scheme (frame_0001_mask_1.png) must come out as 24
+   stills, or the detection check would prove nothing.
 5. Prints one table and the command to reproduce.
 
 Run:  python benchmarks/check_blender_exr.py [--blender PATH] [--keep DIR]
@@ -316,10 +322,14 @@ def main(argv):
     t0 = time.perf_counter()
     work = os.path.abspath(a.keep) if a.keep else tempfile.mkdtemp(prefix="check_blender_exr_")
     os.makedirs(work, exist_ok=True)
-    rows = []  # (subject, check, value, bar, ok)
+    cols = ("IoU vs EXR ranks", "objectid PNG: soft IoU (info); off-edge IoU, bad px", "Z max rel err: cast; f64",
+            "sequence: detected; played")
+    rows = {}  # item -> {column: text}, and "ok"
 
-    def row(subject, check, value, bar, ok):
-        rows.append((subject, check, value, bar, bool(ok)))
+    def cell(item, col, text, ok):
+        r = rows.setdefault(item, {"ok": True})
+        r[cols[col]] = text
+        r["ok"] &= bool(ok)
 
     # ---- 1. strokekit renders
     common = ["--exr", "--objectid", "--bands", "3"]
@@ -357,6 +367,9 @@ def main(argv):
                    os.path.join(work, "blender_mattes.log"))
     t_blender = time.perf_counter() - t1
     cache = {}
+    from strokekit.options import QUALITY_PRESETS
+
+    K2 = int(QUALITY_PRESETS["default"]["supersample"]) ** 2
     for jk, (model, d, f, objects, mattes, out) in frames.items():
         ch, _ = read_exr(os.path.join(d, f"frame_{f:04d}.exr"))
         bl, _ = read_exr(os.path.join(out, "blender_0001.exr"))
@@ -366,27 +379,32 @@ def main(argv):
             got = bl.get(f"{slot}.V")
             label = f"{jk} {type_name[6:].lower()} {name}"
             if got is None:
-                row(label, "Blender matte", "missing", "", False)
+                cell(label, 0, "no matte", False)
                 continue
             want = _rank_matte(ch, type_name, name)
             iou = _soft_iou(got, want)
             ok_entries = entries[slot][0] == type_name and entries[slot][1] == [name]
-            detail = f"{iou:.6f} (area {want.sum():.0f} px)" + ("" if ok_entries else f" entries {entries[slot]}")
-            row(label, "IoU matte / EXR ranks", detail, f">= {IOU_BAR}", iou >= IOU_BAR and ok_entries)
+            detail = f"{iou:.6f}" + ("" if ok_entries else f" entries {entries[slot]}")
+            cell(label, 0, detail, iou >= IOU_BAR and ok_entries)
             if type_name == "CryptoObject":
-                png = np.isin(oid, objects[name]).astype(np.float64)
+                # The PNG holds one of the K x K samples the matte counts: the soft IoU is
+                # bounded by the edge pixels (thin objects lose most), so it is reported, and the
+                # bar is on what must hold exactly: the PNG's object has a share of the pixel's
+                # samples (matte >= 1/K^2) and a pixel wholly the object's is the object's in the PNG
+                # (matte 1); off edge pixels (matte 0 or 1) the two agree: IoU 1.
+                png = np.isin(oid, objects[name])
                 iou_png = _soft_iou(got, png)
-                row(label, "IoU matte / objectid PNG", f"{iou_png:.6f}", f">= {IOU_BAR}", iou_png >= IOU_BAR)
+                edge = (got > 0) & (got < 1)
+                iou_off = _soft_iou(np.where(edge, 0, got), np.where(edge, 0, png))
+                bad = int((png & (got < 1.0 / K2 - 1e-6)).sum() + (~png & (got >= 1.0)).sum())
+                cell(label, 1, f"{iou_png:.4f}; {iou_off:.6f}, {bad}", iou_off == 1.0 and bad == 0)
         # Z: Blender's Depth against the EXR's Z and a new ray cast
         bz = bl["depth.V"]
         same = bz.dtype == np.float32 and np.array_equal(bz.view(np.uint32), ch["Z"].view(np.uint32))
-        row(f"{jk} Z", "Blender Depth = EXR Z bit for bit", "yes" if same else "no", "yes", same)
         full = np.isclose(np.stack([_rank_matte(ch, "CryptoObject", n) for n in objects]).max(axis=0), 1.0)
         n, e_cast, e64, lost = _depth_errors(model, os.path.join(d, f"frame_{f:04d}.json"), bz, oid, full, cache)
-        row(f"{jk} Z", f"max rel err vs cast_samples ({n} px)", f"{e_cast:.3g}", f"<= {Z_BAR:g}",
-            e_cast <= Z_BAR and n > 0)
-        row(f"{jk} Z", f"max rel err vs float64 plane ({lost} rays missed)", f"{e64:.3g}", f"<= {Z_BAR:g}",
-            e64 <= Z_BAR and lost == 0)
+        cell(f"{jk} Z", 2, f"{e_cast:.2g}; {e64:.2g} ({n} px; Depth {'=' if same else '!='} EXR Z bits)",
+             same and n > 0 and lost == 0 and e_cast <= Z_BAR and e64 <= Z_BAR)
 
     # ---- 4. sequences
     passes = {}
@@ -394,6 +412,13 @@ def main(argv):
         if os.path.isdir(os.path.join(seq_dir, p)):
             passes[p] = (os.path.join(seq_dir, p), ".png", p not in ("shade", "fill", "lines"))
     passes["exr"] = (seq_dir, ".exr", True)
+    # control: the names issue 18 started from (frame number not the last number) must NOT be
+    # detected as a sequence, or the detection check proves nothing
+    control = os.path.join(work, "control_old_names")
+    os.makedirs(control, exist_ok=True)
+    for f in sorted(os.listdir(passes["mask1"][0])):
+        shutil.copy(os.path.join(passes["mask1"][0], f), os.path.join(control, f[:-4] + "_mask_1.png"))
+    passes["control_old_names"] = (control, ".png", True)
     nframes = 24
     t2 = time.perf_counter()
     srep = _blender(blender, {"mode": "sequences", "passes": passes, "out": os.path.join(work, "blender", "seq"),
@@ -407,7 +432,10 @@ def main(argv):
         r = srep[p]
         detected = r["images"] == 1 and r["sources"] == ["SEQUENCE"] and r["files"] == nframes
         what = f"{r['files']} files -> {r['images']} image(s) {'/'.join(r['sources'])}"
-        row(f"sequence {p}", "image.open detection", what, f"{nframes} files -> 1 SEQUENCE", detected)
+        if p == "control_old_names":
+            stills = r["images"] == nframes and r["sources"] == ["FILE"]
+            cell("control: mask1 as frame_NNNN_mask_1.png", 3, what + " (must be stills)", stills)
+            continue
         good = 0
         for f in range(1, nframes + 1):
             path = os.path.join(folder, f"frame_{f:04d}{ext}")
@@ -426,27 +454,27 @@ def main(argv):
                     ok = got is not None and (np.abs(got - src / scale).max() <= 1e-6 if data
                                               else _follows(got, src))
             good += bool(ok)
-        row(f"sequence {p}", "frames played = their files", f"{good}/{nframes}", f"{nframes}/{nframes}",
-            good == nframes)
+        cell(f"sequence {p}", 3, f"{what}; {good}/{nframes}", detected and good == nframes)
 
     # ---- 5. table
-    w0 = max(len(r[0]) for r in rows)
-    w1 = max(len(r[1]) for r in rows)
-    w2 = max(len(r[2]) for r in rows)
-    print(f"{'subject':<{w0}} | {'check':<{w1}} | {'value':<{w2}} | bar | result")
-    print(f"{'-' * w0}-|-{'-' * w1}-|-{'-' * w2}-|-----|-------")
-    for s, c, v, b, ok in rows:
-        print(f"{s:<{w0}} | {c:<{w1}} | {v:<{w2}} | {b} | {'PASS' if ok else 'FAIL'}")
-    failed = sum(not r[4] for r in rows)
+    head = ("item",) + cols + ("result",)
+    table = [[item] + [r.get(c, "") for c in cols] + ["PASS" if r["ok"] else "FAIL"] for item, r in rows.items()]
+    widths = [max(len(x[i]) for x in [head] + table) for i in range(len(head))]
+    print(f"bars: IoU >= {IOU_BAR}; objectid PNG: off-edge IoU 1 and 0 bad px (its soft IoU is bounded by the "
+          f"edge pixels, see the docstring); Z <= {Z_BAR:g} and Blender's Depth = the EXR's Z bit for bit; "
+          f"sequence: {nframes} files -> 1 SEQUENCE image and every frame played = its file")
+    for line in [head, ["-" * w for w in widths]] + table:
+        print(" | ".join(x.ljust(w) for x, w in zip(line, widths)).rstrip())
+    failed = sum(not r["ok"] for r in rows.values())
     total = time.perf_counter() - t0
-    print(f"\n{len(rows) - failed}/{len(rows)} checks pass; {total:.1f} s (strokekit renders {t_render:.1f} s, "
-          f"Blender {t_blender:.1f} s); Blender {blender}; files in {work}")
-    print("reproduce: " + " ".join(shlex.quote(x) for x in [sys.executable, os.path.relpath(os.path.abspath(__file__)),
-                                                          *(["--blender", a.blender] if a.blender else [])]))
+    print(f"\n{len(rows) - failed}/{len(rows)} rows pass; {total:.1f} s (strokekit renders {t_render:.1f} s, "
+          f"Blender {t_blender:.1f} s); Blender {blender}")
+    print(f"reproduce: cd {shlex.quote(ROOT)} && python benchmarks/check_blender_exr.py"
+          + (f" --blender {shlex.quote(a.blender)}" if a.blender else "") + " [--keep DIR]")
     if not a.keep and not failed:
         shutil.rmtree(work, ignore_errors=True)
-    elif not a.keep:
-        print(f"(files kept for inspection in {work})")
+    else:
+        print(f"files kept in {work}")
     print("OK" if not failed else "FAILED")
     return 0 if not failed else 1
 
