@@ -291,3 +291,39 @@ class BandRegion:
     band: int
     rings: list
     colour: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class CryptoLayer:
+    """One Cryptomatte type of a frame (e.g. "CryptoObject"): per pixel the ids (H, W, R) float32
+    and coverages (H, W, R) float32 of its R ranks, highest coverage first, and every name the
+    scene has of that type (the manifest)."""
+
+    type_name: str
+    ids: np.ndarray
+    coverage: np.ndarray
+    names: tuple[str, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class RasterPasses:
+    """A frame's compositing passes at output resolution H x W, each None when not asked for.
+
+    depth (H, W) float32 view depth in scene units (BACKGROUND_DEPTH where nothing is hit);
+    normal (H, W, 3) float32 view-space unit normal (x right, y up, z toward the camera; 0 on
+    background); shade (H, W, 4) float32 linear colour premultiplied by its alpha (coverage);
+    bands (H, W) float32 band label (0 background); crypto: the Cryptomatte layers; lines:
+    {kind: (H, W) float32 coverage of that kind's strokes}, in layer order."""
+
+    width: int
+    height: int
+    depth: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    shade: np.ndarray | None = None
+    bands: np.ndarray | None = None
+    crypto: tuple[CryptoLayer, ...] = ()
+    lines: dict | None = None
+
+
+#: View depth of background pixels in depth passes: what Blender's Cycles and Eevee write there.
+BACKGROUND_DEPTH = 1e10

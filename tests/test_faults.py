@@ -108,13 +108,14 @@ def check_readable(p: Path) -> None:
 def frame_names(frame: int, gltf: bool = True, bands: bool = True) -> list[str]:
     s = f"frame_{frame:04d}"
     return [f"{s}.svg", f"{s}.json"] + ([f"{s}.glb"] if gltf else []) + \
-        ([f"{s}_bands.png", f"{s}_shade.png"] if bands else [])
+        ([f"bands/{s}.png", f"shade/{s}.png"] if bands else [])
 
 
 def assert_frames_whole_or_absent(out: Path, n_frames: int, **kinds) -> dict[int, bool]:
     """Every frame has all its files, each readable, or none; no temporary file is left; the run
     file, if there, is readable. Returns {frame: on disk}."""
-    assert not list(out.glob(".*.part")), f"temporary files left: {sorted(p.name for p in out.glob('.*.part'))}"
+    temps = [*out.glob(".*.part"), *out.glob("*/.*.part")]
+    assert not temps, f"temporary files left: {sorted(str(p.relative_to(out)) for p in temps)}"
     on_disk = {}
     for f in range(1, n_frames + 1):
         names = frame_names(f, **kinds)
@@ -147,9 +148,10 @@ class StickyFault:
     def __call__(self, src, dst, *args, **kw):
         d = Path(os.path.abspath(os.fspath(dst)))
         if any(str(d).startswith(f + os.sep) or str(d) == f for f in self.folders):
-            nth = self.seen.get(d.name, 0)
-            self.seen[d.name] = nth + 1
-            if self.failed or self.first(d.name, nth):
+            key = "/".join(d.parts[-2:])  # folder/name: the image passes have a folder each
+            nth = self.seen.get(key, 0)
+            self.seen[key] = nth + 1
+            if self.failed or self.first(key, nth):
                 self.failed.append(d)
                 raise OSError(self.err, os.strerror(self.err))
         return self.real(src, dst, *args, **kw)
@@ -161,14 +163,14 @@ RENDER = ["--orbit", "3", "--size", "48x36", "--gltf", "--bands", "2"]
 # frame 3 after it), the run file (its first write, before any frame; and its update after the
 # frames, in a folder that holds another run's frames) and the --report.
 WRITE_POINTS = {
-    "svg": lambda name, nth: name == "frame_0002.svg",
-    "json": lambda name, nth: name == "frame_0002.json",
-    "glb": lambda name, nth: name == "frame_0002.glb",
-    "png_bands": lambda name, nth: name == "frame_0002_bands.png",
-    "png_shade": lambda name, nth: name == "frame_0002_shade.png",
-    "run_file": lambda name, nth: name == ".strokekit-run.json",
-    "run_file_update": lambda name, nth: name == ".strokekit-run.json" and nth == 1,
-    "report": lambda name, nth: name == "report.json",
+    "svg": lambda name, nth: name == "out/frame_0002.svg",
+    "json": lambda name, nth: name == "out/frame_0002.json",
+    "glb": lambda name, nth: name == "out/frame_0002.glb",
+    "png_bands": lambda name, nth: name == "bands/frame_0002.png",
+    "png_shade": lambda name, nth: name == "shade/frame_0002.png",
+    "run_file": lambda name, nth: name == "out/.strokekit-run.json",
+    "run_file_update": lambda name, nth: name == "out/.strokekit-run.json" and nth == 1,
+    "report": lambda name, nth: name.endswith("/report.json"),
 }
 
 
@@ -221,8 +223,9 @@ WORKER_HOOK = textwrap.dedent('''
         def _replace(src, dst, *a, **k):
             d = os.path.abspath(os.fspath(dst))
             if d.startswith(_cfg["dir"] + os.sep):
-                name = os.path.basename(d)
-                hit = name.startswith("frame_") and name.endswith(_cfg["suffix"])
+                rel = os.path.relpath(d, _cfg["dir"])
+                sfx = _cfg["suffix"]
+                hit = rel.startswith(sfx) if sfx.endswith("/") else (rel.startswith("frame_") and rel.endswith(sfx))
                 if os.path.exists(_cfg["flag"]) or hit:
                     open(_cfg["flag"], "a").close()
                     with open(_cfg["log"], "a") as f:
@@ -246,7 +249,7 @@ WORKER_HOOK = textwrap.dedent('''
 
 
 @pytest.mark.parametrize("suffix,err", [(".svg", "ENOSPC"), (".json", "EACCES"), (".glb", "EIO"),
-                                        ("_bands.png", "EIO"), ("_shade.png", "ENOSPC")])
+                                        ("bands/", "EIO"), ("shade/", "ENOSPC")])
 def test_failed_write_in_a_pool_worker_says_the_file_and_leaves_whole_frames(suffix, err, cube, tmp_path, capsys,
                                                                              monkeypatch):
     """The same promise with --workers 2, the failing write in the pool worker (which reports to
@@ -384,7 +387,7 @@ def test_gltf_whose_texture_file_is_missing_gets_a_warning(tmp_path, capsys):
     scene = gltf_cube(tmp_path / "textured.gltf", image="wood.png")
     code, _, e = run_cli(["render", scene, "--camera", cam, "--bands", "2", "--out", tmp_path / "b", "-q"], capsys)
     assert code == 0, e
-    for name in ("frame_0001.svg", "frame_0001_shade.png"):
+    for name in ("frame_0001.svg", "shade/frame_0001.png"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
     warn = [line for line in err_lines(e) if line.startswith("strokekit: warning:")]
     assert len(warn) == 1 and "textured.gltf" in warn[0] and "wood.png" in warn[0], \

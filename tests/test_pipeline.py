@@ -705,11 +705,10 @@ def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path
         pool.close()
     assert list(res.failures) == [10] and res.frames_ok == list(range(1, 10))
     by_frame: dict[str, set] = {}
-    for p in out.iterdir():
-        if not p.name.startswith("."):
-            by_frame.setdefault(p.name[:10], set()).add(p.name[10:])
+    for p in out.rglob("frame_*"):
+        by_frame.setdefault(p.name[:10], set()).add(str(p.relative_to(out))[:-len(p.name)] + p.name[10:])
     assert sorted(by_frame) == [f"frame_{f:04d}" for f in range(1, 10)]
-    assert all(v == {".svg", ".json", "_bands.png", "_shade.png"} for v in by_frame.values()), by_frame
+    assert all(v == {".svg", ".json", "bands/.png", "shade/.png"} for v in by_frame.values()), by_frame
 
 
 def test_kinds_in_another_order_are_the_same_run(tmp_path, capsys):

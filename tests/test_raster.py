@@ -209,7 +209,7 @@ def test_crease_angle_reaches_the_raster_pass_from_the_command_line(box, tmp_pat
             main([str(a) for a in ["render", p, "--orbit", "1", "--elevation", "30", "--size", "64x64", "--bands", "3",
                                    "--no-svg", "--no-json", "-q", "--out", tmp_path / name, *extra]])
         assert e.value.code == 0, capsys.readouterr().err
-        out[name] = read_png((tmp_path / name / "frame_0001_bands.png").read_bytes())
+        out[name] = read_png((tmp_path / name / "bands" / "frame_0001.png").read_bytes())
     assert (out["flat"] > 0).mean() > 0.1
     assert np.array_equal(out["smooth"], out["flat"])
     assert not np.array_equal(out["rounded"], out["flat"])
@@ -243,9 +243,9 @@ def test_masks_and_labels_are_consistent_and_antialiased(sphere, sphere_occ):
     # Anti-aliased: partial coverage exists along every border, and masks are 0..255 of it.
     assert ((cov[..., 0] > 0) & (cov[..., 0] < 1)).sum() > 50
     out = png_files(fr.images())
-    assert sorted(out) == ["bands", "depth", "mask_1", "mask_2", "mask_3", "objectid", "shade"]
+    assert sorted(out) == ["bands", "depth", "mask1", "mask2", "mask3", "objectid", "shade"]
     assert np.array_equal(read_png(out["bands"]), fr.labels)
-    m2 = read_png(out["mask_2"]).astype(float) / 255
+    m2 = read_png(out["mask2"]).astype(float) / 255
     assert np.abs(m2 - cov[..., 2]).max() <= 0.5 / 255 + 1e-6
     # Majority label: where a band covers more than half of a pixel, the pixel carries it.
     assert np.all(fr.labels[cov[..., 2] > 0.5] == 2)

@@ -34,6 +34,7 @@ from strokekit.scene.load import load_scene
 from ..common import FINITE, FiniteFloatRange, is_interactive, say_warnings, split_list
 from .render_options import (
     dashes_from,
+    exr_options_from,
     gltf_options_from,
     occlusion_from,
     raster_options_from,
@@ -48,6 +49,7 @@ _NEEDS = (
     (("max_growth", "min_carry"), "--coherence seed", lambda cam, svg, x: x.get("coherence_method") == "seed"
      and not x.get("no_coherence")),
     (("fill_pattern", "fill_period"), "--fill", lambda cam, svg, x: x.get("fill")),
+    (("exr_layers",), "--exr", lambda cam, svg, x: x.get("exr")),
     (("band_polygons",), "the SVG (they are a layer of it; not --no-svg)", lambda cam, svg, x: svg),
     (("ribbon_width", "taper", "brush", "alpha_mode", "ribbon_space"), "--gltf or --gltf-sequence",
      lambda cam, svg, x: x.get("gltf") or x.get("gltf_sequence")),
@@ -207,7 +209,8 @@ def _check_usage(o: dict) -> tuple[int, int] | None:
     if o["camera_file"] and o["orbit"]:
         raise UsageError("give either --camera or --orbit, not both")
     _check_option_pairs(o["camera_file"], o["svg"], o)
-    if not (o["svg"] or o["write_json"] or o.get("gltf") or o.get("gltf_sequence") or o.get("bands")):
+    if not (o["svg"] or o["write_json"] or o.get("gltf") or o.get("gltf_sequence") or o.get("bands")
+            or o.get("exr") or o.get("lines_png")):
         raise UsageError("nothing to write: every output is turned off")
     check_pattern(o["pattern"])
     size = None
@@ -265,7 +268,8 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
                             gltf=gltf_options is not None, gltf_sequence=bool(o.get("gltf_sequence")),
                             gltf_options=gltf_options,
                             raster_options=raster_options_from(o, o["quality"], lines.crease_angle_deg),
-                            hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"])
+                            hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"],
+                            exr=exr_options_from(o, o["stroke_width"]), lines_png=o["lines_png"])
     return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
                    tracking=tracking_options_from(o, len(frames)), workers=workers,
                    scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],

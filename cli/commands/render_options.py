@@ -12,11 +12,12 @@ from strokekit.errors import UsageError
 from strokekit.model import MAX_OCCLUSION
 from strokekit.options import QUALITY_PRESETS
 from strokekit.raster.bands import RasterOptions
+from strokekit.raster.passes import PASSES, PassOptions
 from strokekit.ribbons.brushes import get_brush
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.gltf import GltfOptions
 
-from ..common import FINITE
+from ..common import FINITE, split_list
 
 _GLTF = [
     click.option("--gltf/--no-gltf", default=False, show_default=True, help="Write textured ribbons as frame_NNNN.glb."),
@@ -45,7 +46,7 @@ _TRACKING = [
 
 _RASTER = [
     click.option("--bands", type=click.IntRange(min=1, max=254), default=None,
-                 help="Toon bands: write frame_NNNN_bands.png (labels) and _shade.png with N bands of quantized n.l."),
+                 help="Toon bands: write bands/frame_NNNN.png (labels) and shade/frame_NNNN.png with N bands of quantized n.l."),
     click.option("--band-thresholds", default=None, help="Explicit n.l thresholds a,b,.. instead of N equal bands."),
     click.option("--shading", type=click.Choice(["flat", "smooth"]), default="smooth", show_default=True,
                  help="Band normals: per face, or interpolated and split at edges sharper than --crease-angle."),
@@ -56,16 +57,22 @@ _RASTER = [
                  help="Rays per pixel side for the masks (default from --quality: 1 draft, 2 default, 4 exact)."),
     click.option("--edge-supersample", type=click.IntRange(min=0, max=8), default=None,
                  help="Resample only band edge pixels R x R (default from --quality: 0 draft, 4 default, 0 exact)."),
-    click.option("--masks", is_flag=True, help="Also one anti-aliased mask PNG per band."),
-    click.option("--no-shade", is_flag=True, help="No _shade.png (the ramp colours)."),
-    click.option("--objectid", is_flag=True, help="Also _objectid.png (8-bit object ids, 0 background)."),
-    click.option("--depth", is_flag=True, help="Also _depth.png (16-bit linear depth)."),
-    click.option("--fill", is_flag=True, help="Also _fill.png: hatching that keeps its screen size at any zoom (self-similar 3D texture)."),
+    click.option("--masks", is_flag=True, help="Also one anti-aliased mask PNG per band (maskN/frame_NNNN.png)."),
+    click.option("--no-shade", is_flag=True, help="No shade/ PNGs (the ramp colours)."),
+    click.option("--objectid", is_flag=True, help="Also objectid/frame_NNNN.png (8-bit object ids, 0 background)."),
+    click.option("--depth", is_flag=True, help="Also depth/frame_NNNN.png (16-bit linear depth; its range in the PNG and the JSON)."),
+    click.option("--fill", is_flag=True, help="Also fill/frame_NNNN.png: hatching that keeps its screen size at any zoom (self-similar 3D texture)."),
     click.option("--fill-pattern", type=click.Choice(["hatch", "dots", "noise"]), default="hatch", show_default=True,
-                 help="Texture of _fill.png."),
+                 help="Texture of the fill."),
     click.option("--fill-period", type=FINITE, default=16.0, show_default=True, help="Fill texture period in px."),
     click.option("--gooch", is_flag=True, help="Gooch warm/cool ramp instead of darker shades."),
     click.option("--band-polygons", is_flag=True, help="Also the bands as vector polygons in an SVG layer under the lines."),
+    click.option("--exr", is_flag=True,
+                 help="Write frame_NNNN.exr: multilayer OpenEXR with float depth Z, normals N, shade RGBA "
+                      "(premultiplied), band labels, Cryptomatte (objects, materials) and the lines per kind."),
+    click.option("--exr-layers", default=None,
+                 help="The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all]."),
+    click.option("--lines-png", is_flag=True, help="Also lines/frame_NNNN.png: the visible strokes as an RGBA image."),
 ]
 
 _HIDDEN = [
@@ -175,8 +182,8 @@ def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.
     """RasterOptions when any raster output is asked for (--bands, --masks, --fill, --objectid,
     --depth, --band-polygons), else None: lines-only runs do no raster pass at all.
     `crease_angle_deg` (the line options' --crease-angle) is where smooth shading splits normals."""
-    wanted = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
-    if not wanted:
+    pngs = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
+    if not (pngs or extra.get("exr")):
         return None
     k_default = QUALITY_PRESETS[quality]["supersample"]
     r_default = QUALITY_PRESETS[quality]["edge_supersample"]
@@ -192,4 +199,12 @@ def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.
                          masks=extra["masks"], shade=not extra["no_shade"], objectid=extra["objectid"],
                          depth=extra["depth"], fill=extra["fill"], fill_pattern=extra["fill_pattern"],
                          fill_period_px=extra["fill_period"], gooch=extra["gooch"],
-                         band_polygons=extra["band_polygons"], crease_angle_deg=crease_angle_deg)
+                         band_polygons=extra["band_polygons"], crease_angle_deg=crease_angle_deg, pngs=pngs)
+
+
+def exr_options_from(extra: dict, stroke_width_px: float):
+    """PassOptions of the EXR (--exr, --exr-layers), or None without --exr."""
+    if not extra.get("exr"):
+        return None
+    layers = split_list(extra["exr_layers"], "--exr-layers") if extra.get("exr_layers") else PASSES
+    return PassOptions(passes=layers, stroke_width_px=stroke_width_px)

@@ -70,6 +70,7 @@ class RasterOptions:
     fill_period_px: float = 16.0
     gooch: bool = False
     band_polygons: bool = False
+    pngs: bool = True  # write the PNG passes (off: the raster pass runs for the EXR alone)
     edge_supersample: int = 0
     crease_angle_deg: float = 60.0
 
@@ -367,7 +368,7 @@ class RasterFrame:
 
     def images(self) -> dict[str, np.ndarray]:
         """{file suffix: image} of what the options ask: 'bands' always, then 'shade',
-        'mask_1'..'mask_N', 'objectid', 'depth', 'fill' (uint8 or uint16 arrays, see each method);
+        'mask1'..'maskN', 'objectid', 'depth', 'fill' (uint8 or uint16 arrays, see each method);
         writers.png.png_files encodes them."""
         o = self.options
         out = {"bands": self.labels}
@@ -375,7 +376,7 @@ class RasterFrame:
             out["shade"] = self.shade_image()
         if o.masks:
             for b in range(1, self.n_bands + 1):
-                out[f"mask_{b}"] = self.mask(b)
+                out[f"mask{b}"] = self.mask(b)
         if o.objectid:
             out["objectid"] = self.objectid_image()
         if o.depth:

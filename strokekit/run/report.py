@@ -74,6 +74,8 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
         "failures": {str(k): v for k, v in sorted(res.failures.items())},
         "write_error": res.write_error,
         "outputs": res.outputs,
+        "passes": {"png": [f"{p}/{spec.outputs.pattern}.png" for p in spec.outputs.pass_folders()],
+                   "exr": list(spec.outputs.exr.passes) if spec.outputs.exr is not None else []},
         "wall_seconds": round(res.wall_seconds, 4),
         "exit_code": res.exit_code,
     }

@@ -23,7 +23,7 @@ from strokekit.raster.rays import check_raster_fits
 from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.report import _add_timings
 from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, RunWriteError, plan_stages
-from strokekit.run.tasks import _surface_depth, frame_task, write_task
+from strokekit.run.tasks import _surface_depth, frame_task, objects_and_materials, write_task
 from strokekit.run.workers import Workers, _keep_renderer, make_executor
 from strokekit.scene.load import Scene, load_scene
 from strokekit.tracking.tracker import Tracker
@@ -38,6 +38,8 @@ def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, lo
     res.scene_hash = scene.content_hash
     res.scene_summary = {"faces": int(len(scene.faces)), "objects": len(scene.objects),
                          "materials": len(scene.materials)}
+    if spec.outputs.raster_options is not None:  # the ids the object-id PNGs and Cryptomatte use
+        res.scene_summary["ids"] = objects_and_materials(scene)
     res.stages = plan_stages(scene, spec)
     res.stages[0].seconds = time.perf_counter() - t
     return scene
@@ -170,8 +172,9 @@ def plan_resume(spec: RunSpec, scene: Scene, tracking_on: bool) -> ResumePlan:
     out = spec.outputs
     out.out_dir.mkdir(parents=True, exist_ok=True)
     # Temporary files of an interrupted earlier run are ours to remove (their final names never existed).
-    for stale in out.out_dir.glob(".*.part"):
-        stale.unlink(missing_ok=True)
+    for folder in [out.out_dir, *(out.out_dir / p for p in out.pass_folders())]:
+        for stale in folder.glob(".*.part"):
+            stale.unlink(missing_ok=True)
     frames = [f for f, _ in spec.cameras]
     manifest = run_manifest(spec, scene, tracking_on)
     old = read_run_manifest(out.out_dir)
@@ -235,6 +238,7 @@ class FrameStream:
         self.tracker = Tracker(spec.tracking) if tracking_on else None
         self.lines_results: dict[int, Strokes] = {}
         self.underlays: dict[int, list | None] = {}
+        self.json_extra: dict[int, dict] = {}  # per frame: what the frame JSON says of its raster passes
         self.finished: set[int] = set()  # frames whose lines are done or failed
         self.lines_failed: set[int] = set()
         self.ordered: list[int] = []  # frames with lines, in frame order, tracked when tracking is on
@@ -276,6 +280,7 @@ class FrameStream:
         else:
             self.lines_results[f] = r["strokes"]
             self.underlays[f] = r.get("underlays")
+            self.json_extra[f] = r.get("json_extra") or {}
             res.ray_tracers.add(r["ray_tracer"])
             res.frame_seconds[f] = r["seconds"]
             res.outputs += r["files"]
@@ -305,8 +310,8 @@ class FrameStream:
                 continue  # written by its frame task
             if f not in done_before:
                 self.pending.appendleft((write_task, self.lines_results[f], f, self.spec.outputs,
-                                         self.spec.lines.layers, self.extra, self.underlays.pop(f, None),
-                                         self.scene_key))
+                                         self.spec.lines.layers, {**self.extra, **self.json_extra.pop(f, {})},
+                                         self.underlays.pop(f, None), self.scene_key))
             if not self.keep_strokes and f in done_before:
                 self.lines_results.pop(f)
 
@@ -454,14 +459,15 @@ def remove_temp_files(spec: RunSpec) -> list[Path]:
     """Remove the temporary files (.<name>.<random>.part) that writes of this run's outputs left
     in its output folder (a worker stopped mid-write); returns them. Others' files are not touched."""
     out = spec.outputs
-    names = {p.name for f, _ in spec.cameras for p in out.frame_files(f)} | {"sequence.glb"}
+    names = {str(p) for f, _ in spec.cameras for p in out.frame_files(f)} | {str(out.out_dir / "sequence.glb")}
     removed = []
     try:
-        temps = list(out.out_dir.glob(".*.part"))
+        temps = [t for folder in [out.out_dir, *(out.out_dir / p for p in out.pass_folders())]
+                 for t in folder.glob(".*.part")]
     except OSError:
         return removed
     for tmp in temps:
-        if temp_file_target(tmp) in names:
+        if str(tmp.parent / (temp_file_target(tmp) or "")) in names:
             tmp.unlink(missing_ok=True)
             removed.append(tmp)
     return removed

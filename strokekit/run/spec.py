@@ -10,6 +10,7 @@ from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.options import LineOptions
 from strokekit.raster.bands import RasterOptions
+from strokekit.raster.passes import PassOptions
 from strokekit.scene.load import Scene
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.gltf import GltfOptions
@@ -33,6 +34,8 @@ class OutputOptions:
     # the stroke width, (): solid.
     hidden_dashes: tuple[float, ...] | None = None
     dash_paths: bool = False  # the dashes as geometry (a subpath each), for plotters: svg_document
+    exr: PassOptions | None = None  # one multilayer EXR per frame with these passes; None: no EXR
+    lines_png: bool = False  # the strokes as an RGBA PNG (the EXR's lines layer)
 
     def stem(self, frame: int) -> str:
         return self.pattern.format(frame=frame)
@@ -55,7 +58,6 @@ class OutputOptions:
 
     def frame_files(self, frame: int) -> list[Path]:
         """The files one frame produces with these options."""
-        stem = self.out_dir / self.stem(frame)
         out = []
         if self.svg:
             out.append(self.frame_file(frame, ".svg"))
@@ -63,9 +65,20 @@ class OutputOptions:
             out.append(self.frame_file(frame, ".json"))
         if self.gltf and not self.gltf_sequence:
             out.append(self.frame_file(frame, ".glb"))
-        if self.raster_options is not None:
-            out += [Path(f"{stem}_{s}.png") for s in raster_file_suffixes(self.raster_options)]
+        out += self.pass_files(frame)
+        if self.exr is not None:
+            out.append(self.frame_file(frame, ".exr"))
         return out
+
+    def pass_folders(self) -> list[str]:
+        """The image passes written as PNG, one folder each (OUT/<pass>/<pattern>.png), so that the
+        frame number is the last number of every file name and each folder is one image sequence."""
+        out = raster_file_suffixes(self.raster_options) if self.raster_options is not None else []
+        return out + (["lines"] if self.lines_png else [])
+
+    def pass_files(self, frame: int) -> list[Path]:
+        """OUT/<pass>/<pattern>.png of one frame, for each pass in `pass_folders`."""
+        return [self.out_dir / p / f"{self.stem(frame)}.png" for p in self.pass_folders()]
 
 
 @dataclass(frozen=True)
@@ -195,16 +208,21 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
     add("json", o.json, "JSON output requested", "--no-json")
     add("ribbons + glTF", o.gltf, "glTF output requested", "no glTF output requested")
     add("raster pass", o.raster_options is not None, "a raster output was requested", "no raster output requested")
+    add("EXR", o.exr is not None, "--exr: " + ", ".join(o.exr.passes) if o.exr is not None else "", "no --exr")
+    add("lines PNG", o.lines_png, "--lines-png", "no --lines-png")
     return st
 
 
 def raster_file_suffixes(options) -> list[str]:
-    """File suffixes (frame_0001_<suffix>.png) that `raster_outputs` writes for RasterOptions."""
+    """The PNG passes (folder names) the raster pass writes for RasterOptions (none when it runs
+    for the EXR alone: options.pngs off)."""
+    if not options.pngs:
+        return []
     out = ["bands"]
     if options.shade:
         out.append("shade")
     if options.masks:
-        out += [f"mask_{b}" for b in range(1, int(options.bands) + 1)]
+        out += [f"mask{b}" for b in range(1, int(options.bands) + 1)]
     out += [name for name, on in (("objectid", options.objectid), ("depth", options.depth), ("fill", options.fill))
             if on]
     return out

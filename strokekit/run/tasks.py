@@ -6,16 +6,23 @@ from __future__ import annotations
 import time
 import traceback
 
+import numpy as np
+
 from strokekit.camera.view import Camera
+from strokekit.colour import srgb_encode
+from strokekit.cryptomatte import name_to_hex
 from strokekit.errors import StrokekitError
 from strokekit.fileio import atomic_write_bytes
 from strokekit.model import Strokes
 from strokekit.options import LineOptions
 from strokekit.raster.bands import band_regions, render_raster
+from strokekit.raster.passes import compositing_passes
 from strokekit.raster.rays import surface_depth_at
+from strokekit.raster.strokes import stroke_coverage
 from strokekit.run.spec import OutputOptions
 from strokekit.run.workers import _renderer
 from strokekit.scene.occluder import Occluder
+from strokekit.writers.exr import exr_bytes, lines_rgba
 from strokekit.writers.gltf import glb_for_frame
 from strokekit.writers.png import png_files
 from strokekit.writers.strokes_json import strokes_json
@@ -60,20 +67,14 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
         r.check_camera(camera, frame)
         timings: dict = {}
         strokes = r.render(camera, frame, timings) if do_lines else None
-        files = []
-        underlays = None
-        if outputs.raster_options is not None:
-            t1 = time.perf_counter()
-            stem = outputs.out_dir / outputs.stem(frame)
-            pngs, underlays = raster_outputs_with_bands_layer(r.scene, camera, r.occluder, outputs.raster_options)
-            for suffix, data in pngs.items():
-                files.append(_write(f"{stem}_{suffix}.png", data))
-            timings["raster pass"] = time.perf_counter() - t1
+        files, underlays, json_extra = raster_files(r.scene, camera, r.occluder, strokes, frame, outputs, timings)
         res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
-               "timings": timings, "underlays": underlays or None, "ray_tracer": r.occluder.backend}
+               "timings": timings, "underlays": underlays or None, "json_extra": json_extra,
+               "ray_tracer": r.occluder.backend}
         if write is not None and strokes is not None:
             kinds, extra, keep_strokes = write
-            res["written"] = write_task(strokes, frame, outputs, kinds, extra, res.pop("underlays"), occluder=r.occluder)
+            res["written"] = write_task(strokes, frame, outputs, kinds, {**extra, **res.pop("json_extra")},
+                                        res.pop("underlays"), occluder=r.occluder)
             if not keep_strokes:
                 res["strokes"] = None
         return res
@@ -131,10 +132,77 @@ def _surface_depth(outputs: OutputOptions, scene_key: tuple | None, occluder=Non
     return surface_depth_at(occluder)
 
 
-def raster_outputs(scene, camera: Camera, occluder: Occluder, options) -> dict[str, bytes]:
-    """{file suffix: PNG bytes} of one frame for RasterOptions (see strokekit.raster; write them
-    as frame_0001_<suffix>.png)."""
+def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | None, frame: int,
+                 outputs: OutputOptions, timings: dict) -> tuple[list[str], list[str], dict]:
+    """Write one frame's image passes (PNGs, one folder per pass) and EXR. Returns (files written,
+    the SVG's bands layer ([] unless band polygons), what the frame JSON says of them: the depth
+    PNG's range, and the objects and materials with their ids in the object-id PNG and their
+    Cryptomatte ids)."""
+    files: list[str] = []
+    underlays: list[str] = []
+    info: dict = {}
+    o = outputs.raster_options
+    stem = outputs.stem(frame)
+    if o is not None:
+        t1 = time.perf_counter()
+        raster = render_raster(scene, camera, occluder, o)
+        images = raster.images() if o.pngs else {}
+        text = {}
+        if "depth" in images:
+            zn, zf = raster.depth_range()
+            text["depth"] = {"near": repr(zn), "far": repr(zf)}
+            info["depth_range"] = [zn, zf]
+        if outputs.lines_png:
+            t2 = time.perf_counter()
+            images["lines"] = _lines_image(strokes, camera, outputs.stroke_width_px)
+            timings["lines PNG"] = time.perf_counter() - t2
+        for name, data in png_files(images, text).items():
+            files.append(_write(outputs.out_dir / name / f"{stem}.png", data))
+        if o.band_polygons:
+            underlays = [bands_layer(band_regions(raster))]
+        timings["raster pass"] = time.perf_counter() - t1 - timings.get("lines PNG", 0.0)
+        if outputs.exr is not None:
+            t1 = time.perf_counter()
+            passes = compositing_passes(raster, strokes, outputs.exr)
+            files.append(_write(outputs.frame_file(frame, ".exr"), exr_bytes(passes)))
+            timings["EXR"] = time.perf_counter() - t1
+        info.update(objects_and_materials(scene))
+    elif outputs.lines_png:
+        t1 = time.perf_counter()
+        images = {"lines": _lines_image(strokes, camera, outputs.stroke_width_px)}
+        for name, data in png_files(images).items():
+            files.append(_write(outputs.out_dir / name / f"{stem}.png", data))
+        timings["lines PNG"] = time.perf_counter() - t1
+    return files, underlays, ({"raster": info} if info else {})
 
+
+def _lines_image(strokes: Strokes | None, camera: Camera, stroke_width_px: float) -> np.ndarray:
+    """(H, W, 4) uint8 RGBA, sRGB-encoded straight alpha: the visible strokes in their colours."""
+    W, H = int(camera.width), int(camera.height)
+    cov = stroke_coverage(strokes, W, H, stroke_width_px) if strokes is not None else {}
+    _, total = lines_rgba(cov)
+    if total is None:
+        return np.zeros((H, W, 4), np.uint8)
+    a = total[..., 3:4]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        straight = np.where(a > 0, total[..., :3] / np.where(a > 0, a, 1.0), 0.0)
+    out = np.concatenate([srgb_encode(np.clip(straight, 0, 1)), a], axis=2)
+    return np.round(np.clip(out, 0, 1) * 255.0).astype(np.uint8)
+
+
+def objects_and_materials(scene) -> dict:
+    """The scene's objects and materials for the frame JSON and the report: name, the value of
+    its pixels in the object-id PNG (objects: index + 1; 0 is background) and its Cryptomatte id
+    (8 hex digits of the float32 bits, as in the EXR's manifest)."""
+    return {"objects": [{"name": n, "objectid": i + 1, "cryptomatte": name_to_hex(n)}
+                        for i, n in enumerate(scene.objects)],
+            "materials": [{"name": m.name, "index": i, "cryptomatte": name_to_hex(m.name)}
+                          for i, m in enumerate(scene.materials)]}
+
+
+def raster_outputs(scene, camera: Camera, occluder: Occluder, options) -> dict[str, bytes]:
+    """{pass: PNG bytes} of one frame for RasterOptions (see strokekit.raster; raster_files
+    writes them as OUT/<pass>/frame_0001.png)."""
     return png_files(render_raster(scene, camera, occluder, options).images())
 
 
