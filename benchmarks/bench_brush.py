@@ -4,7 +4,8 @@ For each model: a 120-frame orbit (3 degrees per frame) and a dolly from 1x to 8
 distance, at 1024 x 1024; the frames' lines rendered once with LineRenderer(scene, LineOptions())
 (per frame, independent), then each row draws the sequence from those lines:
 
-- `kalnins`, `seed`, `none`: `--strokes lines`, the lines tracked by today's methods (`--coherence`);
+- `brush`: `--strokes brush`, the brush paths (strokekit.paths, PathOptions());
+- `kalnins`, `seed`, `none`: `--strokes lines`, the lines tracked by today's methods (`--coherence`).
 
 Per row (BRIEF 3 metrics on what the row draws, `strokekit.metrics.coherence`):
 M1, M2 (median per pair), M4 (median / p95 px), M5 on the orbit and on the dolly (octaves, with
@@ -17,7 +18,7 @@ lines-only time a frame (process CPU time, medians over frames, best of `--repea
 machine is shared, CPU time is steadier than wall time; both measured in this one run).
 
     python benchmarks/bench_brush.py [--frames 120] [--size 1024] [--models bunny,spot]
-        [--methods kalnins,seed,none] [--accuracy-every 4] [--repeat 3] [--json out.json]
+        [--methods brush,kalnins,seed,none] [--accuracy-every 4] [--repeat 3] [--doubled PX] [--json out.json]
 
 Models: bunny, spot, fandisk, homer, rocker-arm, cheburashka (and cow, torus, beetle ...: any
 name of FILES). Bars (issue 19, `--strokes brush`): M1 >= 0.97 (bunny, homer, rocker-arm,
@@ -40,6 +41,7 @@ from strokekit.lines.renderer import LineRenderer
 from strokekit.metrics.accuracy import accuracy
 from strokekit.metrics.coherence import sequence_metrics
 from strokekit.options import LineOptions
+from strokekit.paths import PathOptions, PathTracker
 from strokekit.scene.load import load_scene
 from strokekit.tracking.options import TrackingOptions
 from strokekit.tracking.tracker import Tracker
@@ -58,8 +60,14 @@ def lines_tracker(method: str):
     return tr.step
 
 
+def brush_paths():
+    """The brush row: step(lines) -> the frame's brush paths."""
+    tr = PathTracker(PathOptions())
+    return lambda lines: tr.step(lines).strokes
+
+
 #: Rows: label -> a factory of a fresh per-sequence `step(lines) -> drawn strokes`.
-ROWS = {"kalnins": lambda: lines_tracker("kalnins"), "seed": lambda: lines_tracker("seed"),
+ROWS = {"brush": brush_paths, "kalnins": lambda: lines_tracker("kalnins"), "seed": lambda: lines_tracker("seed"),
         "none": lambda: lines_tracker("none")}
 
 
@@ -126,6 +134,8 @@ def main() -> None:
     ap.add_argument("--accuracy-every", type=int, default=4, help="precision/recall on every N-th orbit frame")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs of the lines and of each row (best median)")
     ap.add_argument("--no-dolly", action="store_true", help="skip the dolly (M5 column blank)")
+    ap.add_argument("--doubled", type=float, default=LineOptions.doubled_px,
+                    help="LineOptions.doubled_px of the lines every row starts from (default: the line pass's own)")
     ap.add_argument("--json", default=None, help="also write the rows as JSON here")
     a = ap.parse_args()
     rows = []
@@ -137,7 +147,7 @@ def main() -> None:
     print(head, flush=True)
     for name in a.models.split(","):
         sc = load_scene(MODELS / FILES[name])
-        r = LineRenderer(sc, LineOptions())
+        r = LineRenderer(sc, LineOptions(doubled_px=a.doubled))
         orbit = orbit_path(sc.center, sc.radius, a.frames, degrees_per_frame=3.0, width=a.size, height=a.size)
         frames, t_lines = render(r, orbit.cameras)
         for _ in range(a.repeat - 1):  # lines-only time: the best median of several runs
@@ -152,7 +162,8 @@ def main() -> None:
         acc_k = list(range(0, a.frames, max(1, a.accuracy_every)))
         exact = [ex.render(orbit.cameras[k], k + 1) for k in acc_k]
         ref_len = None
-        for row_name in a.methods.split(","):
+        # (kalnins first: its stroke length is the reference of the brush row's)
+        for row_name in sorted(a.methods.split(","), key=lambda m: m != "kalnins"):
             out, t_pass = draw(frames, row_name, a.repeat)
             _, ov = sequence_metrics(out)
             dv = sequence_metrics(draw(dframes, row_name, 1)[0])[1] if dframes else {"M5": float("nan")}
