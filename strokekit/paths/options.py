@@ -16,7 +16,8 @@ class PathOptions:
     history: carry the paths from frame to frame (False: every frame's paths are made afresh,
     ids 0..S-1, u = arc length / P: `--coherence none`).
     sample_px: spacing of the line samples that carry the labels (which path each piece of line
-    belongs to); cuts between paths fall within half of it.
+    belongs to); cuts between paths fall within half of it. reverse_px: spacing of the line
+    samples that look back for the nearest previous path sample (votes the other way).
     cover_px: a piece of contour line running beside a path of higher rank within this many px
     (tangents agreeing) is covered by that path, not drawn by a path of its own (the shingles of a
     mesh contour share one path). With the default 2 px every line stays within 2 px of a path.
@@ -31,6 +32,7 @@ class PathOptions:
 
     history: bool = True
     sample_px: float = 1.0
+    reverse_px: float = 1.0
     cover_px: float = 2.0
     join_px: float = 6.0
     new_join_px: float = 2.0
@@ -39,7 +41,7 @@ class PathOptions:
     tracking: TrackingOptions = field(default_factory=TrackingOptions)
 
     def __post_init__(self):
-        for name in ("sample_px",):
+        for name in ("sample_px", "reverse_px"):
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
