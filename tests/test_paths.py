@@ -63,13 +63,16 @@ def _near(a: Strokes, b: Strokes, step: float = 0.1) -> np.ndarray:
 
 
 def _assert_on_the_drawing(out):
-    """Paths lie within 1 px of the frame's lines (nothing invented) and the lines within 2 px of
-    a path (the cover radius; a strand covered beside a covered strand may lie a little further)."""
+    """Paths lie within 1 px of the frame's lines (nothing invented: BRIEF 2's precision at 1 px,
+    0.999 of the length; a bridge of 2 px between two line ends, a dropped hairpin point, reach
+    a little further) and the lines within 2 px of a path (the cover radius; a strand covered
+    beside a covered strand may lie a little further)."""
     for b in out:
         if len(b.lines) == 0:
             assert len(b.strokes) == 0
             continue
-        assert _near(b.strokes, b.lines).max() <= 1.0 + 1e-6
+        d = _near(b.strokes, b.lines)
+        assert np.mean(d <= 1.0) >= 0.999 and d.max() <= 1.5
         d = _near(b.lines, b.strokes)
         assert np.mean(d <= 2.0) >= 0.995 and d.max() <= 3.0
 
@@ -112,6 +115,10 @@ def test_noisy_sphere_keeps_ids_while_its_lines_have_shingles(noisy_sphere_frame
     _, ov = sequence_metrics([b.strokes for b in out])
     assert ov["M1"] >= 0.97
     _assert_on_the_drawing(out[::8])
+    # Short paths merge into the ones they touch: without that, splits leave ids behind for good.
+    late = np.mean([len(b) for b in out[-10:]])
+    assert late < np.mean([len(f) for f in noisy_sphere_frames[-10:]])
+    assert late < np.mean([len(b) for b in brush_frames(noisy_sphere_frames, PathOptions(merge_px=0.0))[-10:]])
 
 
 def test_covers_list_the_line_pieces_of_each_path(torus_frames):

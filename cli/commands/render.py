@@ -41,6 +41,8 @@ _NEEDS = (
     (("max_growth", "min_carry"), "--coherence seed", lambda cam, svg, x: x.get("coherence_method") == "seed"
      and not x.get("no_coherence") and x.get("strokes_mode") != "brush"),
     (("fill_pattern", "fill_period"), "--fill", lambda cam, svg, x: x.get("fill")),
+    (("path_merge",), "brush paths (--strokes brush, the default for a sequence)",
+     lambda cam, svg, x: x.get("strokes_mode") != "lines"),
     (("band_polygons",), "the SVG (they are a layer of it; not --no-svg)", lambda cam, svg, x: svg),
     (("ribbon_width", "taper", "brush", "alpha_mode", "ribbon_space"), "--gltf or --gltf-sequence",
      lambda cam, svg, x: x.get("gltf") or x.get("gltf_sequence")),

@@ -35,6 +35,9 @@ _TRACKING = [
                       "persist from frame to frame, each covering nearby line pieces; the JSON keeps the exact lines "
                       "beside them) or the exact lines [brush for a sequence with coherence on, unless --coherence "
                       "is given; lines for one frame or --no-coherence]."),
+    click.option("--path-merge", type=FINITE, default=None,
+                 help="With brush paths: a path shorter than N px (two frames running) merges into the path it "
+                      "touches [10; 0: never, the highest id persistence, but paths crumble over long sequences]."),
     click.option("--coherence", "coherence_method", type=click.Choice(["kalnins", "seed", "none"]), default="kalnins",
                  show_default=True, help="Frame-to-frame tracking of the lines (--strokes lines): kalnins (samples carry "
                       "ids and u to the next frame), seed (simple baseline: limited growth, short strokes not carried), "
@@ -103,7 +106,8 @@ def path_options_from(extra: dict, mode: str):
     """PathOptions for brush paths (history off with --no-coherence); None for lines."""
     if mode != "brush":
         return None
-    return PathOptions(history=not extra.get("no_coherence") and extra.get("coherence_method") != "none")
+    merge = {} if extra.get("path_merge") is None else {"merge_px": extra["path_merge"]}
+    return PathOptions(history=not extra.get("no_coherence") and extra.get("coherence_method") != "none", **merge)
 
 
 def gltf_options_from(extra: dict, lines, fps: float = 24.0):

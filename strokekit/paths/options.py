@@ -27,6 +27,10 @@ class PathOptions:
     join_angle_deg: the most a path may turn where two pieces join.
     min_run_px: along a line, a run of samples claimed by one path shorter than this is given
     to its neighbours (labels do not flicker between two paths on a few samples).
+    merge_px: a path shorter than this (in this frame and the last) gives way: its pieces join
+    the path they touch like pieces no path claims (it merges; its id ends). Each merge costs M1
+    its length once; without merges every split leaves an id behind for good and the paths
+    crumble over a long sequence (0: never merge).
     tracking: the correspondence of carried samples (search radius, tangent agreement, vote
     spacing) and the fit of u (stretch, knots, outliers), as the Kalnins tracker has them."""
 
@@ -38,6 +42,7 @@ class PathOptions:
     new_join_px: float = 2.0
     join_angle_deg: float = 90.0
     min_run_px: float = 1.5
+    merge_px: float = 10.0
     tracking: TrackingOptions = field(default_factory=TrackingOptions)
 
     def __post_init__(self):
@@ -45,7 +50,7 @@ class PathOptions:
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
-        for name in ("cover_px", "join_px", "new_join_px", "min_run_px"):
+        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px"):
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)

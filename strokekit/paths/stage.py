@@ -23,6 +23,8 @@ The steps, all vectorized over the frame's samples:
    between pieces are drawn, so a bridge longer than 2 px is only made where every point of it
    lies within 1 px of a line (`on_drawing`: the paths invent nothing). A path whose ends meet is
    closed into a loop.
+   Pieces of a path shorter than `merge_px` (this frame and the last) join like unclaimed
+   pieces: a sliver merges into the path it touches instead of cutting it.
 6. Ids: a label goes to the path holding most of its length; the other paths get fresh ids.
    Each path is turned so that its carried u increases along it, a closed path to start at its
    old seam, and u is fitted to the votes as the Kalnins tracker does (tracking.kalnins.fit_u),
@@ -55,7 +57,7 @@ _COVER_DOT = 0.9
 #: Where two joined pieces overlap by a fraction of a pixel the joint turns back on itself: the
 #: joint point goes when a segment beside it is at most this long (px). (Longer spurs stay: the
 #: chord that would replace them could leave the drawing by more than 1 px.)
-_HAIRPIN_PX = 2.0
+_HAIRPIN_PX = 1.0
 
 
 class Votes:
@@ -408,6 +410,26 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     if len(p_run) == 0:
         return _empty(lines), next_id
     p_line, p_label = r_line[p_run], r_label[p_run]
+    # Short paths give way: the pieces of a label that adds up to less than merge_px (in this
+    # frame and the one before) link like pieces no path claims, so the path they join takes
+    # them over (its id goes to the path with most of its length); alone, they keep their id.
+    # Without this, every split leaves an id behind for good and the paths crumble over the
+    # frames (spot, 120 frames: 102 paths a frame where the lines are 34 strokes).
+    link_label = p_label
+    lk = np.flatnonzero(p_label >= 0)
+    if len(lk) and o.merge_px > 0:
+        ul, inv = np.unique(p_label[lk], return_inverse=True)
+        tot = np.bincount(inv, weights=p_s1[lk] - p_s0[lk])
+        small = tot < o.merge_px
+        if history:
+            # ... and was short in the previous frame too (a path that is short for one frame,
+            # half hidden, keeps its id).
+            srt = np.argsort(prev.ids)
+            k = np.minimum(np.searchsorted(prev.ids, ul, sorter=srt), len(srt) - 1)
+            was = np.where(prev.ids[srt[k]] == ul, prev.lengths[srt[k]], 0.0)
+            small &= was < o.merge_px
+        link_label = p_label.copy()
+        link_label[lk[small[inv]]] = -1
     pieces = cut_pieces(lines, p_line, p_s0, p_s1)
     # The piece of every drawn sample (-1 for covered samples and short leftovers): pieces come
     # in sample order, a sample's piece is the last one starting at or before it.
@@ -427,9 +449,9 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
     line_tree = _LazyTree(D.p)
-    group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=p_label, other_tol_px=o.new_join_px,
+    group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
                                       bridge_ok=lambda pa, pb: on_drawing(line_tree.get(), pa, pb), free_px=2.0)
-    group = _one_label_per_path(group, pos, p_label)
+    group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree)
     S = len(paths)
