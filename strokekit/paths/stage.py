@@ -61,17 +61,17 @@ _HAIRPIN_PX = 1.0
 
 
 class Votes:
-    """Votes of the previous paths on the line samples: sample index m, carried id, u, weight w,
-    refinement ds along the sample's tangent (px) and sign of the tangents' agreement."""
+    """Votes of the previous paths on the line samples: sample index m, carried id, u, weight w
+    and sign of the tangents' agreement."""
 
-    def __init__(self, m, vid, u, w, ds, sign):
-        self.m, self.vid, self.u, self.w, self.ds, self.sign = m, vid, u, w, ds, sign
+    def __init__(self, m, vid, u, w, sign):
+        self.m, self.vid, self.u, self.w, self.sign = m, vid, u, w, sign
 
     @staticmethod
     def none() -> "Votes":
         z = np.zeros(0)
         zi = np.zeros(0, np.int64)
-        return Votes(zi, zi, z, z, z, z)
+        return Votes(zi, zi, z, z, z)
 
     def __len__(self) -> int:
         return len(self.m)
@@ -106,7 +106,7 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     vts = V.t.take(src, axis=0)
     off = np.clip(np.einsum("ij,ij->i", rq - V.p.take(src, axis=0), vts), -0.5 * V.w[src], 0.5 * V.w[src])
     slope = _local_slope(V)
-    return Votes(m=rh, vid=V.ids[src], u=V.u[src] + off * slope[src], w=step * D.w[rh], ds=np.zeros(len(rh)),
+    return Votes(m=rh, vid=V.ids[src], u=V.u[src] + off * slope[src], w=step * D.w[rh],
                  sign=np.sign(np.einsum("ij,ij->i", vts, D.t.take(rh, axis=0))))
 
 
@@ -129,21 +129,30 @@ def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5) -> np
     return bad == 0
 
 
-def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.ndarray, radius_px: float) -> np.ndarray:
+def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.ndarray, radius_px: float,
+                     tree=None) -> np.ndarray:
     """(N,) for every line sample the index of a sample of a higher-ranked run that covers it (see
     module doc, step 4), or -1. Only contour kinds are covered, each by its own kind: creases and
-    borders are mesh edges, two of them close together are two lines. `rank` (R,): 0 is first."""
+    borders are mesh edges, two of them close together are two lines. `rank` (R,): 0 is first.
+    `tree`: a k-d tree of D.p, when the caller has one (the pairs of other samples are left out)."""
     out = np.full(len(D), -1, np.int64)
     if radius_px <= 0 or len(D) < 2:
         return out
     sk = kind[D.stroke]
-    cand = np.flatnonzero(_CONTOUR[sk])
-    if len(cand) < 2:
+    contour = _CONTOUR[sk]
+    if contour.sum() < 2:
         return out
-    pr = query_tree(D.p.take(cand, axis=0)).query_pairs(radius_px, output_type="ndarray")
-    if len(pr) == 0:
+    if tree is not None:
+        pr = tree.query_pairs(radius_px, output_type="ndarray")
+        a, b = pr[:, 0], pr[:, 1]
+        keep = contour[a] & contour[b]
+        a, b = a[keep], b[keep]
+    else:
+        cand = np.flatnonzero(contour)
+        pr = query_tree(D.p.take(cand, axis=0)).query_pairs(radius_px, output_type="ndarray")
+        a, b = cand[pr[:, 0]], cand[pr[:, 1]]
+    if len(a) == 0:
         return out
-    a, b = cand[pr[:, 0]], cand[pr[:, 1]]
     keep = (run[a] != run[b]) & (sk[a] == sk[b])
     a, b = a[keep], b[keep]
     swap = rank[run[a]] < rank[run[b]]
@@ -247,20 +256,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     return paths, path, offset
 
 
-class _LazyTree:
-    """A k-d tree of points built the first time it is asked for (bridges longer than 2 px are
-    rare: most frames need no tree)."""
-
-    def __init__(self, points: np.ndarray):
-        self.points, self.tree = points, None
-
-    def get(self):
-        if self.tree is None:
-            self.tree = query_tree(self.points)
-        return self.tree
-
-
-def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree: _LazyTree) -> Strokes:
+def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree) -> Strokes:
     """Paths whose two ends meet (within tol_px, turning by at most angle_deg at the joint, the
     bridge on the drawing, see on_drawing, beyond 2 px) closed into loops: their first point is
     repeated at their end. A ring of pieces, or one piece whose chaining stopped short of its own
@@ -290,7 +286,7 @@ def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree: _La
     ok = np.where(tiny, cos(a, c) >= cmin, (cos(a, br) >= cmin) & (cos(br, c) >= cmin))
     far = gap[cand] > 2.0
     if far.any():
-        ok[far] &= on_drawing(line_tree.get(), P[last[cand[far]]], P[first[cand[far]]])
+        ok[far] &= on_drawing(line_tree, P[last[cand[far]]], P[first[cand[far]]])
     cand = cand[ok]
     if len(cand) == 0:
         return paths
@@ -393,7 +389,9 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
     rank = np.empty(R, np.int64)
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
-    cover = covering_samples(D, lines.kind, run, rank, o.cover_px)
+    # One k-d tree of the line samples: for the cover, and for the bridges (on_drawing).
+    line_tree = query_tree(D.p)
+    cover = covering_samples(D, lines.kind, run, rank, o.cover_px, line_tree)
     # 5. Pieces: the uncovered parts of the runs.
     keep = cover < 0
     N = len(D)
@@ -444,13 +442,12 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vk = smp_piece[hit]
     ok = vk >= 0
     vk = vk[ok]
-    s_line = np.where(cover[vm[ok]] >= 0, D.s[hit[ok]], D.s[vm[ok]] + votes.ds[ok])
+    s_line = D.s[hit[ok]]
     s_in = np.clip(s_line - p_s0[vk], 0.0, plen[vk])
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
-    line_tree = _LazyTree(D.p)
     group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
-                                      bridge_ok=lambda pa, pb: on_drawing(line_tree.get(), pa, pb), free_px=2.0)
+                                      bridge_ok=lambda pa, pb: on_drawing(line_tree, pa, pb), free_px=2.0)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree)
