@@ -276,6 +276,36 @@ class Strokes:
                        level_weight=np.concatenate([p.level_weight for p in parts]))
 
 
+@dataclass(frozen=True, eq=False)
+class BrushPaths:
+    """The brush paths of one frame (strokekit.paths) beside the frame's exact lines.
+
+    strokes: the paths, drawn instead of the lines with `--strokes brush` (persistent ids, u,
+    level, surface points, as tracked lines have). lines: the frame's exact lines, as the line pass
+    made them. Covers: what each path stands for, as intervals of the lines: path s covers
+    cover_line[k] from arc length cover_s0[k] to cover_s1[k] (px) for k in
+    cover_offsets[s]:cover_offsets[s + 1]; cover_drawn[k] is True where the path draws that
+    piece itself, False where the piece runs beside the path within the cover radius (a
+    shingle of the mesh contour the path stands for)."""
+
+    strokes: Strokes
+    lines: Strokes
+    cover_offsets: np.ndarray
+    cover_line: np.ndarray
+    cover_s0: np.ndarray
+    cover_s1: np.ndarray
+    cover_drawn: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.strokes)
+
+    def covers(self, s: int) -> list[tuple[int, float, float, bool]]:
+        """(line, s0, s1, drawn) of every line piece path s covers."""
+        k = slice(int(self.cover_offsets[s]), int(self.cover_offsets[s + 1]))
+        return list(zip(self.cover_line[k].tolist(), self.cover_s0[k].tolist(), self.cover_s1[k].tolist(),
+                        self.cover_drawn[k].tolist()))
+
+
 #: Cached properties that depend only on points and offsets (see Strokes.replace).
 _GEOMETRY_CACHE = ("segment_lengths", "arc_length", "lengths")
 _STROKES_FIELDS = tuple(f.name for f in fields(Strokes))  # (in order: the same __dict__ as __init__ makes)

@@ -73,11 +73,11 @@ class LineOptions:
     merge_overlaps: bool = True  # drop zig-zag spurs that retrace a longer stroke
     overlap_tol_px: float = 0.5
     # Parts of contour strokes that run beside a longer stroke of their kind within this many px
-    # are dropped (mesh contours come out shingled; strokeops.drop_doubled). 0 keeps them. Done per
-    # frame, so a frame draws the same lines alone, in a sequence, with or without tracking. 1 px
-    # keeps every visible contour within 1 px of a drawn line (BRIEF 2 at tol 1); 2 px gives
-    # steadier ids on scanned meshes at the cost of that guarantee (README, coherence).
-    doubled_px: float = 1.0
+    # are dropped (mesh contours come out shingled; strokeops.drop_doubled). 0 (the default) keeps
+    # every visible contour edge: the lines are exact, and the brush paths (strokekit.paths) are
+    # what shares one stroke among the shingles of a contour. Done per frame, so a frame draws the
+    # same lines alone, in a sequence, with or without tracking.
+    doubled_px: float = 0.0
     occlusion_offset: float = 1e-5  # ray offset as a fraction of the scene radius
     contours: str = "mesh"  # or "smooth": interpolated contours replace mesh silhouettes
     suggestive_kr_threshold: float = 0.0  # dimensionless (x 1/scene radius): skip faces with flatter radial curvature

@@ -348,22 +348,34 @@ def test_coherence_with_a_bad_pattern_is_a_usage_error(tmp_path, capsys):
 
 
 def test_a_frame_draws_the_same_lines_alone_and_in_a_sequence(tmp_path, capsys):
-    """Cleanup of doubled contour pieces is part of the per-frame line pass (not of tracking):
-    the renderer's strokes have none left, and frame 5 alone and inside a sequence rendered
-    without tracking give the same bytes."""
+    """The default lines are exact: every visible contour edge, doubled pieces kept (the brush
+    paths share a stroke among them). Their cleanup (--doubled) is part of the per-frame line pass
+    (not of tracking): the renderer's strokes have none left, and frame 5 alone and inside a
+    sequence rendered without tracking give the same bytes; so do the exact lines a brush
+    frame's JSON keeps beside its paths."""
     from strokekit import LineOptions, LineRenderer, load_camera_path, load_scene
     from strokekit.lines.strokeops import drop_doubled
+    from strokekit.writers.strokes_json import read_strokes_json
 
     scene = load_scene(SAMPLES / "still_life.glb")
     cam = load_camera_path(SAMPLES / "orbit.json").cameras[4]
-    drawn = LineRenderer(scene, LineOptions()).render(cam)
-    raw = LineRenderer(scene, LineOptions(doubled_px=0.0)).render(cam)
+    drawn = LineRenderer(scene, LineOptions(doubled_px=1.0)).render(cam)
+    raw = LineRenderer(scene, LineOptions()).render(cam)
     assert raw.lengths.sum() > drawn.lengths.sum()  # the sample does have doubled pieces
     assert drop_doubled(drawn, 1.0).lengths.sum() == drawn.lengths.sum()
-    base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--no-json", "-q"]
-    assert run_cli([*base, "--frames", "5", "--out", tmp_path / "a"], capsys)[0] == 0
-    assert run_cli([*base, "--frames", "3-6", "--no-coherence", "--out", tmp_path / "b"], capsys)[0] == 0
-    assert (tmp_path / "a" / "frame_0005.svg").read_bytes() == (tmp_path / "b" / "frame_0005.svg").read_bytes()
+    base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "-q"]
+    for extra, sub in ((["--doubled", "1"], "d1"), ([], "d0")):
+        assert run_cli([*base, *extra, "--frames", "5", "--out", tmp_path / sub / "a"], capsys)[0] == 0
+        assert run_cli([*base, *extra, "--frames", "3-6", "--no-coherence", "--out", tmp_path / sub / "b"],
+                       capsys)[0] == 0
+        for name in ("frame_0005.svg", "frame_0005.json"):
+            assert (tmp_path / sub / "a" / name).read_bytes() == (tmp_path / sub / "b" / name).read_bytes()
+    # A sequence draws brush paths; its JSON keeps the frame's exact lines, as the frame alone draws them.
+    assert run_cli([*base, "--frames", "3-6", "--out", tmp_path / "brush"], capsys)[0] == 0
+    alone = read_strokes_json(tmp_path / "d0" / "a" / "frame_0005.json")
+    kept = read_strokes_json(tmp_path / "brush" / "frame_0005.json", which="lines")
+    assert np.array_equal(alone.points, kept.points) and np.array_equal(alone.offsets, kept.offsets)
+    assert len(read_strokes_json(tmp_path / "brush" / "frame_0005.json")) < len(kept)
 
 
 def test_gltf_with_unnamed_nodes_loads_the_same_every_time(tmp_path, capsys):

@@ -12,10 +12,12 @@ GOLDEN = ROOT / "tests" / "golden" / "still_life"
 
 
 def test_sample_matches_golden_svgs(tmp_path, capsys):
+    """The golden drawings are the exact lines (--strokes lines: what golden diffs and plotters
+    compare; a sequence draws brush paths by default)."""
     out = tmp_path / "out"
     with pytest.raises(SystemExit) as e:
         main(["render", str(SAMPLES / "still_life.glb"), "--camera", str(SAMPLES / "orbit.json"),
-              "--frames", "1,12,24", "--no-json", "--out", str(out), "-q"])
+              "--frames", "1,12,24", "--strokes", "lines", "--no-json", "--out", str(out), "-q"])
     assert e.value.code == 0
     with pytest.raises(SystemExit) as e:
         main(["diff", str(GOLDEN), str(out), "--tol", "0.05", "--png", str(tmp_path / "diff")])

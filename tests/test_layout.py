@@ -12,18 +12,19 @@ PKG = Path(__file__).resolve().parents[1] / "strokekit"
 
 #: Stages in pipeline order. A stage may import the shared top-level modules and the stages
 #: before it, never one after it; writers and metrics read what the stages make.
-STAGES = ("camera", "scene", "lines", "tracking", "raster", "ribbons", "writers", "metrics", "run")
+STAGES = ("camera", "scene", "lines", "tracking", "paths", "raster", "ribbons", "writers", "metrics", "run")
 #: What each stage may import besides the top-level modules.
 ALLOWED = {
     "camera": set(),
     "scene": {"camera"},
     "lines": {"scene", "camera"},
     "tracking": {"camera", "lines"},
+    "paths": {"camera", "lines", "tracking"},
     "raster": {"scene", "camera"},
     "ribbons": {"camera"},
     "writers": {"camera", "ribbons"},
     "metrics": {"scene", "camera", "lines", "raster", "writers"},
-    "run": {"scene", "camera", "lines", "tracking", "raster", "ribbons", "writers"},
+    "run": {"scene", "camera", "lines", "tracking", "paths", "raster", "ribbons", "writers"},
 }
 #: Function-level imports allowed: optional or heavy backends loaded only when used (trimesh:
 #: the mesh parser, skipped when the scene cache answers; open3d: its plotly part is stubbed out

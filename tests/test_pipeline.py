@@ -89,7 +89,10 @@ def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
     cam2 = load_camera_path(SAMPLES / "orbit.json").cameras[1]
     assert Camera(**{k: tuple(v) if isinstance(v, list) else v for k, v in rep["frames"]["2"]["camera"].items()}) == cam2
     assert rep["options"]["outputs"]["svg"] is True and rep["options"]["outputs"]["decimals"] == 2
-    assert rep["options"]["tracking_options"]["method"] == "kalnins"
+    # A sequence draws brush paths by default: their options are reported, the lines are not tracked.
+    assert rep["options"]["strokes"] == "brush" and rep["options"]["paths_options"]["history"] is True
+    assert rep["options"]["tracking"] == "none" and rep["options"]["tracking_options"] is None
+    assert {s["stage"]: s["ran"] for s in rep["stages"]}["brush paths"] is True
 
 
 def test_pool_and_inline_give_identical_bytes(tmp_path, capsys):

@@ -143,7 +143,9 @@ def _total_length(frames):
 def _assert_draws_the_input(tracked, frames, o=TrackingOptions()):
     """The tracked frames draw their input lines: every input point is drawn; nothing is drawn
     farther than the join tolerance from an input line (bridges where strokes are healed); the
-    length is the input's plus at most one bridge per stroke."""
+    length is the input's plus at most one bridge per stroke, less at most one join tolerance per
+    stroke where two strands that overlap at their ends were joined (the joint point that turned
+    back is dropped: the exact lines keep such doubled contour pieces)."""
     for fi, fo in zip(frames, tracked):
         if len(fi) == 0:
             continue
@@ -152,7 +154,7 @@ def _assert_draws_the_input(tracked, frames, o=TrackingOptions()):
         d, _ = cKDTree(resample_strokes(fi, 0.25).p).query(resample_strokes(fo, 0.5).p)
         assert d.max() <= o.join_tol_px + 0.3
         ref = fi.lengths.sum()
-        assert ref - 1e-6 <= fo.lengths.sum() <= ref + o.join_tol_px * len(fi) + 1e-6
+        assert ref - o.join_tol_px * len(fi) - 1e-6 <= fo.lengths.sum() <= ref + o.join_tol_px * len(fi) + 1e-6
 
 
 def test_cube_orbit_keeps_ids_and_does_not_slide(cube_frames):

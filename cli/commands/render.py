@@ -37,8 +37,10 @@ from .render_options import (
     exr_options_from,
     gltf_options_from,
     occlusion_from,
+    path_options_from,
     raster_options_from,
     render_extra_options,
+    strokes_mode,
     tracking_options_from,
 )
 
@@ -47,9 +49,11 @@ _NEEDS = (
     (("elevation", "fov", "up"), "--orbit (they shape the orbit; a --camera file has its own)",
      lambda cam, svg, x: not cam),
     (("max_growth", "min_carry"), "--coherence seed", lambda cam, svg, x: x.get("coherence_method") == "seed"
-     and not x.get("no_coherence")),
+     and not x.get("no_coherence") and x.get("strokes_mode") != "brush"),
     (("fill_pattern", "fill_period"), "--fill", lambda cam, svg, x: x.get("fill")),
     (("exr_layers",), "--exr", lambda cam, svg, x: x.get("exr")),
+    (("path_merge",), "brush paths (--strokes brush, the default for a sequence)",
+     lambda cam, svg, x: x.get("strokes_mode") != "lines"),
     (("band_polygons",), "the SVG (they are a layer of it; not --no-svg)", lambda cam, svg, x: svg),
     (("ribbon_width", "taper", "brush", "alpha_mode", "ribbon_space"), "--gltf or --gltf-sequence",
      lambda cam, svg, x: x.get("gltf") or x.get("gltf_sequence")),
@@ -68,6 +72,9 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
         raise UsageError("--gltf-sequence writes glTF: it cannot go with --no-gltf")
     if given("coherence_method") and extra.get("no_coherence") and extra.get("coherence_method") != "none":
         raise UsageError(f"--coherence {extra.get('coherence_method')} and --no-coherence contradict each other")
+    if extra.get("strokes_mode") == "brush" and given("coherence_method") and extra.get("coherence_method") != "none":
+        raise UsageError(f"--coherence {extra.get('coherence_method')} tracks lines: it goes with --strokes lines "
+                         "(brush paths carry their own ids; --no-coherence makes them afresh every frame)")
     for names, need, present in _NEEDS:
         said = [n for n in names if given(n)]
         if said and not present(camera_file, svg, extra):
@@ -111,9 +118,9 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
 @click.option("--min-length", type=FINITE, default=None, help="Drop strokes shorter than N px [0].")
 @click.option("--simplify", "simplify_tol", type=FINITE, default=None, help="Simplify strokes within N px (Douglas-Peucker) [0: off].")
 @click.option("--doubled", type=FINITE, default=None,
-              help="Drop parts of contour strokes running beside a longer one within N px (mesh-contour "
-                   f"shingles) [1; draft: 0; at most {MAX_DOUBLED_PX:g}]; 0 keeps every visible contour edge, 2 keeps "
-                   "ids steadier on scanned meshes.")
+              help="Drop parts of contour lines running beside a longer one within N px (mesh-contour "
+                   f"shingles) [0: every visible contour edge is kept; brush paths share one stroke among them; "
+                   f"at most {MAX_DOUBLED_PX:g}].")
 @click.option("--drop-retraced/--keep-retraced", "drop_retraced", default=None,
               help="Drop strokes that retrace a longer stroke of their kind within 0.5 px (zig-zag spurs, "
                    "coincident copies) [default: drop; draft: keep].")
@@ -270,8 +277,11 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
                             raster_options=raster_options_from(o, o["quality"], lines.crease_angle_deg),
                             hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"],
                             exr=exr_options_from(o, o["stroke_width"]), lines_png=o["lines_png"])
+    given = click.get_current_context().get_parameter_source("coherence_method") == click.core.ParameterSource.COMMANDLINE
+    mode = strokes_mode(o, len(frames), given)
     return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
-                   tracking=tracking_options_from(o, len(frames)), workers=workers,
+                   tracking=tracking_options_from(o, len(frames), mode), paths=path_options_from(o, mode),
+                   workers=workers,
                    scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
                    camera_source=str(o["camera_file"]) if o["camera_file"] else path.source)
 

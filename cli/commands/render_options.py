@@ -11,6 +11,7 @@ import click
 from strokekit.errors import UsageError
 from strokekit.model import MAX_OCCLUSION
 from strokekit.options import QUALITY_PRESETS
+from strokekit.paths.options import PathOptions
 from strokekit.raster.bands import RasterOptions
 from strokekit.raster.passes import PASSES, PassOptions
 from strokekit.ribbons.brushes import get_brush
@@ -33,10 +34,20 @@ _GLTF = [
 
 
 _TRACKING = [
+    click.option("--strokes", "strokes_mode", type=click.Choice(["brush", "lines"]), default=None,
+                 help="What the SVG, the JSON's strokes and the ribbons draw: brush paths (smooth strokes that "
+                      "persist from frame to frame, each covering nearby line pieces; the JSON keeps the exact lines "
+                      "beside them) or the exact lines [brush for a sequence with coherence on, unless --coherence "
+                      "is given; lines for one frame or --no-coherence]."),
+    click.option("--path-merge", type=FINITE, default=None,
+                 help="With brush paths: a path shorter than N px (two frames running) merges into the path it "
+                      "touches [10; 0: never, the highest id persistence, but paths crumble over long sequences]."),
     click.option("--coherence", "coherence_method", type=click.Choice(["kalnins", "seed", "none"]), default="kalnins",
-                 show_default=True, help="Frame-to-frame tracking: kalnins (samples carry ids and u to the next frame), seed (simple "
-                      "baseline: limited growth, short strokes not carried), or none."),
-    click.option("--no-coherence", is_flag=True, help="Same as --coherence none: ids per frame, u = arc length / P."),
+                 show_default=True, help="Frame-to-frame tracking of the lines (--strokes lines): kalnins (samples carry "
+                      "ids and u to the next frame), seed (simple baseline: limited growth, short strokes not carried), "
+                      "or none."),
+    click.option("--no-coherence", is_flag=True, help="Same as --coherence none: ids per frame, u = arc length / P "
+                      "(brush paths: made afresh every frame)."),
     click.option("--max-growth", type=FINITE, default=20.0, show_default=True,
                  help="With --coherence seed: a stroke grows at most N px per frame."),
     click.option("--min-carry", type=FINITE, default=10.0, show_default=True,
@@ -144,13 +155,32 @@ def dashes_from(extra: dict, occlusion: tuple[int, int] | None) -> tuple[float, 
     return vals
 
 
-def tracking_options_from(extra: dict, n_frames: int):
-    """TrackingOptions for a sequence with coherence on; None for one frame or --no-coherence."""
+def strokes_mode(extra: dict, n_frames: int, coherence_given: bool) -> str:
+    """'brush' or 'lines': --strokes, or by default brush paths for a sequence with coherence on
+    (what a sequence is drawn for: strokes that persist), the exact lines for one frame, with
+    --no-coherence or a --coherence method named (they track lines)."""
+    if extra.get("strokes_mode"):
+        return extra["strokes_mode"]
+    coherent = not extra.get("no_coherence") and extra.get("coherence_method", "kalnins") != "none"
+    return "brush" if n_frames >= 2 and coherent and not coherence_given else "lines"
+
+
+def tracking_options_from(extra: dict, n_frames: int, mode: str = "lines"):
+    """TrackingOptions for a sequence of lines with coherence on; None for one frame, brush paths
+    or --no-coherence."""
     method = "none" if extra.get("no_coherence") else extra.get("coherence_method", "kalnins")
-    if n_frames < 2 or method == "none":
+    if n_frames < 2 or method == "none" or mode == "brush":
         return None
     return TrackingOptions(method=method, max_growth_px=extra["max_growth"],
                            min_carry_px=extra["min_carry"])
+
+
+def path_options_from(extra: dict, mode: str):
+    """PathOptions for brush paths (history off with --no-coherence); None for lines."""
+    if mode != "brush":
+        return None
+    merge = {} if extra.get("path_merge") is None else {"merge_px": extra["path_merge"]}
+    return PathOptions(history=not extra.get("no_coherence") and extra.get("coherence_method") != "none", **merge)
 
 
 def gltf_options_from(extra: dict, lines, fps: float = 24.0):

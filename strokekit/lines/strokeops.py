@@ -97,19 +97,20 @@ def simplify(strokes: Strokes, tol_px: float) -> Strokes:
     return out
 
 
-def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndarray | None = None) -> Strokes:
+def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndarray | None = None,
+                  return_kept: bool = False):
     """Strokes less the points where the line turns by more than `angle_deg` beside a segment of
     at most `max_px` (px): the sub-pixel back-and-forth where two strands that overlap at their
     ends were joined (one ends 0.1 px past where the next begins; a ribbon folds there). The
     chaining splits at such turns, so only joints have them: `at` (point indices), when given,
     are the only points looked at (the joints and their neighbours). Ends are kept; of two
     neighbouring such points the first goes, then the rest are looked at again. The same object
-    when there is nothing to drop."""
+    when there is nothing to drop. return_kept: also the (N,) mask of the points kept."""
     cos_max = np.cos(np.radians(angle_deg))
     P = strokes.points
     n = len(P)
     if n < 3 or max_px <= 0:
-        return strokes
+        return (strokes, np.ones(n, bool)) if return_kept else strokes
     ends = np.zeros(n, bool)
     full = np.flatnonzero(np.diff(strokes.offsets) > 0)  # (an empty stroke has no ends)
     ends[strokes.offsets[:-1][full]] = True
@@ -147,12 +148,13 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
         live = np.flatnonzero(alive)
         i = _sorted_unique(np.concatenate([i[alive[i]], near[alive[near] & ~ends[near]]]))
     if alive.all():
-        return strokes
+        return (strokes, alive) if return_kept else strokes
     gone = np.flatnonzero(~alive)
     counts = np.diff(strokes.offsets) - np.bincount(np.searchsorted(strokes.offsets, gone, side="right") - 1,
                                                     minlength=len(strokes))
-    return replace(strokes, points=P[alive], surface=strokes.surface[alive], face=strokes.face[alive],
-                   u=None if strokes.u is None else strokes.u[alive], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    out = replace(strokes, points=P[alive], surface=strokes.surface[alive], face=strokes.face[alive],
+                  u=None if strokes.u is None else strokes.u[alive], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    return (out, alive) if return_kept else out
 
 
 def _sorted_unique(x: np.ndarray) -> np.ndarray:

@@ -60,8 +60,10 @@ def run_manifest(spec: RunSpec, scene: Scene, tracking_on: bool) -> dict:
                 outputs["brush_sha256"] = hashlib.sha256(Path(brush).read_bytes()).hexdigest()
             except OSError:
                 pass  # the run reports it
-    options_d = _digest({"lines": spec.lines.to_json(), "outputs": outputs,
-                         "tracking": spec.tracking if tracking_on else None})
+    opts = {"lines": spec.lines.to_json(), "outputs": outputs, "tracking": spec.tracking if tracking_on else None}
+    if spec.paths is not None:  # (only then: a lines run keeps its digest)
+        opts["paths"] = spec.paths
+    options_d = _digest(opts)
     frames, chain = {}, ""
     for f, cam in spec.cameras:
         d = _digest(cam.to_json())

@@ -18,12 +18,13 @@ from typing import Callable
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
-from strokekit.model import Strokes
+from strokekit.model import BrushPaths, Strokes
+from strokekit.paths.stage import PathTracker
 from strokekit.raster.rays import check_raster_fits
 from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.report import _add_timings
-from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, RunWriteError, plan_stages
-from strokekit.run.tasks import _surface_depth, frame_task, objects_and_materials, write_task
+from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, RunWriteError, carries_history, plan_stages
+from strokekit.run.tasks import _surface_depth, drawn_strokes, frame_task, objects_and_materials, write_task
 from strokekit.run.workers import Workers, _keep_renderer, make_executor
 from strokekit.scene.load import Scene, load_scene
 from strokekit.tracking.tracker import Tracker
@@ -75,7 +76,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
         stage = {s.name: s for s in res.stages}
-        resume = plan_resume(spec, scene, stage["tracking"].ran)
+        resume = plan_resume(spec, scene, carries_history(spec))
         res.frames_skipped = sorted(resume.done_before)
         try:
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
@@ -224,19 +225,28 @@ class FrameStream:
         self.need_lines = [f for f in self.frames
                            if f not in done_before or tracking_on or (out.gltf and out.gltf_sequence)]
         self.to_write = [f for f in self.need_lines if f not in done_before]
-        self.extra = {"contours": spec.lines.contours, "tracking": spec.tracking.method if tracking_on else "none"}
+        if spec.paths is not None:
+            # (Keys that say what the strokes are: only brush frames have them, a lines frame's
+            # bytes stay what they were.)
+            self.extra = {"contours": spec.lines.contours, "tracking": "brush" if tracking_on else "none",
+                          "strokes_are": "brush"}
+        else:
+            self.extra = {"contours": spec.lines.contours, "tracking": spec.tracking.method if tracking_on else "none"}
         if spec.lines.occlusion is not None:  # (the strokes then carry their levels: writers.strokes_json)
             self.extra["occlusion"] = list(spec.lines.occlusion)
         self.keep_strokes = out.gltf and out.gltf_sequence
         self.scene_key = (spec.scene_path, scene.content_hash, spec.lines)
-        # Without tracking a frame needs no other: it is written where its lines are computed.
-        self.write_in_task = None if tracking_on else (spec.lines.layers, self.extra, self.keep_strokes)
+        # Without tracking a frame needs no other: it is written where its lines are computed
+        # (brush paths are made here, in frame order, even one frame at a time).
+        self.write_in_task = None if tracking_on or spec.paths is not None else (
+            spec.lines.layers, self.extra, self.keep_strokes)
         self.pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
                               out if f not in done_before else replace(out, raster_options=None), True,
                               self.write_in_task if f not in done_before else None) for f in self.need_lines)
         self.n_lines = len(self.pending)
-        self.tracker = Tracker(spec.tracking) if tracking_on else None
-        self.lines_results: dict[int, Strokes] = {}
+        self.tracker = Tracker(spec.tracking) if tracking_on and spec.tracking is not None else None
+        self.paths = PathTracker(spec.paths) if spec.paths is not None else None
+        self.lines_results: dict[int, Strokes | BrushPaths] = {}
         self.underlays: dict[int, list | None] = {}
         self.json_extra: dict[int, dict] = {}  # per frame: what the frame JSON says of its raster passes
         self.finished: set[int] = set()  # frames whose lines are done or failed
@@ -305,6 +315,10 @@ class FrameStream:
                 t = time.perf_counter()
                 self.lines_results[f] = self.tracker.step(self.lines_results[f])
                 self.stage["tracking"].seconds += time.perf_counter() - t
+            if self.paths is not None:
+                t = time.perf_counter()
+                self.lines_results[f] = self.paths.step(self.lines_results[f])
+                self.stage["brush paths"].seconds += time.perf_counter() - t
             self.ordered.append(f)
             if self.write_in_task is not None:
                 continue  # written by its frame task
@@ -370,7 +384,7 @@ def write_sequence_glb(spec: RunSpec, scene: Scene, res: RunResult, stage: dict,
     if not (out.gltf and out.gltf_sequence and stream.ordered):
         return
     t = time.perf_counter()
-    seq = [stream.lines_results[f] for f in stream.ordered]
+    seq = [drawn_strokes(stream.lines_results[f]) for f in stream.ordered]
     depth_at = _surface_depth(out, stream.scene_key)
     res.outputs.append(str(atomic_write_bytes(out.out_dir / "sequence.glb",
                                               glb_for_sequence(seq, out.gltf_options, depth_at))))

@@ -9,6 +9,7 @@ from pathlib import Path
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.options import LineOptions
+from strokekit.paths.options import PathOptions
 from strokekit.raster.bands import RasterOptions
 from strokekit.raster.passes import PassOptions
 from strokekit.scene.load import Scene
@@ -89,12 +90,24 @@ class RunSpec:
     cameras: tuple[tuple[int, Camera], ...]
     lines: LineOptions
     outputs: OutputOptions
-    tracking: TrackingOptions | None = None  # None: no tracking
+    tracking: TrackingOptions | None = None  # None: the lines are not tracked
+    # Brush paths (`--strokes brush`): drawn instead of the lines, the lines kept in the JSON beside
+    # them; None: the lines are drawn (`--strokes lines`). A run draws one or the other: with
+    # paths, `tracking` is None (the paths carry their own ids).
+    paths: PathOptions | None = None
     workers: int = 1
     scheduler: str | None = None
     skip_existing: bool = False  # resume: see run(); frames of another scene or options are a UsageError
     fail_fast: bool = False
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
+
+
+def carries_history(spec: RunSpec) -> bool:
+    """Whether a frame's strokes depend on the frames before it in the run: the lines are tracked,
+    or brush paths are carried from frame to frame (a run of two frames or more)."""
+    if len(spec.cameras) < 2:
+        return False
+    return spec.tracking is not None or (spec.paths is not None and spec.paths.history)
 
 
 @dataclass
@@ -203,7 +216,11 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
     st.append(StageRecord("chaining", True, "visible runs linked into strokes"))
     n = len(spec.cameras)
     add("tracking", spec.tracking is not None and n > 1,
-        f"{n} frames with coherence on", "single frame or --no-coherence")
+        f"{n} frames with coherence on", "brush paths drawn (--strokes brush: they carry their own ids)"
+        if spec.paths is not None else "single frame or --no-coherence")
+    add("brush paths", spec.paths is not None,
+        f"--strokes brush ({'carried from frame to frame' if carries_history(spec) else 'one frame at a time'})",
+        "--strokes lines: the lines are drawn")
     add("svg", o.svg, "SVG output requested", "--no-svg")
     add("json", o.json, "JSON output requested", "--no-json")
     add("ribbons + glTF", o.gltf, "glTF output requested", "no glTF output requested")

@@ -13,7 +13,7 @@ from strokekit.colour import srgb_encode
 from strokekit.cryptomatte import name_to_hex
 from strokekit.errors import StrokekitError
 from strokekit.fileio import atomic_write_bytes
-from strokekit.model import Strokes
+from strokekit.model import BrushPaths, Strokes
 from strokekit.options import LineOptions
 from strokekit.raster.bands import band_regions, render_raster
 from strokekit.raster.passes import compositing_passes
@@ -87,14 +87,22 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
                 "traceback": traceback.format_exc()}
 
 
-def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tuple[str, ...], extra: dict,
-               underlays: list | None = None, scene_key: tuple | None = None, occluder=None) -> dict:
+def drawn_strokes(frame: Strokes | BrushPaths) -> Strokes:
+    """What a frame draws: its brush paths, or its lines."""
+    return frame.strokes if isinstance(frame, BrushPaths) else frame
+
+
+def write_task(frame_strokes: Strokes | BrushPaths, frame: int, outputs: OutputOptions, kinds: tuple[str, ...],
+               extra: dict, underlays: list | None = None, scene_key: tuple | None = None, occluder=None) -> dict:
     """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}, or
     {'frame', 'write_error': (errno, strerror, filename)} for a file that cannot be written.
-    The GLB's world ribbons lie on the scene's surface (raster.surface_depth_at): `occluder`, or
-    this process's renderer of `scene_key` = (scene path, scene hash, LineOptions)."""
+    `frame_strokes`: the frame's lines, or its brush paths (drawn; the JSON keeps the lines beside
+    them). The GLB's world ribbons lie on the scene's surface (raster.surface_depth_at):
+    `occluder`, or this process's renderer of `scene_key` = (scene path, scene hash, LineOptions)."""
     t0 = time.perf_counter()
     try:
+        paths = frame_strokes if isinstance(frame_strokes, BrushPaths) else None
+        strokes = drawn_strokes(frame_strokes)
         cam = strokes.camera
         files = []
         timings: dict = {}
@@ -106,7 +114,7 @@ def write_task(strokes: Strokes, frame: int, outputs: OutputOptions, kinds: tupl
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:
             files.append(_write(outputs.frame_file(frame, ".json"),
-                                strokes_json(strokes, cam.width, cam.height, frame, extra=extra)))
+                                strokes_json(strokes, cam.width, cam.height, frame, extra=extra, paths=paths)))
             timings["json"] = time.perf_counter() - t0 - sum(timings.values())
         if outputs.gltf and not outputs.gltf_sequence:
             files.append(_write(outputs.frame_file(frame, ".glb"), glb_for_frame(

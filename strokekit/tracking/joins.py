@@ -261,13 +261,23 @@ def _straightest_order(straight: np.ndarray, ra: np.ndarray, rb: np.ndarray, S: 
     return ((t * S + ra) * S + rb).argsort(kind="stable")
 
 
-def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
+def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np.ndarray | None = None,
+                    other_tol_px: float | None = None, bridge_ok=None, free_px: float = 2.0,
+                    weight: np.ndarray | None = None):
     """_join_segments(strokes, arange(S), zeros(S), lengths, zeros(S), ones(S), tol_px, angle_deg,
     straightest_first=True), the call chain_touching makes, specialized (same group, rev, pos): every
     run is a whole stroke, all labels agree and all signs are +1, so the label healing is moot, the
     ends are the open strokes' first and last points and a path is reversed when most of its
     strokes are entered at their end. The tracker runs it on every frame (~200 strokes): the
-    per-member bookkeeping of the walk is done with numpy after a bare Python walk."""
+    per-member bookkeeping of the walk is done with numpy after a bare Python walk.
+
+    `label` (S,) (the brush paths): strokes of two different labels >= 0 never join; two of one
+    label join within tol_px, a stroke of label -1 (no label) joins any within `other_tol_px`
+    (default tol_px); links within one label are taken first, then those to an unlabelled stroke,
+    then between unlabelled strokes; within each, links of the heaviest stroke first (the larger
+    `weight` (S,) of the two, default their lengths), then the cheapest (the gap plus 10 px per
+    radian of turn). `bridge_ok(pa, pb) -> (K,) bool`: where two ends are more
+    than `free_px` apart, they join only where it says the bridge between them may be drawn."""
     S = len(strokes)
     group = np.arange(S)
     rev = np.zeros(S, bool)
@@ -287,19 +297,40 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     pt = P.take(e_pt, axis=0)
     d = P.take(nb, axis=0) - pt  # direction away from the end, into the stroke
     d = d / np.maximum(row_norm(d), 1e-12)[:, None]
-    a, b = _close_pair_arrays(pt, tol_px)
+    a, b = _close_pair_arrays(pt, tol_px if label is None or other_tol_px is None else max(tol_px, other_tol_px))
     if len(a) == 0:
         return group, rev, pos
     ok = (e_run[a] != e_run[b]) & (strokes.kind[e_run[a]] == strokes.kind[e_run[b]])
     dx, dy = d[:, 0], d[:, 1]
     straight = -(dx[a] * dx[b] + dy[a] * dy[b])  # cosine of the turn at the joint
-    ok &= straight >= np.cos(np.radians(angle_deg))
+    tier = None
+    if label is None:
+        ok &= straight >= np.cos(np.radians(angle_deg))
+    else:
+        la, lb = label[e_run[a]], label[e_run[b]]
+        same = (la == lb) & (la >= 0)
+        ok &= straight >= np.cos(np.radians(angle_deg))
+        gap = row_norm(pt.take(a, axis=0) - pt.take(b, axis=0))
+        other = tol_px if other_tol_px is None else other_tol_px
+        ok &= (same & (gap <= tol_px)) | (((la < 0) | (lb < 0)) & (gap <= other))
+        if bridge_ok is not None:
+            far = np.flatnonzero(ok & (gap > free_px))
+            if len(far):
+                ok[far] = bridge_ok(pt.take(a[far], axis=0), pt.take(b[far], axis=0))
+        tier = 2 * same + ((la < 0) != (lb < 0))
     if not ok.any():
         return group, rev, pos
     a, b, straight = a[ok], b[ok], straight[ok]
     # Greedy links in the order of _join_segments (straightest first; the pairs come in another
     # order than the k-d tree's, the sort decides). A node's code is 2 * stroke + end.
-    o = _straightest_order(straight, e_run[a], e_run[b], S)
+    if tier is None:
+        o = _straightest_order(straight, e_run[a], e_run[b], S)
+    else:
+        wt = strokes.lengths if weight is None else weight
+        heavy = np.maximum(wt[e_run[a]], wt[e_run[b]])
+        # The cost of a link: its gap plus 10 px per radian of turn (seed 000's rule).
+        cost = gap[ok] + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))
+        o = np.lexsort((e_run[b], e_run[a], np.round(cost, 6), -np.round(heavy, 6), -tier[ok]))
     a, b = a[o], b[o]
     code = 2 * e_run + (np.arange(2 * n) >= n)
     partner = np.full(2 * n, -1, np.int64)

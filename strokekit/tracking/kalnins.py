@@ -147,6 +147,28 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
     L = cur.lengths
     s = offset[rv] + np.where(rev[rv], r_len[rv] - s_rel, s_rel)
     s = np.clip(s, 0, L[st])
+    cur, u_new, b, (cand_s, cand_i, cand_w) = fit_u(prev, cur, st, s, u, vid, w, o)
+    ids, next_id = assign_ids(S, cand_s, cand_i, cand_w, next_id, o.min_id_px)
+    level, weight = levels_from_slope(b, P)
+    out = cur.replace(ids=ids, u=u_new, level=level, level_weight=weight)
+    if not o.chain_touching:  # (chain_touching drops them where it joins)
+        # Healed strands that overlapped at their ends turn back there by a fraction of a pixel.
+        out = drop_hairpins(out, o.join_angle_deg, o.join_tol_px)
+    return out, next_id
+
+
+def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray,
+          w: np.ndarray, o: TrackingOptions):
+    """u along the strokes `cur` fitted to the votes carried from `prev`: vote k lands on stroke
+    st[k] at arc length s[k] (px) with u[k] (periods), carried id vid[k] and weight w[k]. Per
+    stroke the votes of its primary id (most weight) set the fit, those of other ids join it
+    shifted by whole periods; u is piecewise linear (knots every o.knot_spacing_px, inserted as
+    points) or linear, outliers (o.outlier_px) dropped and the fit redone. Returns (cur with the
+    knots inserted, u at its points, the slope du/ds per stroke, and the vote groups (stroke,
+    id, inlier weight) that assign_ids takes)."""
+    P = cur.period_px
+    S = len(cur)
+    L = cur.lengths
     # Vote groups: (stroke, carried id).
     if len(st):
         M = int(vid.max()) + 1
@@ -215,10 +237,4 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
         b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
     else:
         u_new = a[sop] + b[sop] * cur.arc_length
-    ids, next_id = assign_ids(S, cand_s, cand_i, cand_w, next_id, o.min_id_px)
-    level, weight = levels_from_slope(b, P)
-    out = cur.replace(ids=ids, u=u_new, level=level, level_weight=weight)
-    if not o.chain_touching:  # (chain_touching drops them where it joins)
-        # Healed strands that overlapped at their ends turn back there by a fraction of a pixel.
-        out = drop_hairpins(out, o.join_angle_deg, o.join_tol_px)
-    return out, next_id
+    return cur, u_new, b, (cand_s, cand_i, cand_w)

@@ -8,7 +8,7 @@ import numpy as np
 import orjson
 
 from strokekit.camera.view import Camera
-from strokekit.model import KIND_INDEX, KINDS, N_KINDS, Strokes
+from strokekit.model import KIND_INDEX, KINDS, N_KINDS, BrushPaths, Strokes
 
 
 def round_list(x: np.ndarray, ndigits: int) -> list[float]:
@@ -36,11 +36,17 @@ _KIND_BYTES = [k.encode() for k in KINDS]
 _NP = orjson.OPT_SERIALIZE_NUMPY
 
 
-def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra: dict | None = None) -> bytes:
+def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra: dict | None = None,
+                 paths: BrushPaths | None = None) -> bytes:
     """JSON bytes: frame, size, camera and every stroke with points (px, 4 decimals), u, surface
     (world), face, length_px, self-similar level and weight. Deterministic. Hidden-line runs
     (`extra` holds "occlusion", the range of levels drawn; or a stroke is hidden) give each stroke
     its "occlusion" level after its kind (0: visible; "level" is the texture octave).
+
+    `paths` (the frame's brush paths; `strokes` is then paths.strokes): every stroke also lists
+    the line pieces it covers, `"covers": [[line id, s0, s1, drawn], ...]` (arc lengths along the
+    line in px, 4 decimals; drawn 1 where the path draws the piece, 0 where the piece runs beside
+    it), and the exact lines follow the strokes as `"lines"`, in the strokes' format.
 
     The bytes of orjson.dumps of the document (see _strokes_json_nested), built without a numpy
     view and an orjson array call per stroke and field (the costly part): orjson writes each
@@ -50,30 +56,64 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
            "camera": strokes.camera.to_json() if strokes.camera is not None else None,
            "period_px": strokes.period_px}
     if extra:
-        if "strokes" in extra:  # the key would sit where extra puts it
-            return _strokes_json_nested(strokes, width, height, frame, extra=extra)
+        if "strokes" in extra or (paths is not None and "lines" in extra):  # the key would sit where extra puts it
+            return _strokes_json_nested(strokes, width, height, frame, extra=extra, paths=paths)
         doc.update(extra)
     doc["strokes"] = []
     head = orjson.dumps(doc, option=_NP)
-    if len(strokes) == 0:
-        return head + b"\n"
-    cuts = _stroke_cuts(strokes)
-    if cuts is None:  # unusual arrays (empty strokes, shapes that do not match): the plain way
-        return _strokes_json_nested(strokes, width, height, frame, extra=extra)
-    n = len(strokes)
-    codes = strokes.kind.tolist()
-    kinds = [_KIND_BYTES[k % N_KINDS] for k in codes]
-    lead, template = [strokes.ids.tolist(), kinds], _STROKE
-    if _with_occlusion(strokes, extra):
-        lead, template = lead + [[k // N_KINDS for k in codes]], _STROKE_OCCLUSION
-    args = tuple(chain.from_iterable(zip(*lead, *cuts, _number_texts(strokes.lengths, 4, n),
-                                         _number_texts(strokes.level, 6, n), _number_texts(strokes.level_weight, 6, n))))
-    return b"".join((head[:-2], b",".join([template] * n) % args, b"]}\n"))
+    covers = _cover_texts(paths) if paths is not None else None
+    body = _strokes_body(strokes, covers, _with_occlusion(strokes, extra))
+    if body is None:  # unusual arrays (empty strokes, shapes that do not match): the plain way
+        return _strokes_json_nested(strokes, width, height, frame, extra=extra, paths=paths)
+    if paths is None:
+        return b"".join((head[:-2], body, b"]}\n")) if len(strokes) else head + b"\n"
+    lines = _strokes_body(paths.lines, None, _with_occlusion(paths.lines, extra))
+    if lines is None:
+        return _strokes_json_nested(strokes, width, height, frame, extra=extra, paths=paths)
+    return b"".join((head[:-2], body, b'],"lines":[', lines, b"]}\n"))
 
 
 def _with_occlusion(strokes: Strokes, extra: dict | None) -> bool:
     """Whether the strokes get their "occlusion" level: a hidden-line run, or hidden strokes."""
     return bool(extra and "occlusion" in extra) or bool(len(strokes.kind) and strokes.kind.max() >= N_KINDS)
+
+
+def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion: bool = False) -> bytes | None:
+    """The text between the brackets of the strokes array (b"" for no stroke); None where the fast
+    way does not apply (see _stroke_cuts). `occlusion`: each stroke gets its level."""
+    n = len(strokes)
+    if n == 0:
+        return b""
+    cuts = _stroke_cuts(strokes)
+    if cuts is None:
+        return None
+    codes = strokes.kind.tolist()
+    cols = [strokes.ids.tolist(), [_KIND_BYTES[k % N_KINDS] for k in codes]]
+    template = _STROKE
+    if occlusion:
+        cols.append([k // N_KINDS for k in codes])
+        template = _STROKE_OCCLUSION
+    cols += [*cuts, _number_texts(strokes.lengths, 4, n), _number_texts(strokes.level, 6, n),
+             _number_texts(strokes.level_weight, 6, n)]
+    if covers is not None:
+        cols.append(covers)
+        template = template[:-1] + b',"covers":[%s]}'
+    return b",".join([template] * n) % tuple(chain.from_iterable(zip(*cols)))
+
+
+def _covers_lists(paths: BrushPaths) -> list[list]:
+    """Per path, its covers as [[line id, s0, s1, drawn], ...] (s0, s1 rounded to 4 decimals)."""
+    line_ids = paths.lines.ids[paths.cover_line].tolist() if len(paths.cover_line) else []
+    s0, s1 = round_list(paths.cover_s0, 4), round_list(paths.cover_s1, 4)
+    drawn = paths.cover_drawn.astype(int).tolist()
+    rows = [[i, a, b, d] for i, a, b, d in zip(line_ids, s0, s1, drawn)]
+    off = paths.cover_offsets.tolist()
+    return [rows[a:b] for a, b in zip(off[:-1], off[1:])]
+
+
+def _cover_texts(paths: BrushPaths) -> list[bytes]:
+    """Per path, the JSON text between the brackets of its covers (orjson's, as the nested document has)."""
+    return [orjson.dumps(c)[1:-1] for c in _covers_lists(paths)]
 
 
 def _number_texts(x: np.ndarray, ndigits: int, n: int) -> list[bytes]:
@@ -113,35 +153,45 @@ def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
     return out
 
 
-def _strokes_json_nested(strokes: Strokes, width: int, height: int, frame: int, *,
-                         extra: dict | None = None) -> bytes:
-    """strokes_json by orjson.dumps of the nested document (a numpy view per stroke and field)."""
+def _stroke_dicts(strokes: Strokes, occlusion: bool = False) -> list[dict]:
     pts = np.round(strokes.points, 4) + 0.0
     u = np.round(strokes.u, 5) + 0.0
     surface, face = strokes.surface, strokes.face
     off = strokes.offsets.tolist()
     lengths = round_list(strokes.lengths, 4)
     level, weight = round_list(strokes.level, 6), round_list(strokes.level_weight, 6)
-    occ = _with_occlusion(strokes, extra)
-    out = [{
-        "id": i, "kind": KINDS[k % N_KINDS], **({"occlusion": k // N_KINDS} if occ else {}),
+    return [{
+        "id": i, "kind": KINDS[k % N_KINDS], **({"occlusion": k // N_KINDS} if occlusion else {}),
         "points": pts[a:b], "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
         "length_px": ln, "level": lv, "level_weight": w,
     } for i, k, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), off[:-1], off[1:],
                                        lengths, level, weight)]
+
+
+def _strokes_json_nested(strokes: Strokes, width: int, height: int, frame: int, *,
+                         extra: dict | None = None, paths: BrushPaths | None = None) -> bytes:
+    """strokes_json by orjson.dumps of the nested document (a numpy view per stroke and field)."""
+    out = _stroke_dicts(strokes, _with_occlusion(strokes, extra))
+    if paths is not None:
+        for d, c in zip(out, _covers_lists(paths)):
+            d["covers"] = c
     doc = {"frame": int(frame), "width": int(width), "height": int(height),
            "camera": strokes.camera.to_json() if strokes.camera is not None else None,
            "period_px": strokes.period_px}
     if extra:
         doc.update(extra)
     doc["strokes"] = out
+    if paths is not None:
+        doc["lines"] = _stroke_dicts(paths.lines, _with_occlusion(paths.lines, extra))
     return orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY) + b"\n"
 
 
-def read_strokes_json(path) -> Strokes:
-    """Read a frame JSON back into Strokes (camera included)."""
+def read_strokes_json(path, which: str = "strokes") -> Strokes:
+    """Read a frame JSON back into Strokes (camera included): its `strokes` (what the SVG draws),
+    or with which="lines" the exact lines a brush-path frame keeps beside them (its strokes
+    when the file has no "lines": the strokes are the lines then)."""
     d = orjson.loads(open(path, "rb").read())
-    ss = d["strokes"]
+    ss = d.get(which, d["strokes"]) if which == "lines" else d[which]
     counts = [len(s["points"]) for s in ss]
     offsets = np.r_[0, np.cumsum(counts)].astype(np.int64)
 

@@ -1,0 +1,59 @@
+"""Options of the brush path stage (`PathOptions`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from strokekit.errors import UsageError
+from strokekit.tracking.options import TrackingOptions
+
+
+@dataclass(frozen=True)
+class PathOptions:
+    """Options of the brush paths. Pixel values are image pixels.
+
+    history: carry the paths from frame to frame (False: every frame's paths are made afresh,
+    ids 0..S-1, u = arc length / P: `--coherence none`).
+    sample_px: spacing of the line samples that carry the labels (which path each piece of line
+    belongs to); cuts between paths fall within half of it. reverse_px: spacing of the line
+    samples that look back for the nearest previous path sample (votes the other way).
+    cover_px: a piece of contour line running beside a path of higher rank within this many px
+    (tangents agreeing) is covered by that path, not drawn by a path of its own (the shingles of a
+    mesh contour share one path). With the default 2 px every line stays within 2 px of a path.
+    join_px: pieces of one path whose ends are within this many px are drawn as one stroke (the
+    bridge between them is drawn: beyond 2 px, only where all of it lies within 1 px of a line);
+    a piece no path claims joins a path, or another such piece, within new_join_px.
+    join_angle_deg: the most a path may turn where two pieces join.
+    min_run_px: along a line, a run of samples claimed by one path shorter than this is given
+    to its neighbours (labels do not flicker between two paths on a few samples).
+    merge_px: a path shorter than this (in this frame and the last) gives way: its pieces join
+    the path they touch like pieces no path claims (it merges; its id ends). Each merge costs M1
+    its length once; without merges every split leaves an id behind for good and the paths
+    crumble over a long sequence (0: never merge).
+    tracking: the correspondence of carried samples (search radius, tangent agreement, vote
+    spacing) and the fit of u (stretch, knots, outliers), as the Kalnins tracker has them."""
+
+    history: bool = True
+    sample_px: float = 1.0
+    reverse_px: float = 1.0
+    cover_px: float = 2.0
+    join_px: float = 6.0
+    new_join_px: float = 2.0
+    join_angle_deg: float = 90.0
+    min_run_px: float = 1.5
+    merge_px: float = 10.0
+    tracking: TrackingOptions = field(default_factory=TrackingOptions)
+
+    def __post_init__(self):
+        for name in ("sample_px", "reverse_px"):
+            v = getattr(self, name)
+            if not (v > 0 and math.isfinite(v)):
+                raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
+        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px"):
+            v = getattr(self, name)
+            if not (v >= 0 and math.isfinite(v)):
+                raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)
+        for name in ("join_angle_deg",):
+            if not 0 < getattr(self, name) <= 180:
+                raise UsageError(f"{name} must be in (0, 180] degrees, got {getattr(self, name)}", option=name)
