@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.lines.strokeops import CONTOUR_KINDS, cut_pieces, drop_hairpins, join_arrays, query_tree
-from strokekit.model import KINDS, BrushPaths, Strokes, row_norm
+from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths, rotate_closed
@@ -47,7 +47,16 @@ from strokekit.tracking.votes import _first_max_per_group, _u_trend, _unique_inv
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
 _CONTOUR = np.array([k in CONTOUR_KINDS for k in KINDS])
-_KIND_CLASS = np.where(_CONTOUR, -1, np.arange(len(KINDS)))
+
+
+def _kind_class(codes: np.ndarray) -> np.ndarray:
+    """The kind class of kind codes (kind + N_KINDS x occlusion level): one for the contour kinds
+    of a level, the code itself for every other kind; levels never share a class."""
+    codes = np.asarray(codes)
+    level = codes // N_KINDS
+    return np.where(_CONTOUR[codes % N_KINDS], -1 - level, codes)
+
+
 #: Pieces shorter than this left over between covered samples are not drawn (px).
 _MIN_PIECE_PX = 1.0
 #: A strand covers another only where their tangents agree within 26 degrees (|t.t'| >= 0.9):
@@ -89,8 +98,8 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     V = resample_strokes(prev, to.vote_spacing_px)
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
-    cls_v = _KIND_CLASS[prev.kind[V.stroke]]
-    cls_d = _KIND_CLASS[lines.kind[D.stroke]]
+    cls_v = _kind_class(prev.kind[V.stroke])
+    cls_d = _kind_class(lines.kind[D.stroke])
     step = max(1, int(round(o.reverse_px / o.sample_px)))
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
@@ -139,7 +148,7 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     if radius_px <= 0 or len(D) < 2:
         return out
     sk = kind[D.stroke]
-    contour = _CONTOUR[sk]
+    contour = _CONTOUR[sk % N_KINDS]
     if contour.sum() < 2:
         return out
     if tree is not None:
