@@ -29,7 +29,7 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.lines.features import silhouette_mask
-from strokekit.lines.visibility import _visible_runs_of, clip_segments
+from strokekit.lines.visibility import _visible_runs_of, clip_segments, clipped_on_screen
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
@@ -52,15 +52,7 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     limit = min(hi_level, MAX_OCCLUSION) + 1  # counting further changes nothing kept
     a, b = features.a, features.b
     near = camera.near_distance(scene.radius)
-    t0, t1 = clip_segments(a, b, camera, near)
-    idx = np.flatnonzero(t1 > t0 + 0.0)
-    a_i, b_i = np.take(a, idx, axis=0), np.take(b, idx, axis=0)
-    ab = b_i - a_i
-    A = a_i + t0[idx, None] * ab
-    B = a_i + t1[idx, None] * ab
-    pa, za = camera.project(A)
-    pb, zb = camera.project(B)
-    L = row_norm(pb - pa)
+    t0, t1, idx, ab, A, B, pa, za, pb, zb, L = clipped_on_screen(a, b, camera, near)
     n = len(idx)
     lift = None if features.lift is None else features.lift[idx]
     size = row_norm(ab)

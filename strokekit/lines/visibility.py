@@ -18,6 +18,23 @@ from strokekit.options import LineOptions
 from strokekit.scene.occluder import Occluder
 
 
+def clipped_on_screen(a: np.ndarray, b: np.ndarray, camera: Camera, near: float):
+    """World segments a -> b (N, 3) clipped to the view and projected: t0, t1 (N,) the clip
+    (clip_segments), idx (M,)
+    the segments with something left (a segment clipped to a single point still counts when it
+    is not degenerate in 3D), ab (M, 3) their world direction b - a, A, B (M, 3) the clipped
+    ends, pa, pb (M, 2) px and za, zb (M,) their projections and depths, L (M,) screen length px."""
+    t0, t1 = clip_segments(a, b, camera, near)
+    idx = np.flatnonzero(t1 > t0 + 0.0)
+    a_i, b_i = np.take(a, idx, axis=0), np.take(b, idx, axis=0)
+    ab = b_i - a_i
+    A = a_i + t0[idx, None] * ab
+    B = a_i + t1[idx, None] * ab
+    pa, za = camera.project(A)
+    pb, zb = camera.project(B)
+    return t0, t1, idx, ab, A, B, pa, za, pb, zb, row_norm(pb - pa)
+
+
 def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> tuple[np.ndarray, np.ndarray]:
     """Parametric clip of world segments a + t (b - a) against the near plane and the four image
     borders (Cyrus-Beck against the view frustum, seed 001 section 5). Returns (t0, t1), each (N,);
@@ -94,17 +111,7 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     if (not options.bisect_changes and features.lift is not None and not camera.is_ortho
             and occluder.backend == "open3d"):
         return _visible_runs_sampled(features, camera, occluder, options, near)
-    t0, t1 = clip_segments(a, b, camera, near)
-    keep = t1 > t0 + 0.0
-    # A segment clipped to a single point still counts when it is not degenerate in 3D.
-    idx = np.flatnonzero(keep)
-    a_i, b_i = np.take(a, idx, axis=0), np.take(b, idx, axis=0)
-    ab = b_i - a_i
-    A = a_i + t0[idx, None] * ab
-    B = a_i + t1[idx, None] * ab
-    pa, za = camera.project(A)
-    pb, zb = camera.project(B)
-    L = row_norm(pb - pa)
+    t0, t1, idx, ab, A, B, pa, za, pb, zb, L = clipped_on_screen(a, b, camera, near)
     n_int = np.maximum(1, np.ceil(L / options.sample_spacing_px).astype(np.int64))
     # Samples: n_int + 1 per segment, uniform in screen space; one, in the middle, for a segment
     # shorter than whole_edge_px (it is both its first and last sample: the segment becomes one

@@ -220,28 +220,17 @@ class Occluder:
             # clipped out of the drawing (clip_segments) and hides nothing either (a section view,
             # a camera placed inside the scene).
             _, _, fwd = camera.basis
-            # Along the projection rays (fwd but for the oblique projections), whose unit
-            # component along fwd makes `reach` the parameter that meets the near plane.
-            toward = np.broadcast_to(-camera.ray_dir, points.shape)
             reach = np.maximum((points - np.asarray(camera.eye, float)) @ fwd - camera.near_distance(self.radius), 0.0)
-            origins = points + np.minimum(eps, 0.5 * reach)[:, None] * toward
-            targets = points + reach[:, None] * toward
             if not reach.all():  # a point on the near plane itself: no segment, nothing can hide it
                 on = reach > 0
                 out = np.full(len(points), np.inf) if first_hit else np.ones(len(points), bool)
                 if on.any():
                     out[on] = self._visible_from(points[on], camera, eps[on], offset, first_hit)
                 return out
-        else:
-            eye = np.asarray(camera.eye, float)
-            d = eye - points
-            dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-            toward = d / np.where(dist > 0, dist, 1.0)[:, None]
-            origins = points + np.minimum(eps, 0.5 * dist)[:, None] * toward
-            # The segment is open at the eye too: an eye standing on a surface must not see that
-            # surface as an occluder of everything. Stop short by the float32 rounding scale there.
-            tail = np.minimum(np.maximum(eps, offset * np.linalg.norm(eye - self.origin)), 0.25 * dist)
-            targets = eye - tail[:, None] * toward
+        # The segment is open at the eye too (perspective): an eye standing on a surface must not
+        # see that surface as an occluder of everything; it stops short by the float32 rounding
+        # scale there.
+        origins, targets = self._segments(points, camera, eps, offset)
         if first_hit:
             t = self.segment_hits(origins, targets)
             return t * np.linalg.norm(targets - origins, axis=1)
