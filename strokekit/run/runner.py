@@ -19,10 +19,11 @@ from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
 from strokekit.model import Strokes
+from strokekit.raster.hits import warm_kernels
 from strokekit.raster.rays import check_raster_fits
 from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.report import _add_timings
-from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, RunWriteError, plan_stages
+from strokekit.run.spec import RASTER_STAGES, RunInterrupted, RunResult, RunSpec, RunWriteError, plan_stages
 from strokekit.run.tasks import _surface_depth, frame_task, write_task
 from strokekit.run.workers import Workers, _keep_renderer, make_executor
 from strokekit.scene.load import Scene, load_scene
@@ -45,13 +46,15 @@ def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, lo
 
 def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, *,
         workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
-        started_at: float | None = None) -> RunResult:
+        started_at: float | None = None, notice: Callable[[str], None] | None = None) -> RunResult:
     """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
     `workers`: make_executor(spec.workers, spec.scheduler, (spec.scene_path, spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
     `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
     load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
-    (the report's wall time counts from there: the pool start and the load are part of it).
+    (the report's wall time counts from there: the pool start and the load are part of it);
+    `notice(line)`: told when the run has to wait for something the user may wonder about (the
+    first compile of the raster kernels on a machine).
 
     The steps: check the request, start the workers, load and plan the stages, plan the resume
     (`plan_resume`), stream the frames through line work, tracking and writing (`FrameStream`),
@@ -79,6 +82,11 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
         except OSError as e:
             write_error = e
+        if write_error is None and spec.outputs.raster_options is not None:
+            # Compiled (a machine's first run) or loaded here, once, before any frame: the workers
+            # then load them from numba's disk cache instead of each compiling them.
+            seconds, _ = warm_kernels(notice)
+            stage[RASTER_STAGES["kernels"][0]].seconds += seconds
         if write_error is None:
             write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
     except KeyboardInterrupt:
@@ -140,7 +148,7 @@ def check_run(spec: RunSpec) -> None:
     spec.outputs.check_names(f for f, _ in spec.cameras)
     if spec.outputs.raster_options is not None:
         for w, h in sorted({(c.width, c.height) for _, c in spec.cameras}):
-            check_raster_fits(w, h, spec.outputs.raster_options.supersample)
+            check_raster_fits(w, h, spec.outputs.raster_options.supersample, spec.outputs.raster_options.fill)
 
 
 @dataclass

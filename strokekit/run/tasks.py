@@ -12,8 +12,9 @@ from strokekit.fileio import atomic_write_bytes
 from strokekit.model import Strokes
 from strokekit.options import LineOptions
 from strokekit.raster.bands import band_regions, render_raster
+from strokekit.raster.hits import thread_workspace
 from strokekit.raster.rays import surface_depth_at
-from strokekit.run.spec import OutputOptions
+from strokekit.run.spec import RASTER_STAGES, OutputOptions
 from strokekit.run.workers import _renderer
 from strokekit.scene.occluder import Occluder
 from strokekit.writers.gltf import glb_for_frame
@@ -66,10 +67,14 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
 
             t1 = time.perf_counter()
             stem = outputs.out_dir / outputs.stem(frame)
-            pngs, underlays = raster_outputs_with_bands_layer(r.scene, camera, r.occluder, outputs.raster_options)
+            pngs, underlays = raster_outputs_with_bands_layer(r.scene, camera, r.occluder, outputs.raster_options,
+                                                              lines.crease_angle_deg, timings, thread_workspace())
             for suffix, data in pngs.items():
                 files.append(_write(f"{stem}_{suffix}.png", data))
             timings["raster pass"] = time.perf_counter() - t1
+            for key, (name, _) in RASTER_STAGES.items():
+                if key in timings:
+                    timings[name] = timings.pop(key)
         res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
                "timings": timings, "underlays": underlays or None, "ray_tracer": r.occluder.backend}
         if write is not None and strokes is not None:
@@ -135,15 +140,28 @@ def _surface_depth(outputs: OutputOptions, scene_key: tuple | None, occluder=Non
     return surface_depth_at(occluder)
 
 
-def raster_outputs(scene, camera: Camera, occluder: Occluder, options) -> dict[str, bytes]:
+def raster_outputs(scene, camera: Camera, occluder: Occluder | None, options, crease_angle_deg: float = 60.0
+                   ) -> dict[str, bytes]:
     """{file suffix: PNG bytes} of one frame for RasterOptions (see strokekit.raster; write them
-    as frame_0001_<suffix>.png)."""
+    as frame_0001_<suffix>.png). `crease_angle_deg`: the line options' (smooth shading splits
+    normals there)."""
 
-    return png_files(render_raster(scene, camera, occluder, options).images())
+    return png_files(render_raster(scene, camera, occluder, options, crease_angle_deg).images())
 
 
-def raster_outputs_with_bands_layer(scene, camera: Camera, occluder: Occluder, options) -> tuple[dict[str, bytes], list]:
+def raster_outputs_with_bands_layer(scene, camera: Camera, occluder: Occluder | None, options,
+                                    crease_angle_deg: float = 60.0, timings: dict | None = None,
+                                    work=None) -> tuple[dict[str, bytes], list]:
     """(PNG outputs, the SVG text of the 'bands' layer in a list, [] when options.band_polygons is
-    off): pass it as svg_document(..., underlays=...) so the bands sit under the line layers."""
-    frame = render_raster(scene, camera, occluder, options)
-    return png_files(frame.images()), ([bands_layer(band_regions(frame))] if options.band_polygons else [])
+    off): pass it as svg_document(..., underlays=...) so the bands sit under the line layers.
+    `timings` gets the raster stages' seconds (render_raster's, 'images', 'png'); `work`: the
+    z-buffer workspace (raster.hits.thread_workspace()) whose buffers this frame reuses."""
+    frame = render_raster(scene, camera, occluder, options, crease_angle_deg, work=work, timings=timings)
+    t0 = time.perf_counter()
+    images = frame.images()
+    t1 = time.perf_counter()
+    pngs = png_files(images)
+    if timings is not None:
+        timings["images"] = timings.get("images", 0.0) + (t1 - t0)
+        timings["png"] = timings.get("png", 0.0) + (time.perf_counter() - t1)
+    return pngs, ([bands_layer(band_regions(frame))] if options.band_polygons else [])
