@@ -126,7 +126,7 @@ def cli_bars(repeats: int, frames: int) -> None:
     res = defaultdict(list)
     st_with, st_without = defaultdict(list), defaultdict(list)
     with tempfile.TemporaryDirectory() as tmp:
-        _render(base[:3] + ["1", "--size", "64x64", "--bands", "3"], f"{tmp}/warm")  # kernels and scene cache
+        _render(base[:2] + ["1", "--size", "64x64", "--bands", "3"], f"{tmp}/warm")  # kernels and scene cache
         for _ in range(repeats):
             w, s = _render(base, f"{tmp}/a")
             res["lines"].append(w)

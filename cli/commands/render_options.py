@@ -172,12 +172,18 @@ def _floats(text: str, what: str, n: int | None = None) -> tuple[float, ...]:
     return vals
 
 
+def wants_raster(extra: dict) -> bool:
+    """Whether any raster output is asked for (--bands, --masks, --fill, --objectid, --depth,
+    --band-polygons)."""
+    return any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth",
+                                      "band_polygons"))
+
+
 def raster_options_from(extra: dict, quality: str):
     """RasterOptions when any raster output is asked for (--bands, --masks, --fill, --objectid,
     --depth, --band-polygons), else None: lines-only runs do no raster pass at all. (Smooth
     shading splits normals at the line options' --crease-angle: the run passes it.)"""
-    wanted = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
-    if not wanted:
+    if not wants_raster(extra):
         return None
     k_default = QUALITY_PRESETS[quality]["supersample"]
     r_default = QUALITY_PRESETS[quality]["edge_supersample"]

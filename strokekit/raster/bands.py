@@ -30,7 +30,7 @@ from strokekit.camera.view import Camera
 from strokekit.colour import srgb_encode
 from strokekit.errors import UsageError
 from strokekit.model import BandRegion
-from strokekit.raster.fill import fill_coverage
+from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
 from strokekit.raster.hits import RayHits, ZBufferHits, compiled, scene_faces32
 from strokekit.raster.rays import RasterHits
 from strokekit.scene.load import Scene
@@ -418,6 +418,7 @@ class RasterFrame:
     shading: FaceShading
     keys_ss: np.ndarray
     mixed: MixedPixels | None = None
+    source: object = None  # the frame's raster.hits sample source (more samples on demand: the fill)
 
     @property
     def n_bands(self) -> int:
@@ -540,9 +541,16 @@ class RasterFrame:
 
     def fill_image(self) -> np.ndarray:
         """(H, W) uint8 grey: seed 003 marks per band (0 ink, 255 paper), anti-aliased (see
-        raster.fill.fill_coverage)."""
+        raster.fill.fill_coverage): at least FILL_SUPERSAMPLE x FILL_SUPERSAMPLE samples a pixel
+        (a grid of its own when the frame's is coarser), the mixed pixels' R x R samples."""
         o = self.options
-        ink = fill_coverage(self.scene, self.camera, self.hits, self.labels_ss, self.n_bands, o.fill_pattern,
+        h = self.hits
+        if self.K >= FILL_SUPERSAMPLE or self.source is None:
+            face, bary, depth, labels = h.face, h.bary, h.depth, self.labels_ss
+        else:
+            face, bary, depth = self.source.grid(FILL_SUPERSAMPLE, own=True)
+            labels, _ = self.shading.labels(face, bary)
+        ink = fill_coverage(self.scene, self.camera, face, bary, depth, labels, self.n_bands, o.fill_pattern,
                             o.fill_period_px, self.mixed)
         return np.round(255.0 * (1.0 - ink)).astype(np.uint8)
 
@@ -683,7 +691,7 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
     shading = face_shading(scene, camera, options, light, crease_angle_deg, vnormals)
     labels_ss, keys_ss = shading.labels(face, bary)
     frame = RasterFrame(scene=scene, camera=camera, options=options, hits=hits, labels_ss=labels_ss, light=light,
-                        shading=shading, keys_ss=keys_ss)
+                        shading=shading, keys_ss=keys_ss, source=src)
     R = int(options.edge_supersample)
     t3 = None
     mixed = None

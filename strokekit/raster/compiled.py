@@ -89,6 +89,11 @@ def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step
         if not (max(xa, xb, xc) >= 0 and min(xa, xb, xc) < W and max(ya, yb, yc) >= 0 and min(ya, yb, yc) < H):
             continue
         twice_area = abs((xb - xa) * (yc - ya) - (yb - ya) * (xc - xa))
+        # inradius = 2 area / perimeter < thr; the perimeter is at most the edges' |dx| + |dy|
+        # (a test without square roots first: most faces are not thin)
+        if not (twice_area < thr * (abs(xb - xa) + abs(yb - ya) + abs(xc - xb) + abs(yc - yb) + abs(xa - xc)
+                                    + abs(ya - yc))):
+            continue
         perim = math.hypot(xb - xa, yb - ya) + math.hypot(xc - xb, yc - yb) + math.hypot(xa - xc, ya - yc)
         if not (twice_area < perim * thr):
             continue

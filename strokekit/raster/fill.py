@@ -193,12 +193,16 @@ def equalized_field(scene: Scene, camera, face: np.ndarray, bary: np.ndarray, de
 def _soft_ink(e: np.ndarray, obj: np.ndarray, dark: np.ndarray) -> np.ndarray:
     """Ink share of each sample cell of grids (..., rows, cols): e the equalized field (NaN:
     background), obj the object of each sample, dark the darkness of its band. The threshold
-    e < dark is smoothed over the change of e across one cell (the larger one-sided difference
-    to a neighbour sample of the same object, along rows plus along columns, as a shader's
-    fwidth): a cell the mark's edge crosses gets the share of it the mark covers, about, instead
-    of all or nothing. A cell with no neighbour of its object is thresholded as it is."""
+    e < dark is smoothed over the change of e across one cell, |grad e| estimated as the hypot
+    of the larger one-sided differences to the neighbour samples of the same object along rows
+    and along columns (a shader's fwidth): a cell the mark's edge crosses gets about the share of
+    it the mark covers instead of all or nothing. A cell with no neighbour of its object is
+    thresholded as it is. (Measured against 8 x 8 binary samples box-filtered, on a hatched
+    sphere: with 2 x 2 samples a pixel, mean error 6.9 grey levels, against 11.7 for the 2 x 2
+    binary marks strokekit wrote before; at 1 sample a pixel the differences alias the finest
+    octave, 14.4, which is why the fill samples 2 x 2.)"""
     ok = np.isfinite(e)
-    w = np.zeros(e.shape)
+    w2 = np.zeros(e.shape)
     for axis in (-1, -2):
         n = e.shape[axis]
         if n < 2:
@@ -212,32 +216,37 @@ def _soft_ink(e: np.ndarray, obj: np.ndarray, dark: np.ndarray) -> np.ndarray:
         g = np.zeros(e.shape)
         g[a] = d
         g[b] = np.maximum(g[b], d)
-        w += g
+        w2 += g * g
+    w = np.sqrt(w2)
     with np.errstate(divide="ignore", invalid="ignore"):
         soft = np.where(w > 1e-9, np.clip(0.5 + (dark - e) / w, 0.0, 1.0), (e < dark).astype(np.float64))
     soft[~ok] = 0.0
     return soft
 
 
-def fill_coverage(scene: Scene, camera, hits: RasterHits, labels_ss: np.ndarray, n_bands: int, pattern: str,
-                  period_px: float, mixed=None) -> np.ndarray:
+#: Samples a pixel side the fill draws at least (see _soft_ink).
+FILL_SUPERSAMPLE = 2
+
+
+def fill_coverage(scene: Scene, camera, face: np.ndarray, bary: np.ndarray, depth: np.ndarray, labels: np.ndarray,
+                  n_bands: int, pattern: str, period_px: float, mixed=None) -> np.ndarray:
     """(H, W) float64 share of each output pixel inked by the fill (seed 003 marks per band),
-    anti-aliased: every sample cell of the K x K grid gets its ink share (`_soft_ink`), a pixel
-    the mean of its cells; the mixed pixels of the raster pass (`bands.MixedPixels`: band,
-    material or object edges) the mean of their own R x R samples' shares, like the bands."""
-    K = hits.supersample
-    face = hits.face
-    hit = labels_ss > 0
+    anti-aliased: from a K x K grid of samples a pixel (face (HK, WK) int32, bary (HK, WK, 2),
+    depth (HK, WK), labels (HK, WK) uint8; K >= FILL_SUPERSAMPLE), every sample cell gets its ink
+    share (`_soft_ink`), a pixel the mean of its cells; the mixed pixels of the raster pass
+    (`bands.MixedPixels`: band, material or object edges, R x R samples) the mean of their own
+    samples' shares, like the bands."""
+    H, W = camera.height, camera.width
+    K = face.shape[0] // H
+    hit = labels > 0
     e = np.full(face.shape, np.nan)
     sel = np.flatnonzero(hit)
-    fsel = face.reshape(-1)[sel]
-    e.reshape(-1)[sel] = equalized_field(scene, camera, fsel, hits.bary.reshape(-1, 2)[sel],
-                                         hits.depth.reshape(-1)[sel], period_px, pattern)
+    e.reshape(-1)[sel] = equalized_field(scene, camera, face.reshape(-1)[sel], bary.reshape(-1, 2)[sel],
+                                         depth.reshape(-1)[sel], period_px, pattern)
     obj = np.where(face >= 0, np.take(scene.face_object, face, mode="wrap"), -1)
-    soft = _soft_ink(e, obj, band_darkness(labels_ss, n_bands))
-    H, W = face.shape[0] // K, face.shape[1] // K
+    soft = _soft_ink(e, obj, band_darkness(labels, n_bands))
     ink = soft.reshape(H, K, W, K).mean(axis=(1, 3)) if K > 1 else soft
-    if mixed is not None and len(mixed.pixels):
+    if mixed is not None and len(mixed.pixels) and mixed.samples > K * K:
         P, S = mixed.face.shape
         side = int(round(np.sqrt(S)))
         mf, ml = mixed.face.reshape(-1), mixed.labels.reshape(-1)

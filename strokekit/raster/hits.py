@@ -125,13 +125,18 @@ def _compile_needed(modules) -> bool | None:
         return None
 
 
-def warm_kernels(notify: Callable[[str], None] | None = None) -> tuple[float, bool]:
+_ASK = object()
+
+
+def warm_kernels(notify: Callable[[str], None] | None = None, *, compiles=_ASK) -> tuple[float, bool]:
     """Compile (the first run on a machine) or load (from numba's disk cache) the kernels the
     raster pass uses, before any frame: (seconds, compiled). `notify(line)` is told once, before
-    the wait, when they compile. Workers started afterwards load them from the cache."""
+    the wait, when they compile. Workers started afterwards load them from the cache.
+    (`compiles`: what _compile_needed said, when the caller has asked it already.)"""
     t = time.perf_counter()
     mods = _modules()
-    compiles = _compile_needed(mods)
+    if compiles is _ASK:
+        compiles = _compile_needed(mods)
     msg = f"compiling the raster kernels (first run on this machine, about {COMPILE_SECONDS} s)"
     timer = None
     if notify is not None:
@@ -148,6 +153,44 @@ def warm_kernels(notify: Callable[[str], None] | None = None) -> tuple[float, bo
         if timer is not None:
             timer.cancel()
     return time.perf_counter() - t, bool(compiles)
+
+
+class KernelWarmup:
+    """`warm_kernels` in a background thread, started as early as possible: loading the kernels
+    from the cache (numba's import and first-use set-up: 0.6 to 1 s a process) overlaps the
+    process's other work instead of delaying its first frame (a raster call meanwhile waits for
+    it on numba's compiler lock). `compiles()` says, once known, whether they are being compiled
+    (a machine's first run: then the caller waits for `join()` before any worker starts a frame,
+    so that they load the kernels from the cache instead of each compiling them)."""
+
+    def __init__(self, notify: Callable[[str], None] | None = None):
+        self._notify = notify
+        self._decided = threading.Event()
+        self._compiles: bool | None = None
+        self.seconds = 0.0
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="strokekit-raster-kernels", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        t = time.perf_counter()
+        try:
+            self._compiles = _compile_needed(_modules())
+            self._decided.set()
+            warm_kernels(self._notify, compiles=self._compiles)
+        except BaseException as e:  # said by the frames that need the kernels
+            self.error = e
+        finally:
+            self._decided.set()
+            self.seconds = time.perf_counter() - t
+
+    def compiles(self) -> bool | None:
+        self._decided.wait()
+        return self._compiles
+
+    def join(self) -> float:
+        self._thread.join()
+        return self.seconds
 
 
 # --- sample sources ------------------------------------------------------------------------------
@@ -190,8 +233,10 @@ class ZBufferHits:
         pixels where a perspective z <= 0)."""
         return self.proj.xy, self.proj.cam[:, 2]
 
-    def grid(self, K: int):
-        h = self._zb.rasterize_grid(self.proj, K, work=self.work)
+    def grid(self, K: int, own: bool = False):
+        """(face, bary, depth) of the K x K grid; `own`: in new arrays, not the workspace's (a
+        second grid of the frame, which must not take the first one's buffers)."""
+        h = self._zb.rasterize_grid(self.proj, K, work=None if own else self.work)
         return h.face, h.bary, h.depth
 
     def pixels(self, pixels: np.ndarray, R: int):
@@ -211,7 +256,7 @@ class RayHits:
     def vertices_px(self) -> tuple[np.ndarray, np.ndarray]:
         return self.camera.project(self.scene.vertices)
 
-    def grid(self, K: int):
+    def grid(self, K: int, own: bool = False):
         h = cast_pixels(self.camera, self.occluder, K)
         return h.face, h.bary, h.depth
 

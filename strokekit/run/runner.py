@@ -19,7 +19,7 @@ from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
 from strokekit.model import Strokes
-from strokekit.raster.hits import warm_kernels
+from strokekit.raster.hits import KernelWarmup
 from strokekit.raster.rays import check_raster_fits
 from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.report import _add_timings
@@ -70,8 +70,11 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     write_error: OSError | None = None
     # Workers start first: their imports and scene load overlap the main process's own load.
     own = workers is None
+    raster = spec.outputs.raster_options is not None
     if own:
         workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
+    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
+    kernels = KernelWarmup(notice) if raster else None
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
@@ -82,13 +85,14 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
         except OSError as e:
             write_error = e
-        if write_error is None and spec.outputs.raster_options is not None:
-            # Compiled (a machine's first run) or loaded here, once, before any frame: the workers
-            # then load them from numba's disk cache instead of each compiling them.
-            seconds, _ = warm_kernels(notice)
-            stage[RASTER_STAGES["kernels"][0]].seconds += seconds
+        if write_error is None and kernels is not None and kernels.compiles() is not False:
+            # Compiled here, once, before any frame: the workers then load them from numba's disk
+            # cache instead of each compiling them.
+            kernels.join()
         if write_error is None:
             write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
+        if kernels is not None:
+            stage[RASTER_STAGES["kernels"][0]].seconds += kernels.join()
     except KeyboardInterrupt:
         # Ctrl-C: the frames in progress are abandoned. The workers stop now (also the caller's:
         # their tasks belong to this run), then the temporary files of the writes they were in
