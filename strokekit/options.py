@@ -24,7 +24,7 @@ QUALITY_PRESETS: dict[str, dict] = {
               "edge_supersample": 0,
               "simplify_tol_px": 0.0, "doubled_px": 0.0, "merge_overlaps": False, "bisect_changes": False,
               "retest_front_hits": False},
-    "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 2, "edge_supersample": 4,
+    "default": {"sample_spacing_px": 4.0, "bisection_tol_px": 0.01, "supersample": 1, "edge_supersample": 4,
                 "simplify_tol_px": 0.0},
     "exact": {"sample_spacing_px": 0.25, "bisection_tol_px": 1e-3, "supersample": 4, "edge_supersample": 0,
               "simplify_tol_px": 0.0},

@@ -648,7 +648,7 @@ def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube,
     out = tmp_path / "o"
     code, _, err = run_cli(["render", cube, "--orbit", "1", "--size", "100000x100000", "--bands", "2", "--out", out],
                            capsys)
-    assert code == 2 and "the raster pass at 100000x100000 px, supersample 2, needs about" in err
+    assert code == 2 and "the raster pass at 100000x100000 px, supersample 1, needs about" in err
     assert len(err.strip().splitlines()) == 1 and not out.exists()
     code, _, err = run_cli(["render", cube, "--orbit", "1", "--size", "100000x100000", "--out", out, "-q"], capsys)
     assert code == 0 and (out / "frame_0001.svg").exists()

@@ -27,15 +27,15 @@ from ..common import is_interactive, say_warnings
 @click.option("--sweep", default=None,
               help="Comma-separated values of sample_spacing_px to sweep (default 0.5,1,2,4,8,16).")
 @click.option("--raster-frames", type=click.IntRange(0, MAX_PATH_FRAMES), default=2, show_default=True,
-              help="Frames for the raster section (IoU vs supersample 4); 0 skips it.")
+              help="Frames for the raster section (IoU vs Embree rays at supersample 4); 0 skips it.")
 @click.option("--plot", "plot_path", type=click.Path(), default=None,
               help="Write accuracy against time as a PNG (one curve per knob).")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as JSON instead of a table.")
 def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot_path, as_json):
     """Time every --quality preset and a sweep of the sample spacing on SCENE, with precision and
-    recall at 0.5/1/2 px against the `exact` preset, and the raster pass at supersample 1, 2, 4
-    and at render's default (2, band-edge pixels resampled 4 x 4) with its IoU against
-    supersample 4."""
+    recall at 0.5/1/2 px against the `exact` preset, and the raster pass (the z-buffer) at
+    supersample 1, 2, 4 and at render's default (1, edge pixels resampled 4 x 4), and that default
+    cast with Embree rays, with their IoU against Embree rays at supersample 4."""
     values = DEFAULT_SWEEP
     if sweep:
         try:

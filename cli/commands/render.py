@@ -180,8 +180,9 @@ def command(scene, **o):
                               width=width, height=height, up_axis=o["up"])
         spec = _run_spec(scene, o, lines, path, frames, workers)
         try:
+            notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
             res = _run_with_progress(spec, o["quiet"], dict(workers=pool, scene=s, load_seconds=load_seconds,
-                                                            started_at=t_start))
+                                                            started_at=t_start, notice=notice))
         except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
             res = e.result
         except RunWriteError as e:  # a file could not be written: the run stopped, frames whole or gone
@@ -274,7 +275,7 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
                             decimals=o["decimals"], stroke_width_px=o["stroke_width"],
                             gltf=gltf_options is not None, gltf_sequence=bool(o.get("gltf_sequence")),
                             gltf_options=gltf_options,
-                            raster_options=raster_options_from(o, o["quality"], lines.crease_angle_deg),
+                            raster_options=raster_options_from(o, o["quality"]),
                             hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"],
                             exr=exr_options_from(o, o["stroke_width"]), lines_png=o["lines_png"])
     given = click.get_current_context().get_parameter_source("coherence_method") == click.core.ParameterSource.COMMANDLINE
@@ -295,10 +296,13 @@ def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
         return
     if o["explain"]:
         click.echo("stages (time summed over all frames and processes):")
+        n = max(len(res.frames_ok), 1)
         for st in res.stages:
             mark = "ran " if st.ran else "skip"
-            t = f"{st.seconds * 1e3:9.1f} ms" if st.ran and not st.name.startswith(" ") else " " * 12
-            click.echo(f"  [{mark}] {st.name:<26} {t}  {st.why}")
+            timed = st.ran and (st.seconds > 0 or not st.name.startswith(" "))
+            t = f"{st.seconds * 1e3:9.1f} ms" if timed else " " * 12
+            per = f"{st.seconds * 1e3 / n:7.1f} ms/frame" if timed and st.name.strip() not in ONCE_A_RUN else " " * 16
+            click.echo(f"  [{mark}] {st.name:<26} {t} {per}  {st.why}")
     if res.failures:
         # One line, even with --quiet (it explains the exit code): the first error, then what
         # became of the run; every error is in the --report.
@@ -318,6 +322,10 @@ def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
         if res.frames_skipped:
             msg += f" ({len(res.frames_skipped)} already there, skipped)"
         click.echo(msg, err=True)
+
+
+#: Stages --explain shows no time a frame for: they run once a run (or once per process).
+ONCE_A_RUN = ("load scene + BVH", "raster kernels")
 
 
 def _run_with_progress(spec: RunSpec, quiet: bool, run_args: dict):

@@ -65,9 +65,10 @@ _RASTER = [
     click.option("--light-space", type=click.Choice(["camera", "world"]), default="camera", show_default=True,
                  help="--light is given in camera space (moves with the view) or in world space."),
     click.option("--supersample", type=click.Choice(["1", "2", "4"]), default=None,
-                 help="Rays per pixel side for the masks (default from --quality: 1 draft, 2 default, 4 exact)."),
+                 help="Samples per pixel side everywhere (default from --quality: 1 draft, 1 default, 4 exact)."),
     click.option("--edge-supersample", type=click.IntRange(min=0, max=8), default=None,
-                 help="Resample only band edge pixels R x R (default from --quality: 0 draft, 4 default, 0 exact)."),
+                 help="Resample only the pixels at band, material or object edges R x R (default from --quality: "
+                      "0 draft, 4 default, 0 exact)."),
     click.option("--masks", is_flag=True, help="Also one anti-aliased mask PNG per band (maskN/frame_NNNN.png)."),
     click.option("--no-shade", is_flag=True, help="No shade/ PNGs (the ramp colours)."),
     click.option("--objectid", is_flag=True, help="Also objectid/frame_NNNN.png (8-bit object ids, 0 background)."),
@@ -208,11 +209,18 @@ def _floats(text: str, what: str, n: int | None = None) -> tuple[float, ...]:
     return vals
 
 
-def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.0):
+def wants_raster(extra: dict) -> bool:
+    """Whether any raster output is asked for (--bands, --masks, --fill, --objectid, --depth,
+    --band-polygons)."""
+    return any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth",
+                                      "band_polygons"))
+
+
+def raster_options_from(extra: dict, quality: str):
     """RasterOptions when any raster output is asked for (--bands, --masks, --fill, --objectid,
-    --depth, --band-polygons), else None: lines-only runs do no raster pass at all.
-    `crease_angle_deg` (the line options' --crease-angle) is where smooth shading splits normals."""
-    pngs = any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth", "band_polygons"))
+    --depth, --band-polygons, or --exr), else None: lines-only runs do no raster pass at all.
+    (Smooth shading splits normals at the line options' --crease-angle: the run passes it.)"""
+    pngs = wants_raster(extra)
     if not (pngs or extra.get("exr")):
         return None
     k_default = QUALITY_PRESETS[quality]["supersample"]
@@ -222,14 +230,20 @@ def raster_options_from(extra: dict, quality: str, crease_angle_deg: float = 60.
         raise UsageError(f"--bands {extra['bands']} but --band-thresholds gives {len(thresholds) + 1} bands "
                          "(N thresholds make N + 1 bands; give one of the two)")
     bands = extra.get("bands") or (len(thresholds) + 1 if thresholds else 3)
+    K = int(extra["supersample"] or k_default)
+    R = extra.get("edge_supersample")
+    if R is None:
+        R = r_default if r_default > K else 0  # (--supersample 4 on the default preset: uniform 4 x 4)
+    elif R and R <= K:
+        raise UsageError(f"--edge-supersample {R} must be above --supersample {K} (or 0, off): the edge pixels "
+                         "would get no more samples than the others")
     return RasterOptions(bands=bands, thresholds=thresholds, shading=extra["shading"],
                          light=_floats(extra["light"], "--light", 3), light_space=extra["light_space"],
-                         supersample=int(extra["supersample"] or k_default),
-                         edge_supersample=r_default if extra.get("edge_supersample") is None else extra["edge_supersample"],
+                         supersample=K, edge_supersample=R,
                          masks=extra["masks"], shade=not extra["no_shade"], objectid=extra["objectid"],
                          depth=extra["depth"], fill=extra["fill"], fill_pattern=extra["fill_pattern"],
                          fill_period_px=extra["fill_period"], gooch=extra["gooch"],
-                         band_polygons=extra["band_polygons"], crease_angle_deg=crease_angle_deg, pngs=pngs)
+                         band_polygons=extra["band_polygons"], pngs=pngs)
 
 
 def exr_options_from(extra: dict, stroke_width_px: float):

@@ -6,6 +6,14 @@ thresholds the band of a sample is floor(max(0, n.l) N) (seed 002: floor(diffuse
 with n.l = 1 put in the top band. Lighting is two-sided: the normal is turned to face the viewer,
 so open meshes and inconsistent windings (common in glTF) are lit from the side we see.
 
+How a frame is sampled (`render_raster`): the z-buffer (`raster.hits`, numba kernels) gives the
+first surface at K x K samples per pixel (K = supersample; 1 by default), and each sample gets
+its label. Pixels whose samples, or the nearest samples of their neighbours, carry different
+labels, materials or objects, and pixels a face thinner than the sample spacing crosses, are
+resampled R x R (R = edge_supersample; 4 by default): the "mixed" pixels. Every other pixel is
+uniform: one label, one colour, one id. Images are built from the representative sample of each
+pixel plus the mixed pixels' samples, never from a supersampled image of colours.
+
 Entry points: `render_raster(scene, camera, occluder, options) -> RasterFrame`,
 `RasterFrame.images() -> {suffix: image}` and `band_regions(frame) -> [BandRegion]`.
 """
@@ -22,8 +30,9 @@ from strokekit.camera.view import Camera
 from strokekit.colour import srgb_encode
 from strokekit.errors import UsageError
 from strokekit.model import BandRegion
-from strokekit.raster.fill import fill_ink
-from strokekit.raster.rays import RasterHits, box_filter, cast_pixels, cast_samples  # noqa: F401 (the shortcut, re-exported)
+from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
+from strokekit.raster.hits import RayHits, ZBufferHits, compiled, scene_faces32
+from strokekit.raster.rays import RasterHits
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
 from strokekit.scene.tables import scene_cache, split_normals
@@ -42,25 +51,26 @@ class RasterOptions:
 
     bands: N; thresholds: explicit n.l thresholds (increasing, in (0, 1)), which override N with
     len(thresholds) + 1; shading 'flat' (face normals) or 'smooth' (corner normals interpolated
-    across each face, split at creases sharper than `crease_angle_deg` degrees like Blender's
-    auto smooth, `contours.split_normals`: a box's faces stay flat, a sphere shades smoothly);
-    light: direction toward the light, in camera space (x right, y up, z toward the viewer) or
-    world space; supersample K in {1, 2, 4}; masks: one anti-aliased PNG per band; shade: ramp
-    colours (RGBA); objectid, depth: compositing passes; fill: seed 003 hatching/dots/noise of
-    `fill_pattern` with a base period of `fill_period_px` output pixels; gooch: warm/cool ramps;
-    band_polygons: the bands as SVG polygons (see `band_polygons_svg`); edge_supersample R > K
-    (0 = off): output pixels that may hold a band edge are resampled on an R x R grid for the
-    coverages (masks, labels, alpha), so band edges get R x R quality for a fraction of the
-    rays: pixels whose K x K samples, or the nearest samples of their neighbours, disagree, and
-    pixels crossed by a triangle too thin for the K x K grid (slivers, trim, thin parts) where it
-    may show another band (see `_edge_coverage`)."""
+    across each face, split at creases sharper than the crease angle like Blender's auto smooth,
+    `scene.tables.split_normals`: a box's faces stay flat, a sphere shades smoothly; the angle is
+    the line options' crease angle, which `render_raster` takes as an argument); light: direction
+    toward the light, in camera space (x right, y up, z toward the viewer) or world space;
+    supersample K in {1, 2, 4}: samples per pixel side everywhere; masks: one anti-aliased PNG per
+    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: seed 003
+    hatching/dots/noise of `fill_pattern` with a base period of `fill_period_px` output pixels;
+    gooch: warm/cool ramps; band_polygons: the bands as SVG polygons (see `band_polygons_svg`);
+    edge_supersample R (0 = off; R <= K has no effect, the K x K grid is as fine): the pixels that may hold more than one label, material or
+    object are resampled on an R x R grid (masks, labels, alpha, colours), so edges get R x R
+    quality at a fraction of the cost: pixels whose K x K samples, or the nearest samples of
+    their neighbours, disagree, and pixels crossed by a triangle too thin for the K x K grid
+    (slivers, trim, thin parts) where it may show another label (see `_mixed_pixels`)."""
 
     bands: int = 3
     thresholds: tuple[float, ...] = ()
     shading: str = "smooth"
     light: tuple[float, float, float] = (-0.4, 0.6, 0.7)
     light_space: str = "camera"
-    supersample: int = 2
+    supersample: int = 1
     masks: bool = False
     shade: bool = True
     objectid: bool = False
@@ -71,8 +81,7 @@ class RasterOptions:
     gooch: bool = False
     band_polygons: bool = False
     pngs: bool = True  # write the PNG passes (off: the raster pass runs for the EXR alone)
-    edge_supersample: int = 0
-    crease_angle_deg: float = 60.0
+    edge_supersample: int = 4
 
     def __post_init__(self):
         th = tuple(float(t) for t in self.thresholds)
@@ -95,16 +104,18 @@ class RasterOptions:
                              + (" (its length is beyond float range)" if length == np.inf else ""))
         if int(self.supersample) not in (1, 2, 4):
             raise UsageError(f"supersample must be 1, 2 or 4, got {self.supersample}")
-        if int(self.edge_supersample) and (int(self.edge_supersample) not in (2, 4, 8)
-                                           or int(self.edge_supersample) <= int(self.supersample)):
-            raise UsageError(f"edge supersample must be 0 (off) or 2, 4, 8 above the supersample "
-                             f"{self.supersample}, got {self.edge_supersample}")
-        if not 0 < self.crease_angle_deg < 180:
-            raise UsageError(f"crease angle must be in (0, 180) degrees, got {self.crease_angle_deg}")
+        if int(self.edge_supersample) not in (0, 2, 4, 8):
+            raise UsageError(f"edge supersample must be 0 (off), 2, 4 or 8, got {self.edge_supersample}")
         if self.fill_pattern not in FILL_PATTERNS:
             raise UsageError(f"fill pattern must be one of {', '.join(FILL_PATTERNS)}, got {self.fill_pattern!r}")
         if not self.fill_period_px > 0:
             raise UsageError(f"fill period must be > 0 px, got {self.fill_period_px}")
+
+
+def check_crease_angle(crease_angle_deg: float) -> float:
+    if not 0 < crease_angle_deg < 180:
+        raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
+    return float(crease_angle_deg)
 
 
 # --- shading --------------------------------------------------------------------------------------
@@ -118,17 +129,15 @@ def light_direction(camera: Camera, options: RasterOptions) -> np.ndarray:
     return l / np.linalg.norm(l)
 
 
-def _facing_sign(scene: Scene, camera: Camera, fi: np.ndarray, ax: np.ndarray, ay: np.ndarray) -> np.ndarray:
-    """(M,) +1 where the hit face's winding normal faces the viewer, -1 where we see its back;
-    ax, ay (M,) the samples' camera-plane offsets (see raster.cast_samples)."""
-    right, up, fwd = camera.basis
+def back_facing(scene: Scene, camera: Camera) -> np.ndarray:
+    """(F,) bool: we see the back of the face (its winding normal points away from the viewer).
+    One answer per face: its corners lie in its plane, so n.(P - eye) is one number over it
+    (perspective), and a parallel camera's rays share one direction (camera.ray_dir: fwd but for
+    the oblique projections)."""
     nf = scene.face_normals
-    # n.d for d = fwd + x right + y up (perspective) or the rays' direction (parallel: fwd but for
-    # the oblique projections), from per-face dot products.
-    s = (nf @ (camera.ray_dir if camera.is_ortho else fwd))[fi]
-    if not camera.is_ortho:
-        s = s + ax * (nf @ right)[fi] + ay * (nf @ up)[fi]
-    return np.where(s > 0, -1.0, 1.0)
+    if camera.is_ortho:
+        return nf @ camera.ray_dir > 0
+    return scene.face_offsets - nf @ camera.eye_array > 0
 
 
 def corner_shading(scene: Scene, crease_angle_deg: float = 60.0, vnormals: np.ndarray | None = None
@@ -157,44 +166,6 @@ def _with_gram(corner: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.
     gram = np.stack([np.einsum("ij,ij->i", N[:, k], N[:, (k + 1) % 3]) for k in range(3)], axis=1)
     return corner, normals, gram
 
-
-def sample_n_dot_l(scene: Scene, camera: Camera, fi: np.ndarray, uv: np.ndarray, ax: np.ndarray, ay: np.ndarray,
-                   light: np.ndarray, shading: str = "flat", vnormals: np.ndarray | None = None,
-                   crease_angle_deg: float = 60.0) -> np.ndarray:
-    """(M,) two-sided n.l of M hit samples: faces fi (M,), barycentrics uv (M, 2), camera-plane
-    offsets ax, ay (M,).
-
-    flat: face normals; smooth: barycentric interpolation of the face's corner normals split at
-    creases sharper than `crease_angle_deg` (`corner_shading`; `vnormals` (V, 3) to interpolate
-    given vertex normals instead), renormalized. The smooth case works on per-corner scalars
-    (node n.l and the cached pairwise normal dot products), so no (M, 3) normal array is built."""
-    sign = _facing_sign(scene, camera, fi, ax, ay)
-    if shading == "flat":
-        d = (scene.face_normals @ light)[fi]
-    else:
-        corner, normals, gram = corner_shading(scene, crease_angle_deg, vnormals)
-        nl = normals @ light
-        la, lb, lc = (nl[corner[:, k]][fi] for k in range(3))
-        gab, gbc, gca = (gram[:, k][fi] for k in range(3))
-        uv = np.asarray(uv, np.float64)
-        wb, wc = uv[:, 0], uv[:, 1]
-        wa = 1.0 - wb - wc
-        # |wa na + wb nb + wc nc|^2 from the pairwise dot products.
-        norm2 = wa * wa + wb * wb + wc * wc + 2 * (wa * wb * gab + wb * wc * gbc + wc * wa * gca)
-        d = (wa * la + wb * lb + wc * lc) / np.sqrt(np.maximum(norm2, 1e-24))
-    # The geometric side decides two-sidedness, also for smooth normals.
-    return sign * d
-
-
-def hit_n_dot_l(scene: Scene, hits: RasterHits, light: np.ndarray, shading: str = "flat",
-                vnormals: np.ndarray | None = None, crease_angle_deg: float = 60.0) -> tuple[np.ndarray, np.ndarray]:
-    """(sel, ndl): flat indices of the hit samples (M,) and their two-sided n.l (M,) float64."""
-    face = hits.face.ravel()
-    sel = np.flatnonzero(face >= 0)
-    rows, cols = np.divmod(sel, hits.shape[1])
-    d = sample_n_dot_l(scene, hits.camera, face[sel], hits.bary.reshape(-1, 2)[sel], hits.ray_dir_x[cols],
-                       hits.ray_dir_y[rows], light, shading, vnormals, crease_angle_deg)
-    return sel, d
 
 
 def quantize_bands(ndl: np.ndarray, bands: int, thresholds: tuple[float, ...] = ()) -> np.ndarray:
@@ -235,38 +206,209 @@ def band_ramps(scene: Scene, bands: int, gooch: bool = False) -> np.ndarray:
     return np.clip(ramp, 0.0, 1.0)
 
 
-# --- supersampled labels -> output images ---------------------------------------------------------
-
-def _blocks(img: np.ndarray, k: int) -> np.ndarray:
-    """(H*k, W*k) -> (H, W, k*k) samples of each output pixel."""
-    HK, WK = img.shape
-    return img.reshape(HK // k, k, WK // k, k).transpose(0, 2, 1, 3).reshape(HK // k, WK // k, k * k)
 
 
-def label_coverage(labels_ss: np.ndarray, k: int, n_labels: int) -> np.ndarray:
-    """(H, W, n_labels) float32 fraction of each output pixel's samples carrying each label
-    (box filter of the supersampled labels)."""
-    H, W = labels_ss.shape[0] // k, labels_ss.shape[1] // k
-    counts = np.zeros((n_labels, H, W), np.uint8 if k * k < 256 else np.uint16)
-    # Sum the k*k strided sub-images into one contiguous plane per label.
-    for dy in range(k):
-        for dx in range(k):
-            sub = labels_ss[dy::k, dx::k]
-            for c in range(n_labels):
-                counts[c] += sub == c
-    return np.moveaxis(counts, 0, -1).astype(np.float32) * np.float32(1.0 / (k * k))
+# --- per-face tables of a frame -------------------------------------------------------------------
 
+#: Label table entry of a face whose samples are not all in one band: interpolate per sample.
+_PER_SAMPLE = 255
+_NO_COEF = np.zeros((0, 7))
+_NO_REGION = np.zeros(0, np.int32)
+
+
+@dataclass(frozen=True, eq=False)
+class FaceShading:
+    """What a frame's samples need of their faces, computed once per frame (F faces).
+
+    label (F + 1,) uint8: the band label of every sample on the face when they all have one
+    (flat shading, and smooth faces whose whole range of n.l falls in one band), _PER_SAMPLE where
+    it is found per sample; entry F is 0, the label of face -1 (background), so label[face] labels
+    a face array directly. lo, hi (F,) uint8: the lowest and highest label a sample on the face
+    can get; back (F,) bool: we see its back. coef (F, 7) float64 for smooth shading: the corner
+    normals' n.l (a, b, c), their pairwise dot products (ab, bc, ca) and the two-sided sign.
+    region (F,) int32: the face's (material, object) pair as an index; key = label + (N + 1)
+    region tells samples of another band, material or object apart (0: background)."""
+
+    label: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    back: np.ndarray
+    coef: np.ndarray | None
+    region: np.ndarray | None
+    region_material: np.ndarray
+    region_object: np.ndarray
+    bands: int
+    thresholds: tuple
+
+    def labels(self, face: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(labels uint8, keys int32) of samples on faces `face` (any shape, -1 background) at
+        barycentrics `bary` (face.shape + (2,)): compiled (`raster.compiled.label_samples`)."""
+        lab = np.empty(face.shape, np.uint8)
+        key = np.empty(face.shape, np.int32)
+        compiled().label_samples(np.ascontiguousarray(face).reshape(-1), np.ascontiguousarray(bary).reshape(-1, 2),
+                                 self.label, self.coef if self.coef is not None else _NO_COEF, self.bands,
+                                 np.asarray(self.thresholds, np.float64),
+                                 self.region if self.region is not None else _NO_REGION,
+                                 lab.reshape(-1), key.reshape(-1))
+        return lab, key
+
+    def n_dot_l(self, face: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        """(M,) two-sided n.l of M samples on faces (M,) (>= 0) at barycentrics uv (M, 2)
+        float64 (smooth shading): the corner normals interpolated and renormalized, from
+        per-corner scalars (what label_samples computes per sample)."""
+        c = self.coef[face]
+        wb, wc = uv[:, 0], uv[:, 1]
+        wa = 1.0 - wb - wc
+        # |wa na + wb nb + wc nc|^2 from the pairwise dot products.
+        norm2 = wa * wa + wb * wb + wc * wc + 2 * (wa * wb * c[:, 3] + wb * wc * c[:, 4] + wc * wa * c[:, 5])
+        return c[:, 6] * (wa * c[:, 0] + wb * c[:, 1] + wc * c[:, 2]) / np.sqrt(np.maximum(norm2, 1e-24))
+
+    @property
+    def n_regions(self) -> int:
+        return len(self.region_material)
+
+
+def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np.ndarray,
+                 crease_angle_deg: float, vnormals: np.ndarray | None = None) -> FaceShading:
+    """The frame's FaceShading. Band ranges: flat shading has one n.l per face; smooth shading's
+    interpolated numerator (wa la + wb lb + wc lc) is linear, so its extremes are corner values,
+    and the renormalization divides it by |n| in [sqrt(min n_i.n_j), 1] (|sum w_i n_i|^2 = sum
+    w_i w_j n_i.n_j >= min n_i.n_j). Two-sided lighting flips the sign on the back side, which is
+    the same over a whole face (`back_facing`)."""
+    back = back_facing(scene, camera)
+    sign = np.where(back, -1.0, 1.0)
+    N, th = int(options.bands), options.thresholds
+    coef = None
+    if options.shading == "flat":
+        lo = hi = quantize_bands(sign * (scene.face_normals @ light), N, th)
+    else:
+        corner, normals, gram = corner_shading(scene, crease_angle_deg, vnormals)
+        nl = normals @ light
+        la, lb, lc = (np.take(nl, corner[:, k]) for k in range(3))
+        lmin, lmax = np.minimum(np.minimum(la, lb), lc), np.maximum(np.maximum(la, lb), lc)
+        root = _min_norm(scene, crease_angle_deg, vnormals)
+        LO = np.where(lmin >= 0, lmin, lmin / root)
+        HI = np.where(lmax >= 0, lmax / root, lmax)
+        lo = quantize_bands(np.where(back, -HI, LO), N, th)
+        hi = quantize_bands(np.where(back, -LO, HI), N, th)
+        coef = np.column_stack([la, lb, lc, gram, sign])
+    label = np.zeros(len(lo) + 1, np.uint8)
+    label[:-1] = np.where(lo == hi, lo, _PER_SAMPLE)
+    region, rmat, robj = _regions(scene)
+    return FaceShading(label=label, lo=lo, hi=hi, back=back, coef=coef, region=region, region_material=rmat,
+                       region_object=robj, bands=N, thresholds=th)
+
+
+def _regions(scene: Scene) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """(region (F,) int32 or None for a single one, material (G,), object (G,) of each region): the
+    scene's distinct (material, object) pairs. Cached per scene."""
+    c = scene_cache(scene)
+    if "raster_regions" not in c:
+        fm = np.asarray(scene.face_material, np.int64)
+        fo = np.asarray(scene.face_object, np.int64)
+        pairs, region = np.unique(np.column_stack([fm, fo]), axis=0, return_inverse=True)
+        pairs = pairs.reshape(-1, 2)
+        if len(pairs) == 0:
+            pairs = np.zeros((1, 2), np.int64)
+        c["raster_regions"] = (region.reshape(-1).astype(np.int32) if len(pairs) > 1 else None,
+                               pairs[:, 0], pairs[:, 1])
+    return c["raster_regions"]
+
+
+def _min_norm(scene: Scene, crease_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
+    """(F,) a lower bound of |w_a n_a + w_b n_b + w_c n_c| over each face (weights >= 0 summing
+    to 1) for smooth shading's corner normals: sqrt of the smallest pairwise dot product,
+    floored at 1e-3 (see _face_band_range). Cached per scene and angle like corner_shading."""
+
+    key = ("raster_min_norm", float(crease_angle_deg))
+    c = scene_cache(scene) if vnormals is None else {}
+    if key not in c:
+        gram = corner_shading(scene, crease_angle_deg, vnormals)[2]
+        c[key] = np.sqrt(np.clip(np.minimum(np.minimum(gram[:, 0], gram[:, 1]), gram[:, 2]), 1e-6, 1.0))
+    return c[key]
+
+
+
+
+def _face_neighbours(scene: Scene) -> np.ndarray:
+    """(F, 3) int64 the faces across each face's manifold edges, -1 for a border or non-manifold
+    edge (order not by edge). Cached per scene."""
+
+    c = scene_cache(scene)
+    if "raster_face_neighbours" not in c:
+        ef = scene.edge_faces[scene.edge_face_count == 2]
+        src, dst = np.concatenate([ef[:, 0], ef[:, 1]]), np.concatenate([ef[:, 1], ef[:, 0]])
+        order = np.argsort(src, kind="stable")
+        src, dst = src[order], dst[order]
+        first = np.searchsorted(src, src)
+        rank = np.arange(len(src)) - first
+        nb = np.full((len(scene.faces), 3), -1, np.int64)
+        keep = rank < 3
+        nb[src[keep], rank[keep]] = dst[keep]
+        c["raster_face_neighbours"] = nb
+    return c["raster_face_neighbours"]
+
+
+#: Relative depth slack of the thin-triangle occlusion test (float32 depths, curvature between
+#: samples).
+THIN_DEPTH_SLACK = 1e-3
+
+
+
+
+# --- a frame's samples -> output images -----------------------------------------------------------
 
 def representative(img: np.ndarray, k: int) -> np.ndarray:
     """The sample nearest each output pixel's centre (for ids and depth, which must not be
-    averaged): index (k//2, k//2) of each k x k block."""
+    averaged, and for the uniform pixels): index (k//2, k//2) of each k x k block."""
     return img[k // 2::k, k // 2::k] if k > 1 else img
+
+
+def _blocks(img: np.ndarray, k: int) -> np.ndarray:
+    """(H*k, W*k, ...) -> (H*W, k*k, ...) samples of each output pixel, row-major inside it."""
+    HK, WK = img.shape[:2]
+    rest = img.shape[2:]
+    return img.reshape(HK // k, k, WK // k, k, *rest).swapaxes(1, 2).reshape((HK // k) * (WK // k), k * k, *rest)
+
+
+@dataclass(frozen=True, eq=False)
+class MixedPixels:
+    """The pixels whose samples may disagree, with their own samples: pixels (P,) flat indices
+    py * W + px, increasing; S samples each (R x R edge resampling, or the K x K samples of the
+    grid), sample b * side + a at (px + (a + 0.5) / side, py + (b + 0.5) / side); face (P, S)
+    int32, bary (P, S, 2) float32, depth (P, S) float32, labels (P, S) uint8, keys (P, S) int32."""
+
+    pixels: np.ndarray
+    face: np.ndarray
+    bary: np.ndarray
+    depth: np.ndarray
+    labels: np.ndarray
+    keys: np.ndarray
+
+    @property
+    def samples(self) -> int:
+        return int(self.face.shape[1])
+
+    @cached_property
+    def counts(self) -> np.ndarray:
+        """(P, n_labels) int64 samples of each label (n_labels: max label + 1)."""
+        P, S = self.labels.shape
+        n = int(self.labels.max(initial=0)) + 1
+        return np.bincount((np.arange(P)[:, None] * n + self.labels).reshape(-1), minlength=P * n).reshape(P, n)
+
+    def coverage(self, n_labels: int) -> np.ndarray:
+        """(P, n_labels) float32 share of each label."""
+        c = np.zeros((len(self.pixels), n_labels), np.float32)
+        k = min(n_labels, self.counts.shape[1])
+        c[:, :k] = self.counts[:, :k] / np.float32(self.samples)
+        return c
 
 
 @dataclass(frozen=True, eq=False)
 class RasterFrame:
-    """One frame's raster products. labels_ss (HK, WK) uint8 band labels at the supersampled
-    resolution; everything at output resolution is derived on demand."""
+    """One frame's raster products: the K x K sample grid (hits, labels_ss, keys_ss) and the
+    mixed pixels (or None); everything at output resolution is derived on demand, from the
+    representative sample of each uniform pixel and the samples of the mixed ones."""
 
     scene: Scene
     camera: Camera
@@ -274,74 +416,112 @@ class RasterFrame:
     hits: RasterHits
     labels_ss: np.ndarray
     light: np.ndarray
-    # (pixel flat indices (P,), coverages (P, N+1)) from edge resampling, or None.
-    edge_coverage: tuple | None = None
+    shading: FaceShading
+    keys_ss: np.ndarray
+    mixed: MixedPixels | None = None
+    source: object = None  # the frame's raster.hits sample source (more samples on demand: the fill)
 
     @property
     def n_bands(self) -> int:
         return int(self.options.bands)
 
+    @property
+    def K(self) -> int:
+        return int(self.hits.supersample)
+
+    @property
+    def width(self) -> int:
+        return int(self.camera.width)
+
+    @property
+    def height(self) -> int:
+        return int(self.camera.height)
+
+    @property
+    def edge_coverage(self) -> tuple | None:
+        """(pixel flat indices (P,), coverages (P, N+1)) of the R x R resampled pixels, or None."""
+        if self.mixed is None or int(self.options.edge_supersample) <= self.K:
+            return None
+        return self.mixed.pixels, self.mixed.coverage(self.n_bands + 1)
+
     @cached_property
-    def sample_coverage(self) -> np.ndarray:
-        """(H, W, N+1) float32: box filter of the K x K labels alone."""
-        return label_coverage(self.labels_ss, self.hits.supersample, self.n_bands + 1)
+    def rep_labels(self) -> np.ndarray:
+        """(H, W) uint8 label of each pixel's representative sample."""
+        return representative(self.labels_ss, self.K)
 
     @cached_property
     def coverage(self) -> np.ndarray:
-        """(H, W, N+1) float32: coverage of background (0) and of each band (edge pixels from the
-        R x R resampling when options.edge_supersample is on)."""
-        if self.edge_coverage is None:
-            return self.sample_coverage
-        cov = self.sample_coverage.copy()
-        idx, c = self.edge_coverage
-        cov.reshape(-1, cov.shape[2])[idx] = c
-        return cov
+        """(H, W, N+1) float32: the share of background (0) and of each band in every pixel."""
+        n = self.n_bands + 1
+        cov = np.zeros((self.height * self.width, n), np.float32)
+        cov[np.arange(cov.shape[0]), self.rep_labels.reshape(-1)] = 1.0
+        if self.mixed is not None:
+            cov[self.mixed.pixels] = self.mixed.coverage(n)
+        return cov.reshape(self.height, self.width, n)
 
     @cached_property
     def labels(self) -> np.ndarray:
         """(H, W) uint8: the label covering most of each output pixel (ties: the lower label)."""
-        if self.hits.supersample == 1 and self.edge_coverage is None:
-            return self.labels_ss
-        return np.argmax(self.coverage, axis=2).astype(np.uint8)
+        lab = self.rep_labels.copy()
+        if self.mixed is not None:
+            lab.reshape(-1)[self.mixed.pixels] = np.argmax(self.mixed.counts, axis=1)
+        return lab
 
     def mask(self, band: int) -> np.ndarray:
         """(H, W) uint8 anti-aliased mask of band 1..N (0 for background), 255 = fully covered."""
-        return np.round(self.coverage[..., band] * 255.0).astype(np.uint8)
+        m = np.where(self.rep_labels == band, np.uint8(255), np.uint8(0))
+        if self.mixed is not None:
+            c = self.mixed.counts
+            share = c[:, band] if band < c.shape[1] else np.zeros(len(c))
+            m.reshape(-1)[self.mixed.pixels] = np.round(share * (255.0 / self.mixed.samples)).astype(np.uint8)
+        return m
 
-    @cached_property
-    def material_ss(self) -> np.ndarray:
-        """(HK, WK) int32 material index per sample, -1 on background."""
-        f = self.hits.face
-        return np.where(f >= 0, self.scene.face_material[np.maximum(f, 0)], -1).astype(np.int32)
+    def _key_colours(self) -> np.ndarray:
+        """(keys, 3) float64 linear ramp colour of every sample key (row 0 and every label 0:
+        black): key = label + (N + 1) region."""
+        sh, N = self.shading, self.n_bands
+        ramps = band_ramps(self.scene, N, self.options.gooch)
+        mat = np.minimum(np.maximum(sh.region_material, 0), len(ramps) - 1)
+        table = np.zeros((sh.n_regions, N + 1, 3))
+        table[:, 1:] = ramps[mat]
+        return table.reshape(-1, 3)
 
     def shade_image(self) -> np.ndarray:
-        """(H, W, 4) uint8 RGBA: the ramp colour of each sample's material and band, box-filtered
-        with alpha = covered fraction (straight, not premultiplied, alpha in the PNG)."""
-        ramps = band_ramps(self.scene, self.n_bands, self.options.gooch)
-        table = np.concatenate([np.zeros((1, 3)), ramps.reshape(-1, 3)])  # row 0: background
-        idx = np.where(self.labels_ss > 0, 1 + np.maximum(self.material_ss, 0) * self.n_bands
-                       + self.labels_ss.astype(np.int32) - 1, 0)
-        rgb = box_filter(table[idx].astype(np.float32), self.hits.supersample)
-        # Colour from the K x K samples, alpha from the (possibly edge-resampled) coverage.
-        alpha_k = 1.0 - self.sample_coverage[..., 0]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            straight = np.where(alpha_k[..., None] > 0, rgb / alpha_k[..., None], 0.0)
-        alpha = 1.0 - self.coverage[..., 0]
-        if self.edge_coverage is not None:
-            # A pixel no K sample hit but edge samples did: no sample tells its material, so it
-            # takes the first material's top band.
-            lost = (alpha_k == 0) & (alpha > 0)
-            straight[lost] = ramps[0, -1]
-        # Filtered in linear light, written sRGB-encoded (the scene's colours are linear: a base
-        # colour 0.4 was written as 102 instead of 170, darker than any viewer shows it).
-        out = np.concatenate([srgb_encode(straight), alpha[..., None]], axis=2)
-        return np.round(np.clip(out, 0, 1) * 255.0).astype(np.uint8)
+        """(H, W, 4) uint8 RGBA: the ramp colour of each pixel's material and band; mixed pixels
+        the mean colour of their covered samples (in linear light) with alpha = covered share
+        (straight, not premultiplied, alpha in the PNG). sRGB-encoded (the scene's colours are
+        linear: a base colour 0.4 is written as 170, not 102)."""
+        lin = self._key_colours()
+        table = np.zeros((len(lin), 4), np.uint8)
+        table[:, :3] = np.round(np.clip(srgb_encode(lin), 0, 1) * 255.0)
+        table[:, 3] = 255
+        table[::self.n_bands + 1] = 0  # label 0: background
+        # One 4-byte gather a pixel.
+        out = table.view(np.uint32)[:, 0][representative(self.keys_ss, self.K)]
+        out = out.view(np.uint8).reshape(self.height, self.width, 4)
+        m = self.mixed
+        if m is not None:
+            n, rgb = self._mixed_sums(lin)
+            covered = n[:, 1:].sum(axis=1)
+            px = np.concatenate([srgb_encode(rgb / np.maximum(covered, 1)[:, None]), (covered / m.samples)[:, None]],
+                                axis=1)
+            out.reshape(-1, 4)[m.pixels] = np.round(np.clip(px, 0, 1) * 255.0).astype(np.uint8)
+        return out
+
+    def _mixed_sums(self, lin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        m = self.mixed
+        counts = np.empty((len(m.pixels), self.n_bands + 1), np.int32)
+        rgb = np.empty((len(m.pixels), 3))
+        compiled().mixed_sums(m.labels, m.keys, lin, self.n_bands + 1, counts, rgb)
+        return counts, rgb
 
     def objectid_image(self) -> np.ndarray:
-        """(H, W) uint8 (uint16 past 254 objects): 0 background, object index + 1."""
-        f = representative(self.hits.face, self.hits.supersample)
-        obj = np.where(f >= 0, self.scene.face_object[np.maximum(f, 0)].astype(np.int64) + 1, 0)
-        return obj.astype(np.uint8 if len(self.scene.objects) < 255 else np.uint16)
+        """(H, W) uint8 (uint16 past 254 objects): 0 background, object index + 1, of each pixel's
+        representative sample (ids are not averaged)."""
+        f = representative(self.hits.face, self.K)
+        table = np.zeros(len(self.scene.faces) + 1, np.uint16 if len(self.scene.objects) >= 255 else np.uint8)
+        table[:-1] = self.scene.face_object + 1
+        return table[f]
 
     def depth_range(self) -> tuple[float, float]:
         """(z_near, z_far) world units mapped to 0 and 65534 in the depth PNG: the scene's bounding
@@ -353,20 +533,29 @@ class RasterFrame:
 
     def depth_image(self) -> np.ndarray:
         """(H, W) uint16 linear view depth: 0 at z_near, 65534 at z_far (see depth_range), 65535
-        background."""
-        z = representative(self.hits.depth, self.hits.supersample)
+        background (of each pixel's representative sample)."""
+        z = representative(self.hits.depth, self.K)
         zn, zf = self.depth_range()
-        q = np.clip(np.round((z - zn) / (zf - zn) * 65534.0), 0, 65534)
+        with np.errstate(invalid="ignore"):
+            q = np.clip(np.round((z - zn) * np.float32(65534.0 / (zf - zn))), 0, 65534)
         return np.where(np.isfinite(z), q, 65535).astype(np.uint16)
 
     def fill_image(self) -> np.ndarray:
-        """(H, W) uint8 grey: seed 003 binary marks per band (0 ink, 255 paper), anti-aliased."""
+        """(H, W) uint8 grey: seed 003 marks per band (0 ink, 255 paper), anti-aliased (see
+        raster.fill.fill_coverage): at least FILL_SUPERSAMPLE x FILL_SUPERSAMPLE samples a pixel
+        (a grid of its own when the frame's is coarser), the mixed pixels' R x R samples."""
+        o = self.options
+        h = self.hits
+        if self.K >= FILL_SUPERSAMPLE or self.source is None:
+            face, bary, depth, labels = h.face, h.bary, h.depth, self.labels_ss
+        else:
+            face, bary, depth = self.source.grid(FILL_SUPERSAMPLE, own=True)
+            labels, _ = self.shading.labels(face, bary)
+        ink = fill_coverage(self.scene, self.camera, face, bary, depth, labels, self.n_bands, o.fill_pattern,
+                            o.fill_period_px, self.mixed)
+        return np.round(255.0 * (1.0 - ink)).astype(np.uint8)
 
-        ink = fill_ink(self.scene, self.hits, self.labels_ss, self.n_bands, self.options.fill_pattern,
-                       self.options.fill_period_px)
-        return np.round(255.0 * (1.0 - box_filter(ink.astype(np.float32), self.hits.supersample))).astype(np.uint8)
-
-    def images(self) -> dict[str, np.ndarray]:
+    def images(self, timings: dict | None = None) -> dict[str, np.ndarray]:
         """{file suffix: image} of what the options ask: 'bands' always, then 'shade',
         'mask1'..'maskN', 'objectid', 'depth', 'fill' (uint8 or uint16 arrays, see each method);
         writers.png.png_files encodes them."""
@@ -391,9 +580,11 @@ class RasterFrame:
         A region is one band of one material; its material is the highest material index
         among the pixel's samples (deterministic)."""
         lab = self.labels.astype(np.int32)
-        k = self.hits.supersample
-        mat = self.material_ss if k == 1 else _blocks(self.material_ss, k).max(axis=2)
-        mat = np.maximum(mat, 0)
+        fm = np.zeros(len(self.scene.faces) + 1, np.int64)
+        fm[:-1] = self.scene.face_material
+        mat = fm[representative(self.hits.face, self.K)]
+        if self.mixed is not None:
+            mat.reshape(-1)[self.mixed.pixels] = fm[self.mixed.face].max(axis=1)
         key = np.where(lab > 0, mat * self.n_bands + lab, 0)
         keys = np.unique(key[key > 0])
         return key, {int(q): (int((q - 1) // self.n_bands), int((q - 1) % self.n_bands + 1)) for q in keys}
@@ -464,66 +655,87 @@ def label_polygons(key: np.ndarray, tolerance_px: float = 0.5) -> dict[int, obje
     return out
 
 
+
+
 # --- entry points ---------------------------------------------------------------------------------
 
-def render_raster(scene: Scene, camera: Camera, occluder: Occluder, options: RasterOptions,
-                  vnormals: np.ndarray | None = None) -> RasterFrame:
-    """Cast the rays and label the bands of one frame. Call only when a raster output is asked
-    for. Smooth shading uses the normals split at options.crease_angle_deg (cached per scene);
-    `vnormals` (V, 3) replaces them by given vertex normals, interpolated without splitting."""
-    hits = cast_pixels(camera, occluder, options.supersample)
+def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, options: RasterOptions,
+                  crease_angle_deg: float = 60.0, vnormals: np.ndarray | None = None, *, reference: bool = False,
+                  work=None, timings: dict | None = None) -> RasterFrame:
+    """Sample one frame and label its bands. Call only when a raster output is asked for.
+
+    The z-buffer rasterizer samples it (`raster.hits.ZBufferHits`); `reference=True` casts Embree
+    rays through the same samples instead (`occluder`, the scene's; not needed otherwise): the
+    reference tests and `strokekit bench` hold the rasterizer against. Smooth shading uses the
+    normals split at `crease_angle_deg`, the line options' crease angle (cached per scene);
+    `vnormals` (V, 3) replaces them by given vertex normals, interpolated without splitting.
+    `work`: a zbuffer.Workspace whose buffers the frame then uses (until the next frame drawn
+    with it; `raster.hits.thread_workspace()`). `timings`: {stage: seconds} gets 'rasterize'
+    (the sample grid), 'shading' (labels, mixed pixels) and 'edge samples' (their R x R samples)."""
+    if not 0 < crease_angle_deg < 180:
+        raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
+    t0 = time.perf_counter()
+    if reference:
+        if occluder is None:
+            occluder = Occluder(scene)
+        src = RayHits(scene, camera, occluder)
+    else:
+        src = ZBufferHits(scene, camera, work)
+    K = int(options.supersample)
+    face, bary, depth = src.grid(K)
+    W, H, f = int(camera.width), int(camera.height), camera.focal_px
+    hits = RasterHits(face=face, bary=bary, depth=depth, camera=camera, supersample=K,
+                      ray_dir_x=((np.arange(W * K) + 0.5) / K - W / 2.0) / f,
+                      ray_dir_y=(H / 2.0 - (np.arange(H * K) + 0.5) / K) / f)
+    t1 = time.perf_counter()
     light = light_direction(camera, options)
-    sel, ndl = hit_n_dot_l(scene, hits, light, options.shading, vnormals, options.crease_angle_deg)
-    labels_ss = np.zeros(hits.face.size, np.uint8)
-    labels_ss[sel] = quantize_bands(ndl, options.bands, options.thresholds)
-    labels_ss = labels_ss.reshape(hits.shape)
-    frame = RasterFrame(scene=scene, camera=camera, options=options, hits=hits, labels_ss=labels_ss, light=light)
+    shading = face_shading(scene, camera, options, light, crease_angle_deg, vnormals)
+    labels_ss, keys_ss = shading.labels(face, bary)
+    frame = RasterFrame(scene=scene, camera=camera, options=options, hits=hits, labels_ss=labels_ss, light=light,
+                        shading=shading, keys_ss=keys_ss, source=src)
     R = int(options.edge_supersample)
-    if R > hits.supersample:
-        frame = RasterFrame(scene=scene, camera=camera, options=options, hits=hits, labels_ss=labels_ss,
-                            light=light, edge_coverage=_edge_coverage(frame, occluder, R, vnormals))
-    return frame
+    t3 = None
+    mixed = None
+    if R > K:
+        pix = _mixed_pixels(frame, src)
+        t2b = time.perf_counter()
+        if len(pix):
+            ef, eb, ed = src.pixels(pix, R)
+            t3 = time.perf_counter()
+            el, ek = shading.labels(ef, eb)
+            mixed = MixedPixels(pixels=pix, face=ef, bary=eb, depth=ed, labels=el, keys=ek)
+    elif K > 1:
+        kb = _blocks(keys_ss, K)
+        pix = np.flatnonzero(kb.min(axis=1) != kb.max(axis=1))
+        if len(pix):
+            mixed = MixedPixels(pixels=pix, face=_blocks(face, K)[pix], bary=_blocks(bary, K)[pix],
+                                depth=_blocks(depth, K)[pix], labels=_blocks(labels_ss, K)[pix], keys=kb[pix])
+    t4 = time.perf_counter()
+    if timings is not None:
+        edge = (t3 - t2b) if t3 is not None else 0.0
+        timings["rasterize"] = timings.get("rasterize", 0.0) + (t1 - t0)
+        timings["edge samples"] = timings.get("edge samples", 0.0) + edge
+        timings["shading"] = timings.get("shading", 0.0) + (t4 - t1) - edge
+    return replace(frame, mixed=mixed) if mixed is not None else frame
 
 
-def _edge_coverage(frame: RasterFrame, occluder: Occluder, R: int, vnormals: np.ndarray | None):
-    """(pixel indices (P,), coverages (P, N+1)) of the output pixels that may hold more than one
-    label, from R x R samples through each such pixel (sample centres ((a + 0.5) / R) inside the
-    pixel, like a uniform R-times supersampling there). Refined: the pixels whose K x K samples
-    disagree or differ from a next sample of a neighbouring pixel (`_sample_edge_pixels`), and the
-    pixels a triangle too thin for the K x K grid crosses where it may show another label than
-    the samples there (`_thin_face_pixels`)."""
-    cam, o = frame.camera, frame.options
-    n = frame.n_bands + 1
-    edge = _sample_edge_pixels(frame.labels_ss, frame.hits.supersample)
-    edge.ravel()[_thin_face_pixels(frame, vnormals)] = True
-    mixed = np.flatnonzero(edge)
-    if len(mixed) == 0:
-        return None
-    W, H, f = int(cam.width), int(cam.height), cam.focal_px
-    py, px = np.divmod(mixed, W)
-    sub = (np.arange(R) + 0.5) / R
-    # (P, R*R) sample positions in output pixels, row-major inside each pixel.
-    x = (px[:, None] + np.tile(sub, R)[None, :]).ravel()
-    y = (py[:, None] + np.repeat(sub, R)[None, :]).ravel()
-    ax, ay = (x - W / 2.0) / f, (H / 2.0 - y) / f
-
-    h = cast_samples(cam, occluder, ax, ay)
-    hit = np.flatnonzero(h["face"] >= 0)
-    lab = np.zeros(len(x), np.uint8)
-    ndl = sample_n_dot_l(frame.scene, cam, h["face"][hit], h["bary"][hit], ax[hit], ay[hit], frame.light,
-                         o.shading, vnormals, o.crease_angle_deg)
-    lab[hit] = quantize_bands(ndl, o.bands, o.thresholds)
-    counts = np.bincount(np.repeat(np.arange(len(mixed)), R * R) * n + lab, minlength=len(mixed) * n)
-    return mixed, (counts.reshape(len(mixed), n) / (R * R)).astype(np.float32)
+def _mixed_pixels(frame: RasterFrame, src) -> np.ndarray:
+    """Flat indices (increasing) of the output pixels that may hold more than one key (label,
+    material, object): the pixels whose K x K samples disagree or differ from a next sample of a
+    neighbouring pixel (`_sample_edge_pixels`), and the pixels a triangle too thin for the K x K
+    grid crosses where it may show another key than the samples there (`_thin_face_pixels`)."""
+    edge = _sample_edge_pixels(frame.keys_ss, frame.K)
+    _thin_face_pixels(frame, src, edge)
+    return np.flatnonzero(edge)
 
 
-def _sample_edge_pixels(labels_ss: np.ndarray, k: int) -> np.ndarray:
-    """(H, W) bool: output pixels with a sample whose label differs from one of its 8 neighbour
+def _sample_edge_pixels(keys_ss: np.ndarray, k: int) -> np.ndarray:
+    """(H, W) bool: output pixels with a sample whose key differs from one of its 8 neighbour
     samples, i.e. whose K x K samples plus the ring of nearest samples of the neighbouring pixels
-    do not all agree. A label edge between two samples a sample spacing apart may run through
+    do not all agree. An edge between two samples a sample spacing apart may run through
     either of their pixels, so both are refined (a pixel-majority rule misses an edge that only
     grazes a pixel, and refines pixels whose own samples are a full spacing from any edge)."""
-    L = labels_ss
+    L = keys_ss
     E = np.zeros(L.shape, bool)
     dh = L[:, 1:] != L[:, :-1]
     dv = L[1:, :] != L[:-1, :]
@@ -550,76 +762,14 @@ def _sample_edge_pixels(labels_ss: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
-def _face_band_range(frame: RasterFrame, vnormals: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(lo, hi, back): (F,) uint8 the lowest and highest band label a sample anywhere on each
-    face could get (a conservative interval; bands are monotone in n.l), and (F,) bool where we
-    see the face's back side.
-
-    flat: the face's n.l. smooth: the interpolated numerator (wa la + wb lb + wc lc) is linear,
-    so its extremes are corner values, and the renormalization divides it by |n| in
-    [sqrt(min n_i.n_j), 1] (|sum w_i n_i|^2 = sum w_i w_j n_i.n_j >= min n_i.n_j). Two-sided
-    lighting flips the sign on the back side, which is the same over a whole face (its corners
-    lie in its plane, so n.(P - eye) is one number; see _facing_sign)."""
-    scene, cam, o = frame.scene, frame.camera, frame.options
-    nf = scene.face_normals
-    if cam.is_ortho:
-        back = nf @ cam.ray_dir > 0  # (fwd but for the oblique projections)
-    else:
-        back = scene.face_offsets - nf @ np.asarray(cam.eye, float) > 0
-    if o.shading == "flat":
-        lo = hi = nf @ frame.light
-    else:
-        corner, normals, _ = corner_shading(scene, o.crease_angle_deg, vnormals)
-        nl = normals @ frame.light
-        la, lb, lc = (np.take(nl, corner[:, k]) for k in range(3))
-        lmin, lmax = np.minimum(np.minimum(la, lb), lc), np.maximum(np.maximum(la, lb), lc)
-        root = _min_norm(scene, o.crease_angle_deg, vnormals)
-        lo = np.where(lmin >= 0, lmin, lmin / root)
-        hi = np.where(lmax >= 0, lmax / root, lmax)
-    LO, HI = np.where(back, -hi, lo), np.where(back, -lo, hi)
-    return quantize_bands(LO, o.bands, o.thresholds), quantize_bands(HI, o.bands, o.thresholds), back
-
-
-def _min_norm(scene: Scene, crease_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
-    """(F,) a lower bound of |w_a n_a + w_b n_b + w_c n_c| over each face (weights >= 0 summing
-    to 1) for smooth shading's corner normals: sqrt of the smallest pairwise dot product,
-    floored at 1e-3 (see _face_band_range). Cached per scene and angle like corner_shading."""
-
-    key = ("raster_min_norm", float(crease_angle_deg))
-    c = scene_cache(scene) if vnormals is None else {}
-    if key not in c:
-        gram = corner_shading(scene, crease_angle_deg, vnormals)[2]
-        c[key] = np.sqrt(np.clip(np.minimum(np.minimum(gram[:, 0], gram[:, 1]), gram[:, 2]), 1e-6, 1.0))
-    return c[key]
-
-
-def _face_neighbours(scene: Scene) -> np.ndarray:
-    """(F, 3) int64 the faces across each face's manifold edges, -1 for a border or non-manifold
-    edge (order not by edge). Cached per scene."""
-
-    c = scene_cache(scene)
-    if "raster_face_neighbours" not in c:
-        ef = scene.edge_faces[scene.edge_face_count == 2]
-        src, dst = np.concatenate([ef[:, 0], ef[:, 1]]), np.concatenate([ef[:, 1], ef[:, 0]])
-        order = np.argsort(src, kind="stable")
-        src, dst = src[order], dst[order]
-        first = np.searchsorted(src, src)
-        rank = np.arange(len(src)) - first
-        nb = np.full((len(scene.faces), 3), -1, np.int64)
-        keep = rank < 3
-        nb[src[keep], rank[keep]] = dst[keep]
-        c["raster_face_neighbours"] = nb
-    return c["raster_face_neighbours"]
-
-
 #: Relative depth slack of the thin-triangle occlusion test (float32 depths, curvature between
 #: samples).
 THIN_DEPTH_SLACK = 1e-3
 
 
-def _thin_face_pixels(frame: RasterFrame, vnormals: np.ndarray | None) -> np.ndarray:
-    """Flat indices (with repeats) of the output pixels that a thin triangle crosses where it
-    may show a label the pixel's K x K samples do not have.
+def _thin_face_pixels(frame: RasterFrame, src, out: np.ndarray) -> None:
+    """Mark in out (H, W) bool the output pixels that a thin triangle crosses where it may show
+    a key the pixel's K x K samples do not have (compiled: `raster.compiled.thin_face_pixels`).
 
     A triangle whose screen footprint holds a disk of diameter s sqrt 2 (s = 1/K px, the sample
     spacing: the diagonal of a sample cell) always holds a sample, and where it ends between
@@ -631,94 +781,17 @@ def _thin_face_pixels(frame: RasterFrame, vnormals: np.ndarray | None) -> np.nda
     pixels on either side of every crossing of an edge with a pixel row or column line, and the
     pixels of its corners. A pixel is kept unless the triangle is hidden there (its depth where
     the edge enters or leaves the pixel is behind every sample of the 3 x 3 pixels around it) or
-    cannot change it (the pixel's samples all carry the one label the face can have,
-    `_face_band_range`)."""
-    scene, cam, hits = frame.scene, frame.camera, frame.hits
-    K = hits.supersample
-    W, H = int(cam.width), int(cam.height)
-    xy, z = cam.project(scene.vertices)
-    f = scene.faces
-    near = cam.near_distance(scene.radius)  # (orthographic too: the lines are clipped there)
-    (xa, xb, xc), (ya, yb, yc), (za, zb, zc) = (tuple(v[f[:, k]] for k in range(3)) for v in (xy[:, 0], xy[:, 1], z))
-    ok = (np.minimum(np.minimum(za, zb), zc) > near)
-    ok &= (np.maximum(np.maximum(xa, xb), xc) >= 0) & (np.minimum(np.minimum(xa, xb), xc) < W)
-    ok &= (np.maximum(np.maximum(ya, yb), yc) >= 0) & (np.minimum(np.minimum(ya, yb), yc) < H)
-    # inradius = 2 area / perimeter < s / sqrt 2
-    twice_area = np.abs((xb - xa) * (yc - ya) - (yb - ya) * (xc - xa))
-    perimeter = np.hypot(xb - xa, yb - ya) + np.hypot(xc - xb, yc - yb) + np.hypot(xa - xc, ya - yc)
-    ok &= twice_area < perimeter * (np.sqrt(0.5) / K)
-    lo, hi, back = _face_band_range(frame, vnormals)
-    # A thin face inside a patch of one band, every neighbour across its edges seen from the
-    # same side with that same one band (no border, fold or silhouette at its edges), cannot
-    # change a label where it is missed: the samples around it carry its band.
-    nb = _face_neighbours(scene)
-    cand = np.flatnonzero(ok)
-    nbc = nb[cand]
-    nbs = np.maximum(nbc, 0)
-    l0 = lo[cand][:, None]
-    plain = (hi[cand] == lo[cand]) & ((nbc >= 0) & (lo[nbs] == l0) & (hi[nbs] == l0)
-                                      & (back[nbs] == back[cand][:, None])).all(axis=1)
-    cand = cand[~plain]
-    if len(cand) == 0:
-        return np.zeros(0, np.int64)
-    lo, hi = lo[cand], hi[cand]
-    # The 3 edges of each candidate, corner k -> k + 1: start a, direction d, end depths.
-    c3 = np.stack([np.take(v, cand) for v in (xa, xb, xc, ya, yb, yc, za, zb, zc)]).reshape(3, 3, -1)
-    a = c3[:2].transpose(2, 1, 0).reshape(-1, 2)
-    d = np.roll(c3[:2], -1, axis=1).transpose(2, 1, 0).reshape(-1, 2) - a
-    z0 = c3[2].T.reshape(-1)
-    z1 = np.roll(c3[2], -1, axis=0).T.reshape(-1)
-    # Cells an edge passes through: the pixel of its start corner, and the pixels on both sides
-    # of each crossing with a pixel column line x = g (c = 0) or row line y = g (c = 1).
-    edge_of, pts, ts = [np.arange(len(a))], [a], [np.zeros(len(a))]
-    for c in range(2):
-        # Only the lines inside the image matter.
-        lo_c, hi_c = np.minimum(a[:, c], a[:, c] + d[:, c]), np.maximum(a[:, c], a[:, c] + d[:, c])
-        g0 = np.clip(np.floor(lo_c), -1, (W, H)[c]) + 1
-        g1 = np.clip(np.floor(hi_c), -1, (W, H)[c])
-        cnt = np.maximum(g1 - g0 + 1, 0).astype(np.int64)
-        own = np.repeat(np.arange(len(a)), cnt)
-        g = np.repeat(g0 - (np.cumsum(cnt) - cnt), cnt) + np.arange(len(own))
-        t = np.clip((g - a[own, c]) / d[own, c], 0.0, 1.0)  # cnt > 0 only where d != 0
-        p = a[own] + t[:, None] * d[own]
-        p[:, c] = g
-        q = p.copy()
-        q[:, c] -= 0.5  # the pixel before the line; p itself names the one after
-        p[:, c] += 0.5
-        edge_of += [own, own]
-        pts += [p, q]
-        ts += [t, t]
-    edge_of = np.concatenate(edge_of)
-    t = np.concatenate(ts)
-    pts = np.concatenate(pts)
-    px, py = np.floor(pts[:, 0]).astype(np.int64), np.floor(pts[:, 1]).astype(np.int64)
-    inside = (px >= 0) & (px < W) & (py >= 0) & (py < H)
-    pix = (py * W + px)[inside]
-    e, t = edge_of[inside], t[inside]
-    # View depth along the edge: 1/z is linear in the screen parameter (perspective), z is (ortho).
-    if cam.is_ortho:
-        zt = z0[e] + t * (z1[e] - z0[e])
-    else:
-        zt = 1.0 / ((1 - t) / z0[e] + t / z1[e])
-    # Per pixel touched: the deepest sample of the 3 x 3 pixels around it (inf where one is
-    # background: nothing hides there) and the smallest and largest label of its own samples.
-    mark = np.zeros(W * H, bool)
-    mark[pix] = True
-    upix = np.flatnonzero(mark)
-    slot = np.empty(W * H, np.int64)
-    slot[upix] = np.arange(len(upix))
-    inv = slot[pix]
-    uy, ux = np.divmod(upix, W)
-    rr = np.clip(uy[:, None] * K + np.arange(-K, 2 * K), 0, H * K - 1)
-    cc = np.clip(ux[:, None] * K + np.arange(-K, 2 * K), 0, W * K - 1)
-    zmax = hits.depth[rr[:, :, None], cc[:, None, :]].reshape(len(upix), -1).max(axis=1)
-    labs = frame.labels_ss[rr[:, K:2 * K, None], cc[:, None, K:2 * K]].reshape(len(upix), -1)
-    lmin, lmax = labs.min(axis=1), labs.max(axis=1)
-    fo = e // 3
-    seen = zt <= np.take(zmax, inv).astype(np.float64) * (1 + THIN_DEPTH_SLACK)
-    lm = np.take(lmin, inv)
-    same = (lm == np.take(lmax, inv)) & (np.take(lo, fo) == lm) & (np.take(hi, fo) == lm)
-    return pix[seen & ~same]
+    cannot change it (the pixel's samples all carry the one key the face can have). A thin face
+    inside a patch of one band and region, every neighbour across its edges seen from the same
+    side with that same one band and region (no border, fold or silhouette at its edges), is
+    skipped: where it is missed, the samples around it carry its key."""
+    scene, cam, hits, sh = frame.scene, frame.camera, frame.hits, frame.shading
+    xy, z = src.vertices_px
+    reg = sh.region if sh.region is not None else np.zeros(len(scene.faces), np.int32)
+    compiled().thin_face_pixels(np.ascontiguousarray(xy, np.float64), np.ascontiguousarray(z, np.float64),
+                                scene_faces32(scene), cam.near_distance(scene.radius), int(cam.width), int(cam.height),
+                                frame.K, sh.lo, sh.hi, sh.back, reg, _face_neighbours(scene), sh.bands + 1,
+                                hits.depth, frame.keys_ss, cam.is_ortho, THIN_DEPTH_SLACK, out)
 
 
 # --- measurement ----------------------------------------------------------------------------------
@@ -730,12 +803,13 @@ def soft_iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(1, 2, 4), reference: int = 4,
-                   options: RasterOptions | None = None) -> list[dict]:
-    """Band masks at each supersample K (an int, or (K, R) for K with edge_supersample R)
-    against the uniform `reference` K, over `cameras`.
+                   options: RasterOptions | None = None, crease_angle_deg: float = 60.0) -> list[dict]:
+    """Band masks of the z-buffer pass at each supersample K (an int, or (K, R) for K with
+    edge_supersample R) against the ray-cast reference (`render_raster(reference=True)`) at the
+    uniform `reference` K, over `cameras`.
 
     Returns one dict per entry: {'supersample': K, 'edge_supersample': R, 'ms_per_frame'
-    (median, rays + bands + coverage), 'iou' (worst band, background included, over all
+    (median, samples + bands + coverage), 'iou' (worst band, background included, over all
     frames), 'iou_pooled' (all bands and frames together), 'iou_thick' (worst band whose area
     is at least 10 x its count of partly covered pixels: sliver bands a few pixels wide cannot
     reach 0.99 against a supersampled reference with uniform K, the reference itself moves by
@@ -743,8 +817,8 @@ def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(
 
     occluder = occluder or Occluder(scene)
     base = options or RasterOptions()
-    refs = [render_raster(scene, c, occluder, replace(base, supersample=reference, edge_supersample=0)).coverage
-            for c in cameras]
+    refs = [render_raster(scene, c, occluder, replace(base, supersample=reference, edge_supersample=0),
+                          crease_angle_deg, reference=True).coverage for c in cameras]
     rows = []
     for entry in ks:
         K, R = (entry, 0) if np.isscalar(entry) else entry
@@ -752,7 +826,7 @@ def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(
         times, ious, thick, mins, maxs, below = [], [], [], 0.0, 0.0, 0
         for c, r in zip(cameras, refs):
             t = time.perf_counter()
-            cov = render_raster(scene, c, occluder, opts).coverage
+            cov = render_raster(scene, c, occluder, opts, crease_angle_deg).coverage
             times.append(time.perf_counter() - t)
             for b in range(cov.shape[2]):
                 a, q = cov[..., b], r[..., b]

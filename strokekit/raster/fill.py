@@ -165,3 +165,97 @@ def fill_ink(scene: Scene, hits: RasterHits, labels_ss: np.ndarray, n_bands: int
     ink = np.zeros(hits.shape, bool)
     ink[hit] = tone_map(h[hit], band_darkness(labels_ss[hit], n_bands), pattern)
     return ink
+
+
+def surface_points(scene: Scene, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """(M, 3) world points of M hits on faces (M,) (>= 0) at barycentrics (M, 2) (open3d's u, v:
+    P = (1 - u - v) A + u B + v C)."""
+    tri = scene.faces[face]
+    A = scene.vertices[tri[:, 0]]
+    u = bary[:, 0:1].astype(np.float64)
+    v = bary[:, 1:2].astype(np.float64)
+    return A + u * (scene.vertices[tri[:, 1]] - A) + v * (scene.vertices[tri[:, 2]] - A)
+
+
+def equalized_field(scene: Scene, camera, face: np.ndarray, bary: np.ndarray, depth: np.ndarray, period_px: float,
+                    pattern: str) -> np.ndarray:
+    """(M,) the blended texture at M hits (faces (M,) >= 0, barycentrics (M, 2), view depths
+    (M,)), equalized to [0, 1] by its CDF (`tone_map`: ink where it is below a band's darkness)."""
+    centres, radii = object_frames(scene)
+    f = camera.focal_px
+    pixel_size = np.full(len(face), 1.0 / f) if camera.is_ortho else depth.astype(np.float64) / f
+    h = self_similar_field(surface_points(scene, face, bary), scene.face_object[face], pixel_size, centres, radii,
+                           period_px, pattern)
+    levels, values = _equalizer(pattern)
+    return np.interp(h, values, levels)
+
+
+def _soft_ink(e: np.ndarray, obj: np.ndarray, dark: np.ndarray) -> np.ndarray:
+    """Ink share of each sample cell of grids (..., rows, cols): e the equalized field (NaN:
+    background), obj the object of each sample, dark the darkness of its band. The threshold
+    e < dark is smoothed over the change of e across one cell, |grad e| estimated as the hypot
+    of the larger one-sided differences to the neighbour samples of the same object along rows
+    and along columns (a shader's fwidth): a cell the mark's edge crosses gets about the share of
+    it the mark covers instead of all or nothing. A cell with no neighbour of its object is
+    thresholded as it is. (Measured against 8 x 8 binary samples box-filtered, on a hatched
+    sphere: with 2 x 2 samples a pixel, mean error 6.9 grey levels, against 11.7 for the 2 x 2
+    binary marks strokekit wrote before; at 1 sample a pixel the differences alias the finest
+    octave, 14.4, which is why the fill samples 2 x 2.)"""
+    ok = np.isfinite(e)
+    w2 = np.zeros(e.shape)
+    for axis in (-1, -2):
+        n = e.shape[axis]
+        if n < 2:
+            continue
+        a = [slice(None)] * e.ndim
+        b = [slice(None)] * e.ndim
+        a[axis], b[axis] = slice(1, None), slice(None, -1)
+        a, b = tuple(a), tuple(b)
+        d = np.abs(e[a] - e[b])
+        d[~(ok[a] & ok[b] & (obj[a] == obj[b]))] = 0.0
+        g = np.zeros(e.shape)
+        g[a] = d
+        g[b] = np.maximum(g[b], d)
+        w2 += g * g
+    w = np.sqrt(w2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        soft = np.where(w > 1e-9, np.clip(0.5 + (dark - e) / w, 0.0, 1.0), (e < dark).astype(np.float64))
+    soft[~ok] = 0.0
+    return soft
+
+
+#: Samples a pixel side the fill draws at least (see _soft_ink).
+FILL_SUPERSAMPLE = 2
+
+
+def fill_coverage(scene: Scene, camera, face: np.ndarray, bary: np.ndarray, depth: np.ndarray, labels: np.ndarray,
+                  n_bands: int, pattern: str, period_px: float, mixed=None) -> np.ndarray:
+    """(H, W) float64 share of each output pixel inked by the fill (seed 003 marks per band),
+    anti-aliased: from a K x K grid of samples a pixel (face (HK, WK) int32, bary (HK, WK, 2),
+    depth (HK, WK), labels (HK, WK) uint8; K >= FILL_SUPERSAMPLE), every sample cell gets its ink
+    share (`_soft_ink`), a pixel the mean of its cells; the mixed pixels of the raster pass
+    (`bands.MixedPixels`: band, material or object edges, R x R samples) the mean of their own
+    samples' shares, like the bands."""
+    H, W = camera.height, camera.width
+    K = face.shape[0] // H
+    hit = labels > 0
+    e = np.full(face.shape, np.nan)
+    sel = np.flatnonzero(hit)
+    e.reshape(-1)[sel] = equalized_field(scene, camera, face.reshape(-1)[sel], bary.reshape(-1, 2)[sel],
+                                         depth.reshape(-1)[sel], period_px, pattern)
+    obj = np.where(face >= 0, np.take(scene.face_object, face, mode="wrap"), -1)
+    soft = _soft_ink(e, obj, band_darkness(labels, n_bands))
+    ink = soft.reshape(H, K, W, K).mean(axis=(1, 3)) if K > 1 else soft
+    if mixed is not None and len(mixed.pixels) and mixed.samples > K * K:
+        P, S = mixed.face.shape
+        side = int(round(np.sqrt(S)))
+        mf, ml = mixed.face.reshape(-1), mixed.labels.reshape(-1)
+        es = np.full(P * S, np.nan)
+        on = np.flatnonzero(ml > 0)
+        es[on] = equalized_field(scene, camera, mf[on], mixed.bary.reshape(-1, 2)[on], mixed.depth.reshape(-1)[on],
+                                 period_px, pattern)
+        obj_s = np.where(mf >= 0, np.take(scene.face_object, mf, mode="wrap"), -1)
+        soft_s = _soft_ink(es.reshape(P, side, side), obj_s.reshape(P, side, side),
+                           band_darkness(mixed.labels, n_bands).reshape(P, side, side))
+        ink.reshape(-1)[mixed.pixels] = soft_s.reshape(P, S).mean(axis=1)
+    return ink

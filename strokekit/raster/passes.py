@@ -3,8 +3,9 @@ RasterPasses): float view depth, view-space normals, the shade colours in linear
 premultiplied by coverage, band labels, Cryptomatte mattes of objects and materials, and the
 strokes as coverage per line kind.
 
-Depth, normals and labels come from the sample nearest each pixel centre (they must not be
-averaged across a silhouette); colours and Cryptomatte coverages from all of a pixel's samples.
+Depth, normals and labels come from each pixel's representative sample, the one nearest its
+centre (they must not be averaged across a silhouette); colours and Cryptomatte coverages from
+all the samples of the mixed pixels (the R x R samples at band, material and object edges).
 """
 
 from __future__ import annotations
@@ -13,12 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strokekit.cryptomatte import rank_samples
+from strokekit.cryptomatte import ranked_matte
 from strokekit.errors import UsageError
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
-from strokekit.raster.bands import RasterFrame, band_ramps, representative, sample_n_dot_l
-from strokekit.raster.rays import box_filter
+from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.strokes import stroke_coverage
+from strokekit.scene.tables import split_normals
 
 #: The passes an EXR can hold, in the order they are written.
 PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
@@ -42,70 +43,91 @@ class PassOptions:
         object.__setattr__(self, "passes", tuple(p for p in PASSES if p in self.passes))
 
 
-def _pixel_samples(frame: RasterFrame, values: np.ndarray) -> np.ndarray:
-    """(H, W, K*K) per-pixel view of a per-sample (HK, WK) array."""
-    k = frame.hits.supersample
-    H, W = frame.hits.height, frame.hits.width
-    return values.reshape(H, k, W, k).transpose(0, 2, 1, 3).reshape(H, W, k * k)
-
-
-def view_normals(frame: RasterFrame) -> np.ndarray:
-    """(H, W, 3) float32 view-space normals (x right, y up, z toward the camera) of the sample
-    nearest each pixel centre, turned to face the camera, shaded as the bands are (flat or
-    smooth); 0 on background."""
-    hits, cam, o = frame.hits, frame.camera, frame.options
-    k = hits.supersample
-    face = representative(hits.face, k)
-    bary = representative(hits.bary, k)
+def view_normals(frame: RasterFrame, crease_angle_deg: float = 60.0) -> np.ndarray:
+    """(H, W, 3) float32 view-space unit normals (x right, y up, z toward the camera) of each
+    pixel's representative sample: the face normal (flat shading) or the corner normals split at
+    `crease_angle_deg` interpolated (smooth), turned to face the camera; 0 on background."""
+    hits, cam, scene = frame.hits, frame.camera, frame.scene
+    K = frame.K
+    face = representative(hits.face, K)
     H, W = face.shape
     sel = np.flatnonzero(face.ravel() >= 0)
-    rows, cols = np.divmod(sel, W)
-    ax, ay = hits.ray_dir_x[cols * k + k // 2], hits.ray_dir_y[rows * k + k // 2]
+    f = face.ravel()[sel]
     out = np.zeros((H * W, 3), np.float32)
+    if len(f) == 0:
+        return out.reshape(H, W, 3)
+    if frame.options.shading == "smooth":
+        sn = split_normals(scene, crease_angle_deg)
+        uv = representative(hits.bary, K).reshape(-1, 2)[sel].astype(np.float64)
+        N = sn.normals[sn.corner[f]]  # (M, 3 corners, 3)
+        n = (1.0 - uv[:, :1] - uv[:, 1:]) * N[:, 0] + uv[:, :1] * N[:, 1] + uv[:, 1:] * N[:, 2]
+        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+    else:
+        n = scene.face_normals[f]
     right, up, fwd = cam.basis
-    for c, axis in enumerate((right, up, -fwd)):
-        out[sel, c] = sample_n_dot_l(frame.scene, cam, face.ravel()[sel], bary.reshape(-1, 2)[sel], ax, ay,
-                                     axis, o.shading, None, o.crease_angle_deg)
+    # Two-sided, as the bands are lit: the geometric side decides which way the normal faces.
+    rows, cols = np.divmod(sel, W)
+    if cam.is_ortho:
+        view = np.broadcast_to(cam.ray_dir, (len(sel), 3))
+    else:
+        view = fwd + hits.ray_dir_x[cols * K + K // 2, None] * right + hits.ray_dir_y[rows * K + K // 2, None] * up
+    flip = np.einsum("ij,ij->i", scene.face_normals[f], view) > 0
+    n = np.where(flip[:, None], -n, n)
+    out[sel] = np.stack([n @ right, n @ up, -(n @ fwd)], axis=1)
     return out.reshape(H, W, 3)
 
 
 def linear_shade(frame: RasterFrame) -> np.ndarray:
-    """(H, W, 4) float32: the ramp colour of each sample's material and band, box-filtered in
-    linear light, premultiplied by the covered fraction (alpha), as EXR stores colour."""
-    ramps = band_ramps(frame.scene, frame.n_bands, frame.options.gooch)
-    table = np.concatenate([np.zeros((1, 3)), ramps.reshape(-1, 3)])  # row 0: background
-    idx = np.where(frame.labels_ss > 0, 1 + np.maximum(frame.material_ss, 0) * frame.n_bands
-                   + frame.labels_ss.astype(np.int32) - 1, 0)
-    rgb = box_filter(table[idx].astype(np.float32), frame.hits.supersample)  # background black: premultiplied
-    alpha = 1.0 - frame.sample_coverage[..., 0]
-    return np.concatenate([rgb, alpha[..., None]], axis=2).astype(np.float32)
+    """(H, W, 4) float32: the ramp colour of each pixel's material and band in linear light,
+    premultiplied by the covered share A (EXR's convention); mixed pixels the mean over their
+    samples (background samples count black)."""
+    lin = frame._key_colours()
+    N1 = frame.n_bands + 1
+    key = representative(frame.keys_ss, frame.K)
+    out = np.zeros((frame.height * frame.width, 4), np.float32)
+    out[:, :3] = lin[key].reshape(-1, 3)
+    out[:, 3] = (key % N1 != 0).reshape(-1)
+    m = frame.mixed
+    if m is not None:
+        n, rgb = frame._mixed_sums(lin)
+        covered = n[:, 1:].sum(axis=1)
+        out[m.pixels, :3] = rgb / m.samples
+        out[m.pixels, 3] = covered / m.samples
+    return out.reshape(frame.height, frame.width, 4)
 
 
 def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:
-    """CryptoObject and CryptoMaterial of the frame, ranked from every sample of each pixel
-    (coverage = the share of the pixel's samples that see the object or material)."""
+    """CryptoObject and CryptoMaterial of the frame: a uniform pixel has its representative
+    sample's object (material) at coverage 1, a mixed pixel the ranked shares of its R x R
+    samples."""
     scene = frame.scene
-    face = frame.hits.face
-    hit = face >= 0
+    face = representative(frame.hits.face, frame.K)
+    m = frame.mixed
     out = []
     for type_name, table, names in (("CryptoObject", scene.face_object, tuple(scene.objects)),
-                                    ("CryptoMaterial", scene.face_material, tuple(m.name for m in scene.materials))):
-        idx = np.where(hit, table[np.maximum(face, 0)], -1)
-        r = rank_samples(_pixel_samples(frame, idx), names, RANKS)
+                                    ("CryptoMaterial", scene.face_material, tuple(m_.name for m_ in scene.materials))):
+        base = np.where(face >= 0, table[np.maximum(face, 0)], -1)
+        if m is not None and len(m.pixels):
+            edge = np.where(m.face >= 0, table[np.maximum(m.face, 0)], -1)
+            r = ranked_matte(base, names, RANKS, m.pixels, edge)
+        else:
+            r = ranked_matte(base, names, RANKS)
         out.append(CryptoLayer(type_name, r.ids, r.coverage, names))
     return tuple(out)
 
 
-def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: PassOptions) -> RasterPasses:
-    """The passes `options` asks for, of one frame (its raster pass, and its strokes for 'lines')."""
+def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: PassOptions,
+                       crease_angle_deg: float = 60.0) -> RasterPasses:
+    """The passes `options` asks for, of one frame (its raster pass, and its strokes for 'lines');
+    `crease_angle_deg`: the line options' (smooth normals split there)."""
     p = options.passes
-    H, W = frame.hits.height, frame.hits.width
+    H, W = frame.height, frame.width
     depth = normal = shade = bands = None
     if "depth" in p:
-        z = representative(frame.hits.depth, frame.hits.supersample)
+        z = representative(frame.hits.depth, frame.K)
         depth = np.where(np.isfinite(z), z, BACKGROUND_DEPTH).astype(np.float32)
     if "normal" in p:
-        normal = view_normals(frame)
+        normal = view_normals(frame, crease_angle_deg)
     if "shade" in p:
         shade = linear_shade(frame)
     if "bands" in p:

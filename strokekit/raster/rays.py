@@ -1,4 +1,6 @@
-"""A small raster pass with the same visibility as the lines: one Embree ray per pixel.
+"""The ray-cast raster samples: one Embree ray per sample, the reference the z-buffer
+(`raster.hits`, `raster.zbuffer`) is held against in tests and `strokekit bench`
+(`render_raster(..., reference=True)`), and the surface depth under the ribbons.
 
 Rays go through pixel centres (BRIEF 1.1) of the output image refined `supersample` times: the
 sample (i, j) of a K-times supersampled image sits at output pixel coordinates
@@ -236,17 +238,20 @@ def box_filter(img: np.ndarray, k: int) -> np.ndarray:
     return img.reshape(HK // k, k, WK // k, k, *img.shape[2:]).mean(axis=(1, 3))
 
 
-# --- entry points the pipeline imports from here (implemented in strokekit.bands) ------------------
+# --- the raster pass's memory estimate ------------------------------------------------------------
 
-def raster_memory_bytes(width: int, height: int, supersample: int) -> int:
-    """About the peak memory (bytes) of one frame's raster pass at width x height px and
-    supersample K: per output pixel ~130 bytes (coverages, shades, PNG rows) plus ~55 per sample
-    (rays, hits). Measured with tracemalloc on spot, 512 and 1024 px, masks on: 193-207 bytes per
-    pixel at K = 1, 278 at K = 2 with edge resampling, 993 at K = 4."""
-    return int(width) * int(height) * (130 + 55 * int(supersample) ** 2)
+def raster_memory_bytes(width: int, height: int, supersample: int, fill: bool = False) -> int:
+    """About the peak memory (bytes) of one frame's raster pass (the z-buffer's, bands.render_raster
+    and the PNGs) at width x height px and supersample K: per output pixel ~60 bytes (images, PNG
+    rows, the edge pixels' samples) plus ~35 per sample (face, depth, barycentrics, label, key),
+    and ~150 more with the fill (its float64 fields). Measured with tracemalloc on spot and the
+    bunny at 512 and 1024 px, masks, ids and depth on: 38-72 bytes per pixel at K = 1 with the
+    edge pixels resampled 4 x 4 (150 on the bunny at 512 px, where the scene's own tables weigh),
+    103-123 at K = 2 (+ edge 4 x 4), 531-550 at K = 4; the fill adds 70-120 at 1024 px."""
+    return int(width) * int(height) * (60 + 35 * int(supersample) ** 2 + (150 if fill else 0))
 
 
-def check_raster_fits(width: int, height: int, supersample: int) -> None:
+def check_raster_fits(width: int, height: int, supersample: int, fill: bool = False) -> None:
     """UsageError when one frame's raster pass would need more memory than the machine has (a
     --size of 100000x100000 with --bands failed at frame time with a 37 GiB MemoryError)."""
 
@@ -254,7 +259,7 @@ def check_raster_fits(width: int, height: int, supersample: int) -> None:
         total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, ValueError, OSError):
         return  # not known here (not POSIX): the frame will say
-    need = raster_memory_bytes(width, height, supersample)
+    need = raster_memory_bytes(width, height, supersample, fill)
     if need > total:
         raise UsageError(f"the raster pass at {width}x{height} px, supersample {supersample}, needs about "
                          f"{need / 2**30:.0f} GiB per frame; this machine has {total / 2**30:.0f} GiB "

@@ -20,10 +20,19 @@ from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
 from strokekit.model import BrushPaths, Strokes
 from strokekit.paths.stage import PathTracker
+from strokekit.raster.hits import KernelWarmup
 from strokekit.raster.rays import check_raster_fits
 from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.report import _add_timings
-from strokekit.run.spec import RunInterrupted, RunResult, RunSpec, RunWriteError, carries_history, plan_stages
+from strokekit.run.spec import (
+    RASTER_STAGES,
+    RunInterrupted,
+    RunResult,
+    RunSpec,
+    RunWriteError,
+    carries_history,
+    plan_stages,
+)
 from strokekit.run.tasks import _surface_depth, drawn_strokes, frame_task, objects_and_materials, write_task
 from strokekit.run.workers import Workers, _keep_renderer, make_executor
 from strokekit.scene.load import Scene, load_scene
@@ -48,13 +57,15 @@ def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, lo
 
 def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, *,
         workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
-        started_at: float | None = None) -> RunResult:
+        started_at: float | None = None, notice: Callable[[str], None] | None = None) -> RunResult:
     """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
     `workers`: make_executor(spec.workers, spec.scheduler, (spec.scene_path, spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
     `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
     load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
-    (the report's wall time counts from there: the pool start and the load are part of it).
+    (the report's wall time counts from there: the pool start and the load are part of it);
+    `notice(line)`: told when the run has to wait for something the user may wonder about (the
+    first compile of the raster kernels on a machine).
 
     The steps: check the request, start the workers, load and plan the stages, plan the resume
     (`plan_resume`), stream the frames through line work, tracking and writing (`FrameStream`),
@@ -70,8 +81,11 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     write_error: OSError | None = None
     # Workers start first: their imports and scene load overlap the main process's own load.
     own = workers is None
+    raster = spec.outputs.raster_options is not None
     if own:
         workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
+    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
+    kernels = KernelWarmup(notice) if raster else None
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
@@ -82,8 +96,14 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
         except OSError as e:
             write_error = e
+        if write_error is None and kernels is not None and kernels.compiles() is not False:
+            # Compiled here, once, before any frame: the workers then load them from numba's disk
+            # cache instead of each compiling them.
+            kernels.join()
         if write_error is None:
             write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
+        if kernels is not None:
+            stage[RASTER_STAGES["kernels"][0]].seconds += kernels.join()
     except KeyboardInterrupt:
         # Ctrl-C: the frames in progress are abandoned. The workers stop now (also the caller's:
         # their tasks belong to this run), then the temporary files of the writes they were in
@@ -143,7 +163,7 @@ def check_run(spec: RunSpec) -> None:
     spec.outputs.check_names(f for f, _ in spec.cameras)
     if spec.outputs.raster_options is not None:
         for w, h in sorted({(c.width, c.height) for _, c in spec.cameras}):
-            check_raster_fits(w, h, spec.outputs.raster_options.supersample)
+            check_raster_fits(w, h, spec.outputs.raster_options.supersample, spec.outputs.raster_options.fill)
 
 
 @dataclass

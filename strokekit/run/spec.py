@@ -225,9 +225,25 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
     add("json", o.json, "JSON output requested", "--no-json")
     add("ribbons + glTF", o.gltf, "glTF output requested", "no glTF output requested")
     add("raster pass", o.raster_options is not None, "a raster output was requested", "no raster output requested")
+    if o.raster_options is not None:
+        for name, why in RASTER_STAGES.values():
+            st.append(StageRecord(name, True, why))
     add("EXR", o.exr is not None, "--exr: " + ", ".join(o.exr.passes) if o.exr is not None else "", "no --exr")
     add("lines PNG", o.lines_png, "--lines-png", "no --lines-png")
     return st
+
+
+#: The raster pass's parts as --explain lists them: {key of the frame task's timings: (stage name,
+#: what it is)}. The kernels are compiled or loaded once per run in the main process, before
+#: any frame (a worker loads them again from numba's disk cache in its first frame's z-buffer).
+RASTER_STAGES = {
+    "kernels": ("  raster kernels", "numba z-buffer kernels, compiled on a machine's first run, else loaded"),
+    "rasterize": ("  z-buffer", "face, depth and barycentrics at K x K samples a pixel"),
+    "shading": ("  labels + mixed pixels", "n.l, bands, the pixels a label, material or object edge crosses"),
+    "edge samples": ("  edge samples", "z-buffer R x R samples of the mixed pixels"),
+    "images": ("  images", "bands, shade colours, masks, ids, depth, fill from the pixels and edge samples"),
+    "png": ("  PNG encode", "zlib level 1"),
+}
 
 
 def raster_file_suffixes(options) -> list[str]:

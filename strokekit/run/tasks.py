@@ -16,10 +16,11 @@ from strokekit.fileio import atomic_write_bytes
 from strokekit.model import BrushPaths, Strokes
 from strokekit.options import LineOptions
 from strokekit.raster.bands import band_regions, render_raster
+from strokekit.raster.hits import thread_workspace
 from strokekit.raster.passes import compositing_passes
 from strokekit.raster.rays import surface_depth_at
 from strokekit.raster.strokes import stroke_coverage
-from strokekit.run.spec import OutputOptions
+from strokekit.run.spec import RASTER_STAGES, OutputOptions
 from strokekit.run.workers import _renderer
 from strokekit.scene.occluder import Occluder
 from strokekit.writers.exr import exr_bytes, lines_rgba
@@ -67,7 +68,8 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
         r.check_camera(camera, frame)
         timings: dict = {}
         strokes = r.render(camera, frame, timings) if do_lines else None
-        files, underlays, json_extra = raster_files(r.scene, camera, r.occluder, strokes, frame, outputs, timings)
+        files, underlays, json_extra = raster_files(r.scene, camera, r.occluder, strokes, frame, outputs, timings,
+                                                    lines.crease_angle_deg)
         res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
                "timings": timings, "underlays": underlays or None, "json_extra": json_extra,
                "ray_tracer": r.occluder.backend}
@@ -141,11 +143,12 @@ def _surface_depth(outputs: OutputOptions, scene_key: tuple | None, occluder=Non
 
 
 def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | None, frame: int,
-                 outputs: OutputOptions, timings: dict) -> tuple[list[str], list[str], dict]:
+                 outputs: OutputOptions, timings: dict, crease_angle_deg: float = 60.0
+                 ) -> tuple[list[str], list[str], dict]:
     """Write one frame's image passes (PNGs, one folder per pass) and EXR. Returns (files written,
     the SVG's bands layer ([] unless band polygons), what the frame JSON says of them: the depth
     PNG's range, and the objects and materials with their ids in the object-id PNG and their
-    Cryptomatte ids)."""
+    Cryptomatte ids). `crease_angle_deg`: the line options' (smooth shading splits normals there)."""
     files: list[str] = []
     underlays: list[str] = []
     info: dict = {}
@@ -153,8 +156,10 @@ def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | N
     stem = outputs.stem(frame)
     if o is not None:
         t1 = time.perf_counter()
-        raster = render_raster(scene, camera, occluder, o)
+        raster = render_raster(scene, camera, occluder, o, crease_angle_deg, work=thread_workspace(), timings=timings)
+        t2 = time.perf_counter()
         images = raster.images() if o.pngs else {}
+        timings["images"] = timings.get("images", 0.0) + (time.perf_counter() - t2)
         text = {}
         if "depth" in images:
             zn, zf = raster.depth_range()
@@ -164,14 +169,20 @@ def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | N
             t2 = time.perf_counter()
             images["lines"] = _lines_image(strokes, camera, outputs.stroke_width_px)
             timings["lines PNG"] = time.perf_counter() - t2
-        for name, data in png_files(images, text).items():
+        t2 = time.perf_counter()
+        pngs = png_files(images, text)
+        timings["png"] = timings.get("png", 0.0) + (time.perf_counter() - t2)
+        for name, data in pngs.items():
             files.append(_write(outputs.out_dir / name / f"{stem}.png", data))
         if o.band_polygons:
             underlays = [bands_layer(band_regions(raster))]
         timings["raster pass"] = time.perf_counter() - t1 - timings.get("lines PNG", 0.0)
+        for key, (name, _) in RASTER_STAGES.items():
+            if key in timings:
+                timings[name] = timings.pop(key)
         if outputs.exr is not None:
             t1 = time.perf_counter()
-            passes = compositing_passes(raster, strokes, outputs.exr)
+            passes = compositing_passes(raster, strokes, outputs.exr, crease_angle_deg)
             files.append(_write(outputs.frame_file(frame, ".exr"), exr_bytes(passes)))
             timings["EXR"] = time.perf_counter() - t1
         info.update(objects_and_materials(scene))
@@ -208,14 +219,26 @@ def objects_and_materials(scene) -> dict:
                           for i, m in enumerate(scene.materials)]}
 
 
-def raster_outputs(scene, camera: Camera, occluder: Occluder, options) -> dict[str, bytes]:
+def raster_outputs(scene, camera: Camera, occluder: Occluder | None, options, crease_angle_deg: float = 60.0
+                   ) -> dict[str, bytes]:
     """{pass: PNG bytes} of one frame for RasterOptions (see strokekit.raster; raster_files
-    writes them as OUT/<pass>/frame_0001.png)."""
-    return png_files(render_raster(scene, camera, occluder, options).images())
+    writes them as OUT/<pass>/frame_0001.png). `crease_angle_deg`: the line options'."""
+    return png_files(render_raster(scene, camera, occluder, options, crease_angle_deg).images())
 
 
-def raster_outputs_with_bands_layer(scene, camera: Camera, occluder: Occluder, options) -> tuple[dict[str, bytes], list]:
+def raster_outputs_with_bands_layer(scene, camera: Camera, occluder: Occluder | None, options,
+                                    crease_angle_deg: float = 60.0, timings: dict | None = None,
+                                    work=None) -> tuple[dict[str, bytes], list]:
     """(PNG outputs, the SVG text of the 'bands' layer in a list, [] when options.band_polygons is
-    off): pass it as svg_document(..., underlays=...) so the bands sit under the line layers."""
-    frame = render_raster(scene, camera, occluder, options)
-    return png_files(frame.images()), ([bands_layer(band_regions(frame))] if options.band_polygons else [])
+    off): pass it as svg_document(..., underlays=...) so the bands sit under the line layers.
+    `timings` gets the raster stages' seconds (render_raster's, 'images', 'png'); `work`: the
+    z-buffer workspace (raster.hits.thread_workspace()) whose buffers this frame reuses."""
+    frame = render_raster(scene, camera, occluder, options, crease_angle_deg, work=work, timings=timings)
+    t0 = time.perf_counter()
+    images = frame.images()
+    t1 = time.perf_counter()
+    pngs = png_files(images)
+    if timings is not None:
+        timings["images"] = timings.get("images", 0.0) + (t1 - t0)
+        timings["png"] = timings.get("png", 0.0) + (time.perf_counter() - t1)
+    return pngs, ([bands_layer(band_regions(frame))] if options.band_polygons else [])

@@ -45,7 +45,8 @@ def _warm_worker(scene_path: str, lines: LineOptions, started) -> None:
     """Pool initializer: import, load the scene and build its BVH while the main process loads
     its own copy, instead of after it, then count this worker in `started` (a shared integer).
     Errors are left to the frame tasks to report (an initializer that raises would break the
-    whole pool)."""
+    whole pool). (The raster kernels load in the worker's first raster frame: loading them here
+    would only move the same work earlier; a worker gets frames as soon as it has started.)"""
     try:
         _renderer(scene_path, "", lines)
     except Exception:

@@ -1,19 +1,42 @@
-"""PNG bytes via Pillow, deterministic: no timestamps, fixed compression, so the same array
-always gives the same bytes.
+"""PNG bytes, deterministic (no timestamps, fixed filter and compression: the same array and
+chunks always give the same bytes), written for speed.
 
 Colour images (the shade colours, the fill, the lines) carry an sRGB chunk: their values are
 sRGB-encoded, with straight (not premultiplied) alpha. Data images (band labels, masks, object
 ids, depth) carry none, and a text chunk "colorspace: Non-Color" instead: read them as data
-(Blender: Non-Color), never colour-managed."""
+(Blender: Non-Color), never colour-managed.
+
+Every row is filtered with PNG's Up filter (the difference to the row above: flat regions and
+straight edges become runs of zeros) and the rows are deflated by zlib at level 1, with the RLE
+strategy for 8-bit images (runs are what an image of flat bands, masks and ids is made of) and
+the default strategy for 16-bit depth. Measured on bunny frames at 1024 x 1024 against Pillow at
+its default level 6 with its adaptive filters, what strokekit wrote before: the bands PNG
+11.4 kB instead of 12.1 kB, shade 62 kB instead of 52 kB (+19%), a band mask 21 instead of
+19 kB, 16-bit depth 257 instead of 247 kB; encoding 3 to 4 times faster (shade 12 ms instead of
+45 ms; README "Raster pass").
+"""
 
 from __future__ import annotations
 
 import io
+import struct
+import zlib
 
 import numpy as np
 
+_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: zlib level and strategy of 8-bit and 16-bit images (see the module docstring).
+LEVEL = 1
+STRATEGY_8BIT = zlib.Z_RLE
+STRATEGY_16BIT = zlib.Z_DEFAULT_STRATEGY
+
+
 #: The passes whose PNGs are colour (sRGB); every other pass is data.
 COLOUR_PASSES = ("shade", "fill", "lines")
+
+
+def _chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
 
 
 def png_bytes(image: np.ndarray, *, srgb: bool = False, text: dict[str, str] | None = None) -> bytes:
@@ -21,28 +44,34 @@ def png_bytes(image: np.ndarray, *, srgb: bool = False, text: dict[str, str] | N
 
     image: (H, W) uint8 (8-bit grey), (H, W) uint16 (16-bit grey), (H, W, 3) uint8 RGB or
     (H, W, 4) uint8 RGBA. Row 0 is the top of the image (BRIEF 1.1). srgb: add an sRGB chunk
-    (perceptual intent); text: tEXt chunks, in the order given."""
-    from PIL import Image, PngImagePlugin
-
-    a = np.ascontiguousarray(image)
+    (perceptual intent); text: tEXt chunks (Latin-1), in the order given."""
+    a = np.asarray(image)
     if a.ndim == 2 and a.dtype == np.uint8:
-        img = Image.fromarray(a, mode="L")
+        colour, depth = 0, 8
     elif a.ndim == 2 and a.dtype == np.uint16:
-        # "I;16" is Pillow's native 16-bit grey; written as a 16-bit PNG.
-        img = Image.frombytes("I;16", (a.shape[1], a.shape[0]), a.astype("<u2").tobytes())
+        colour, depth = 0, 16
+        a = a.astype(">u2")  # PNG samples are big-endian
     elif a.ndim == 3 and a.dtype == np.uint8 and a.shape[2] in (3, 4):
-        img = Image.fromarray(a, mode="RGB" if a.shape[2] == 3 else "RGBA")
+        colour, depth = (2 if a.shape[2] == 3 else 6), 8
     else:
         raise ValueError(f"cannot write a PNG from an array of shape {a.shape} and dtype {a.dtype}")
-    info = PngImagePlugin.PngInfo()
-    if srgb:
-        info.add(b"sRGB", b"\x00")
-    for k, v in (text or {}).items():
-        info.add_text(k, v)
-    buf = io.BytesIO()
-    # No optimize pass: the output depends on the pixels and the chunks given only.
-    img.save(buf, format="PNG", compress_level=6, pnginfo=info)
-    return buf.getvalue()
+    H, W = a.shape[:2]
+    if H == 0 or W == 0:
+        raise ValueError(f"cannot write an empty PNG ({W} x {H})")
+    rows = np.ascontiguousarray(a).view(np.uint8).reshape(H, -1)
+    # Up filter: filter byte 2, then each byte minus the byte above it (mod 256); the first row's
+    # "above" is zero.
+    filtered = np.empty((H, rows.shape[1] + 1), np.uint8)
+    filtered[:, 0] = 2
+    filtered[0, 1:] = rows[0]
+    np.subtract(rows[1:], rows[:-1], out=filtered[1:, 1:])
+    z = zlib.compressobj(LEVEL, zlib.DEFLATED, 15, 9, STRATEGY_16BIT if depth == 16 else STRATEGY_8BIT)
+    idat = z.compress(filtered.data) + z.flush()
+    ihdr = struct.pack(">IIBBBBB", W, H, depth, colour, 0, 0, 0)
+    extra = _chunk(b"sRGB", b"\x00") if srgb else b""
+    extra += b"".join(_chunk(b"tEXt", k.encode("latin-1") + b"\0" + v.encode("latin-1"))
+                      for k, v in (text or {}).items())
+    return _SIGNATURE + _chunk(b"IHDR", ihdr) + extra + _chunk(b"IDAT", idat) + _chunk(b"IEND", b"")
 
 
 def read_png(data: bytes) -> np.ndarray:

@@ -1,0 +1,228 @@
+"""The raster pass's own compiled loops (numba), beside the z-buffer (`zbuffer.py`): what would
+otherwise be several full-image numpy passes with temporaries. Imports numpy and numba only;
+loaded on first use by `raster.hits.kernels()` (numba's import is not paid by lines-only runs),
+compiled once per machine and cached on disk like the z-buffer (`cache=True`, no fastmath:
+results are the same on every run and in every process).
+
+* `label_samples`: band label and key (label, material, object) of every sample, from the
+  per-face tables of `bands.FaceShading` (smooth n.l interpolated only where a face spans bands).
+* `thin_face_pixels`: the pixels a triangle thinner than the sample spacing crosses where it may
+  show another key than the samples there (`bands._thin_face_pixels` says why).
+* `mixed_sums`: per mixed pixel, the samples of each label and the sum of its covered samples'
+  linear colours.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, error_model="numpy")
+def _quantize(x, bands, thresholds):
+    """bands.quantize_bands of one finite n.l: 1 + floor(max(0, x) N) clipped to N, or 1 + the
+    number of thresholds <= x."""
+    if thresholds.shape[0] > 0:
+        n = 0
+        for t in thresholds:
+            if t <= x:
+                n += 1
+        return n + 1
+    v = math.floor(x * bands)
+    if v < 0.0:
+        v = 0.0
+    if v > bands - 1:
+        v = bands - 1
+    return int(v) + 1
+
+
+@njit(cache=True, error_model="numpy")
+def label_samples(face, bary, label, coef, bands, thresholds, region, out_label, out_key):
+    """Labels and keys of M samples (flat arrays): face (M,) int32 (-1: background), bary (M, 2)
+    float32; label (F + 1,) uint8 the per-face label or 255 (interpolate), label[F] = 0; coef
+    (F, 7) float64 the smooth-shading scalars (corner n.l a, b, c, their normals' dot products
+    ab, bc, ca, the two-sided sign; (0, 7) for flat shading); thresholds (T,) float64; region
+    (F,) int32 ((0,): one region, key = label). out_label (M,) uint8, out_key (M,) int32."""
+    step = bands + 1
+    one = region.shape[0] == 0
+    for i in range(face.shape[0]):
+        f = face[i]
+        if f < 0:
+            out_label[i] = 0
+            out_key[i] = 0
+            continue
+        lab = label[f]
+        if lab == 255:
+            wb = np.float64(bary[i, 0])
+            wc = np.float64(bary[i, 1])
+            wa = 1.0 - wb - wc
+            norm2 = wa * wa + wb * wb + wc * wc + 2 * (wa * wb * coef[f, 3] + wb * wc * coef[f, 4]
+                                                       + wc * wa * coef[f, 5])
+            if norm2 < 1e-24:
+                norm2 = 1e-24
+            x = coef[f, 6] * (wa * coef[f, 0] + wb * coef[f, 1] + wc * coef[f, 2]) / math.sqrt(norm2)
+            lab = _quantize(x, bands, thresholds)
+        out_label[i] = lab
+        out_key[i] = lab if one else lab + step * region[f]
+
+
+@njit(cache=True, error_model="numpy")
+def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step, depth, keys, ortho, slack, out):
+    """Mark in out (H, W) bool the pixels where a thin triangle may show a key its pixel's K x K
+    samples do not have (see bands._thin_face_pixels): xy (V, 2), z (V,) the vertices' pixel
+    coordinates and view depths; faces (F, 3) int32; lo, hi (F,) uint8 the labels a face can
+    have; back (F,) bool; region (F,) int32 (all 0 for one region); nb (F, 3) int64 the faces
+    across its edges (-1: border or non-manifold); step = N + 1; depth (HK, WK) float32, keys
+    (HK, WK) int32 the sample grid; slack the relative depth slack. Returns the pixels marked
+    (with repeats)."""
+    thr = math.sqrt(0.5) / K
+    HK, WK = depth.shape
+    marked = 0
+    for fi in range(faces.shape[0]):
+        ia, ib, ic = faces[fi, 0], faces[fi, 1], faces[fi, 2]
+        za, zb, zc = z[ia], z[ib], z[ic]
+        if not (min(za, zb, zc) > near):
+            continue
+        xa, ya, xb, yb, xc, yc = xy[ia, 0], xy[ia, 1], xy[ib, 0], xy[ib, 1], xy[ic, 0], xy[ic, 1]
+        if not (max(xa, xb, xc) >= 0 and min(xa, xb, xc) < W and max(ya, yb, yc) >= 0 and min(ya, yb, yc) < H):
+            continue
+        twice_area = abs((xb - xa) * (yc - ya) - (yb - ya) * (xc - xa))
+        # inradius = 2 area / perimeter < thr; the perimeter is at most the edges' |dx| + |dy|
+        # (a test without square roots first: most faces are not thin)
+        if not (twice_area < thr * (abs(xb - xa) + abs(yb - ya) + abs(xc - xb) + abs(yc - yb) + abs(xa - xc)
+                                    + abs(ya - yc))):
+            continue
+        perim = math.hypot(xb - xa, yb - ya) + math.hypot(xc - xb, yc - yb) + math.hypot(xa - xc, ya - yc)
+        if not (twice_area < perim * thr):
+            continue
+        l0 = lo[fi]
+        r0 = region[fi]
+        if hi[fi] == l0:
+            plain = True
+            for k in range(3):
+                n = nb[fi, k]
+                if n < 0 or lo[n] != l0 or hi[n] != l0 or region[n] != r0 or back[n] != back[fi]:
+                    plain = False
+                    break
+            if plain:
+                continue
+        klo = np.int64(l0) + step * r0
+        khi = np.int64(hi[fi]) + step * r0
+        for e in range(3):
+            if e == 0:
+                ax, ay, az, bx, by, bz = xa, ya, za, xb, yb, zb
+            elif e == 1:
+                ax, ay, az, bx, by, bz = xb, yb, zb, xc, yc, zc
+            else:
+                ax, ay, az, bx, by, bz = xc, yc, zc, xa, ya, za
+            dx, dy = bx - ax, by - ay
+            # The pixel of the start corner, then both pixels at every crossing of a pixel column
+            # line x = g (c = 0) and row line y = g (c = 1) inside the image.
+            for c in range(3):
+                if c == 2:
+                    g0, g1 = 0, 0
+                else:
+                    p0, dd, lim = (ax, dx, W) if c == 0 else (ay, dy, H)
+                    lo_c, hi_c = min(p0, p0 + dd), max(p0, p0 + dd)
+                    g0 = int(min(max(math.floor(lo_c), -1.0), lim)) + 1
+                    g1 = int(min(max(math.floor(hi_c), -1.0), lim))
+                for g in range(g0, g1 + 1):
+                    if c == 2:
+                        t = 0.0
+                        px0, py0 = ax, ay
+                        sides = 1
+                    else:
+                        t = (g - (ax if c == 0 else ay)) / (dx if c == 0 else dy)
+                        t = min(max(t, 0.0), 1.0)
+                        px0, py0 = ax + t * dx, ay + t * dy
+                        if c == 0:
+                            px0 = g + 0.5
+                        else:
+                            py0 = g + 0.5
+                        sides = 2
+                    if ortho:
+                        zt = az + t * (bz - az)
+                    else:
+                        zt = 1.0 / ((1 - t) / az + t / bz)
+                    for s in range(sides):
+                        qx, qy = px0, py0
+                        if s == 1:
+                            if c == 0:
+                                qx = g - 0.5
+                            else:
+                                qy = g - 0.5
+                        ix = int(math.floor(qx))
+                        iy = int(math.floor(qy))
+                        if ix < 0 or ix >= W or iy < 0 or iy >= H:
+                            continue
+                        if out[iy, ix]:
+                            continue
+                        # Cannot change it: the pixel's samples all carry the face's one key.
+                        if klo == khi and keys[iy * K, ix * K] == klo:
+                            same = True
+                            for r in range(iy * K, iy * K + K):
+                                for q in range(ix * K, ix * K + K):
+                                    if keys[r, q] != klo:
+                                        same = False
+                            if same:
+                                continue
+                        # Hidden there: behind every sample of the 3 x 3 pixels around.
+                        zmax = -np.inf
+                        for r in range(max(iy * K - K, 0), min(iy * K + 2 * K, HK)):
+                            for q in range(max(ix * K - K, 0), min(ix * K + 2 * K, WK)):
+                                if depth[r, q] > zmax:
+                                    zmax = depth[r, q]
+                        if not (zt <= np.float64(zmax) * (1 + slack)):
+                            continue
+                        out[iy, ix] = True
+                        marked += 1
+    return marked
+
+
+@njit(cache=True, error_model="numpy")
+def mixed_sums(labels, keys, colours, n_labels, counts, rgb):
+    """Per mixed pixel (rows of labels, keys (P, S)): counts (P, n_labels) int32 its samples of
+    each label; rgb (P, 3) float64 the sum of the linear colours (colours (keys, 3), by key) of
+    its covered samples (label > 0)."""
+    for p in range(labels.shape[0]):
+        for c in range(n_labels):
+            counts[p, c] = 0
+        r = g = b = 0.0
+        for s in range(labels.shape[1]):
+            lab = labels[p, s]
+            if lab < n_labels:
+                counts[p, lab] += 1
+            if lab > 0:
+                k = keys[p, s]
+                r += colours[k, 0]
+                g += colours[k, 1]
+                b += colours[k, 2]
+        rgb[p, 0] = r
+        rgb[p, 1] = g
+        rgb[p, 2] = b
+
+
+def warmup() -> None:
+    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
+    face = np.array([0, -1], np.int32)
+    bary = np.zeros((2, 2), np.float32)
+    label = np.array([255, 0], np.uint8)
+    coef = np.zeros((1, 7))
+    lab = np.zeros(2, np.uint8)
+    key = np.zeros(2, np.int32)
+    for th in (np.zeros(0), np.array([0.5])):
+        for region in (np.zeros(0, np.int32), np.zeros(1, np.int32)):
+            label_samples(face, bary, label, coef, 2, th, region, lab, key)
+    xy = np.array([[0.5, 0.5], [1.5, 0.5], [0.5, 0.52]])
+    z = np.ones(3)
+    faces = np.array([[0, 1, 2]], np.int32)
+    u8 = np.array([1], np.uint8)
+    out = np.zeros((2, 2), np.bool_)
+    for ortho in (False, True):
+        thin_face_pixels(xy, z, faces, 1e-3, 2, 2, 1, u8, u8 + 1, np.zeros(1, np.bool_), np.zeros(1, np.int32),
+                         np.full((1, 3), -1, np.int64), 4, np.ones((2, 2), np.float32), np.zeros((2, 2), np.int32),
+                         ortho, 1e-3, out)
+    mixed_sums(np.zeros((1, 4), np.uint8), np.zeros((1, 4), np.int32), np.zeros((4, 3)), 4,
+               np.zeros((1, 4), np.int32), np.zeros((1, 3)))

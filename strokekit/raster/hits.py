@@ -1,0 +1,285 @@
+"""Where the raster pass's samples come from: the first surface behind the near plane at each
+sample, from the z-buffer rasterizer (the default, `strokekit.raster.zbuffer`, numba kernels) or
+from the Embree ray caster (`strokekit.raster.rays`, the reference that tests and `strokekit
+bench` hold the rasterizer against).
+
+Both give the same arrays for the same sample positions (image space as `Camera`: x right, y
+down, origin top-left): `grid(K)` the K x K-per-pixel grid, sample (i, j) at output pixel
+coordinates ((i + 0.5) / K, (j + 0.5) / K); `pixels(pix, R)` R x R samples in each listed pixel,
+sample b * R + a at (px + (a + 0.5) / R, py + (b + 0.5) / R). Face int32 (-1: background),
+barycentrics float32 (u, v) with P = (1 - u - v) A + u B + v C, depth float32 view depth z
+(inf: background).
+
+The kernels are compiled once per machine and cached on disk by numba (`cache=True`): numba
+writes them to `__pycache__` next to `zbuffer.py` when that folder is writable (an editable or a
+root install), else to its user-wide cache (`~/.cache/numba`, `$XDG_CACHE_HOME/numba`), or
+`$NUMBA_CACHE_DIR` when set; when none of these is writable, `kernels()` points numba at
+strokekit's own cache folder (`$STROKEKIT_CACHE_DIR/numba`, else `~/.cache/strokekit/numba`, else
+a folder in the temporary directory). numba itself (about 0.3 s to import) is only imported when
+a raster pass runs: lines-only runs never load it.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from strokekit.camera.view import Camera
+from strokekit.raster.rays import cast_pixels, cast_samples
+from strokekit.scene.load import Scene
+from strokekit.scene.tables import scene_cache
+
+#: The modules of the compiled kernels, imported on first use (numba's import costs about 0.3 s):
+#: the z-buffer, and the raster pass's own loops.
+KERNELS = ("strokekit.raster.zbuffer", "strokekit.raster.compiled")
+#: About how long the first compile of the kernels takes (s), on this project's 2-core machine
+#: (19-20 s measured with another job running, 2026-11-26; README "Raster pass").
+COMPILE_SECONDS = 20
+
+_kernels = None
+_lock = threading.Lock()
+
+
+def _writable(path: Path) -> bool:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+        return True
+    except OSError:
+        return False
+
+
+def _cache_folder() -> Path:
+    """strokekit's own folder for numba's cache when numba has no writable one."""
+    if os.environ.get("STROKEKIT_CACHE_DIR"):
+        return Path(os.environ["STROKEKIT_CACHE_DIR"]) / "numba"
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "strokekit" / "numba"
+
+
+def choose_cache_dir() -> str | None:
+    """Make sure numba can write its cache (else a `cache=True` kernel refuses to compile, and the
+    compile would be paid on every run): numba's own choice when one of its folders is writable
+    (None returned), else strokekit's cache folder or a temporary one, set as numba's CACHE_DIR
+    (returned). Call before the kernels' module is imported."""
+    import numba
+    from numba.misc.appdirs import AppDirs
+
+    if numba.config.CACHE_DIR:  # $NUMBA_CACHE_DIR
+        return None
+    if _writable(Path(__file__).resolve().parent / "__pycache__"):
+        return None
+    if _writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
+        return None
+    for folder in (_cache_folder(), Path(tempfile.gettempdir()) / f"strokekit-numba-{os.getuid()}"):
+        if _writable(folder):
+            numba.config.CACHE_DIR = str(folder)
+            return str(folder)
+    return None  # nowhere to write: numba will say so when it compiles
+
+
+def kernels():
+    """The z-buffer module (`strokekit.raster.zbuffer`), imported on first use."""
+    return _modules()[0]
+
+
+def compiled():
+    """The raster pass's own compiled loops (`strokekit.raster.compiled`), imported on first use."""
+    return _modules()[1]
+
+
+def _modules():
+    global _kernels
+    if _kernels is None:
+        import importlib
+
+        with _lock:
+            if _kernels is None:
+                choose_cache_dir()
+                _kernels = tuple(importlib.import_module(m) for m in KERNELS)
+    return _kernels
+
+
+def _compile_needed(modules) -> bool | None:
+    """Whether warming the serial kernels up will compile them: False when every one is already
+    in this process or has a fresh entry in numba's on-disk cache (the warm-up only loads them),
+    True when one has neither, None when numba does not tell (its cache internals changed). The
+    parallel kernels (`parallel=True`) are not warmed up: the raster pass runs serial ones (one
+    frame a process; the run's processes share the cores)."""
+    try:
+        disps = [v for m in modules for v in vars(m).values()
+                 if hasattr(v, "py_func") and getattr(v, "_cache", None) is not None
+                 and not v.targetoptions.get("parallel")]
+        if not disps:
+            return None
+        if all(d.signatures for d in disps):
+            return False
+        return not all(d.signatures or d._cache._cache_file._load_index() for d in disps)
+    except Exception:  # private numba API: any change means "cannot tell"
+        return None
+
+
+_ASK = object()
+
+
+def warm_kernels(notify: Callable[[str], None] | None = None, *, compiles=_ASK) -> tuple[float, bool]:
+    """Compile (the first run on a machine) or load (from numba's disk cache) the kernels the
+    raster pass uses, before any frame: (seconds, compiled). `notify(line)` is told once, before
+    the wait, when they compile. Workers started afterwards load them from the cache.
+    (`compiles`: what _compile_needed said, when the caller has asked it already.)"""
+    t = time.perf_counter()
+    mods = _modules()
+    if compiles is _ASK:
+        compiles = _compile_needed(mods)
+    msg = f"compiling the raster kernels (first run on this machine, about {COMPILE_SECONDS} s)"
+    timer = None
+    if notify is not None:
+        if compiles:
+            notify(msg)
+        elif compiles is None:  # cannot tell beforehand: say it if the warm-up is slow
+            timer = threading.Timer(2.0, notify, (msg,))
+            timer.daemon = True
+            timer.start()
+    try:
+        mods[0].warmup(parallel=False)
+        mods[1].warmup()
+    finally:
+        if timer is not None:
+            timer.cancel()
+    return time.perf_counter() - t, bool(compiles)
+
+
+class KernelWarmup:
+    """`warm_kernels` in a background thread, started as early as possible: loading the kernels
+    from the cache (numba's import and first-use set-up: 0.6 to 1 s a process) overlaps the
+    process's other work instead of delaying its first frame (a raster call meanwhile waits for
+    it on numba's compiler lock). `compiles()` says, once known, whether they are being compiled
+    (a machine's first run: then the caller waits for `join()` before any worker starts a frame,
+    so that they load the kernels from the cache instead of each compiling them)."""
+
+    def __init__(self, notify: Callable[[str], None] | None = None):
+        self._notify = notify
+        self._decided = threading.Event()
+        self._compiles: bool | None = None
+        self.seconds = 0.0
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="strokekit-raster-kernels", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        t = time.perf_counter()
+        try:
+            self._compiles = _compile_needed(_modules())
+            self._decided.set()
+            warm_kernels(self._notify, compiles=self._compiles)
+        except BaseException as e:  # said by the frames that need the kernels
+            self.error = e
+        finally:
+            self._decided.set()
+            self.seconds = time.perf_counter() - t
+
+    def compiles(self) -> bool | None:
+        self._decided.wait()
+        return self._compiles
+
+    def join(self) -> float:
+        self._thread.join()
+        return self.seconds
+
+
+# --- sample sources ------------------------------------------------------------------------------
+
+def scene_faces32(scene: Scene) -> np.ndarray:
+    """(F, 3) int32 C-contiguous faces, converted once per scene (the kernels' face array)."""
+    c = scene_cache(scene)
+    if "raster_faces32" not in c:
+        c["raster_faces32"] = np.ascontiguousarray(scene.faces, dtype=np.int32).reshape(-1, 3)
+    return c["raster_faces32"]
+
+
+class ZBufferHits:
+    """The z-buffer's first hits of one frame: vertices projected once, faces set up once (the
+    near-plane clipping), then any number of grid or pixel passes.
+
+    Parallel projections are orthographic views; the oblique ones (cavalier, cabinet) project
+    along camera.ray_dir, which is orthographic projection after a shear: each vertex is moved
+    by (kx right + ky up) times its view depth z (Camera.shear), which puts it where the oblique
+    camera draws it, keeps z (the depth along fwd the rays report) and, being affine, keeps
+    every barycentric coordinate."""
+
+    def __init__(self, scene: Scene, camera: Camera, work=None):
+        zb = kernels()
+        self.camera = camera
+        self.near = camera.near_distance(scene.radius)
+        v = scene.vertices
+        if camera.is_oblique:
+            right, up, fwd = camera.basis
+            kx, ky = camera.shear
+            z = (v - camera.eye_array) @ fwd
+            v = v + z[:, None] * (kx * right + ky * up)
+        self.proj = zb.project(v, scene_faces32(scene), zb.view_from_camera(camera, self.near))
+        self._zb = zb
+        self.work = work
+
+    @property
+    def vertices_px(self) -> tuple[np.ndarray, np.ndarray]:
+        """((V, 2) pixel coordinates, (V,) view depth z) of the scene's vertices (NaN / inf
+        pixels where a perspective z <= 0)."""
+        return self.proj.xy, self.proj.cam[:, 2]
+
+    def grid(self, K: int, own: bool = False):
+        """(face, bary, depth) of the K x K grid; `own`: in new arrays, not the workspace's (a
+        second grid of the frame, which must not take the first one's buffers)."""
+        h = self._zb.rasterize_grid(self.proj, K, work=None if own else self.work)
+        return h.face, h.bary, h.depth
+
+    def pixels(self, pixels: np.ndarray, R: int):
+        h = self._zb.rasterize_pixels(self.proj, pixels, R, work=self.work)
+        return h.face, h.bary, h.depth
+
+
+class RayHits:
+    """The same from Embree rays (raster.rays.cast_pixels / cast_samples): the reference."""
+
+    def __init__(self, scene: Scene, camera: Camera, occluder):
+        self.camera = camera
+        self.occluder = occluder
+        self.scene = scene
+
+    @property
+    def vertices_px(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.camera.project(self.scene.vertices)
+
+    def grid(self, K: int, own: bool = False):
+        h = cast_pixels(self.camera, self.occluder, K)
+        return h.face, h.bary, h.depth
+
+    def pixels(self, pixels: np.ndarray, R: int):
+        cam = self.camera
+        W, H, f = int(cam.width), int(cam.height), cam.focal_px
+        py, px = np.divmod(np.asarray(pixels, np.int64), W)
+        sub = (np.arange(R) + 0.5) / R
+        x = (px[:, None] + np.tile(sub, R)[None, :]).ravel()
+        y = (py[:, None] + np.repeat(sub, R)[None, :]).ravel()
+        h = cast_samples(cam, self.occluder, (x - W / 2.0) / f, (H / 2.0 - y) / f)
+        P = len(px)
+        return (h["face"].reshape(P, R * R), h["bary"].reshape(P, R * R, 2), h["depth"].reshape(P, R * R))
+
+
+#: One z-buffer workspace per thread (the run's frame tasks reuse its buffers frame after frame).
+_local = threading.local()
+
+
+def thread_workspace():
+    """This thread's zbuffer.Workspace: buffers reused from frame to frame. What a pass returns
+    with it lives until the next pass of this thread."""
+    w = getattr(_local, "work", None)
+    if w is None:
+        w = _local.work = kernels().Workspace()
+    return w
