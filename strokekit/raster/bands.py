@@ -364,11 +364,15 @@ def representative(img: np.ndarray, k: int) -> np.ndarray:
     return img[k // 2::k, k // 2::k] if k > 1 else img
 
 
-def _blocks(img: np.ndarray, k: int) -> np.ndarray:
-    """(H*k, W*k, ...) -> (H*W, k*k, ...) samples of each output pixel, row-major inside it."""
+def _block_samples(img: np.ndarray, k: int, pixels: np.ndarray) -> np.ndarray:
+    """(P, k*k, ...) the samples of output pixels `pixels` (flat indices) in a (H*k, W*k, ...)
+    grid, row-major inside each pixel."""
     HK, WK = img.shape[:2]
-    rest = img.shape[2:]
-    return img.reshape(HK // k, k, WK // k, k, *rest).swapaxes(1, 2).reshape((HK // k) * (WK // k), k * k, *rest)
+    py, px = np.divmod(pixels, WK // k)
+    sub = np.arange(k)
+    rows = (py[:, None] * k + np.repeat(sub, k)[None, :])
+    cols = (px[:, None] * k + np.tile(sub, k)[None, :])
+    return img.reshape(HK * WK, *img.shape[2:])[rows * WK + cols]
 
 
 @dataclass(frozen=True, eq=False)
@@ -705,11 +709,17 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
             el, ek = shading.labels(ef, eb)
             mixed = MixedPixels(pixels=pix, face=ef, bary=eb, depth=ed, labels=el, keys=ek)
     elif K > 1:
-        kb = _blocks(keys_ss, K)
-        pix = np.flatnonzero(kb.min(axis=1) != kb.max(axis=1))
+        k0 = keys_ss[::K, ::K]
+        differ = np.zeros(k0.shape, bool)
+        for dy in range(K):
+            for dx in range(K):
+                if dy or dx:
+                    differ |= keys_ss[dy::K, dx::K] != k0
+        pix = np.flatnonzero(differ)
         if len(pix):
-            mixed = MixedPixels(pixels=pix, face=_blocks(face, K)[pix], bary=_blocks(bary, K)[pix],
-                                depth=_blocks(depth, K)[pix], labels=_blocks(labels_ss, K)[pix], keys=kb[pix])
+            mixed = MixedPixels(pixels=pix, face=_block_samples(face, K, pix), bary=_block_samples(bary, K, pix),
+                                depth=_block_samples(depth, K, pix), labels=_block_samples(labels_ss, K, pix),
+                                keys=_block_samples(keys_ss, K, pix))
     t4 = time.perf_counter()
     if timings is not None:
         edge = (t3 - t2b) if t3 is not None else 0.0

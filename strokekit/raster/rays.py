@@ -230,14 +230,6 @@ def _cast(occluder: Occluder, rays_local: np.ndarray) -> dict:
     return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
 
 
-def box_filter(img: np.ndarray, k: int) -> np.ndarray:
-    """Mean over k x k blocks: (H*k, W*k, ...) -> (H, W, ...) float64."""
-    if k == 1:
-        return img.astype(np.float64)
-    HK, WK = img.shape[:2]
-    return img.reshape(HK // k, k, WK // k, k, *img.shape[2:]).mean(axis=(1, 3))
-
-
 # --- the raster pass's memory estimate ------------------------------------------------------------
 
 def raster_memory_bytes(width: int, height: int, supersample: int, fill: bool = False) -> int:

@@ -26,7 +26,7 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
 
         out = {"python": platform.python_version()}
         for dist in ("strokekit", "numpy", "scipy", "trimesh", "open3d", "embreex", "shapely",
-                     "pygltflib", "click", "pillow"):
+                     "pygltflib", "click", "pillow", "numba"):
             try:
                 out[dist] = version(dist)
             except PackageNotFoundError:

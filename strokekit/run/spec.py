@@ -242,7 +242,7 @@ RASTER_STAGES = {
     "shading": ("  labels + mixed pixels", "n.l, bands, the pixels a label, material or object edge crosses"),
     "edge samples": ("  edge samples", "z-buffer R x R samples of the mixed pixels"),
     "images": ("  images", "bands, shade colours, masks, ids, depth, fill from the pixels and edge samples"),
-    "png": ("  PNG encode", "zlib level 1"),
+    "png": ("  PNG encode", "Up filter, zlib level 1"),
 }
 
 
