@@ -735,7 +735,7 @@ def test_svg_silhouettes_lie_on_the_edge_of_the_background_mask(tmp_path, capsys
     assert len(pts) >= 2
     sil = _resampled(pts)
     # Background coverage from the masks: 1 - the sum of the band masks.
-    masks = sum(read_png((tmp_path / "o" / f"frame_0001_mask_{b}.png").read_bytes()).astype(float) for b in (1, 2, 3))
+    masks = sum(read_png((tmp_path / "o" / f"mask{b}" / "frame_0001.png").read_bytes()).astype(float) for b in (1, 2, 3))
     bg = 1.0 - masks / 255.0
     partial = np.argwhere((bg > 0.02) & (bg < 0.98))[:, ::-1] + 0.5
     cross = [((np.argwhere(a != b)[:, ::-1] + 0.5) + off / 2) for a, b, off in
