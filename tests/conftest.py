@@ -26,3 +26,13 @@ def models_dir() -> Path:
     if not MODELS.exists():
         pytest.skip(f"shared models folder not found at {MODELS}")
     return MODELS
+
+
+@pytest.fixture(scope="session", autouse=True)
+def raster_kernels():
+    """The raster pass's numba kernels, compiled (a machine's first run: about 20 s) or loaded
+    once for the session, before any test: a test that checks a run's stderr line by line must
+    not see the one-line compile notice of whichever test happens to run first."""
+    from strokekit.raster.hits import warm_kernels
+
+    warm_kernels()

@@ -170,6 +170,8 @@ class KernelWarmup:
         self.seconds = 0.0
         self.error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, name="strokekit-raster-kernels", daemon=True)
+        global _warming
+        _warming = self
         self._thread.start()
 
     def _run(self) -> None:
@@ -184,6 +186,9 @@ class KernelWarmup:
             self._decided.set()
             self.seconds = time.perf_counter() - t
 
+    def done(self) -> bool:
+        return not self._thread.is_alive()
+
     def compiles(self) -> bool | None:
         self._decided.wait()
         return self._compiles
@@ -191,6 +196,17 @@ class KernelWarmup:
     def join(self) -> float:
         self._thread.join()
         return self.seconds
+
+
+_warming: KernelWarmup | None = None
+
+
+def wait_for_kernels() -> None:
+    """Wait for this process's KernelWarmup, if one is loading the kernels (so that the frame
+    that waits does not count the load as its own work)."""
+    w = _warming
+    if w is not None and not w.done():
+        w.join()
 
 
 # --- sample sources ------------------------------------------------------------------------------

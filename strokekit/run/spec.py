@@ -237,7 +237,7 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
 #: what it is)}. The kernels are compiled or loaded once per run in the main process, before
 #: any frame (a worker loads them again from numba's disk cache in its first frame's z-buffer).
 RASTER_STAGES = {
-    "kernels": ("  raster kernels", "numba z-buffer kernels, compiled on a machine's first run, else loaded"),
+    "kernels": ("  raster kernels", "numba kernels: compiled on a machine's first run, else loaded (workers: in their 1st frame)"),
     "rasterize": ("  z-buffer", "face, depth and barycentrics at K x K samples a pixel"),
     "shading": ("  labels + mixed pixels", "n.l, bands, the pixels a label, material or object edge crosses"),
     "edge samples": ("  edge samples", "z-buffer R x R samples of the mixed pixels"),
