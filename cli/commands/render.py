@@ -163,7 +163,7 @@ def command(scene, **o):
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
     notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
     kernels = None
-    if wants_raster(o):
+    if wants_raster(o) and not o["scheduler"]:  # (on a dask cluster the workers draw every frame)
         raster_options_from(o, o["quality"])  # (its usage errors first)
         # The raster kernels load (or compile, on a machine's first run) beside the scene's load.
         kernels = KernelWarmup(notice)

@@ -31,7 +31,7 @@ from strokekit.colour import srgb_encode
 from strokekit.errors import UsageError
 from strokekit.model import BandRegion
 from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
-from strokekit.raster.hits import RayHits, ZBufferHits, compiled, scene_faces32, wait_for_kernels
+from strokekit.raster.hits import RayHits, ZBufferHits, compiled, ensure_kernels, scene_faces32
 from strokekit.raster.rays import RasterHits
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
@@ -677,7 +677,7 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
     (the sample grid), 'shading' (labels, mixed pixels) and 'edge samples' (their R x R samples)."""
     if not 0 < crease_angle_deg < 180:
         raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
-    wait_for_kernels()  # (a run's kernels loading in a thread: their time is theirs, not this frame's)
+    ensure_kernels()  # (loaded, or compiled, before the frame's clock starts)
     t0 = time.perf_counter()
     if reference:
         if occluder is None:

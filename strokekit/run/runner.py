@@ -75,11 +75,13 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     raster = spec.outputs.raster_options is not None
     if own:
         workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
-    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
-    if raster and kernels is None:
-        kernels = KernelWarmup(notice)
-    elif not raster:
+    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work,
+    # when this process draws frames (not beside a dask cluster: there each worker loads them, and
+    # compiles them on its machine's first run).
+    if not (raster and workers.main_helps):
         kernels = None
+    elif kernels is None:
+        kernels = KernelWarmup(notice)
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written

@@ -12,7 +12,7 @@ from strokekit.fileio import atomic_write_bytes
 from strokekit.model import Strokes
 from strokekit.options import LineOptions
 from strokekit.raster.bands import band_regions, render_raster
-from strokekit.raster.hits import thread_workspace, wait_for_kernels
+from strokekit.raster.hits import ensure_kernels, thread_workspace
 from strokekit.raster.rays import surface_depth_at
 from strokekit.run.spec import RASTER_STAGES, OutputOptions
 from strokekit.run.workers import _renderer
@@ -64,7 +64,8 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
         files = []
         underlays = None
         if outputs.raster_options is not None:
-            wait_for_kernels()  # (their load is the 'raster kernels' stage, not this frame's)
+            # The kernels' load (a worker's first frame) is the 'raster kernels' stage, not this frame's.
+            timings["kernels"] = ensure_kernels()
             t1 = time.perf_counter()
             stem = outputs.out_dir / outputs.stem(frame)
             pngs, underlays = raster_outputs_with_bands_layer(r.scene, camera, r.occluder, outputs.raster_options,
