@@ -148,8 +148,10 @@ def cli_bars(repeats: int, frames: int) -> None:
           "default workers)")
     print(f"lines only: {med['lines']:.2f} s = {lines_frame:.1f} ms a frame (line stages from --explain: "
           f"{lines_stages:.1f} ms a frame of CPU)")
+    raster_cpu = statistics.median(st_with["raster pass"]) / frames if "raster pass" in st_with else float("nan")
     print(f"with --bands 3: {med['bands']:.2f} s; added {added:.1f} ms a frame = {added / lines_frame:.2f} x the "
-          f"lines-only ms a frame ({added / lines_stages:.2f} x its line stages); bar <= 5")
+          f"lines-only ms a frame; bar <= 5 (the raster pass's CPU, {raster_cpu:.1f} ms a frame over the processes, "
+          f"is {raster_cpu / lines_stages:.2f} x the line stages' CPU)")
     print("raster stages (--explain, ms a frame summed over processes): " + ", ".join(
         f"{k.strip()} {statistics.median(v) / frames:.1f}" for k, v in st_with.items()
         if k.strip() in ("raster pass", "z-buffer", "labels + mixed pixels", "edge samples", "images", "PNG encode")))

@@ -25,6 +25,7 @@ from strokekit.options import (
     QUALITY_PRESETS,
     LineOptions,
 )
+from strokekit.raster.hits import KernelWarmup
 from strokekit.run.report import run_report
 from strokekit.run.runner import run
 from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
@@ -42,6 +43,7 @@ from .render_options import (
     render_extra_options,
     strokes_mode,
     tracking_options_from,
+    wants_raster,
 )
 
 #: Options that only mean something beside another: (options, what they need, when it is there).
@@ -137,7 +139,8 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
 @click.option("--stroke-width", type=FINITE, default=1.5, show_default=True, help="SVG stroke width in px.")
 @click.option("--workers", type=click.IntRange(1, MAX_WORKERS), default=None,
               help="Processes rendering frames: this one and N-1 started beside it (default: the machine's "
-                   "cores for 8 frames or more, else 1; at most 4 per core, 8 on smaller machines).")
+                   "cores for 8 frames or more, 16 with a raster output, else 1; at most 4 per core, 8 on smaller "
+                   "machines).")
 @click.option("--scheduler", default=None, help="dask.distributed scheduler address, e.g. tcp://host:8786.")
 @click.option("--skip-existing", is_flag=True, help="Resume: do not rewrite frames whose files all exist and were rendered from the same scene, options "
                    "and camera (OUT/.strokekit-run.json says so); frames of another scene or other options "
@@ -159,12 +162,20 @@ def command(scene, **o):
     lines = _line_options(o)
     path = _camera_file_path(o, size)
     frames = parse_frames(o["frame_spec"], len(path) if path is not None else o["orbit"] or 48)
-    workers = o["workers"] or ((os.cpu_count() or 1) if len(frames) >= 8 else 1)
+    # A pool pays off from 8 frames on; with a raster output from 16 (each process also starts
+    # numba for the raster kernels: about a second of CPU; README "Batch at scale").
+    workers = o["workers"] or ((os.cpu_count() or 1) if len(frames) >= (16 if wants_raster(o) else 8) else 1)
     workers = min(workers, len(frames))
     # The workers start before this process loads the scene: their start-up (imports, scene,
     # BVH: about a second) overlaps ours.
     if not Path(scene).is_file():
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
+    notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
+    kernels = None
+    if wants_raster(o) and not o["scheduler"]:  # (on a dask cluster the workers draw every frame)
+        raster_options_from(o, o["quality"])  # (its usage errors first)
+        # The raster kernels load (or compile, on a machine's first run) beside the scene's load.
+        kernels = KernelWarmup(notice)
     t_start = time.perf_counter()
     pool = make_executor(workers, o["scheduler"], warm=(str(scene), lines))
     spec = None
@@ -180,9 +191,8 @@ def command(scene, **o):
                               width=width, height=height, up_axis=o["up"])
         spec = _run_spec(scene, o, lines, path, frames, workers)
         try:
-            notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
             res = _run_with_progress(spec, o["quiet"], dict(workers=pool, scene=s, load_seconds=load_seconds,
-                                                            started_at=t_start, notice=notice))
+                                                            started_at=t_start, notice=notice, kernels=kernels))
         except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
             res = e.result
         except RunWriteError as e:  # a file could not be written: the run stopped, frames whole or gone

@@ -31,7 +31,7 @@ from strokekit.colour import srgb_encode
 from strokekit.errors import UsageError
 from strokekit.model import BandRegion
 from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
-from strokekit.raster.hits import RayHits, ZBufferHits, compiled, scene_faces32, wait_for_kernels
+from strokekit.raster.hits import RayHits, ZBufferHits, compiled, ensure_kernels, scene_faces32
 from strokekit.raster.rays import RasterHits
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
@@ -252,17 +252,6 @@ class FaceShading:
                                  lab.reshape(-1), key.reshape(-1))
         return lab, key
 
-    def n_dot_l(self, face: np.ndarray, uv: np.ndarray) -> np.ndarray:
-        """(M,) two-sided n.l of M samples on faces (M,) (>= 0) at barycentrics uv (M, 2)
-        float64 (smooth shading): the corner normals interpolated and renormalized, from
-        per-corner scalars (what label_samples computes per sample)."""
-        c = self.coef[face]
-        wb, wc = uv[:, 0], uv[:, 1]
-        wa = 1.0 - wb - wc
-        # |wa na + wb nb + wc nc|^2 from the pairwise dot products.
-        norm2 = wa * wa + wb * wb + wc * wc + 2 * (wa * wb * c[:, 3] + wb * wc * c[:, 4] + wc * wa * c[:, 5])
-        return c[:, 6] * (wa * c[:, 0] + wb * c[:, 1] + wc * c[:, 2]) / np.sqrt(np.maximum(norm2, 1e-24))
-
     @property
     def n_regions(self) -> int:
         return len(self.region_material)
@@ -318,7 +307,7 @@ def _regions(scene: Scene) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
 def _min_norm(scene: Scene, crease_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
     """(F,) a lower bound of |w_a n_a + w_b n_b + w_c n_c| over each face (weights >= 0 summing
     to 1) for smooth shading's corner normals: sqrt of the smallest pairwise dot product,
-    floored at 1e-3 (see _face_band_range). Cached per scene and angle like corner_shading."""
+    floored at 1e-3 (see face_shading). Cached per scene and angle like corner_shading."""
 
     key = ("raster_min_norm", float(crease_angle_deg))
     c = scene_cache(scene) if vnormals is None else {}
@@ -678,7 +667,7 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
     (the sample grid), 'shading' (labels, mixed pixels) and 'edge samples' (their R x R samples)."""
     if not 0 < crease_angle_deg < 180:
         raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
-    wait_for_kernels()  # (a run's kernels loading in a thread: their time is theirs, not this frame's)
+    ensure_kernels()  # (loaded, or compiled, before the frame's clock starts)
     t0 = time.perf_counter()
     if reference:
         if occluder is None:

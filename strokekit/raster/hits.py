@@ -25,6 +25,7 @@ import os
 import tempfile
 import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
@@ -34,6 +35,11 @@ from strokekit.camera.view import Camera
 from strokekit.raster.rays import cast_pixels, cast_samples
 from strokekit.scene.load import Scene
 from strokekit.scene.tables import scene_cache
+
+try:
+    import fcntl
+except ImportError:  # not POSIX: no lock among processes
+    fcntl = None
 
 #: The modules of the compiled kernels, imported on first use (numba's import costs about 0.3 s):
 #: the z-buffer, and the raster pass's own loops.
@@ -147,12 +153,64 @@ def warm_kernels(notify: Callable[[str], None] | None = None, *, compiles=_ASK) 
             timer.daemon = True
             timer.start()
     try:
-        mods[0].warmup(parallel=False)
-        mods[1].warmup()
+        if compiles is False:
+            _warm(mods)
+        else:
+            # One process of the machine compiles; the others wait, then load what it cached (a
+            # dask cluster's workers, concurrent runs).
+            with _machine_lock():
+                if _compile_needed(mods) is False:
+                    compiles = False
+                _warm(mods)
     finally:
         if timer is not None:
             timer.cancel()
     return time.perf_counter() - t, bool(compiles)
+
+
+def _warm(mods) -> None:
+    mods[0].warmup(parallel=False)
+    mods[1].warmup()
+
+
+@contextmanager
+def _machine_lock():
+    """An exclusive lock among this machine's processes (a file lock in the temporary folder; none
+    where fcntl is missing)."""
+    if fcntl is None:
+        yield
+        return
+    path = Path(tempfile.gettempdir()) / f"strokekit-raster-kernels-{os.getuid()}.lock"
+    try:
+        fh = open(path, "a")
+    except OSError:
+        yield
+        return
+    with fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def ensure_kernels() -> float:
+    """Make sure this process has the kernels before its first raster pass: wait for a warm-up
+    thread that is loading them, else load them (or compile them, one process of the machine at
+    a time: the others then load them from the cache). Returns the seconds this call loaded them
+    for (0 when a warm-up thread did, or they were there)."""
+    global _ready
+    if _ready:
+        return 0.0
+    w = _warming
+    if w is not None:
+        w.join()
+    seconds = 0.0 if w is not None and w.error is None else warm_kernels()[0]
+    _ready = True
+    return seconds
+
+
+_ready = False
 
 
 class KernelWarmup:
@@ -199,14 +257,6 @@ class KernelWarmup:
 
 
 _warming: KernelWarmup | None = None
-
-
-def wait_for_kernels() -> None:
-    """Wait for this process's KernelWarmup, if one is loading the kernels (so that the frame
-    that waits does not count the load as its own work)."""
-    w = _warming
-    if w is not None and not w.done():
-        w.join()
 
 
 # --- sample sources ------------------------------------------------------------------------------

@@ -57,7 +57,8 @@ def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, lo
 
 def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, *,
         workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
-        started_at: float | None = None, notice: Callable[[str], None] | None = None) -> RunResult:
+        started_at: float | None = None, notice: Callable[[str], None] | None = None,
+        kernels: KernelWarmup | None = None) -> RunResult:
     """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
     `workers`: make_executor(spec.workers, spec.scheduler, (spec.scene_path, spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
@@ -65,7 +66,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
     (the report's wall time counts from there: the pool start and the load are part of it);
     `notice(line)`: told when the run has to wait for something the user may wonder about (the
-    first compile of the raster kernels on a machine).
+    first compile of the raster kernels on a machine); `kernels`: a raster.hits.KernelWarmup the
+    caller started (earlier: beside its scene load), else the run starts one when it needs it.
 
     The steps: check the request, start the workers, load and plan the stages, plan the resume
     (`plan_resume`), stream the frames through line work, tracking and writing (`FrameStream`),
@@ -84,8 +86,13 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     raster = spec.outputs.raster_options is not None
     if own:
         workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
-    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
-    kernels = KernelWarmup(notice) if raster else None
+    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work,
+    # when this process draws frames (not beside a dask cluster: there each worker loads them, and
+    # compiles them on its machine's first run).
+    if not (raster and workers.main_helps):
+        kernels = None
+    elif kernels is None:
+        kernels = KernelWarmup(notice)
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written

@@ -235,9 +235,9 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
 
 #: The raster pass's parts as --explain lists them: {key of the frame task's timings: (stage name,
 #: what it is)}. The kernels are compiled or loaded once per run in the main process, before
-#: any frame (a worker loads them again from numba's disk cache in its first frame's z-buffer).
+#: any frame; a worker loads them from numba's disk cache before its first raster frame.
 RASTER_STAGES = {
-    "kernels": ("  raster kernels", "numba kernels: compiled on a machine's first run, else loaded (workers: in their 1st frame)"),
+    "kernels": ("  raster kernels", "numba kernels loaded once a process (compiled on a machine's first run)"),
     "rasterize": ("  z-buffer", "face, depth and barycentrics at K x K samples a pixel"),
     "shading": ("  labels + mixed pixels", "n.l, bands, the pixels a label, material or object edge crosses"),
     "edge samples": ("  edge samples", "z-buffer R x R samples of the mixed pixels"),

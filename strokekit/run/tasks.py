@@ -16,7 +16,7 @@ from strokekit.fileio import atomic_write_bytes
 from strokekit.model import BrushPaths, Strokes
 from strokekit.options import LineOptions
 from strokekit.raster.bands import band_regions, render_raster
-from strokekit.raster.hits import thread_workspace, wait_for_kernels
+from strokekit.raster.hits import ensure_kernels, thread_workspace
 from strokekit.raster.passes import compositing_passes
 from strokekit.raster.rays import surface_depth_at
 from strokekit.raster.strokes import stroke_coverage
@@ -69,7 +69,8 @@ def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int,
         timings: dict = {}
         strokes = r.render(camera, frame, timings) if do_lines else None
         if outputs.raster_options is not None:
-            wait_for_kernels()  # (their load is the 'raster kernels' stage, not this frame's)
+            # The kernels' load (a worker's first frame) is the 'raster kernels' stage, not this frame's.
+            timings["kernels"] = ensure_kernels()
         files, underlays, json_extra = raster_files(r.scene, camera, r.occluder, strokes, frame, outputs, timings,
                                                     lines.crease_angle_deg)
         res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
