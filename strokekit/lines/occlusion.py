@@ -29,7 +29,7 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.lines.features import silhouette_mask
-from strokekit.lines.visibility import _visible_runs_of, clip_segments, clipped_on_screen
+from strokekit.lines.visibility import _visible_runs_of, clip_segments, clipped_on_screen, world_between
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
@@ -58,12 +58,7 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     size = row_norm(ab)
 
     def world_at(seg_i, s_i):
-        if camera.is_ortho:
-            lam = s_i
-        else:
-            z0, z1 = za[seg_i], zb[seg_i]
-            lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
-        return A[seg_i] + lam[:, None] * (B[seg_i] - A[seg_i])
+        return world_between(A, B, za, zb, camera.is_ortho, seg_i, s_i)
 
     own, ends = own_faces(scene, features, idx)
 

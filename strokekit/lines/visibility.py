@@ -35,6 +35,18 @@ def clipped_on_screen(a: np.ndarray, b: np.ndarray, camera: Camera, near: float)
     return t0, t1, idx, ab, A, B, pa, za, pb, zb, row_norm(pb - pa)
 
 
+def world_between(A: np.ndarray, B: np.ndarray, za: np.ndarray, zb: np.ndarray, ortho: bool,
+                  seg_i: np.ndarray, s_i: np.ndarray) -> np.ndarray:
+    """World points of segments A -> B (M, 3) at screen fractions s_i (K,) along segments seg_i
+    (K,): perspective-correct from the ends' depths za, zb (M,); linear for parallel cameras."""
+    if ortho:
+        lam = s_i
+    else:
+        z0, z1 = za[seg_i], zb[seg_i]
+        lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
+    return A[seg_i] + lam[:, None] * (B[seg_i] - A[seg_i])
+
+
 def clip_segments(a: np.ndarray, b: np.ndarray, camera: Camera, near: float) -> tuple[np.ndarray, np.ndarray]:
     """Parametric clip of world segments a + t (b - a) against the near plane and the four image
     borders (Cyrus-Beck against the view frustum, seed 001 section 5). Returns (t0, t1), each (N,);
@@ -124,12 +136,7 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     s = np.where(whole[seg], 0.5, k / np.repeat(n_int, counts))
 
     def world_at(seg_i, s_i):
-        if camera.is_ortho:
-            lam = s_i
-        else:
-            z0, z1 = za[seg_i], zb[seg_i]
-            lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
-        return A[seg_i] + lam[:, None] * (B[seg_i] - A[seg_i])
+        return world_between(A, B, za, zb, camera.is_ortho, seg_i, s_i)
 
     lift = None if features.lift is None else features.lift[idx]
     # Local size for the ray offset: the segment's world length (see Occluder.visible).

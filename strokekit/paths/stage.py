@@ -39,7 +39,7 @@ from strokekit.lines.strokeops import CONTOUR_KINDS, cut_pieces, drop_hairpins, 
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes
-from strokekit.tracking.joins import _touching_paths, rotate_closed
+from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import _local_slope, levels_from_slope
 from strokekit.tracking.votes import _first_max_per_group, _u_trend, _unique_inverse, assign_ids, segment_by_votes
@@ -226,27 +226,10 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     (paths, path (K,) the path of each piece, offset (K,) the arc length (px) of each piece's
     first point along its path (in the order the piece is drawn))."""
     K = len(pieces)
-    order = (group * K + pos).argsort(kind="stable")
-    offs = pieces.offsets
-    start, counts = offs[:-1][order], (offs[1:] - offs[:-1])[order]
-    csum = counts.cumsum()
-    c0 = csum - counts
-    t = np.arange(int(csum[-1]))
-    ro = rev[order]
-    src = np.where(ro.repeat(counts), (start + counts - 1 + c0).repeat(counts) - t, t + (start - c0).repeat(counts))
-    g = group[order]
-    new_g = join_arrays(True, g[1:] != g[:-1])
-    joint = c0[~new_g]
+    g = gather_paths(pieces, group, rev, pos)
+    order, c0, src, joint, drop = g.order, g.c0, g.src, g.joint, g.drop
+    path_sorted, first, n_path = g.path_sorted, g.first, g.n_path
     P = pieces.points
-    drop = joint[row_norm(P.take(src[joint], axis=0) - P.take(src[joint - 1], axis=0)) < 1e-9]
-    path_sorted = new_g.cumsum() - 1
-    first = order[new_g]
-    n_path = np.bincount(path_sorted, weights=counts, minlength=len(first)).astype(np.int64) - np.bincount(
-        path_sorted[c0.searchsorted(drop, side="right") - 1], minlength=len(first))
-    if len(drop):
-        keep = np.ones(len(src), bool)
-        keep[drop] = False
-        src = src[keep]
     paths = Strokes(points=P.take(src, axis=0), surface=pieces.surface.take(src, axis=0), face=pieces.face[src],
                     offsets=join_arrays(0, n_path.cumsum()).astype(np.int64), kind=pieces.kind[first],
                     ids=np.arange(len(first), dtype=np.int64), u=np.zeros(len(src)), level=np.zeros(len(first)),

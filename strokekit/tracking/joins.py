@@ -3,6 +3,8 @@ joined where they touch end to end (`chain_touching`), segments of one chain joi
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from strokekit.lines.strokeops import cut_pieces, drop_hairpins, join_arrays
@@ -405,19 +407,31 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np
     return group, rev, pos
 
 
-def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes:
-    """Strokes of the same kind whose ends meet (within tol_px, turning by at most angle_deg)
-    concatenated into one path (straightest continuation first where three ends meet), so that
-    the cuts between carried ids can go where the previous frame had them, wherever the chaining
-    happened to stop this frame (hysteresis of id boundaries). Same lines; ids renumbered."""
+@dataclass(frozen=True)
+class GatheredPaths:
+    """How the strokes of paths are laid end to end (see gather_paths). order (S,) strokes in
+    path order; c0 (S,) where each starts in the gathered points; src (N',) the source point of
+    each gathered point, repeated joint points left out; new_g (S,) a stroke starts a path;
+    joint, drop: gathered indices of the joints and of the joints dropped as repeats;
+    path_sorted (S,) the path of each stroke in `order`; first (K,) each path's first stroke;
+    n_path (K,) points per path."""
+
+    order: np.ndarray
+    c0: np.ndarray
+    src: np.ndarray
+    new_g: np.ndarray
+    joint: np.ndarray
+    drop: np.ndarray
+    path_sorted: np.ndarray
+    first: np.ndarray
+    n_path: np.ndarray
+
+
+def gather_paths(strokes: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray) -> GatheredPaths:
+    """The points of each path (group, rev, pos of _touching_paths) in order, reversed strokes
+    backwards; a joint point that repeats the previous one is dropped (a bridge, when the ends
+    were apart, is kept)."""
     S = len(strokes)
-    if S < 2 or tol_px <= 0:
-        return strokes
-    group, rev, pos = _touching_paths(strokes, tol_px, angle_deg)
-    if np.array_equal(group, np.arange(S)):
-        return strokes
-    # Gather the points of each path in order (reversed strokes backwards); a joint point that
-    # repeats the previous one is dropped (a bridge, when the ends were apart, is kept).
     # (group, pos) pairs are distinct: one stable sort of group * S + pos is lexsort((pos, group)).
     order = (group * S + pos).argsort(kind="stable")
     offs = strokes.offsets
@@ -442,6 +456,23 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
         keep = np.ones(len(src), bool)
         keep[drop] = False
         src = src[keep]
+    return GatheredPaths(order, c0, src, new_g, joint, drop, path, first, n_path)
+
+
+def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes:
+    """Strokes of the same kind whose ends meet (within tol_px, turning by at most angle_deg)
+    concatenated into one path (straightest continuation first where three ends meet), so that
+    the cuts between carried ids can go where the previous frame had them, wherever the chaining
+    happened to stop this frame (hysteresis of id boundaries). Same lines; ids renumbered."""
+    S = len(strokes)
+    if S < 2 or tol_px <= 0:
+        return strokes
+    group, rev, pos = _touching_paths(strokes, tol_px, angle_deg)
+    if np.array_equal(group, np.arange(S)):
+        return strokes
+    g = gather_paths(strokes, group, rev, pos)
+    src, first, n_path, joint, drop = g.src, g.first, g.n_path, g.joint, g.drop
+    P = strokes.points
     out = Strokes(points=P.take(src, axis=0), surface=strokes.surface.take(src, axis=0), face=strokes.face[src],
                   offsets=np.concatenate(((0,), n_path.cumsum())).astype(np.int64),
                   kind=strokes.kind[first], ids=np.arange(len(first), dtype=np.int64), u=None,
