@@ -281,19 +281,23 @@ def ranked_matte(base: np.ndarray, names: Sequence[str], ranks: int = DEFAULT_RA
     A pixel of one sample has its id at coverage 1 (or nothing, on background)."""
     base = np.asarray(base)
     h, w = base.shape
-    if edge_pixels is None or len(edge_pixels) == 0:
-        return rank_samples(base[:, :, None], names, ranks)
     flat = base.reshape(-1)
     slot_of, uniq = _id_table(names)
-    ids = np.zeros((h * w, ranks), np.float32)
-    cov = np.zeros((h * w, ranks), np.float32)
+    # Rank-major planes: each rank's ids and coverages are contiguous (H, W) images, the EXR's
+    # channels as they are written; the (H, W, R) arrays handed out are views of them.
+    ids = np.zeros((ranks, h * w), np.float32)
+    cov = np.zeros((ranks, h * w), np.float32)
     hit = flat >= 0
-    ids[hit, 0] = uniq[slot_of[flat[hit]]].view(np.float32)
-    cov[hit, 0] = 1.0
-    edge = rank_samples(np.asarray(edge_samples)[None], names, ranks)
-    ids[edge_pixels] = edge.ids[0]
-    cov[edge_pixels] = edge.coverage[0]
-    return RankedMatte(ids.reshape(h, w, ranks), cov.reshape(h, w, ranks))
+    if len(names):
+        bits = np.append(uniq[slot_of], np.uint32(0)).view(np.float32)  # index -1: no id
+        np.take(bits, flat, out=ids[0])
+    cov[0] = hit
+    if edge_pixels is not None and len(edge_pixels):
+        edge = rank_samples(np.asarray(edge_samples)[None], names, ranks)
+        for r in range(ranks):  # one rank at a time: numpy's fast 1-D scatter
+            ids[r][edge_pixels] = edge.ids[0, :, r]
+            cov[r][edge_pixels] = edge.coverage[0, :, r]
+    return RankedMatte(ids.reshape(ranks, h, w).transpose(1, 2, 0), cov.reshape(ranks, h, w).transpose(1, 2, 0))
 
 
 def rank_coverage(coverage: Mapping[str, np.ndarray], ranks: int = DEFAULT_RANKS) -> RankedMatte:

@@ -10,6 +10,7 @@ results are the same on every run and in every process).
   show another key than the samples there (`bands._thin_face_pixels` says why).
 * `mixed_sums`: per mixed pixel, the samples of each label and the sum of its covered samples'
   linear colours.
+* `view_normals`: the EXR's view-space normal of every pixel's representative sample.
 """
 
 from __future__ import annotations
@@ -204,6 +205,62 @@ def mixed_sums(labels, keys, colours, n_labels, counts, rgb):
         rgb[p, 2] = b
 
 
+@njit(cache=True, error_model="numpy")
+def view_normals(face, bary, K, corner, normals, face_normals, right, up, fwd, ray_x, ray_y, ortho_dir, out):
+    """View-space unit normals (x right, y up, z toward the camera) of each output pixel's sample
+    nearest its centre: face (H K, W K) int32 (-1 background), bary (H K, W K, 2) float32; corner
+    (F, 3) int64 rows of normals (Nn, 3) float64 interpolated at the barycentrics (smooth
+    shading), or (0, 3) for the face normal (flat); face_normals (F, 3) float64; right, up, fwd
+    (3,) the camera basis; ray_x (W K,), ray_y (H K,) the perspective rays' offsets along right
+    and up; ortho_dir (3,) the ray direction of a parallel projection, or (0,) for perspective.
+    Normals face the camera (two-sided, as the bands are lit). out (3, H W) float32, 0 on
+    background."""
+    H = face.shape[0] // K
+    W = face.shape[1] // K
+    c = K // 2
+    smooth = corner.shape[0] > 0
+    ortho = ortho_dir.shape[0] == 3
+    for r in range(H):
+        for col in range(W):
+            i = r * W + col
+            f = face[r * K + c, col * K + c]
+            if f < 0:
+                out[0, i] = 0.0
+                out[1, i] = 0.0
+                out[2, i] = 0.0
+                continue
+            if smooth:
+                u = np.float64(bary[r * K + c, col * K + c, 0])
+                v = np.float64(bary[r * K + c, col * K + c, 1])
+                a = 1.0 - u - v
+                ia, ib, ic = corner[f, 0], corner[f, 1], corner[f, 2]
+                nx = a * normals[ia, 0] + u * normals[ib, 0] + v * normals[ic, 0]
+                ny = a * normals[ia, 1] + u * normals[ib, 1] + v * normals[ic, 1]
+                nz = a * normals[ia, 2] + u * normals[ib, 2] + v * normals[ic, 2]
+                ln = math.sqrt(nx * nx + ny * ny + nz * nz)
+                if ln < 1e-12:
+                    ln = 1e-12
+                nx /= ln
+                ny /= ln
+                nz /= ln
+            else:
+                nx, ny, nz = face_normals[f, 0], face_normals[f, 1], face_normals[f, 2]
+            if ortho:
+                dx, dy, dz = ortho_dir[0], ortho_dir[1], ortho_dir[2]
+            else:
+                sx = ray_x[col * K + c]
+                sy = ray_y[r * K + c]
+                dx = fwd[0] + sx * right[0] + sy * up[0]
+                dy = fwd[1] + sx * right[1] + sy * up[1]
+                dz = fwd[2] + sx * right[2] + sy * up[2]
+            # The geometric side decides which way the normal faces.
+            if face_normals[f, 0] * dx + face_normals[f, 1] * dy + face_normals[f, 2] * dz > 0:
+                nx, ny, nz = -nx, -ny, -nz
+            out[0, i] = nx * right[0] + ny * right[1] + nz * right[2]
+            out[1, i] = nx * up[0] + ny * up[1] + nz * up[2]
+            out[2, i] = -(nx * fwd[0] + ny * fwd[1] + nz * fwd[2])
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     face = np.array([0, -1], np.int32)
@@ -226,3 +283,6 @@ def warmup() -> None:
                          ortho, 1e-3, out)
     mixed_sums(np.zeros((1, 4), np.uint8), np.zeros((1, 4), np.int32), np.zeros((4, 3)), 4,
                np.zeros((1, 4), np.int32), np.zeros((1, 3)))
+    basis = np.eye(3)
+    view_normals(np.zeros((2, 2), np.int32), np.zeros((2, 2, 2), np.float32), 1, np.zeros((1, 3), np.int64), basis,
+                 basis, basis[0], basis[1], basis[2], np.zeros(2), np.zeros(2), np.zeros(0), np.zeros((3, 4), np.float32))

@@ -18,6 +18,7 @@ from strokekit.cryptomatte import ranked_matte
 from strokekit.errors import UsageError
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
 from strokekit.raster.bands import RasterFrame, representative
+from strokekit.raster.hits import compiled
 from strokekit.raster.strokes import stroke_coverage
 from strokekit.scene.tables import split_normals
 
@@ -46,54 +47,45 @@ class PassOptions:
 def view_normals(frame: RasterFrame, crease_angle_deg: float = 60.0) -> np.ndarray:
     """(H, W, 3) float32 view-space unit normals (x right, y up, z toward the camera) of each
     pixel's representative sample: the face normal (flat shading) or the corner normals split at
-    `crease_angle_deg` interpolated (smooth), turned to face the camera; 0 on background."""
+    `crease_angle_deg` interpolated (smooth), turned to face the camera; 0 on background. A view
+    of three contiguous (H, W) planes, the EXR's channels."""
     hits, cam, scene = frame.hits, frame.camera, frame.scene
-    K = frame.K
-    face = representative(hits.face, K)
-    H, W = face.shape
-    sel = np.flatnonzero(face.ravel() >= 0)
-    f = face.ravel()[sel]
-    out = np.zeros((H * W, 3), np.float32)
-    if len(f) == 0:
-        return out.reshape(H, W, 3)
+    H, W = frame.height, frame.width
     if frame.options.shading == "smooth":
         sn = split_normals(scene, crease_angle_deg)
-        uv = representative(hits.bary, K).reshape(-1, 2)[sel].astype(np.float64)
-        N = sn.normals[sn.corner[f]]  # (M, 3 corners, 3)
-        n = (1.0 - uv[:, :1] - uv[:, 1:]) * N[:, 0] + uv[:, :1] * N[:, 1] + uv[:, 1:] * N[:, 2]
-        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-12)[:, None]
+        corner, normals = np.ascontiguousarray(sn.corner, np.int64), np.ascontiguousarray(sn.normals, np.float64)
     else:
-        n = scene.face_normals[f]
-    right, up, fwd = cam.basis
-    # Two-sided, as the bands are lit: the geometric side decides which way the normal faces.
-    rows, cols = np.divmod(sel, W)
-    if cam.is_ortho:
-        view = np.broadcast_to(cam.ray_dir, (len(sel), 3))
-    else:
-        view = fwd + hits.ray_dir_x[cols * K + K // 2, None] * right + hits.ray_dir_y[rows * K + K // 2, None] * up
-    flip = np.einsum("ij,ij->i", scene.face_normals[f], view) > 0
-    n = np.where(flip[:, None], -n, n)
-    out[sel] = np.stack([n @ right, n @ up, -(n @ fwd)], axis=1)
-    return out.reshape(H, W, 3)
+        corner, normals = np.zeros((0, 3), np.int64), np.zeros((0, 3))
+    right, up, fwd = (np.ascontiguousarray(v, np.float64) for v in cam.basis)
+    ortho_dir = np.ascontiguousarray(cam.ray_dir, np.float64) if cam.is_ortho else np.zeros(0)
+    out = np.empty((3, H * W), np.float32)
+    compiled().view_normals(np.ascontiguousarray(hits.face, np.int32), np.ascontiguousarray(hits.bary, np.float32),
+                            frame.K, corner, normals, np.ascontiguousarray(scene.face_normals, np.float64),
+                            right, up, fwd, np.ascontiguousarray(hits.ray_dir_x, np.float64),
+                            np.ascontiguousarray(hits.ray_dir_y, np.float64), ortho_dir, out)
+    return out.reshape(3, H, W).transpose(1, 2, 0)
 
 
 def linear_shade(frame: RasterFrame) -> np.ndarray:
     """(H, W, 4) float32: the ramp colour of each pixel's material and band in linear light,
     premultiplied by the covered share A (EXR's convention); mixed pixels the mean over their
-    samples (background samples count black)."""
+    samples (background samples count black). A view of four contiguous (H, W) planes."""
     lin = frame._key_colours()
     N1 = frame.n_bands + 1
-    key = representative(frame.keys_ss, frame.K)
-    out = np.zeros((frame.height * frame.width, 4), np.float32)
-    out[:, :3] = lin[key].reshape(-1, 3)
-    out[:, 3] = (key % N1 != 0).reshape(-1)
+    table = np.zeros((4, len(lin)), np.float32)
+    table[:3] = lin.T
+    table[3] = np.arange(len(lin)) % N1 != 0
+    key = np.ascontiguousarray(representative(frame.keys_ss, frame.K)).reshape(-1)
+    out = np.empty((4, frame.height * frame.width), np.float32)
+    for c in range(4):
+        np.take(table[c], key, out=out[c])
     m = frame.mixed
     if m is not None:
         n, rgb = frame._mixed_sums(lin)
         covered = n[:, 1:].sum(axis=1)
-        out[m.pixels, :3] = rgb / m.samples
-        out[m.pixels, 3] = covered / m.samples
-    return out.reshape(frame.height, frame.width, 4)
+        out[:3, m.pixels] = (rgb / m.samples).T
+        out[3, m.pixels] = covered / m.samples
+    return out.reshape(4, frame.height, frame.width).transpose(1, 2, 0)
 
 
 def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:

@@ -23,7 +23,7 @@ from strokekit.raster.strokes import stroke_coverage
 from strokekit.run.spec import RASTER_STAGES, OutputOptions
 from strokekit.run.workers import _renderer
 from strokekit.scene.occluder import Occluder
-from strokekit.writers.exr import exr_bytes, lines_rgba
+from strokekit.writers.exr import exr_bytes, lines_sparse
 from strokekit.writers.gltf import glb_for_frame
 from strokekit.writers.png import png_files
 from strokekit.writers.strokes_json import strokes_json
@@ -202,14 +202,15 @@ def _lines_image(strokes: Strokes | None, camera: Camera, stroke_width_px: float
     """(H, W, 4) uint8 RGBA, sRGB-encoded straight alpha: the visible strokes in their colours."""
     W, H = int(camera.width), int(camera.height)
     cov = stroke_coverage(strokes, W, H, stroke_width_px) if strokes is not None else {}
-    _, total = lines_rgba(cov)
-    if total is None:
-        return np.zeros((H, W, 4), np.uint8)
-    a = total[..., 3:4]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        straight = np.where(a > 0, total[..., :3] / np.where(a > 0, a, 1.0), 0.0)
-    out = np.concatenate([srgb_encode(np.clip(straight, 0, 1)), a], axis=2)
-    return np.round(np.clip(out, 0, 1) * 255.0).astype(np.uint8)
+    out = np.zeros((H * W, 4), np.uint8)
+    if cov:
+        pix, _, total = lines_sparse(cov)
+        a = total[:, 3:4]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            straight = np.where(a > 0, total[:, :3] / np.where(a > 0, a, 1.0), 0.0)
+        px = np.concatenate([srgb_encode(np.clip(straight, 0, 1)), a], axis=1)
+        out[pix] = np.round(np.clip(px, 0, 1) * 255.0).astype(np.uint8)
+    return out.reshape(H, W, 4)
 
 
 def objects_and_materials(scene) -> dict:

@@ -20,8 +20,8 @@ the same passes give the same bytes.
 
 from __future__ import annotations
 
+import io
 import os
-import tempfile
 
 import numpy as np
 import OpenEXR
@@ -36,18 +36,30 @@ def _rgb(hex_colour: str) -> np.ndarray:
     return srgb_decode(np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)], float) / 255.0)
 
 
-def lines_rgba(lines: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """({kind: (H, W, 4) premultiplied linear RGBA of its coverage in its SVG colour}, their
-    composite (H, W, 4), each kind over the ones before it in KINDS order)."""
+def lines_sparse(lines: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """The lines pass on the pixels any stroke covers (few in a frame): (flat pixel indices (P,),
+    {kind: (P, 4) premultiplied linear RGBA of its coverage in its SVG colour}, their composite
+    (P, 4), each kind over the ones before it in KINDS order)."""
+    flat = {kind: np.asarray(cov, np.float32).reshape(-1) for kind, cov in lines.items()}
+    pix = np.unique(np.concatenate([np.flatnonzero(a) for a in flat.values()] or [np.zeros(0, np.int64)]))
     per_kind = {}
-    total = None
-    for kind, cov in lines.items():
-        a = cov.astype(np.float32)
-        rgba = np.concatenate([a[..., None] * _rgb(KIND_COLORS.get(kind, "#000000")).astype(np.float32),
-                               a[..., None]], axis=2)
+    total = np.zeros((len(pix), 4), np.float32)
+    for kind, a in flat.items():
+        a = a[pix, None]
+        rgba = np.concatenate([a * _rgb(KIND_COLORS.get(kind, "#000000")).astype(np.float32), a], axis=1)
         per_kind[kind] = rgba
-        total = rgba.copy() if total is None else rgba + total * (1.0 - a[..., None])
-    return per_kind, total
+        total = rgba + total * (1.0 - a)
+    return pix, per_kind, total
+
+
+def _half_planes(n: int, pix: np.ndarray, values: np.ndarray, shape: tuple) -> list[np.ndarray]:
+    """(H, W) float16 images, zero but at flat pixels `pix`, where they take the columns of `values`."""
+    out = []
+    for c in range(values.shape[1]):
+        plane = np.zeros(n, np.float16)
+        plane[pix] = values[:, c]
+        out.append(plane.reshape(shape))
+    return out
 
 
 def exr_channels(passes: RasterPasses) -> tuple[dict[str, np.ndarray], dict[str, str]]:
@@ -72,19 +84,31 @@ def exr_channels(passes: RasterPasses) -> tuple[dict[str, np.ndarray], dict[str,
                 k = 2 * i + j
                 ids = layer.ids[..., k] if k < R else np.zeros(layer.ids.shape[:2], np.float32)
                 cov = layer.coverage[..., k] if k < R else np.zeros(layer.ids.shape[:2], np.float32)
-                ch[f"{name}.{idc}"] = ids.astype(np.float32)
-                ch[f"{name}.{covc}"] = cov.astype(np.float32)
+                ch[f"{name}.{idc}"] = np.ascontiguousarray(ids, np.float32)
+                ch[f"{name}.{covc}"] = np.ascontiguousarray(cov, np.float32)
         hdr.update(header_attributes(layer.type_name, layer.names))
     if passes.lines is not None:
-        per_kind, total = lines_rgba(passes.lines)
-        if total is None:
-            total = np.zeros((passes.height, passes.width, 4), np.float32)
-        for kind, rgba in per_kind.items():
-            for i, c in enumerate("RGBA"):
-                ch[f"lines_{kind}.{c}"] = rgba[..., i].astype(half)
-        for i, c in enumerate("RGBA"):
-            ch[f"lines.{c}"] = total[..., i].astype(half)
+        # Built from the covered pixels only: the lines layers are nearly all zero.
+        shape = (passes.height, passes.width)
+        pix, per_kind, total = lines_sparse(passes.lines)
+        for name, rgba in [*((f"lines_{k}", v) for k, v in per_kind.items()), ("lines", total)]:
+            for c, plane in zip("RGBA", _half_planes(shape[0] * shape[1], pix, rgba, shape)):
+                ch[f"{name}.{c}"] = plane
     return {k: np.ascontiguousarray(v) for k, v in ch.items()}, hdr
+
+
+def _encode_threads() -> int:
+    """Threads OpenEXR compresses a frame's blocks with: the cores this process may use. The
+    bytes do not depend on it (blocks are written in scanline order); a run's other processes
+    encode their own frames meanwhile, so this only shortens a frame's wall time."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        n = os.cpu_count() or 1
+    n = max(1, min(n, 8))
+    if OpenEXR.global_thread_count() < n:  # the pool the file's threads come from (0 by default)
+        OpenEXR.set_global_thread_count(n)
+    return n
 
 
 def exr_bytes(passes: RasterPasses) -> bytes:
@@ -93,13 +117,10 @@ def exr_bytes(passes: RasterPasses) -> bytes:
     if not channels:
         raise ValueError("no EXR layer to write")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **attrs}
-    # The bindings write to a path only: a private temporary file, read back.
-    with tempfile.TemporaryDirectory(prefix="strokekit-exr-") as d:
-        path = os.path.join(d, "frame.exr")
-        with OpenEXR.File(header, channels) as f:
-            f.write(path)
-        with open(path, "rb") as fh:
-            return fh.read()
+    out = io.BytesIO()
+    with OpenEXR.File(header, channels, num_threads=_encode_threads()) as f:
+        f.write(out)
+    return out.getvalue()
 
 
 def read_exr(path) -> tuple[dict[str, np.ndarray], dict]:

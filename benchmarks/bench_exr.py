@@ -1,0 +1,138 @@
+"""What the multilayer EXR costs against the PNG passes it replaces (issue 18).
+
+Each variant writes one frame's raster files the way `strokekit render` does
+(`run.tasks.raster_files`: the raster pass, then the images and their encoding, into a
+temporary folder), for every frame of an orbit, in turns, `--repeats` times:
+
+- `band PNGs`: render's default raster output (`--bands 3`: bands/ and shade/);
+- `all PNGs`: the PNG passes that carry what the EXR holds (`--bands 3 --masks --objectid --depth
+  --lines-png`: labels, band masks, shade colours, object ids, depth, the lines);
+- `EXR`: `--exr` with every layer (depth, normals, shade, bands, Cryptomatte, lines), no PNG.
+
+Printed: process CPU ms a frame (all threads; steadier than wall time on a shared machine) and
+wall ms a frame, median over the repeats; what the EXR adds against each PNG variant (the bar:
+at most the time of the PNGs it replaces); the EXR's own parts (compositing passes, channels,
+encoding) with the encoding's CPU and size under each lossless codec Blender 3.4 reads.
+
+    python benchmarks/bench_exr.py [--models bunny,still-life] [--size 1024] [--frames 4] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import OpenEXR  # noqa: E402
+
+from strokekit import LineOptions, LineRenderer, load_scene  # noqa: E402
+from strokekit.metrics.bench import default_cameras  # noqa: E402
+from strokekit.raster.bands import RasterOptions, render_raster  # noqa: E402
+from strokekit.raster.hits import thread_workspace, warm_kernels  # noqa: E402
+from strokekit.raster.passes import PassOptions, compositing_passes  # noqa: E402
+from strokekit.run.spec import OutputOptions  # noqa: E402
+from strokekit.run.tasks import raster_files  # noqa: E402
+from strokekit.writers.exr import exr_bytes, exr_channels  # noqa: E402
+
+MODELS = {"bunny": ROOT.parent / "shared" / "models" / "stanford-bunny.obj",
+          "still-life": ROOT / "samples" / "still_life.glb",
+          "truck": ROOT.parent / "shared" / "models" / "CesiumMilkTruck.glb"}
+CODECS = ("RLE", "ZIPS", "ZIP", "PIZ")
+
+
+def variants(out: Path) -> dict[str, OutputOptions]:
+    bands = RasterOptions(bands=3)
+    return {
+        "band PNGs": OutputOptions(out, raster_options=bands),
+        "all PNGs": OutputOptions(out, raster_options=RasterOptions(bands=3, masks=True, objectid=True, depth=True),
+                                  lines_png=True),
+        "EXR": OutputOptions(out, raster_options=RasterOptions(bands=3, pngs=False), exr=PassOptions()),
+    }
+
+
+def timed(fn, *args) -> tuple[float, float]:
+    """(process CPU s, wall s) of fn(*args)."""
+    c, w = time.process_time(), time.perf_counter()
+    fn(*args)
+    return time.process_time() - c, time.perf_counter() - w
+
+
+def bench_model(name: str, args) -> None:
+    scene = load_scene(MODELS[name])
+    cams = default_cameras(scene, args.frames, args.size)
+    renderer = LineRenderer(scene, LineOptions())
+    strokes = [renderer.render(c, i + 1) for i, c in enumerate(cams)]
+    occ = renderer.occluder
+    with tempfile.TemporaryDirectory(prefix="bench-exr-") as d:
+        vs = variants(Path(d))
+        cpu = {k: [] for k in vs}
+        wall = {k: [] for k in vs}
+        for f, cam in enumerate(cams):  # warm: per-scene tables, first-call costs
+            for o in vs.values():
+                raster_files(scene, cam, occ, strokes[f], f + 1, o, {})
+        for _ in range(args.repeats):
+            for key, o in vs.items():  # in turns: the machine's load hits every variant alike
+                c = w = 0.0
+                for f, cam in enumerate(cams):
+                    dc, dw = timed(raster_files, scene, cam, occ, strokes[f], f + 1, o, {})
+                    c, w = c + dc, w + dw
+                cpu[key].append(1000 * c / len(cams))
+                wall[key].append(1000 * w / len(cams))
+    med = {k: (statistics.median(cpu[k]), statistics.median(wall[k])) for k in vs}
+    print(f"\n{name}, {args.size} x {args.size}, {args.frames} frames, median of {args.repeats}: ms a frame "
+          "(raster pass + its files)")
+    print(f"  {'variant':10} {'CPU':>8} {'wall':>8}")
+    for k, (c, w) in med.items():
+        print(f"  {k:10} {c:8.1f} {w:8.1f}")
+    for k in ("band PNGs", "all PNGs"):
+        print(f"  EXR / {k}: CPU {med['EXR'][0] / med[k][0]:.2f}x, wall {med['EXR'][1] / med[k][1]:.2f}x")
+
+    # The EXR's parts, on the first frame.
+    raster = render_raster(scene, cams[0], occ, RasterOptions(bands=3, pngs=False), work=thread_workspace())
+    parts = {"passes": [], "channels": [], "encode (ZIP)": []}
+    for _ in range(args.repeats):
+        c, _w = timed(compositing_passes, raster, strokes[0], PassOptions())
+        parts["passes"].append(c)
+        p = compositing_passes(raster, strokes[0], PassOptions())
+        parts["channels"].append(timed(exr_channels, p)[0])
+        parts["encode (ZIP)"].append(timed(exr_bytes, p)[0] - parts["channels"][-1])
+    ch, attrs = exr_channels(p)
+    print(f"  EXR parts, CPU ms (frame 1, {len(ch)} channels, "
+          f"{sum(a.nbytes for a in ch.values()) / 1e6:.0f} MB raw): "
+          + ", ".join(f"{k} {1000 * statistics.median(v):.0f}" for k, v in parts.items()))
+    row = []
+    for codec in CODECS:
+        comp = getattr(OpenEXR, f"{codec}_COMPRESSION")
+        ts, size = [], 0
+        for _ in range(args.repeats):
+            buf = io.BytesIO()
+            t = time.process_time()
+            with OpenEXR.File({"compression": comp, "type": OpenEXR.scanlineimage, **attrs}, ch, num_threads=0) as f:
+                f.write(buf)
+            ts.append(time.process_time() - t)
+            size = len(buf.getvalue())
+        row.append(f"{codec} {1000 * statistics.median(ts):.0f} ms {size / 1e6:.1f} MB")
+    print("  encoding by codec, one thread, CPU: " + ", ".join(row))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--models", default="bunny,still-life")
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--frames", type=int, default=4)
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args()
+    warm_kernels()
+    for name in args.models.split(","):
+        bench_model(name, args)
+
+
+if __name__ == "__main__":
+    main()
