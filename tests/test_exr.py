@@ -129,6 +129,30 @@ def test_exr_bytes_are_deterministic(tmp_path):
     assert (a / "frame_0001.exr").read_bytes() == (b / "frame_0001.exr").read_bytes()
 
 
+@pytest.mark.parametrize("codec", ["rle", "piz", "none"])
+def test_every_exr_codec_gives_back_the_same_channels(tmp_path, codec):
+    """--exr-codec trades size for encoding time; being lossless, each gives back the ZIP file's
+    channels bit for bit (Cryptomatte ids are float bit patterns: any rounding would lose them)."""
+    import OpenEXR
+
+    ref = render(tmp_path, "--size", "64x48", "--exr", "--no-svg", out="zip")
+    out = render(tmp_path, "--size", "64x48", "--exr", "--exr-codec", codec, "--no-svg", out=codec)
+    a, _ = read_exr(ref / "frame_0001.exr")
+    b, hdr = read_exr(out / "frame_0001.exr")
+    assert hdr["compression"] == getattr(OpenEXR, f"{codec.upper()}_COMPRESSION" if codec != "none" else "NO_COMPRESSION")
+    assert sorted(a) == sorted(b)
+    for name in a:
+        assert a[name].dtype == b[name].dtype and a[name].tobytes() == b[name].tobytes(), name
+
+
+def test_exr_codec_without_exr_is_a_usage_error(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["render", str(SAMPLE), "--orbit", "2", "--frames", "1", "-q", "--out", str(tmp_path / "o"),
+              "--exr-codec", "rle"])
+    assert e.value.code == 2
+    assert "--exr-codec needs --exr" in capsys.readouterr().err
+
+
 # --- the lines raster ------------------------------------------------------------------------------
 
 def test_lines_png_agrees_with_the_svg_rendered_by_cairo(tmp_path):

@@ -53,7 +53,7 @@ _NEEDS = (
     (("max_growth", "min_carry"), "--coherence seed", lambda cam, svg, x: x.get("coherence_method") == "seed"
      and not x.get("no_coherence") and x.get("strokes_mode") != "brush"),
     (("fill_pattern", "fill_period"), "--fill", lambda cam, svg, x: x.get("fill")),
-    (("exr_layers",), "--exr", lambda cam, svg, x: x.get("exr")),
+    (("exr_layers", "exr_codec"), "--exr", lambda cam, svg, x: x.get("exr")),
     (("path_merge",), "brush paths (--strokes brush, the default for a sequence)",
      lambda cam, svg, x: x.get("strokes_mode") != "lines"),
     (("band_polygons",), "the SVG (they are a layer of it; not --no-svg)", lambda cam, svg, x: svg),

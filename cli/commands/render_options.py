@@ -13,7 +13,7 @@ from strokekit.model import MAX_OCCLUSION
 from strokekit.options import QUALITY_PRESETS
 from strokekit.paths.options import PathOptions
 from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PASSES, PassOptions
+from strokekit.raster.passes import CODECS, PASSES, PassOptions
 from strokekit.ribbons.brushes import get_brush
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.gltf import GltfOptions
@@ -84,6 +84,9 @@ _RASTER = [
                       "(premultiplied), band labels, Cryptomatte (objects, materials) and the lines per kind."),
     click.option("--exr-layers", default=None,
                  help="The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all]."),
+    click.option("--exr-codec", type=click.Choice(CODECS), default="zip", show_default=True,
+                 help="The EXR's lossless compression: zip and piz are the smallest, rle encodes in about half "
+                      "zip's time at four times the size."),
     click.option("--lines-png", is_flag=True, help="Also lines/frame_NNNN.png: the visible strokes as an RGBA image."),
 ]
 
@@ -251,4 +254,4 @@ def exr_options_from(extra: dict, stroke_width_px: float):
     if not extra.get("exr"):
         return None
     layers = split_list(extra["exr_layers"], "--exr-layers") if extra.get("exr_layers") else PASSES
-    return PassOptions(passes=layers, stroke_width_px=stroke_width_px)
+    return PassOptions(passes=layers, stroke_width_px=stroke_width_px, codec=extra.get("exr_codec") or "zip")

@@ -27,20 +27,29 @@ PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
 #: Cryptomatte ranks written per type: two RGBA layers. The issue asks for at least 3; every
 #: layer more adds about a tenth to the EXR's write time (ZIP of float32 channels).
 RANKS = 4
+#: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read, cheapest
+#: to encode last: ZIP (the default, as Blender writes) and PIZ are the smallest, RLE encodes in
+#: about half ZIP's time and is four times the size (README "Multilayer EXR").
+CODECS = ("zip", "zips", "piz", "rle", "none")
 
 
 @dataclass(frozen=True)
 class PassOptions:
-    """Which compositing passes to compute (PASSES), and the stroke width of the lines pass (px)."""
+    """Which compositing passes to compute (PASSES), the stroke width of the lines pass (px), and
+    the EXR's compression (CODECS)."""
 
     passes: tuple[str, ...] = PASSES
     stroke_width_px: float = 1.5
+    codec: str = "zip"
 
     def __post_init__(self):
         unknown = [p for p in self.passes if p not in PASSES]
         if unknown or not self.passes:
             raise UsageError(f"unknown or no EXR layer(s) {', '.join(unknown) or '(none)'} "
                              f"(known: {', '.join(PASSES)})", option="passes")
+        if self.codec not in CODECS:
+            raise UsageError(f"codec {self.codec!r} is not one of {', '.join(CODECS)} (the lossless ones: "
+                             "Cryptomatte ids and depth must come back exact)", option="codec")
         object.__setattr__(self, "passes", tuple(p for p in PASSES if p in self.passes))
 
 

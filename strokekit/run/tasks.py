@@ -186,7 +186,7 @@ def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | N
         if outputs.exr is not None:
             t1 = time.perf_counter()
             passes = compositing_passes(raster, strokes, outputs.exr, crease_angle_deg)
-            files.append(_write(outputs.frame_file(frame, ".exr"), exr_bytes(passes)))
+            files.append(_write(outputs.frame_file(frame, ".exr"), exr_bytes(passes, outputs.exr.codec)))
             timings["EXR"] = time.perf_counter() - t1
         info.update(objects_and_materials(scene))
     elif outputs.lines_png:

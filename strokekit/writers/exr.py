@@ -1,7 +1,7 @@
 """One multilayer OpenEXR per frame (`exr_bytes`), written with the OpenEXR Python bindings.
 
-Single part, scanline, ZIP compression (readers built on OpenEXR < 3.3, Blender 3.4 among them,
-cannot read ZSTD or HTJ2K). Channels, each only when the run computed it, all (H, W):
+Single part, scanline, ZIP compression by default, or another lossless one (readers built on
+OpenEXR < 3.3, Blender 3.4 among them, cannot read ZSTD or HTJ2K). Channels, each only when the run computed it, all (H, W):
 
 - `Z` float32: view depth in scene units; background 1e10 (model.BACKGROUND_DEPTH), as Blender
   writes it. Blender reads it as its Depth pass.
@@ -111,12 +111,18 @@ def _encode_threads() -> int:
     return n
 
 
-def exr_bytes(passes: RasterPasses) -> bytes:
-    """The EXR file of one frame's passes (bytes: the caller writes them atomically)."""
+#: PassOptions.codec -> OpenEXR's compression.
+COMPRESSION = {"zip": OpenEXR.ZIP_COMPRESSION, "zips": OpenEXR.ZIPS_COMPRESSION, "piz": OpenEXR.PIZ_COMPRESSION,
+               "rle": OpenEXR.RLE_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}
+
+
+def exr_bytes(passes: RasterPasses, codec: str = "zip") -> bytes:
+    """The EXR file of one frame's passes (bytes: the caller writes them atomically), compressed
+    with `codec` (a key of COMPRESSION)."""
     channels, attrs = exr_channels(passes)
     if not channels:
         raise ValueError("no EXR layer to write")
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, **attrs}
+    header = {"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}
     out = io.BytesIO()
     with OpenEXR.File(header, channels, num_threads=_encode_threads()) as f:
         f.write(out)
