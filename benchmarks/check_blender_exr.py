@@ -8,11 +8,12 @@
    Each object's matte is compared with its coverage decoded from the EXR's own rank channels
    (the sum of the coverages of the ranks whose id has the name's float32 bits): soft IoU (sum
    min / sum max) >= 0.99 per object; materials too. And with the object-id PNG (the id of the
-   sample nearest each pixel centre, one of the K x K samples the matte counts): its soft IoU is
-   reported but not held to 0.99 (a one-sample mask against a K x K coverage differs on every
-   edge pixel: thin objects such as the truck's window trim land near 0.8 with nothing wrong);
-   the bar is what must hold exactly: IoU 1 off edge pixels (matte 0 or 1), and no pixel whose
-   PNG object has matte < 1/K^2 or whose matte is 1 with another object in the PNG.
+   sample nearest each pixel centre; the matte counts the R x R samples of a pixel an edge
+   crosses, R = the default edge supersample): its soft IoU is reported but not held to 0.99 (a
+   one-sample mask against an R x R coverage differs on every edge pixel: thin objects such as
+   the truck's window trim land near 0.8 with nothing wrong); the bar is what must hold: IoU 1
+   off edge pixels (matte 0 or 1), and no pixel whose PNG object has matte < 1/R^2 or whose
+   matte is 1 with another object in the PNG.
 3. Reads Z as Blender gives it (the Depth output, through the File Output node) and compares it
    with view depths ray-cast again (strokekit.raster.rays.cast_samples with the frame JSON's camera
    and a fresh Occluder of the scene) at the sample the EXR keeps per pixel (offset
@@ -369,7 +370,9 @@ def main(argv):
     cache = {}
     from strokekit.options import QUALITY_PRESETS
 
-    K2 = int(QUALITY_PRESETS["default"]["supersample"]) ** 2
+    # The samples of an edge pixel: K x K everywhere, R x R on the pixels an edge crosses (R > K).
+    q = QUALITY_PRESETS["default"]
+    K2 = max(int(q["supersample"]), int(q.get("edge_supersample") or 0)) ** 2
     for jk, (model, d, f, objects, mattes, out) in frames.items():
         ch, _ = read_exr(os.path.join(d, f"frame_{f:04d}.exr"))
         bl, _ = read_exr(os.path.join(out, "blender_0001.exr"))
@@ -387,11 +390,13 @@ def main(argv):
             detail = f"{iou:.6f}" + ("" if ok_entries else f" entries {entries[slot]}")
             cell(label, 0, detail, iou >= IOU_BAR and ok_entries)
             if type_name == "CryptoObject":
-                # The PNG holds one of the K x K samples the matte counts: the soft IoU is
-                # bounded by the edge pixels (thin objects lose most), so it is reported, and the
-                # bar is on what must hold exactly: the PNG's object has a share of the pixel's
-                # samples (matte >= 1/K^2) and a pixel wholly the object's is the object's in the PNG
-                # (matte 1); off edge pixels (matte 0 or 1) the two agree: IoU 1.
+                # The PNG holds the sample nearest the pixel centre, the matte an edge pixel's
+                # R x R samples: the soft IoU is bounded by the edge pixels (thin objects lose
+                # most), so it is reported, and the bar is on what must hold: the PNG's object
+                # has a share of the pixel's samples (matte >= 1/R^2: a straight edge leaves
+                # one of the four samples around the centre on the centre's side) and a pixel
+                # wholly the object's is the object's in the PNG (matte 1); off edge pixels
+                # (matte 0 or 1) the two agree: IoU 1.
                 png = np.isin(oid, objects[name])
                 iou_png = _soft_iou(got, png)
                 edge = (got > 0) & (got < 1)
