@@ -139,7 +139,10 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
     mesh = (va >= 0) & (vb >= 0) & (va < V) & (vb < V)
     if mesh.any():
         lo, hi = np.minimum(va[mesh], vb[mesh]), np.maximum(va[mesh], vb[mesh])
-        keys = scene.edges[:, 0].astype(np.int64) * (V + 1) + scene.edges[:, 1]
+        keys = scene_cache(scene).get("edge_keys")
+        if keys is None:  # (the same every frame: 0.3 ms of the bunny's)
+            keys = scene.edges[:, 0].astype(np.int64) * (V + 1) + scene.edges[:, 1]
+            scene_cache(scene)["edge_keys"] = keys
         q = lo * (V + 1) + hi
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
@@ -180,6 +183,14 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     qa, wa = camera.project(Va + c0[:, None] * (Vb - Va))
     qb, wb = camera.project(Va + c1[:, None] * (Vb - Va))
     f_pair, c_pair = _close_pairs(pa, pb, qa, qb)
+    # Only an outline edge nearer than the segment's far end somewhere can lie in front of it
+    # (2 of 5 close pairs of a bunny frame are not): the cheap test before the crossing's.
+    ahead = np.minimum(wa, wb).take(c_pair) < np.maximum(za, zb).take(f_pair)
+    for k in (0, 1):  # and whose boxes overlap (pairs of a common cell often do not: 3 in 5)
+        lo_f, hi_f = np.minimum(pa[:, k], pb[:, k]), np.maximum(pa[:, k], pb[:, k])
+        lo_c, hi_c = np.minimum(qa[:, k], qb[:, k]), np.maximum(qa[:, k], qb[:, k])
+        ahead &= (lo_c.take(c_pair) <= hi_f.take(f_pair)) & (lo_f.take(f_pair) <= hi_c.take(c_pair))
+    f_pair, c_pair = f_pair[ahead], c_pair[ahead]
     if len(f_pair) == 0:
         return none
     # Columns gathered per pair (take: fancy indexing of rows costs several times more).

@@ -285,7 +285,7 @@ class Occluder:
             prim = lx["primitive_ids"].numpy()
         if len(t) == 0:
             return count, first
-        o = np.lexsort((t, ray))  # by ray, then along it
+        o = _order_along_rays(t, ray)  # by ray, then along it
         t, ray, face = t[o].astype(float), ray[o], self._scene_faces(prim[o])
         length = np.sqrt(np.einsum("ij,ij->i", d_local, d_local))
         drop = self._skipped(ray, face, t * length.take(ray) / k, skip, near)
@@ -647,6 +647,27 @@ def _einsum_sq(x: np.ndarray) -> np.ndarray:
 def _norm_sq(x: np.ndarray) -> np.ndarray:
     """The square of np.linalg.norm(X, axis=1) before its sqrt, X (N, 3) given as rows x (3, N)."""
     return (x[0] * x[0] + x[1] * x[1]) + x[2] * x[2]
+
+
+def _order_along_rays(t: np.ndarray, ray: np.ndarray) -> np.ndarray:
+    """np.lexsort((t, ray)): the hits by ray, then along it (ties in list order). Embree's list
+    comes grouped by ray in ray order, and within a ray mostly in order already (99% of a bunny
+    frame's hits): only the rays whose hits are not are sorted (a full lexsort of a frame's
+    hits was 2 ms of its level pass)."""
+    n = len(t)
+    if n < 2:
+        return np.arange(n)
+    same = ray[1:] == ray[:-1]
+    if (ray[1:] < ray[:-1]).any():  # not grouped in ray order: the general sort
+        return np.lexsort((t, ray))
+    bad = same & (t[1:] < t[:-1])
+    o = np.arange(n)
+    if bad.any():
+        mark = np.zeros(int(ray[-1]) + 1, bool)
+        mark[ray[1:][bad]] = True
+        sel = np.flatnonzero(mark[ray])  # every hit of those rays (contiguous groups)
+        o[sel] = sel[np.lexsort((t[sel], ray[sel]))]
+    return o
 
 
 def _has_embreex() -> bool:
