@@ -49,10 +49,20 @@ from strokekit.tracking.votes import _first_max_per_group, _u_trend, _unique_inv
 _CONTOUR = np.array([k in CONTOUR_KINDS for k in KINDS])
 
 
+def hidden_as_one(codes: np.ndarray) -> np.ndarray:
+    """Kind codes (kind + N_KINDS x occlusion level) with every hidden level (>= 1) made 1. A brush
+    path runs on along a hidden line where another surface's outline changes how many surfaces
+    hide it: the drawing shows every hidden level alike (one dashed `hidden-<kind>` layer), and a
+    path cut there would hand its length to another id as the outline slides along it."""
+    codes = np.asarray(codes)
+    return codes % N_KINDS + N_KINDS * np.minimum(codes // N_KINDS, 1)
+
+
 def _kind_class(codes: np.ndarray) -> np.ndarray:
     """The kind class of kind codes (kind + N_KINDS x occlusion level): one for the contour kinds
-    of a level, the code itself for every other kind; levels never share a class."""
-    codes = np.asarray(codes)
+    of the visible lines and one for those of the hidden lines, the code with its hidden levels
+    as one (hidden_as_one) for every other kind; visible and hidden never share a class."""
+    codes = hidden_as_one(codes)
     level = codes // N_KINDS
     return np.where(_CONTOUR[codes % N_KINDS], -1 - level, codes)
 
@@ -383,7 +393,8 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
     # One k-d tree of the line samples: for the cover, and for the bridges (on_drawing).
     line_tree = query_tree(D.p)
-    cover = covering_samples(D, lines.kind, run, rank, o.cover_px, line_tree)
+    drawn_kind = hidden_as_one(lines.kind)
+    cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_tree)
     # 5. Pieces: the uncovered parts of the runs.
     keep = cover < 0
     N = len(D)
@@ -420,7 +431,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             small &= was < o.merge_px
         link_label = p_label.copy()
         link_label[lk[small[inv]]] = -1
-    pieces = cut_pieces(lines, p_line, p_s0, p_s1)
+    pieces = cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
     # The piece of every drawn sample (-1 for covered samples and short leftovers): pieces come
     # in sample order, a sample's piece is the last one starting at or before it.
     p_first, p_last = first[sel], last[sel]
@@ -444,6 +455,10 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree)
     S = len(paths)
+    # A hidden path's level: the fewest surfaces that hide any piece of it.
+    level = np.full(S, np.iinfo(np.int64).max)
+    np.minimum.at(level, path_of, lines.kind[p_line] // N_KINDS)
+    paths = paths.replace(kind=paths.kind % N_KINDS + N_KINDS * level)
     # 6. Ids: each label to the path holding most of its length.
     lk = np.flatnonzero(p_label >= 0)
     if len(lk):
