@@ -31,6 +31,9 @@ class PathOptions:
     the path they touch like pieces no path claims (it merges; its id ends). Each merge costs M1
     its length once; without merges every split leaves an id behind for good and the paths
     crumble over a long sequence (0: never merge).
+    hold_px: a new path shorter than this lying beside the drawn paths (within 3 px all along)
+    is held back one frame: drawn from the next frame on if it is still there, so that a piece
+    that shows for one frame costs no id (0: never hold).
     tracking: the correspondence of carried samples (search radius, tangent agreement, vote
     spacing) and the fit of u (stretch, knots, outliers), as the Kalnins tracker has them."""
 
@@ -43,6 +46,7 @@ class PathOptions:
     join_angle_deg: float = 90.0
     min_run_px: float = 1.5
     merge_px: float = 10.0
+    hold_px: float = 8.0
     tracking: TrackingOptions = field(default_factory=TrackingOptions)
 
     def __post_init__(self):
@@ -50,7 +54,7 @@ class PathOptions:
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
-        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px"):
+        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px", "hold_px"):
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)
