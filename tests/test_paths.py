@@ -175,10 +175,15 @@ def test_new_short_paths_beside_the_drawing_are_held_back():
     # 10 px away is drawn (it would leave the line it stands for far from any path), so is a long one.
     pts = [[0.0, 0.0], [100.0, 0.0], [40.0, 2.0], [45.0, 2.0], [40.0, 10.0], [45.0, 10.0], [0.0, 2.5], [30.0, 2.5]]
     paths = Strokes.build(pts, np.zeros((8, 3)), np.zeros(8), [0, 2, 4, 6, 8], np.zeros(4), ids=[3, 5, 6, 7])
-    o = PathOptions()
-    assert held_back(paths, 5, o).tolist() == [False, True, False, False]
-    assert held_back(paths, 6, o).tolist() == [False, False, False, False]  # id 5 is carried: drawn
-    assert not held_back(paths, 5, PathOptions(hold_px=0.0)).any()
+    D = resample_strokes(paths, 1.0, with_surface=False)  # (the paths draw their own samples)
+    tree = cKDTree(D.p)
+
+    def held(first_fresh, o=PathOptions()):
+        return held_back(paths, first_fresh, o, D.p, D.stroke, tree).tolist()
+
+    assert held(5) == [False, True, False, False]
+    assert held(6) == [False, False, False, False]  # id 5 is carried: drawn
+    assert not any(held(5, PathOptions(hold_px=0.0)))
 
 
 def test_one_label_per_path_cuts_where_the_label_changes():

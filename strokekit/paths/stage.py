@@ -17,8 +17,8 @@ The steps, all vectorized over the frame's samples:
    run's own length.
 5. Pieces (the uncovered runs) are joined end to end into paths: pieces of one label within
    `join_px`, a piece no path claims to a path or to another such piece within `new_join_px`,
-   turning at most `join_angle_deg`; links within one label first, of the longest piece first,
-   then the cheapest (gap + 10 px per radian of turn); two paths never join (a path that would
+   turning at most `join_angle_deg`; links within one label first, the cheapest first (gap + 10 px
+   per radian of turn), then of the longest piece; two paths never join (a path that would
    hold two labels through an unclaimed piece is cut where the label changes). The bridges
    between pieces are drawn, so a bridge longer than 2 px is only made where every point of it
    lies within 1 px of a line (`on_drawing`: the paths invent nothing). A path whose ends meet is
@@ -28,7 +28,8 @@ The steps, all vectorized over the frame's samples:
 6. Ids: a label goes to the path holding most of its length; the other paths get fresh ids.
    Each path is turned so that its carried u increases along it, a closed path to start at its
    old seam, and u is fitted to the votes as the Kalnins tracker does (tracking.kalnins.fit_u),
-   with its self-similar level.
+   with its self-similar level. A new path shorter than `hold_px` lying beside the drawn ones is
+   held back one frame (`held_back`): a piece that shows for a frame costs no id.
 """
 
 from __future__ import annotations
@@ -501,7 +502,8 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to)
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
-    hold = held_back(paths, first_fresh, o)
+    owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
+    hold = held_back(paths, first_fresh, o, D.p, owner, line_tree)
     return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece, hold), next_id
 
 
@@ -510,13 +512,18 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
 HOLD_RADIUS_PX = 3.0
 
 
-def held_back(paths: Strokes, first_fresh: int, o: PathOptions) -> np.ndarray:
+def held_back(paths: Strokes, first_fresh: int, o: PathOptions, p: np.ndarray, owner: np.ndarray, tree,
+              k: int = 16) -> np.ndarray:
     """(S,) the paths held back this frame: new (a fresh id, >= first_fresh), shorter than
     o.hold_px and within HOLD_RADIUS_PX of the other paths all along (a strand beside a path, a
     piece left at a junction). They are not drawn; carried to the next frame, one that is still
     there takes its id back and is drawn from then on. A piece that shows for one frame then
     changes no id (bunny, 120 frames: 760 paths of ~4 px lived one frame, each cost M1 its length
-    in both pairs of frames it was in)."""
+    in both pairs of frames it was in).
+    The paths are seen through the line samples they draw: p (N, 2), owner (N,) the path drawing
+    each (-1: none), `tree` a k-d tree of p; a sample of a candidate is near another path when one
+    of its k nearest samples within reach is drawn by a path that stays (in a crowd of strands
+    that may be missed: the path is then drawn)."""
     S = len(paths)
     hold = np.zeros(S, bool)
     if o.hold_px <= 0 or S < 2:
@@ -524,12 +531,17 @@ def held_back(paths: Strokes, first_fresh: int, o: PathOptions) -> np.ndarray:
     cand = (paths.ids >= first_fresh) & (paths.lengths < o.hold_px)
     if not cand.any() or cand.all():
         return hold
-    smp = resample_strokes(paths, 0.5, with_surface=False)
-    c = cand[smp.stroke]
+    mine = np.flatnonzero((owner >= 0) & cand[np.maximum(owner, 0)])
+    if len(mine) == 0:
+        return hold
+    _, idx = tree.query(p.take(mine, axis=0), k=k, distance_upper_bound=HOLD_RADIUS_PX + 1e-9)
+    ok = idx < len(p)  # (the tree marks "none within reach" with n)
+    ow = owner[np.where(ok, idx, 0)]
     # (Against the paths that stay: two new strands side by side do not hold each other back.)
-    dist, _ = query_tree(smp.p[~c]).query(smp.p[c], distance_upper_bound=HOLD_RADIUS_PX + 1e-9)
-    far = np.bincount(smp.stroke[c], weights=dist > HOLD_RADIUS_PX, minlength=S)
-    hold[cand & (far == 0)] = True
+    near = (ok & (ow >= 0) & ~cand[np.maximum(ow, 0)]).any(axis=1)
+    far = np.bincount(owner[mine], weights=~near, minlength=S)
+    seen = np.bincount(owner[mine], minlength=S) > 0
+    hold[cand & seen & (far == 0)] = True
     return hold
 
 
