@@ -286,7 +286,8 @@ class BrushPaths:
     cover_line[k] from arc length cover_s0[k] to cover_s1[k] (px) for k in
     cover_offsets[s]:cover_offsets[s + 1]; cover_drawn[k] is True where the path draws that
     piece itself, False where the piece runs beside the path within the cover radius (a
-    shingle of the mesh contour the path stands for)."""
+    shingle of the mesh contour the path stands for). held: new paths held back this frame (not
+    drawn, no covers; see PathOptions.hold_px), carried to the next frame beside `strokes`."""
 
     strokes: Strokes
     lines: Strokes
@@ -295,6 +296,7 @@ class BrushPaths:
     cover_s0: np.ndarray
     cover_s1: np.ndarray
     cover_drawn: np.ndarray
+    held: Strokes | None = None
 
     def __len__(self) -> int:
         return len(self.strokes)

@@ -14,7 +14,8 @@ from strokekit.metrics.coherence import sequence_metrics
 from strokekit.model import KIND_INDEX, Strokes
 from strokekit.options import LineOptions
 from strokekit.paths import PathOptions, PathTracker, brush_frames
-from strokekit.paths.stage import _one_label_per_path, on_drawing
+from strokekit.paths.stage import _one_label_per_path, held_back, on_drawing
+from strokekit.sampling import resample_strokes
 from strokekit.scene.load import build_scene
 
 SIZE = 512
@@ -156,6 +157,33 @@ def test_a_bridge_is_drawn_only_on_the_drawing():
     tree = cKDTree(np.r_[np.c_[x, np.zeros_like(x)], np.c_[x, np.full_like(x, 1.5)]])
     ok = on_drawing(tree, np.array([[5.0, 0.0], [5.0, 0.0]]), np.array([[9.0, 1.5], [9.0, 6.0]]))
     assert ok.tolist() == [True, False]
+
+
+def test_a_bridge_is_measured_against_the_lines_not_their_samples():
+    # A line along y = 0 sampled every px: a bridge 0.95 px beside it lies within 1 px of the line
+    # but up to 1.07 px from its samples; one 1.2 px beside it is off the drawing either way.
+    line = Strokes.build([[0.0, 0.0], [20.0, 0.0]], np.zeros((2, 3)), [0, 0], [0, 2], [0])
+    D = resample_strokes(line, 1.0, with_surface=False)
+    tree = cKDTree(D.p)
+    pa, pb = np.array([[3.0, 0.95], [3.0, 1.2]]), np.array([[8.0, 0.95], [8.0, 1.2]])
+    assert on_drawing(tree, pa, pb, D=D).tolist() == [True, False]
+    assert on_drawing(tree, pa, pb).tolist() == [False, False]
+
+
+def test_new_short_paths_beside_the_drawing_are_held_back():
+    # Path 0 (id 3, carried) along y = 0; new ids from 5: a 5 px strand 2 px beside it is held, one
+    # 10 px away is drawn (it would leave the line it stands for far from any path), so is a long one.
+    pts = [[0.0, 0.0], [100.0, 0.0], [40.0, 2.0], [45.0, 2.0], [40.0, 10.0], [45.0, 10.0], [0.0, 2.5], [30.0, 2.5]]
+    paths = Strokes.build(pts, np.zeros((8, 3)), np.zeros(8), [0, 2, 4, 6, 8], np.zeros(4), ids=[3, 5, 6, 7])
+    D = resample_strokes(paths, 1.0, with_surface=False)  # (the paths draw their own samples)
+    tree = cKDTree(D.p)
+
+    def held(first_fresh, o=PathOptions()):
+        return held_back(paths, first_fresh, o, D.p, D.stroke, tree).tolist()
+
+    assert held(5) == [False, True, False, False]
+    assert held(6) == [False, False, False, False]  # id 5 is carried: drawn
+    assert not any(held(5, PathOptions(hold_px=0.0)))
 
 
 def test_one_label_per_path_cuts_where_the_label_changes():

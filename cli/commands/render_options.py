@@ -41,7 +41,7 @@ _TRACKING = [
                       "is given; lines for one frame or --no-coherence]."),
     click.option("--path-merge", type=FINITE, default=None,
                  help="With brush paths: a path shorter than N px (two frames running) merges into the path it "
-                      "touches [10; 0: never, the highest id persistence, but paths crumble over long sequences]."),
+                      "touches [5; 0: never, the highest id persistence, but paths crumble over long sequences]."),
     click.option("--coherence", "coherence_method", type=click.Choice(["kalnins", "seed", "none"]), default="kalnins",
                  show_default=True, help="Frame-to-frame tracking of the lines (--strokes lines): kalnins (samples carry "
                       "ids and u to the next frame), seed (simple baseline: limited growth, short strokes not carried), "

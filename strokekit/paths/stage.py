@@ -17,8 +17,8 @@ The steps, all vectorized over the frame's samples:
    run's own length.
 5. Pieces (the uncovered runs) are joined end to end into paths: pieces of one label within
    `join_px`, a piece no path claims to a path or to another such piece within `new_join_px`,
-   turning at most `join_angle_deg`; links within one label first, of the longest piece first,
-   then the cheapest (gap + 10 px per radian of turn); two paths never join (a path that would
+   turning at most `join_angle_deg`; links within one label first, the cheapest first (gap + 10 px
+   per radian of turn), then of the longest piece; two paths never join (a path that would
    hold two labels through an unclaimed piece is cut where the label changes). The bridges
    between pieces are drawn, so a bridge longer than 2 px is only made where every point of it
    lies within 1 px of a line (`on_drawing`: the paths invent nothing). A path whose ends meet is
@@ -28,7 +28,8 @@ The steps, all vectorized over the frame's samples:
 6. Ids: a label goes to the path holding most of its length; the other paths get fresh ids.
    Each path is turned so that its carried u increases along it, a closed path to start at its
    old seam, and u is fitted to the votes as the Kalnins tracker does (tracking.kalnins.fit_u),
-   with its self-similar level.
+   with its self-similar level. A new path shorter than `hold_px` lying beside the drawn ones is
+   held back one frame (`held_back`): a piece that shows for a frame costs no id.
 """
 
 from __future__ import annotations
@@ -134,17 +135,34 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
 ON_DRAWING_PX = 1.0
 
 
-def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5) -> np.ndarray:
+def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5, D: Samples | None = None) -> np.ndarray:
     """(K,) whether the segments pa -> pb (K, 2) lie within ON_DRAWING_PX of the line samples in
-    `tree` at every point (tested every `step_px`)."""
+    `tree` at every point (tested every `step_px`). With D (the samples of the tree, their
+    tangents and lengths): within ON_DRAWING_PX of the lines themselves, the piece of line each
+    sample stands for (a point beside a line lies up to half a sample spacing further from the
+    nearest sample than from the line: bridges 0.9 px from a line were refused)."""
     d = row_norm(pb - pa)
     n = np.maximum(1, np.ceil(d / step_px)).astype(np.int64)
     owner = np.repeat(np.arange(len(pa)), n - 1)
     k = np.arange(len(owner)) - np.repeat(np.cumsum(n - 1) - (n - 1), n - 1) + 1
     f = (k / n[owner])[:, None]
     q = pa[owner] * (1 - f) + pb[owner] * f
-    dist, _ = tree.query(q, distance_upper_bound=ON_DRAWING_PX + 1e-9)
-    bad = np.bincount(owner, weights=(dist > ON_DRAWING_PX), minlength=len(pa))
+    if D is None:
+        dist, _ = tree.query(q, distance_upper_bound=ON_DRAWING_PX + 1e-9)
+        far = dist > ON_DRAWING_PX
+    else:
+        reach = ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9 if len(D) else ON_DRAWING_PX
+        dist, idx = tree.query(q, k=2, distance_upper_bound=reach)
+        far = np.ones(len(q), bool)
+        for c in range(2):
+            ok = dist[:, c] < np.inf
+            j = np.where(ok, idx[:, c], 0)
+            dq = q - D.p.take(j, axis=0)
+            along = np.einsum("ij,ij->i", dq, D.t.take(j, axis=0))
+            beyond = np.maximum(np.abs(along) - 0.5 * D.w[j], 0.0)
+            d2 = np.maximum(dist[:, c] ** 2 - along * along, 0.0) + beyond * beyond
+            far &= ~(ok & (d2 <= ON_DRAWING_PX ** 2))
+    bad = np.bincount(owner, weights=far, minlength=len(pa))
     return bad == 0
 
 
@@ -258,7 +276,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     return paths, path, offset
 
 
-def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree) -> Strokes:
+def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree, D: Samples) -> Strokes:
     """Paths whose two ends meet (within tol_px, turning by at most angle_deg at the joint, the
     bridge on the drawing, see on_drawing, beyond 2 px) closed into loops: their first point is
     repeated at their end. A ring of pieces, or one piece whose chaining stopped short of its own
@@ -288,7 +306,7 @@ def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree) -> 
     ok = np.where(tiny, cos(a, c) >= cmin, (cos(a, br) >= cmin) & (cos(br, c) >= cmin))
     far = gap[cand] > 2.0
     if far.any():
-        ok[far] &= on_drawing(line_tree, P[last[cand[far]]], P[first[cand[far]]])
+        ok[far] &= on_drawing(line_tree, P[last[cand[far]]], P[first[cand[far]]], D=D)
     cand = cand[ok]
     if len(cand) == 0:
         return paths
@@ -376,6 +394,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         return _empty(lines), next_id
     P = lines.period_px
     to = o.tracking
+    first_fresh = next_id
     D = resample_strokes(lines, o.sample_px)
     history = prev is not None and len(prev) > 0 and lines.camera is not None and prev.camera is not None
     votes = carried_votes(prev, lines, D, o) if history else Votes.none()
@@ -450,10 +469,10 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
     group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
-                                      bridge_ok=lambda pa, pb: on_drawing(line_tree, pa, pb), free_px=2.0)
+                                      bridge_ok=lambda pa, pb: on_drawing(line_tree, pa, pb, D=D), free_px=2.0)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
-    paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree)
+    paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree, D)
     S = len(paths)
     # A hidden path's level: the fewest surfaces that hide any piece of it.
     level = np.full(S, np.iinfo(np.int64).max)
@@ -498,12 +517,64 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to)
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
-    return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece), next_id
+    owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
+    hold = held_back(paths, first_fresh, o, D.p, owner, line_tree)
+    return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece, hold), next_id
+
+
+#: A new path is held back only where all of it lies within this many px of the paths drawn: the
+#: lines stay within 3 px of a path everywhere.
+HOLD_RADIUS_PX = 3.0
+
+
+def held_back(paths: Strokes, first_fresh: int, o: PathOptions, p: np.ndarray, owner: np.ndarray, tree,
+              k: int = 16) -> np.ndarray:
+    """(S,) the paths held back this frame: new (a fresh id, >= first_fresh), shorter than
+    o.hold_px and within HOLD_RADIUS_PX of the other paths all along (a strand beside a path, a
+    piece left at a junction). They are not drawn; carried to the next frame, one that is still
+    there takes its id back and is drawn from then on. A piece that shows for one frame then
+    changes no id (bunny, 120 frames: 760 paths of ~4 px lived one frame, each cost M1 its length
+    in both pairs of frames it was in).
+    The paths are seen through the line samples they draw: p (N, 2), owner (N,) the path drawing
+    each (-1: none), `tree` a k-d tree of p; a sample of a candidate is near another path when one
+    of its k nearest samples within reach is drawn by a path that stays (in a crowd of strands
+    that may be missed: the path is then drawn)."""
+    S = len(paths)
+    hold = np.zeros(S, bool)
+    if o.hold_px <= 0 or S < 2:
+        return hold
+    cand = (paths.ids >= first_fresh) & (paths.lengths < o.hold_px)
+    if not cand.any() or cand.all():
+        return hold
+    mine = np.flatnonzero((owner >= 0) & cand[np.maximum(owner, 0)])
+    if len(mine) == 0:
+        return hold
+    _, idx = tree.query(p.take(mine, axis=0), k=k, distance_upper_bound=HOLD_RADIUS_PX + 1e-9)
+    ok = idx < len(p)  # (the tree marks "none within reach" with n)
+    ow = owner[np.where(ok, idx, 0)]
+    # (Against the paths that stay: two new strands side by side do not hold each other back.)
+    near = (ok & (ow >= 0) & ~cand[np.maximum(ow, 0)]).any(axis=1)
+    far = np.bincount(owner[mine], weights=~near, minlength=S)
+    seen = np.bincount(owner[mine], minlength=S) > 0
+    hold[cand & seen & (far == 0)] = True
+    return hold
 
 
 def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1, path_of, D: Samples, cover,
-            smp_piece) -> BrushPaths:
-    """BrushPaths with the covers: the pieces each path draws, and the covered runs of samples beside it."""
+            smp_piece, hold: np.ndarray | None = None) -> BrushPaths:
+    """BrushPaths with the covers: the pieces each path draws, and the covered runs of samples
+    beside it. Paths where `hold` is true are left out (BrushPaths.held)."""
+    held = None
+    if hold is not None and hold.any():
+        held = paths.select(hold)
+        paths = paths.select(~hold)
+        new = np.cumsum(~hold) - 1
+        keep = ~hold[path_of]
+        # (Samples covered by a piece of a held path are left to no path: their piece goes.)
+        pmap = np.full(len(path_of) + 1, -1, np.int64)
+        pmap[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
+        smp_piece = pmap[smp_piece]
+        p_line, p_s0, p_s1, path_of = p_line[keep], p_s0[keep], p_s1[keep], new[path_of[keep]]
     cs = np.flatnonzero(cover >= 0)
     ck = smp_piece[cover[cs]]
     cs, ck = cs[ck >= 0], ck[ck >= 0]
@@ -525,7 +596,8 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
     o = np.lexsort((all0, alll, ~drawn, allp))
     counts = np.bincount(allp, minlength=len(paths))
     return BrushPaths(strokes=paths, lines=lines, cover_offsets=join_arrays(0, counts.cumsum()).astype(np.int64),
-                      cover_line=alll[o].astype(np.int64), cover_s0=all0[o], cover_s1=all1[o], cover_drawn=drawn[o])
+                      cover_line=alll[o].astype(np.int64), cover_s0=all0[o], cover_s1=all1[o], cover_drawn=drawn[o],
+                      held=held)
 
 
 class PathTracker:
@@ -546,7 +618,8 @@ class PathTracker:
             out, _ = brush_step(None, lines, o, 0)
             return out
         out, self.next_id = brush_step(self.prev, lines, o, self.next_id)
-        self.prev = out.strokes
+        # The held paths vote with the drawn ones: one still there next frame takes its id back.
+        self.prev = out.strokes if out.held is None else Strokes.concat([out.strokes, out.held])
         return out
 
 
