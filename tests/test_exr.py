@@ -129,7 +129,7 @@ def test_exr_bytes_are_deterministic(tmp_path):
     assert (a / "frame_0001.exr").read_bytes() == (b / "frame_0001.exr").read_bytes()
 
 
-@pytest.mark.parametrize("codec", ["rle", "piz", "none"])
+@pytest.mark.parametrize("codec", ["zips", "rle", "piz", "none"])
 def test_every_exr_codec_gives_back_the_same_channels(tmp_path, codec):
     """--exr-codec trades size for encoding time; being lossless, each gives back the ZIP file's
     channels bit for bit (Cryptomatte ids are float bit patterns: any rounding would lose them)."""

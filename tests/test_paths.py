@@ -287,3 +287,35 @@ def test_the_still_life_handle_contour_is_one_path():
     b = PathTracker().step(lines)
     owners = {s for s in range(len(b)) for line, _, _, drawn in b.covers(s) if drawn and line in inner}
     assert len(owners) == 1
+
+
+def test_a_held_strand_is_drawn_with_its_id_from_the_next_frame():
+    """Through PathTracker: a 5 px crease strand 2 px beside a long crease appears in frame 2. It is
+    held back there (not drawn, in BrushPaths.held with a fresh id), and from frame 3 on it is drawn
+    with that id; the long line keeps its id throughout; nothing is held in the first frame."""
+    from strokekit.camera.view import Camera
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+    px_per_unit = cam.focal_px / 10.0
+
+    def segment(x0, x1, y):
+        n = int(np.ceil((x1 - x0) * px_per_unit)) + 1
+        world = np.column_stack([np.linspace(x0, x1, n), np.full(n, y), np.zeros(n)])
+        return cam.project(world)[0], world
+
+    def frame(k, strand):
+        parts = [segment(-2.0, 2.0, 0.0)] + ([segment(0.0, 5.0 / px_per_unit, 2.0 / px_per_unit)] if strand else [])
+        offsets = np.cumsum([0] + [len(p) for p, _ in parts])
+        return Strokes.build(np.vstack([p for p, _ in parts]), np.vstack([w for _, w in parts]),
+                             np.zeros(offsets[-1]), offsets, [KIND_INDEX["crease"]] * len(parts), camera=cam, frame=k)
+
+    tracker = PathTracker()
+    out = [tracker.step(frame(k, strand=k >= 2)) for k in (1, 2, 3, 4)]
+    assert out[0].held is None or len(out[0].held) == 0
+    assert [len(b.strokes) for b in out] == [1, 1, 2, 2]
+    assert len({int(b.strokes.ids[np.argmax(b.strokes.lengths)]) for b in out}) == 1, "the long line keeps its id"
+    held_id = out[1].held.ids.tolist()
+    assert len(held_id) == 1
+    for b in out[2:]:
+        short = b.strokes.ids[np.argmin(b.strokes.lengths)]
+        assert short == held_id[0]

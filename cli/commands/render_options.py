@@ -85,8 +85,8 @@ _RASTER = [
     click.option("--exr-layers", default=None,
                  help="The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all]."),
     click.option("--exr-codec", type=click.Choice(CODECS), default="zip", show_default=True,
-                 help="The EXR's lossless compression: zip and piz are the smallest, rle encodes in about half "
-                      "zip's time at four times the size."),
+                 help="The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at about "
+                      "twice their size, rle in about half zip's time at four to eight times the size."),
     click.option("--lines-png", is_flag=True, help="Also lines/frame_NNNN.png: the visible strokes as an RGBA image."),
 ]
 

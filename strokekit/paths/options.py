@@ -58,7 +58,7 @@ class PathOptions:
     min_run_px: float = 1.5
     merge_px: float = 5.0
     hold_px: float = 8.0
-    tracking: TrackingOptions = field(default_factory=lambda: path_tracking())
+    tracking: TrackingOptions = field(default_factory=path_tracking)
 
     def __post_init__(self):
         for name in ("sample_px", "reverse_px"):

@@ -475,9 +475,9 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree, D)
     S = len(paths)
     # A hidden path's level: the fewest surfaces that hide any piece of it.
-    level = np.full(S, np.iinfo(np.int64).max)
-    np.minimum.at(level, path_of, lines.kind[p_line] // N_KINDS)
-    paths = paths.replace(kind=paths.kind % N_KINDS + N_KINDS * level)
+    occ_level = np.full(S, np.iinfo(np.int64).max)
+    np.minimum.at(occ_level, path_of, lines.kind[p_line] // N_KINDS)
+    paths = paths.replace(kind=paths.kind % N_KINDS + N_KINDS * occ_level)
     # 6. Ids: each label to the path holding most of its length.
     lk = np.flatnonzero(p_label >= 0)
     if len(lk):

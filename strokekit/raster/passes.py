@@ -27,9 +27,9 @@ PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
 #: Cryptomatte ranks written per type: two RGBA layers. The issue asks for at least 3; every
 #: layer more adds about a tenth to the EXR's write time (ZIP of float32 channels).
 RANKS = 4
-#: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read, cheapest
-#: to encode last: ZIP (the default, as Blender writes) and PIZ are the smallest, RLE encodes in
-#: about half ZIP's time and is four times the size (README "Multilayer EXR").
+#: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read: ZIP (the
+#: default, as Blender writes) and ZIPS are the smallest, PIZ encodes faster at about twice their
+#: size, RLE in about half ZIP's time at four to eight times the size (README, `--exr`).
 CODECS = ("zip", "zips", "piz", "rle", "none")
 
 
@@ -118,9 +118,10 @@ def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:
 
 
 def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: PassOptions,
-                       crease_angle_deg: float = 60.0) -> RasterPasses:
+                       crease_angle_deg: float = 60.0, lines_coverage: dict | None = None) -> RasterPasses:
     """The passes `options` asks for, of one frame (its raster pass, and its strokes for 'lines');
-    `crease_angle_deg`: the line options' (smooth normals split there)."""
+    `crease_angle_deg`: the line options' (smooth normals split there); `lines_coverage`: the
+    strokes' coverage at options.stroke_width_px when the caller has it (stroke_coverage)."""
     p = options.passes
     H, W = frame.height, frame.width
     depth = normal = shade = bands = None
@@ -136,6 +137,9 @@ def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: Pas
     crypto = crypto_layers(frame) if "crypto" in p else ()
     lines = None
     if "lines" in p:
-        lines = stroke_coverage(strokes, W, H, options.stroke_width_px) if strokes is not None else {}
+        if lines_coverage is not None:
+            lines = lines_coverage
+        else:
+            lines = stroke_coverage(strokes, W, H, options.stroke_width_px) if strokes is not None else {}
     return RasterPasses(width=W, height=H, depth=depth, normal=normal, shade=shade, bands=bands, crypto=crypto,
                         lines=lines)

@@ -53,6 +53,8 @@ def run_manifest(spec: RunSpec, scene: Scene, tracking_on: bool) -> dict:
     outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
                and not (f.name == "hidden_dashes" and o.hidden_dashes is None)  # (digested as before them)
                and not (f.name == "dash_paths" and not o.dash_paths)}
+    if o.exr is not None and o.exr.codec == "zip":  # (the default codec: digested as before --exr-codec)
+        outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr) if f.name != "codec"}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
     if o.gltf and brush is not None:
         if brush not in BUNDLED:  # a user's image: its bytes go into every GLB

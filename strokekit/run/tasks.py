@@ -157,6 +157,15 @@ def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | N
     info: dict = {}
     o = outputs.raster_options
     stem = outputs.stem(frame)
+    covered: dict = {}
+
+    def coverage(width_px: float) -> dict:
+        """The strokes' coverage per kind, once for the lines PNG and the EXR's lines layer."""
+        if width_px not in covered:
+            covered[width_px] = stroke_coverage(strokes, int(camera.width), int(camera.height), width_px) \
+                if strokes is not None else {}
+        return covered[width_px]
+
     if o is not None:
         t1 = time.perf_counter()
         raster = render_raster(scene, camera, occluder, o, crease_angle_deg, work=thread_workspace(), timings=timings)
@@ -170,7 +179,7 @@ def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | N
             info["depth_range"] = [zn, zf]
         if outputs.lines_png:
             t2 = time.perf_counter()
-            images["lines"] = _lines_image(strokes, camera, outputs.stroke_width_px)
+            images["lines"] = _lines_image(coverage(outputs.stroke_width_px), camera)
             timings["lines PNG"] = time.perf_counter() - t2
         t2 = time.perf_counter()
         pngs = png_files(images, text)
@@ -185,23 +194,24 @@ def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | N
                 timings[name] = timings.pop(key)
         if outputs.exr is not None:
             t1 = time.perf_counter()
-            passes = compositing_passes(raster, strokes, outputs.exr, crease_angle_deg)
+            passes = compositing_passes(raster, strokes, outputs.exr, crease_angle_deg,
+                                        coverage(outputs.exr.stroke_width_px) if "lines" in outputs.exr.passes else None)
             files.append(_write(outputs.frame_file(frame, ".exr"), exr_bytes(passes, outputs.exr.codec)))
             timings["EXR"] = time.perf_counter() - t1
         info.update(objects_and_materials(scene))
     elif outputs.lines_png:
         t1 = time.perf_counter()
-        images = {"lines": _lines_image(strokes, camera, outputs.stroke_width_px)}
+        images = {"lines": _lines_image(coverage(outputs.stroke_width_px), camera)}
         for name, data in png_files(images).items():
             files.append(_write(outputs.out_dir / name / f"{stem}.png", data))
         timings["lines PNG"] = time.perf_counter() - t1
     return files, underlays, ({"raster": info} if info else {})
 
 
-def _lines_image(strokes: Strokes | None, camera: Camera, stroke_width_px: float) -> np.ndarray:
-    """(H, W, 4) uint8 RGBA, sRGB-encoded straight alpha: the visible strokes in their colours."""
+def _lines_image(cov: dict, camera: Camera) -> np.ndarray:
+    """(H, W, 4) uint8 RGBA, sRGB-encoded straight alpha: the visible strokes in their colours, from
+    their coverage per kind (raster.strokes.stroke_coverage)."""
     W, H = int(camera.width), int(camera.height)
-    cov = stroke_coverage(strokes, W, H, stroke_width_px) if strokes is not None else {}
     out = np.zeros((H * W, 4), np.uint8)
     if cov:
         pix, _, total = lines_sparse(cov)

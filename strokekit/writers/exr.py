@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import io
 import os
+import threading
 
 import numpy as np
 import OpenEXR
@@ -84,8 +85,8 @@ def exr_channels(passes: RasterPasses) -> tuple[dict[str, np.ndarray], dict[str,
                 k = 2 * i + j
                 ids = layer.ids[..., k] if k < R else np.zeros(layer.ids.shape[:2], np.float32)
                 cov = layer.coverage[..., k] if k < R else np.zeros(layer.ids.shape[:2], np.float32)
-                ch[f"{name}.{idc}"] = np.ascontiguousarray(ids, np.float32)
-                ch[f"{name}.{covc}"] = np.ascontiguousarray(cov, np.float32)
+                ch[f"{name}.{idc}"] = ids.astype(np.float32, copy=False)  # (rank planes: contiguous)
+                ch[f"{name}.{covc}"] = cov.astype(np.float32, copy=False)
         hdr.update(header_attributes(layer.type_name, layer.names))
     if passes.lines is not None:
         # Built from the covered pixels only: the lines layers are nearly all zero.
@@ -97,17 +98,22 @@ def exr_channels(passes: RasterPasses) -> tuple[dict[str, np.ndarray], dict[str,
     return {k: np.ascontiguousarray(v) for k, v in ch.items()}, hdr
 
 
+_pool_lock = threading.Lock()
+
+
 def _encode_threads() -> int:
     """Threads OpenEXR compresses a frame's blocks with: the cores this process may use. The
     bytes do not depend on it (blocks are written in scanline order); a run's other processes
-    encode their own frames meanwhile, so this only shortens a frame's wall time."""
+    encode their own frames meanwhile, so this only shortens a frame's wall time. OpenEXR's
+    thread pool is one per process: it is raised to that count once, never lowered."""
     try:
         n = len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         n = os.cpu_count() or 1
     n = max(1, min(n, 8))
-    if OpenEXR.global_thread_count() < n:  # the pool the file's threads come from (0 by default)
-        OpenEXR.set_global_thread_count(n)
+    with _pool_lock:  # (two threads of one process may encode at once)
+        if OpenEXR.global_thread_count() < n:  # the pool the file's threads come from (0 by default)
+            OpenEXR.set_global_thread_count(n)
     return n
 
 
