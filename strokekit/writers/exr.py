@@ -1,7 +1,8 @@
 """One multilayer OpenEXR per frame (`exr_bytes`), written with the OpenEXR Python bindings.
 
 Single part, scanline, ZIP compression by default, or another lossless one (readers built on
-OpenEXR < 3.3, Blender 3.4 among them, cannot read ZSTD or HTJ2K). Channels, each only when the run computed it, all (H, W):
+OpenEXR < 3.3, Blender 3.4 among them, cannot read ZSTD or HTJ2K). Channels, each only when the
+run computed it, all (H, W):
 
 - `Z` float32: view depth in scene units; background 1e10 (model.BACKGROUND_DEPTH), as Blender
   writes it. Blender reads it as its Depth pass.
@@ -53,11 +54,12 @@ def lines_sparse(lines: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np
     return pix, per_kind, total
 
 
-def _half_planes(n: int, pix: np.ndarray, values: np.ndarray, shape: tuple) -> list[np.ndarray]:
-    """(H, W) float16 images, zero but at flat pixels `pix`, where they take the columns of `values`."""
+def _half_planes(pix: np.ndarray, values: np.ndarray, shape: tuple) -> list[np.ndarray]:
+    """`shape` (H, W) float16 images, zero but at flat pixels `pix`, where they take the columns of
+    `values`."""
     out = []
     for c in range(values.shape[1]):
-        plane = np.zeros(n, np.float16)
+        plane = np.zeros(shape[0] * shape[1], np.float16)
         plane[pix] = values[:, c]
         out.append(plane.reshape(shape))
     return out
@@ -93,7 +95,7 @@ def exr_channels(passes: RasterPasses) -> tuple[dict[str, np.ndarray], dict[str,
         shape = (passes.height, passes.width)
         pix, per_kind, total = lines_sparse(passes.lines)
         for name, rgba in [*((f"lines_{k}", v) for k, v in per_kind.items()), ("lines", total)]:
-            for c, plane in zip("RGBA", _half_planes(shape[0] * shape[1], pix, rgba, shape)):
+            for c, plane in zip("RGBA", _half_planes(pix, rgba, shape)):
                 ch[f"{name}.{c}"] = plane
     return {k: np.ascontiguousarray(v) for k, v in ch.items()}, hdr
 
