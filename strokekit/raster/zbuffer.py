@@ -842,6 +842,24 @@ def _resolve(gx, gy, g0, ux, uy, u0, vx, vy, v0, px, py, ortho):
     z = 1.0 / w
     return z, U * z, V * z
 
+@njit(cache=True, error_model="numpy")
+def _store(j, i, px, py, rec, rid, ortho, face, depth, bary):
+    """Write sample i of the output from the tile's winning record j (-1: background) at sample
+    coordinates (px, py): its face, view depth and barycentrics."""
+    if j < 0:
+        face[i] = -1
+        depth[i] = np.inf
+        bary[i, 0] = 0.0
+        bary[i, 1] = 0.0
+    else:
+        face[i] = rid[j]
+        z, u, v = _resolve(rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9], rec[j, 10], rec[j, 11], rec[j, 12],
+                           rec[j, 13], rec[j, 14], px, py, ortho)
+        depth[i] = z
+        bary[i, 0] = u
+        bary[i, 1] = v
+
+
 
 @njit(cache=True, error_model="numpy")
 def _do_tile(t, ntx, T, Si, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary):
@@ -871,20 +889,7 @@ def _do_tile(t, ntx, T, Si, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, fac
             gb = Y * WS
             py = Y + 0.5
             for X in range(TX0, TX1):
-                j = lrec[lb + X]
-                i = gb + X
-                if j < 0:
-                    face[i] = -1
-                    depth[i] = np.inf
-                    bary[i, 0] = 0.0
-                    bary[i, 1] = 0.0
-                else:
-                    face[i] = rid[j]
-                    z, u, v = _resolve(rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9], rec[j, 10], rec[j, 11], rec[j, 12],
-                                       rec[j, 13], rec[j, 14], X + 0.5, py, ortho)
-                    depth[i] = z
-                    bary[i, 0] = u
-                    bary[i, 1] = v
+                _store(lrec[lb + X], gb + X, X + 0.5, py, rec, rid, ortho, face, depth, bary)
         return
     SS = Si * Si
     for pr in range(TY0 // Si, TY1 // Si):
@@ -895,20 +900,8 @@ def _do_tile(t, ntx, T, Si, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, fac
             for sub in range(SS):
                 Y = pr * Si + sub // Si
                 X = pc * Si + sub % Si
-                j = lrec[(Y - TY0) * T + X - TX0]
-                i = slot * SS + sub
-                if j < 0:
-                    face[i] = -1
-                    depth[i] = np.inf
-                    bary[i, 0] = 0.0
-                    bary[i, 1] = 0.0
-                else:
-                    face[i] = rid[j]
-                    z, u, v = _resolve(rec[j, 6], rec[j, 7], rec[j, 8], rec[j, 9], rec[j, 10], rec[j, 11], rec[j, 12],
-                                       rec[j, 13], rec[j, 14], X + 0.5, Y + 0.5, ortho)
-                    depth[i] = z
-                    bary[i, 0] = u
-                    bary[i, 1] = v
+                _store(lrec[(Y - TY0) * T + X - TX0], slot * SS + sub, X + 0.5, Y + 0.5, rec, rid, ortho, face, depth,
+                       bary)
 
 
 @njit(cache=True, error_model="numpy")
