@@ -41,6 +41,22 @@ MAX_HALVINGS = 60
 #: Image-space grid cell (px) for finding the pairs of edges that may cross.
 GRID_PX = 8.0
 
+_compiled = None
+
+
+def kernels():
+    """The compiled loops of hidden-line drawings (`strokekit.lines.compiled`), imported on first
+    use: visible-only drawings never import numba."""
+    global _compiled
+    if _compiled is None:
+        import importlib
+
+        from strokekit.raster.hits import choose_cache_dir
+
+        choose_cache_dir()
+        _compiled = importlib.import_module("strokekit.lines.compiled")
+    return _compiled
+
 
 def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
                    scene: Scene) -> VisibleRuns:
@@ -182,43 +198,12 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     Va, Vb = V[E[:, 0]], V[E[:, 1]]
     qa, wa = camera.project(Va + c0[:, None] * (Vb - Va))
     qb, wb = camera.project(Va + c1[:, None] * (Vb - Va))
-    f_pair, c_pair = _close_pairs(pa, pb, qa, qb)
-    # Only an outline edge nearer than the segment's far end somewhere can lie in front of it
-    # (2 of 5 close pairs of a bunny frame are not): the cheap test before the crossing's.
-    ahead = np.minimum(wa, wb).take(c_pair) < np.maximum(za, zb).take(f_pair)
-    for k in (0, 1):  # and whose boxes overlap (pairs of a common cell often do not: 3 in 5)
-        lo_f, hi_f = np.minimum(pa[:, k], pb[:, k]), np.maximum(pa[:, k], pb[:, k])
-        lo_c, hi_c = np.minimum(qa[:, k], qb[:, k]), np.maximum(qa[:, k], qb[:, k])
-        ahead &= (lo_c.take(c_pair) <= hi_f.take(f_pair)) & (lo_f.take(f_pair) <= hi_c.take(c_pair))
-    f_pair, c_pair = f_pair[ahead], c_pair[ahead]
-    if len(f_pair) == 0:
-        return none
-    # Columns gathered per pair (take: fancy indexing of rows costs several times more).
-    pax, pay, d1x, d1y = pa[:, 0], pa[:, 1], pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1]
-    qax, qay, d2x, d2y = qa[:, 0], qa[:, 1], qb[:, 0] - qa[:, 0], qb[:, 1] - qa[:, 1]
-    ax, ay, ex, ey = d1x.take(f_pair), d1y.take(f_pair), d2x.take(c_pair), d2y.take(c_pair)
-    wx = qax.take(c_pair) - pax.take(f_pair)
-    wy = qay.take(c_pair) - pay.take(f_pair)
-    den = ax * ey - ay * ex
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (wx * ey - wy * ex) / den
-        u = (wx * ay - wy * ax) / den
-    hit = np.flatnonzero((den != 0) & (s > 0) & (s < 1) & (u >= 0) & (u <= 1))
-    f_pair, c_pair, s, u = f_pair[hit], c_pair[hit], s[hit], u[hit]
-    # Not the outline edges at the segment's own vertices (they meet it at an end).
-    e0, e1, a_, b_ = E[c_pair, 0], E[c_pair, 1], va[f_pair], vb[f_pair]
-    keep = ~((e0 == a_) | (e0 == b_) | (e1 == a_) | (e1 == b_))
-    f_pair, c_pair, s, u = f_pair[keep], c_pair[keep], s[keep], u[keep]
-    # In front: the outline's view depth there below the segment's (1/z is linear on screen under
-    # perspective, z under a parallel projection).
-    if camera.is_ortho:
-        zf = (1 - s) * za[f_pair] + s * zb[f_pair]
-        zc = (1 - u) * wa[c_pair] + u * wb[c_pair]
-    else:
-        zf = 1.0 / ((1 - s) / za[f_pair] + s / zb[f_pair])
-        zc = 1.0 / ((1 - u) / wa[c_pair] + u / wb[c_pair])
-    front = zc < zf
-    f_pair, s = f_pair[front], s[front]
+    # Candidate pairs from a grid, the cheap depth and box tests, then the crossing's: one
+    # compiled pass (the numpy one made ~50k candidate pairs of a bunny frame in temporaries).
+    f_pair, s = kernels().outline_crossings(np.ascontiguousarray(pa), np.ascontiguousarray(pb), za, zb,
+                                            np.ascontiguousarray(va), np.ascontiguousarray(vb), qa, qb, wa, wb,
+                                            np.ascontiguousarray(E[:, 0]), np.ascontiguousarray(E[:, 1]),
+                                            bool(camera.is_ortho), GRID_PX)
     o = np.lexsort((s, f_pair))
     f_pair, s = f_pair[o], s[o]
     # One place once: a pair found in two cells, or two outline edges meeting at a vertex on the
@@ -226,44 +211,6 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     new = np.ones(len(s), bool)
     new[1:] = (f_pair[1:] != f_pair[:-1]) | (s[1:] - s[:-1] > 1e-12)
     return f_pair[new], s[new]
-
-
-def _cells(pa, pb):
-    """(cell keys, segment of each): the GRID_PX cells that each segment pa -> pb (px) may pass
-    through: cut into pieces at most GRID_PX long, each piece's bounding box (at most 2 x 2
-    cells). Non-finite segments have none."""
-    fin = np.isfinite(pa).all(axis=1) & np.isfinite(pb).all(axis=1)
-    L = np.where(fin, row_norm(pb - pa), 0.0)
-    m = np.where(fin, np.maximum(1, np.ceil(L / GRID_PX)), 0).astype(np.int64)
-    owner = np.repeat(np.arange(len(pa)), m)
-    k = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)
-    d = (pb - pa)[owner]
-    a = pa[owner] + (k / m[owner])[:, None] * d
-    b = pa[owner] + ((k + 1) / m[owner])[:, None] * d
-    lo = np.floor(np.minimum(a, b) / GRID_PX).astype(np.int64)
-    hi = np.floor(np.maximum(a, b) / GRID_PX).astype(np.int64)
-    keys, owners = [], []
-    for dx in (0, 1):
-        for dy in (0, 1):
-            cx, cy = lo[:, 0] + dx, lo[:, 1] + dy
-            ok = (cx <= hi[:, 0]) & (cy <= hi[:, 1])
-            keys.append(cx[ok] * (1 << 32) + cy[ok])
-            owners.append(owner[ok])
-    return np.concatenate(keys), np.concatenate(owners)
-
-
-def _close_pairs(pa, pb, qa, qb):
-    """(i, j): the segments pa -> pb and qa -> qb (px) whose images may cross: they pass through a
-    common GRID_PX cell (a pair may come more than once)."""
-    kf, of = _cells(pa, pb)
-    kc, oc = _cells(qa, qb)
-    o = np.argsort(kc, kind="stable")
-    kc, oc = kc[o], oc[o]
-    lo = np.searchsorted(kc, kf, "left")
-    n = np.searchsorted(kc, kf, "right") - lo
-    i = np.repeat(of, n)
-    j = oc[np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + np.repeat(lo, n)]
-    return i, j
 
 
 def _bisect_levels(cs, lo, hi, lev_lo, lev_hi, L, level_at, tol_px):

@@ -1,0 +1,217 @@
+"""Compiled loops (numba) of hidden-line drawings (`LineOptions.occlusion`): the pair searches
+that numpy does with large temporaries. Imports numpy and numba only; loaded on first use by
+`kernels()` (numba's import is not paid by visible-only drawings), compiled once per machine
+and cached on disk like the raster kernels (`cache=True`, no fastmath: every float operation is
+the one numpy does, in the same order, so results are bit for bit numpy's).
+
+* `outline_crossings`: where segments' images cross the images of outline edges in front of
+  them (`occlusion.outline_crossings`), candidates from a grid of GRID_PX cells.
+* `close_pairs`: the pairs of samples of two strokes of one kind code closer than a radius
+  (`strokeops.drop_overlaps`), from a grid of cells one radius wide.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, error_model="numpy")
+def _segment_cells(pa, pb, grid):
+    """(cell keys, segment of each) of `occlusion._cells`, the same cells in the same order per
+    segment: each segment pa -> pb (px) cut into ceil(L / grid) pieces (non-finite ones: none),
+    the cells of each piece's bounding box."""
+    n = pa.shape[0]
+    m = np.zeros(n, np.int64)
+    total = 0
+    for i in range(n):
+        ax, ay, bx, by = pa[i, 0], pa[i, 1], pb[i, 0], pb[i, 1]
+        if not (np.isfinite(ax) and np.isfinite(ay) and np.isfinite(bx) and np.isfinite(by)):
+            continue
+        dx, dy = bx - ax, by - ay
+        L = math.sqrt(dx * dx + dy * dy)
+        mi = int(max(1.0, math.ceil(L / grid)))
+        m[i] = mi
+        total += mi
+    keys = np.empty(4 * total, np.int64)
+    owner = np.empty(4 * total, np.int64)
+    c = 0
+    for i in range(n):
+        mi = m[i]
+        if mi == 0:
+            continue
+        ax, ay = pa[i, 0], pa[i, 1]
+        dx, dy = pb[i, 0] - ax, pb[i, 1] - ay
+        for k in range(mi):
+            f0 = k / mi
+            f1 = (k + 1) / mi
+            x0, y0 = ax + f0 * dx, ay + f0 * dy
+            x1, y1 = ax + f1 * dx, ay + f1 * dy
+            lox = np.int64(math.floor(min(x0, x1) / grid))
+            loy = np.int64(math.floor(min(y0, y1) / grid))
+            hix = np.int64(math.floor(max(x0, x1) / grid))
+            hiy = np.int64(math.floor(max(y0, y1) / grid))
+            for ddx in range(2):
+                for ddy in range(2):
+                    cx, cy = lox + ddx, loy + ddy
+                    if cx <= hix and cy <= hiy:
+                        keys[c] = cx * (np.int64(1) << 32) + cy
+                        owner[c] = i
+                        c += 1
+    return keys[:c], owner[:c]
+
+
+@njit(cache=True, error_model="numpy")
+def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, grid):
+    """(segment (K,), s (K,)), unsorted, a place possibly more than once: where segment f (pa ->
+    pb, px; view depths za, zb; mesh vertices va, vb, -1 for none) crosses the image of outline
+    edge c (qa -> qb, depths wa, wb, vertices e0, e1) at 0 < s < 1, 0 <= u <= 1, sharing no
+    vertex with it, the outline nearer there (view depth: 1/z linear on screen, z when `ortho`).
+    Candidates: the pairs that share a cell of `_segment_cells`; each is first tested on depth
+    (the outline's nearer end before the segment's far end) and bounding boxes, as numpy did."""
+    kf, of = _segment_cells(pa, pb, grid)
+    kc, oc = _segment_cells(qa, qb, grid)
+    o = np.argsort(kc)
+    kc, oc = kc[o], oc[o]
+    cap = max(16, pa.shape[0])
+    out_f = np.empty(cap, np.int64)
+    out_s = np.empty(cap)
+    n_out = 0
+    for r in range(kf.shape[0]):
+        f = of[r]
+        lo = np.searchsorted(kc, kf[r])
+        far = max(za[f], zb[f])
+        lo_fx, hi_fx = min(pa[f, 0], pb[f, 0]), max(pa[f, 0], pb[f, 0])
+        lo_fy, hi_fy = min(pa[f, 1], pb[f, 1]), max(pa[f, 1], pb[f, 1])
+        ax, ay = pb[f, 0] - pa[f, 0], pb[f, 1] - pa[f, 1]
+        j = lo
+        while j < kc.shape[0] and kc[j] == kf[r]:
+            c = oc[j]
+            j += 1
+            if not (min(wa[c], wb[c]) < far):
+                continue
+            if not (min(qa[c, 0], qb[c, 0]) <= hi_fx and lo_fx <= max(qa[c, 0], qb[c, 0])):
+                continue
+            if not (min(qa[c, 1], qb[c, 1]) <= hi_fy and lo_fy <= max(qa[c, 1], qb[c, 1])):
+                continue
+            if e0[c] == va[f] or e0[c] == vb[f] or e1[c] == va[f] or e1[c] == vb[f]:
+                continue
+            ex, ey = qb[c, 0] - qa[c, 0], qb[c, 1] - qa[c, 1]
+            wx = qa[c, 0] - pa[f, 0]
+            wy = qa[c, 1] - pa[f, 1]
+            den = ax * ey - ay * ex
+            if den == 0:
+                continue
+            # 0 < s < 1 needs a numerator of den's sign and smaller size (rounding is monotone):
+            # most candidates fail this before any division.
+            num = wx * ey - wy * ex
+            if (num > 0) != (den > 0) or abs(num) > abs(den):
+                continue
+            s = num / den
+            u = (wx * ay - wy * ax) / den
+            if not (s > 0 and s < 1 and u >= 0 and u <= 1):
+                continue
+            if ortho:
+                zf = (1 - s) * za[f] + s * zb[f]
+                zc = (1 - u) * wa[c] + u * wb[c]
+            else:
+                zf = 1.0 / ((1 - s) / za[f] + s / zb[f])
+                zc = 1.0 / ((1 - u) / wa[c] + u / wb[c])
+            if not (zc < zf):
+                continue
+            if n_out == cap:
+                cap *= 2
+                nf = np.empty(cap, np.int64)
+                ns = np.empty(cap)
+                nf[:n_out] = out_f[:n_out]
+                ns[:n_out] = out_s[:n_out]
+                out_f, out_s = nf, ns
+            out_f[n_out] = f
+            out_s[n_out] = s
+            n_out += 1
+    return out_f[:n_out], out_s[:n_out]
+
+
+@njit(cache=True, error_model="numpy")
+def close_pairs(p, stroke, code, radius):
+    """(i (K,), j (K,)): the pairs of points p (M, 2) (px, finite) within `radius` of each other
+    (dx dx + dy dy <= radius^2, the test of scipy's cKDTree.query_pairs) whose strokes `stroke`
+    (M,) differ and whose codes `code` (M,) agree, each pair once, in no set order. A grid over
+    the points' bounding box, cells a little wider than `radius` (a pair within reach lies in
+    one cell or two neighbouring ones; wider cells where the points are few and spread out, at
+    most 32 cells a point), the points copied out in cell order (a counting sort) so that the
+    scan of a cell reads contiguous memory."""
+    n = p.shape[0]
+    out_i = np.empty(max(16, n), np.int64)
+    out_j = np.empty(max(16, n), np.int64)
+    if n < 2:
+        return out_i[:0], out_j[:0]
+    x0, y0, x1, y1 = p[0, 0], p[0, 1], p[0, 0], p[0, 1]
+    for i in range(n):
+        x0, x1 = min(x0, p[i, 0]), max(x1, p[i, 0])
+        y0, y1 = min(y0, p[i, 1]), max(y1, p[i, 1])
+    cell = radius * (1.0 + 1e-9)  # (a pair at exactly radius never lands two cells apart)
+    area = (x1 - x0 + cell) * (y1 - y0 + cell)
+    if area > 32.0 * n * cell * cell:
+        cell = math.sqrt(area / (32.0 * n))
+    nx = int((x1 - x0) / cell) + 1
+    ny = int((y1 - y0) / cell) + 1
+    g = np.empty(n, np.int64)
+    start = np.zeros(nx * ny + 1, np.int64)
+    for i in range(n):
+        cx = min(int((p[i, 0] - x0) / cell), nx - 1)
+        cy = min(int((p[i, 1] - y0) / cell), ny - 1)
+        g[i] = cx * ny + cy
+        start[g[i] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    idx = np.empty(n, np.int64)
+    xs = np.empty(n)
+    ys = np.empty(n)
+    ss = np.empty(n, np.int64)
+    ks = np.empty(n, np.int64)
+    for i in range(n):
+        k = fill[g[i]]
+        fill[g[i]] += 1
+        idx[k], xs[k], ys[k], ss[k], ks[k] = i, p[i, 0], p[i, 1], stroke[i], code[i]
+    r2 = radius * radius
+    cap = out_i.shape[0]
+    n_out = 0
+    for a in range(n):  # in cell order; each pair once: b after a in that order
+        ca = g[idx[a]]
+        cx, cy = ca // ny, ca % ny
+        for ux in range(max(cx - 1, 0), min(cx + 2, nx)):
+            for uy in range(max(cy - 1, 0), min(cy + 2, ny)):
+                c = ux * ny + uy
+                if c < ca:
+                    continue
+                for b in range(a + 1 if c == ca else start[c], start[c + 1]):
+                    if ss[b] == ss[a] or ks[b] != ks[a]:
+                        continue
+                    dx = xs[a] - xs[b]
+                    dy = ys[a] - ys[b]
+                    if dx * dx + dy * dy <= r2:
+                        if n_out == cap:
+                            cap *= 2
+                            ni = np.empty(cap, np.int64)
+                            nj = np.empty(cap, np.int64)
+                            ni[:n_out] = out_i[:n_out]
+                            nj[:n_out] = out_j[:n_out]
+                            out_i, out_j = ni, nj
+                        out_i[n_out] = idx[a]
+                        out_j[n_out] = idx[b]
+                        n_out += 1
+    return out_i[:n_out], out_j[:n_out]
+
+
+def warmup() -> None:
+    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
+    p = np.array([[0.5, 0.5], [4.0, 3.0]])
+    z = np.ones(2)
+    v = np.array([0, 1], np.int64)
+    for ortho in (False, True):
+        outline_crossings(p, p[::-1].copy(), z, z, v, v, p, p, z, z, v, v, ortho, 8.0)
+    close_pairs(p, v, v.astype(np.int8), 1.0)
