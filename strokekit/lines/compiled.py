@@ -135,13 +135,13 @@ def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, gri
 
 
 @njit(cache=True, error_model="numpy")
-def close_pairs(p, stroke, code, radius):
+def close_pairs(p, stroke, code, radius, per_point=16.0):
     """(i (K,), j (K,)): the pairs of points p (M, 2) (px, finite) within `radius` of each other
     (dx dx + dy dy <= radius^2, the test of scipy's cKDTree.query_pairs) whose strokes `stroke`
     (M,) differ and whose codes `code` (M,) agree, each pair once, in no set order. A grid over
     the points' bounding box, cells a little wider than `radius` (a pair within reach lies in
     one cell or two neighbouring ones; wider cells where the points are few and spread out, at
-    most 32 cells a point), the points copied out in cell order (a counting sort) so that the
+    most 16 cells a point), the points copied out in cell order (a counting sort) so that the
     scan of a cell reads contiguous memory."""
     n = p.shape[0]
     out_i = np.empty(max(16, n), np.int64)
@@ -154,12 +154,12 @@ def close_pairs(p, stroke, code, radius):
         y0, y1 = min(y0, p[i, 1]), max(y1, p[i, 1])
     cell = radius * (1.0 + 1e-9)  # (a pair at exactly radius never lands two cells apart)
     area = (x1 - x0 + cell) * (y1 - y0 + cell)
-    if area > 32.0 * n * cell * cell:
-        cell = math.sqrt(area / (32.0 * n))
+    if area > per_point * n * cell * cell:
+        cell = math.sqrt(area / (per_point * n))
     nx = int((x1 - x0) / cell) + 1
     ny = int((y1 - y0) / cell) + 1
     g = np.empty(n, np.int64)
-    start = np.zeros(nx * ny + 1, np.int64)
+    start = np.zeros(nx * ny + 1, np.int32)
     for i in range(n):
         cx = min(int((p[i, 0] - x0) / cell), nx - 1)
         cy = min(int((p[i, 1] - y0) / cell), ny - 1)

@@ -185,17 +185,18 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     (`outline_edges`, clipped alike) that lies in front of it there, at screen parameter 0 < s < 1,
     sorted by segment then s, each place once. Edges that share a vertex with the segment meet it
     at its end, not across it, and are skipped."""
-    E = scene.edges[outline_edges(scene, camera)]
+    E = scene.edges.take(outline_edges(scene, camera), axis=0)
     none = (np.zeros(0, np.int64), np.zeros(0))
     if len(E) == 0 or len(pa) == 0:
         return none
     V = scene.vertices
-    c0, c1 = clip_segments(V[E[:, 0]], V[E[:, 1]], camera, near)
-    ok = c1 > c0
-    E, c0, c1 = E[ok], c0[ok], c1[ok]
-    if len(E) == 0:
+    Va, Vb = V.take(E[:, 0], axis=0), V.take(E[:, 1], axis=0)
+    c0, c1 = clip_segments(Va, Vb, camera, near)
+    ok = np.flatnonzero(c1 > c0)
+    if len(ok) == 0:
         return none
-    Va, Vb = V[E[:, 0]], V[E[:, 1]]
+    if len(ok) < len(E):
+        E, c0, c1, Va, Vb = E.take(ok, axis=0), c0[ok], c1[ok], Va.take(ok, axis=0), Vb.take(ok, axis=0)
     qa, wa = camera.project(Va + c0[:, None] * (Vb - Va))
     qb, wb = camera.project(Va + c1[:, None] * (Vb - Va))
     # Candidate pairs from a grid, the cheap depth and box tests, then the crossing's: one
