@@ -20,9 +20,9 @@ from numba import njit
 
 @njit(cache=True, error_model="numpy")
 def _segment_cells(pa, pb, grid):
-    """(cell keys, segment of each) of `occlusion._cells`, the same cells in the same order per
-    segment: each segment pa -> pb (px) cut into ceil(L / grid) pieces (non-finite ones: none),
-    the cells of each piece's bounding box."""
+    """(cell x, cell y, segment of each): the grid cells (`grid` px wide) that each segment pa ->
+    pb (px) may pass through: cut into ceil(L / grid) pieces, the cells of each piece's bounding
+    box (at most 2 x 2); non-finite segments have none. A segment's cells come together."""
     n = pa.shape[0]
     m = np.zeros(n, np.int64)
     total = 0
@@ -35,7 +35,8 @@ def _segment_cells(pa, pb, grid):
         mi = int(max(1.0, math.ceil(L / grid)))
         m[i] = mi
         total += mi
-    keys = np.empty(4 * total, np.int64)
+    gx = np.empty(4 * total, np.int64)
+    gy = np.empty(4 * total, np.int64)
     owner = np.empty(4 * total, np.int64)
     c = 0
     for i in range(n):
@@ -57,39 +58,65 @@ def _segment_cells(pa, pb, grid):
                 for ddy in range(2):
                     cx, cy = lox + ddx, loy + ddy
                     if cx <= hix and cy <= hiy:
-                        keys[c] = cx * (np.int64(1) << 32) + cy
-                        owner[c] = i
+                        gx[c], gy[c], owner[c] = cx, cy, i
                         c += 1
-    return keys[:c], owner[:c]
+    return gx[:c], gy[:c], owner[:c]
 
 
 @njit(cache=True, error_model="numpy")
 def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, grid):
-    """(segment (K,), s (K,)), unsorted, a place possibly more than once: where segment f (pa ->
-    pb, px; view depths za, zb; mesh vertices va, vb, -1 for none) crosses the image of outline
-    edge c (qa -> qb, depths wa, wb, vertices e0, e1) at 0 < s < 1, 0 <= u <= 1, sharing no
-    vertex with it, the outline nearer there (view depth: 1/z linear on screen, z when `ortho`).
-    Candidates: the pairs that share a cell of `_segment_cells`; each is first tested on depth
-    (the outline's nearer end before the segment's far end) and bounding boxes, as numpy did."""
-    kf, of = _segment_cells(pa, pb, grid)
-    kc, oc = _segment_cells(qa, qb, grid)
-    o = np.argsort(kc)
-    kc, oc = kc[o], oc[o]
+    """(segment (K,), s (K,), outline edge (K,), u (K,), depth gap (K,)), unsorted, each place
+    once per outline edge: where segment f (pa -> pb, px; view depths za, zb; mesh vertices va,
+    vb, -1 for none) crosses the image of outline edge c (qa -> qb, depths wa, wb, vertices e0,
+    e1) at 0 < s < 1, 0 <= u <= 1, sharing no vertex with it, the outline nearer there (view
+    depth: 1/z linear on screen, z when `ortho`). u is the place's parameter along the outline
+    edge, the gap (zf - zc) / zf the outline's relative depth in front of the segment there.
+    Candidates: the pairs that share a cell of `_segment_cells` (the outline's bucketed in a grid
+    over their cells' box, coarser where that box would exceed 2^24 cells: the crossing point
+    lies in a cell of both), each pair once; each is first tested on depth (the outline's nearer
+    end before the segment's far end) and bounding boxes, then as numpy did."""
+    fx, fy, of = _segment_cells(pa, pb, grid)
+    cx, cy, oc = _segment_cells(qa, qb, grid)
     cap = max(16, pa.shape[0])
     out_f = np.empty(cap, np.int64)
     out_s = np.empty(cap)
+    out_c = np.empty(cap, np.int64)
+    out_u = np.empty(cap)
+    out_g = np.empty(cap)
     n_out = 0
-    for r in range(kf.shape[0]):
+    if oc.shape[0] == 0 or of.shape[0] == 0:
+        return out_f[:0], out_s[:0], out_c[:0], out_u[:0], out_g[:0]
+    x0, y0, x1, y1 = cx.min(), cy.min(), cx.max(), cy.max()
+    merge = np.int64(1)  # grid cells a bucket holds along each axis
+    while ((x1 - x0) // merge + 1) * ((y1 - y0) // merge + 1) > (1 << 24):
+        merge *= 2
+    nx, ny = (x1 - x0) // merge + 1, (y1 - y0) // merge + 1
+    start = np.zeros(nx * ny + 1, np.int64)
+    for k in range(oc.shape[0]):
+        start[((cx[k] - x0) // merge) * ny + (cy[k] - y0) // merge + 1] += 1
+    for k in range(nx * ny):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    members = np.empty(oc.shape[0], np.int64)
+    for k in range(oc.shape[0]):
+        b = ((cx[k] - x0) // merge) * ny + (cy[k] - y0) // merge
+        members[fill[b]] = oc[k]
+        fill[b] += 1
+    seen = np.full(qa.shape[0], -1, np.int64)  # the last segment each outline edge was tested with
+    for r in range(of.shape[0]):
         f = of[r]
-        lo = np.searchsorted(kc, kf[r])
+        if fx[r] < x0 or fx[r] > x1 or fy[r] < y0 or fy[r] > y1:
+            continue
+        b = ((fx[r] - x0) // merge) * ny + (fy[r] - y0) // merge
         far = max(za[f], zb[f])
         lo_fx, hi_fx = min(pa[f, 0], pb[f, 0]), max(pa[f, 0], pb[f, 0])
         lo_fy, hi_fy = min(pa[f, 1], pb[f, 1]), max(pa[f, 1], pb[f, 1])
         ax, ay = pb[f, 0] - pa[f, 0], pb[f, 1] - pa[f, 1]
-        j = lo
-        while j < kc.shape[0] and kc[j] == kf[r]:
-            c = oc[j]
-            j += 1
+        for j in range(start[b], start[b + 1]):
+            c = members[j]
+            if seen[c] == f:
+                continue
+            seen[c] = f
             if not (min(wa[c], wb[c]) < far):
                 continue
             if not (min(qa[c, 0], qb[c, 0]) <= hi_fx and lo_fx <= max(qa[c, 0], qb[c, 0])):
@@ -123,15 +150,23 @@ def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, gri
                 continue
             if n_out == cap:
                 cap *= 2
-                nf = np.empty(cap, np.int64)
-                ns = np.empty(cap)
-                nf[:n_out] = out_f[:n_out]
-                ns[:n_out] = out_s[:n_out]
-                out_f, out_s = nf, ns
+                out_f, out_s, out_c = _grown(out_f, cap), _grown(out_s, cap), _grown(out_c, cap)
+                out_u, out_g = _grown(out_u, cap), _grown(out_g, cap)
             out_f[n_out] = f
             out_s[n_out] = s
+            out_c[n_out] = c
+            out_u[n_out] = u
+            out_g[n_out] = (zf - zc) / zf
             n_out += 1
-    return out_f[:n_out], out_s[:n_out]
+    return out_f[:n_out], out_s[:n_out], out_c[:n_out], out_u[:n_out], out_g[:n_out]
+
+
+@njit(cache=True)
+def _grown(x, cap):
+    """x copied into a new array of length cap."""
+    y = np.empty(cap, x.dtype)
+    y[:x.shape[0]] = x
+    return y
 
 
 @njit(cache=True, error_model="numpy")
