@@ -29,6 +29,7 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.lines.features import silhouette_mask
+from strokekit.lines.kernels import kernels
 from strokekit.lines.visibility import _visible_runs_of, clip_segments, clipped_on_screen, world_between
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
@@ -40,22 +41,6 @@ from strokekit.scene.tables import scene_cache
 MAX_HALVINGS = 60
 #: Image-space grid cell (px) for finding the pairs of edges that may cross.
 GRID_PX = 8.0
-
-_compiled = None
-
-
-def kernels():
-    """The compiled loops of hidden-line drawings (`strokekit.lines.compiled`), imported on first
-    use: visible-only drawings never import numba."""
-    global _compiled
-    if _compiled is None:
-        import importlib
-
-        from strokekit.raster.hits import choose_cache_dir
-
-        choose_cache_dir()
-        _compiled = importlib.import_module("strokekit.lines.compiled")
-    return _compiled
 
 
 def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,

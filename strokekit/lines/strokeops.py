@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from strokekit.lines.kernels import kernels
 from strokekit.model import KIND_INDEX, Strokes, bracket, kind_of, uclip
 from strokekit.sampling import resample_strokes, split_lengths, surface_between
 
@@ -307,8 +308,6 @@ def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float 
     st = smp.stroke
     sk = strokes.kind[st]
     if compiled:  # (the same pairs; most pairs within reach are neighbours on one stroke)
-        from strokekit.lines.occlusion import kernels
-
         pr = np.stack(kernels().close_pairs(smp.p, st, sk, max(reach, doubled_px)), axis=1)
     else:
         pr = query_tree(smp.p).query_pairs(max(reach, doubled_px), output_type="ndarray")
