@@ -215,30 +215,29 @@ def close_pairs(p, stroke, code, radius, per_point=16.0):
     r2 = radius * radius
     cap = out_i.shape[0]
     n_out = 0
-    for a in range(n):  # in cell order; each pair once: b after a in that order
+    for a in range(n):  # in cell order; each pair once: the half of the neighbourhood after a
         ca = g[idx[a]]
         cx, cy = ca // ny, ca % ny
-        for ux in range(max(cx - 1, 0), min(cx + 2, nx)):
-            for uy in range(max(cy - 1, 0), min(cy + 2, ny)):
-                c = ux * ny + uy
-                if c < ca:
+        # Cells (cx, cy..cy+1) from a on, and (cx+1, cy-1..cy+1): two runs of the cell order.
+        b0, b1 = a + 1, start[cx * ny + min(cy + 1, ny - 1) + 1]
+        if cx + 1 < nx:
+            b2, b3 = start[(cx + 1) * ny + max(cy - 1, 0)], start[(cx + 1) * ny + min(cy + 1, ny - 1) + 1]
+        else:
+            b2, b3 = 0, 0
+        for run in range(2):
+            lo, hi = (b0, b1) if run == 0 else (b2, b3)
+            for b in range(lo, hi):
+                if ss[b] == ss[a] or ks[b] != ks[a]:
                     continue
-                for b in range(a + 1 if c == ca else start[c], start[c + 1]):
-                    if ss[b] == ss[a] or ks[b] != ks[a]:
-                        continue
-                    dx = xs[a] - xs[b]
-                    dy = ys[a] - ys[b]
-                    if dx * dx + dy * dy <= r2:
-                        if n_out == cap:
-                            cap *= 2
-                            ni = np.empty(cap, np.int64)
-                            nj = np.empty(cap, np.int64)
-                            ni[:n_out] = out_i[:n_out]
-                            nj[:n_out] = out_j[:n_out]
-                            out_i, out_j = ni, nj
-                        out_i[n_out] = idx[a]
-                        out_j[n_out] = idx[b]
-                        n_out += 1
+                dx = xs[a] - xs[b]
+                dy = ys[a] - ys[b]
+                if dx * dx + dy * dy <= r2:
+                    if n_out == cap:
+                        cap *= 2
+                        out_i, out_j = _grown(out_i, cap), _grown(out_j, cap)
+                    out_i[n_out] = idx[a]
+                    out_j[n_out] = idx[b]
+                    n_out += 1
     return out_i[:n_out], out_j[:n_out]
 
 
