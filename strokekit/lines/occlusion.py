@@ -83,7 +83,7 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     p_seg = np.concatenate([np.arange(n), cx_seg])
     p_s0 = np.concatenate([np.zeros(n), cx_s])
     p_delta = np.concatenate([np.full(n, NO_DELTA), cx_delta])
-    o = np.lexsort((p_s0, p_seg))
+    o = _by_segment_then_s(p_seg, p_s0)
     p_seg, p_s0, p_delta = p_seg[o], p_s0[o], p_delta[o]
     last = np.empty(len(p_seg), bool)
     last[-1:] = True
@@ -119,8 +119,8 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
                             lev_right])
     e_seg = np.concatenate([p_seg[at_cx], cs, seg_ids])
     e_s1 = np.concatenate([p_s0[at_cx], c_lo, np.ones(n)])
-    o_start = np.lexsort((r_s0, r_seg))
-    o_end = np.lexsort((e_s1, e_seg))
+    o_start = _by_segment_then_s(r_seg, r_s0)
+    o_end = _by_segment_then_s(e_seg, e_s1)
     run_seg, s0, level = r_seg[o_start], r_s0[o_start], r_lev[o_start]
     s1 = e_s1[o_end]
     assert np.array_equal(run_seg, e_seg[o_end]), "level changes must pair up"
@@ -133,6 +133,18 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     code = runs.kind.astype(np.int64) + N_KINDS * np.minimum(level, MAX_OCCLUSION)
     return VisibleRuns(edge=runs.edge, X0=runs.X0, X1=runs.X1, p0=runs.p0, p1=runs.p1, key0=runs.key0,
                        key1=runs.key1, kind=code.astype(np.int8), face=runs.face)
+
+
+def _by_segment_then_s(seg: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """np.lexsort((s, seg)). Its inputs here are mostly runs already in that order (segment starts
+    or ends, and the crossings sorted by segment and s): a stable sort on the segment alone,
+    which finds the runs and merges them, gives the same order when s then ascends within each
+    segment (checked; the lexsort otherwise)."""
+    o = np.argsort(seg, kind="stable")
+    so, ss = seg.take(o), s.take(o)
+    if len(o) > 1 and not ((so[1:] != so[:-1]) | (ss[1:] >= ss[:-1])).all():
+        return np.lexsort((s, seg))
+    return o
 
 
 def _sample_levels(seg, s, first_smp, p_delta, last, limit, level_at):
@@ -197,7 +209,7 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
         m = np.flatnonzero(mesh)[found]
-        faces[m] = scene.edge_faces[pos[found]][:, :2]
+        faces[m] = scene.edge_faces.take(pos[found], axis=0)
         ends[m, 0], ends[m, 1] = va[m], vb[m]
     return faces, ends
 
@@ -302,7 +314,8 @@ def crossing_deltas(scene: Scene, camera: Camera, occluder: Occluder, edge: np.n
         f = ef[:, col]
         has = f >= 0
         fs = np.where(has, f, 0)
-        third = np.where(has, F.take(fs, axis=0).sum(axis=1) - ev[:, 0] - ev[:, 1], ev[:, 0])
+        tri = F.take(fs, axis=0)
+        third = np.where(has, tri[:, 0] + tri[:, 1] + tri[:, 2] - ev[:, 0] - ev[:, 1], ev[:, 0])
         w = V.take(third, axis=0) - V0
         side = np.einsum("ij,ij->i", nrm, w)
         ok &= ~has | (np.abs(side) > 1e-6 * nn * np.sqrt(np.einsum("ij,ij->i", w, w)))

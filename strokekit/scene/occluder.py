@@ -348,7 +348,7 @@ class Occluder:
         count_crossings); None for none."""
         drop = None
         if skip is not None:
-            drop = (face == skip[ray, 0]) | (face == skip[ray, 1])
+            drop = (face == skip[:, 0].take(ray)) | (face == skip[:, 1].take(ray))
         if near is not None:
             verts, reach = near
             close = dist <= reach[ray]
