@@ -65,8 +65,8 @@ def _segment_cells(pa, pb, grid):
 
 @njit(cache=True, error_model="numpy")
 def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, grid):
-    """(segment (K,), s (K,), outline edge (K,), u (K,), depth gap (K,)), unsorted, each place
-    once per outline edge: where segment f (pa -> pb, px; view depths za, zb; mesh vertices va,
+    """(segment (K,), s (K,), outline edge (K,), u (K,), depth gap (K,)), sorted by segment then
+    s, each place once per outline edge: where segment f (pa -> pb, px; view depths za, zb; mesh vertices va,
     vb, -1 for none) crosses the image of outline edge c (qa -> qb, depths wa, wb, vertices e0,
     e1) at 0 < s < 1, 0 <= u <= 1, sharing no vertex with it, the outline nearer there (view
     depth: 1/z linear on screen, z when `ortho`). u is the place's parameter along the outline
@@ -158,6 +158,21 @@ def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, gri
             out_u[n_out] = u
             out_g[n_out] = (zf - zc) / zf
             n_out += 1
+    # The places come grouped by segment, in segment order: each group sorted by s (stable, an
+    # insertion sort: a segment crosses few outline edges) gives np.lexsort((s, f))'s order.
+    a = 0
+    while a < n_out:
+        b = a + 1
+        while b < n_out and out_f[b] == out_f[a]:
+            b += 1
+        for i in range(a + 1, b):
+            s_i, c_i, u_i, g_i = out_s[i], out_c[i], out_u[i], out_g[i]
+            j = i
+            while j > a and out_s[j - 1] > s_i:
+                out_s[j], out_c[j], out_u[j], out_g[j] = out_s[j - 1], out_c[j - 1], out_u[j - 1], out_g[j - 1]
+                j -= 1
+            out_s[j], out_c[j], out_u[j], out_g[j] = s_i, c_i, u_i, g_i
+        a = b
     return out_f[:n_out], out_s[:n_out], out_c[:n_out], out_u[:n_out], out_g[:n_out]
 
 

@@ -257,21 +257,17 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
         np.ascontiguousarray(pa), np.ascontiguousarray(pb), za, zb, np.ascontiguousarray(va),
         np.ascontiguousarray(vb), qa, qb, wa, wb, np.ascontiguousarray(E[:, 0]), np.ascontiguousarray(E[:, 1]),
         bool(camera.is_ortho), GRID_PX)
-    o = np.lexsort((s, f_pair))
-    f_pair, s = f_pair[o], s[o]
-    # One place once: a pair found in two cells, or two outline edges meeting at a vertex on the
-    # segment, report it twice.
+    # One place once: two outline edges meeting at a vertex on the segment report it twice.
     new = np.ones(len(s), bool)
     new[1:] = (f_pair[1:] != f_pair[:-1]) | (s[1:] - s[:-1] > 1e-12)
     if not edges:
         return f_pair[new], s[new]
-    c_pair = c_pair[o]
     head = np.flatnonzero(new)
     merged = np.minimum.reduceat(c_pair, head) != np.maximum.reduceat(c_pair, head) if len(head) else new[:0]
     c_head = c_pair[head]
-    u = u[o][head]
+    u = u[head]
     end_px = np.minimum(u, 1 - u) * row_norm(qb - qa).take(c_head)
-    return f_pair[head], s[head], np.where(merged, -1, eid.take(c_head)), end_px, gap[o][head]
+    return f_pair[head], s[head], np.where(merged, -1, eid.take(c_head)), end_px, gap[head]
 
 
 #: crossing_deltas' value where it cannot say (the level is counted there instead).
