@@ -1,7 +1,8 @@
 """The compiled loops of hidden-line drawings (`strokekit.lines.compiled`, numba), imported on
 first use: drawings of visible lines only never import numba. Cached on disk like the raster
-kernels (`strokekit.numba_cache`); `warm_kernels` loads them, or compiles them on a machine's
-first hidden-line run, before any frame, and says so when it compiles."""
+kernels (`strokekit.numba_cache`); `warm_kernels` loads them and those of the level rays
+(`strokekit.scene.compiled`), or compiles them on a machine's first hidden-line run, before any
+frame, and says so when it compiles."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 from typing import Callable
 
 from strokekit.numba_cache import choose_cache_dir, compile_needed
+from strokekit.scene.occluder import level_kernels
 
 #: About how long the first compile of the kernels takes (s), on this project's 2-core machine.
 COMPILE_SECONDS = 15
@@ -37,9 +39,10 @@ def warm_kernels(notify: Callable[[str], None] | None = None) -> tuple[float, bo
     a machine) before any frame: (seconds, compiled). `notify(line)` is told once, before the
     wait, when they compile."""
     t = time.perf_counter()
-    mod = kernels()
-    compiles = compile_needed([mod])
+    mods = (kernels(), level_kernels())
+    compiles = compile_needed(mods)
     if compiles and notify is not None:
         notify(f"compiling the hidden-line kernels (first run on this machine, about {COMPILE_SECONDS} s)")
-    mod.warmup()
+    for mod in mods:
+        mod.warmup()
     return time.perf_counter() - t, bool(compiles)

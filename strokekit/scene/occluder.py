@@ -6,12 +6,14 @@ scaled as a whole gets the same answers."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.errors import hold_interrupts
 from strokekit.model import row_norm
+from strokekit.numba_cache import choose_cache_dir
 from strokekit.scene.load import Scene
 
 
@@ -302,6 +304,16 @@ class Occluder:
             t, ray, face = t[~drop], ray[~drop], face[~drop]
             if len(t) == 0:
                 return count, first
+        count, head = self._crossing_count(t, ray, face, length, d_local, n, limit)
+        firsts = np.flatnonzero(head)
+        first[ray[firsts]] = t[firsts] * length.take(ray[firsts]) / k
+        return count, first
+
+    def _crossing_count(self, t, ray, face, length, d_local, n, limit):
+        """(count (n,), head (K,)): the crossings of each of n rays, at most `limit`, from its hits
+        (K >= 1; t along the ray's local direction d_local (n, 3), of norm length (n,), by ray then
+        t; scene faces): consecutive hits on triangles that share a vertex, facing the ray alike,
+        within 1e-5 (Embree frame) count once (see count_crossings); head marks each ray's first."""
         head = np.empty(len(t), bool)
         head[0] = True
         np.not_equal(ray[1:], ray[:-1], out=head[1:])
@@ -317,10 +329,36 @@ class Occluder:
             side_a = np.einsum("ij,ij->i", nrm.take(face[i - 1], axis=0), d) > 0
             side_b = np.einsum("ij,ij->i", nrm.take(face[i], axis=0), d) > 0
             dup[i] = shared & (side_a == side_b)
-        count = np.minimum(np.bincount(ray[~dup], minlength=n), int(limit))
-        firsts = np.flatnonzero(head)
-        first[ray[firsts]] = t[firsts] * length.take(ray[firsts]) / k
-        return count, first
+        return np.minimum(np.bincount(ray[~dup], minlength=n), int(limit)), head
+
+    def _levels_compiled(self, points: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
+                         scale: np.ndarray, limit: int, own: np.ndarray) -> np.ndarray | None:
+        """levels of points that all lie on mesh edges, for a perspective camera: the same rays,
+        hits and counts, the rays built and the hits sorted and filtered by the compiled loops of
+        `strokekit.scene.compiled`. None when Embree's list does not come grouped by ray."""
+        K = level_kernels()
+        n = len(points)
+        eye = np.asarray(camera.eye, float)
+        eye_tail = offset * np.linalg.norm(eye - self.origin)
+        k = self.inv_scale
+        rays, targets, d_local, length, reach = K.level_rays(
+            np.ascontiguousarray(points, float), np.ascontiguousarray(lift, float), np.ascontiguousarray(scale, float),
+            eye, self.origin, k, offset, eye_tail)
+        lx = self._rs.list_intersections(self._o3c.Tensor(rays))
+        index = self.face_index if self.face_index is not None else np.zeros(0, np.int64)
+        ok, t, ray, face, close = K.listed_hits(lx["t_hit"].numpy(), lx["ray_ids"].numpy(), lx["primitive_ids"].numpy(),
+                                                index, length, k, np.ascontiguousarray(own, np.int64), reach)
+        if not ok:
+            return None
+        c = np.flatnonzero(close)
+        if len(c):  # hits near the start count only where they cross in float64
+            r_c = ray[c]
+            keep = np.ones(len(t), bool)
+            keep[c] = self._crosses(points.take(r_c, axis=0), targets.take(r_c, axis=0), face[c])
+            t, ray, face = t[keep], ray[keep], face[keep]
+        if len(t) == 0:
+            return np.zeros(n, np.int64)
+        return self._crossing_count(t, ray, face, length, d_local, n, limit)[0]
 
     def _crosses(self, a: np.ndarray, b: np.ndarray, face: np.ndarray) -> np.ndarray:
         """(M,) whether the open segments a -> b (world, (M, 3)) cross the scene faces `face` (M,)
@@ -450,6 +488,10 @@ class Occluder:
         on_edge = np.zeros(n, bool) if ends is None or lift is None else ends[:, 0] >= 0
         e = np.flatnonzero(on_edge)
         if n and len(e) == n:  # (every point on an edge: no gathers)
+            if not camera.is_ortho and self.backend == "open3d" and own is not None:
+                count = self._levels_compiled(points, camera, offset, lift, scale, limit, own)
+                if count is not None:
+                    return count
             o, t = self._segments(points, camera, eps, offset)
             count, _ = self.count_crossings(o, t, limit, skip=own, verify=(points, t, 100.0 * row_norm(lift) + eps))
             return count
@@ -682,6 +724,21 @@ def _order_along_rays(t: np.ndarray, ray: np.ndarray) -> np.ndarray:
         sel = np.flatnonzero(mark[ray])  # every hit of those rays (contiguous groups)
         o[sel] = sel[np.lexsort((t[sel], ray[sel]))]
     return o
+
+
+_level_kernels = None
+
+
+def level_kernels():
+    """The compiled loops of occlusion-level rays (`strokekit.scene.compiled`), imported on first
+    use: drawings of visible lines only never import numba."""
+    global _level_kernels
+    if _level_kernels is None:
+        import importlib
+
+        choose_cache_dir(Path(__file__).resolve().parent)
+        _level_kernels = importlib.import_module("strokekit.scene.compiled")
+    return _level_kernels
 
 
 def _has_embreex() -> bool:
