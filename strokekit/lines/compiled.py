@@ -8,6 +8,7 @@ the one numpy does, in the same order, so results are bit for bit numpy's).
   them (`occlusion.outline_crossings`), candidates from a grid of GRID_PX cells.
 * `close_pairs`: the pairs of samples of two strokes of one kind code closer than a radius
   (`strokeops.drop_overlaps`), from a grid of cells one radius wide.
+* `crossing_deltas`: what each outline crossing does to the level (`occlusion.crossing_deltas`).
 """
 
 from __future__ import annotations
@@ -256,6 +257,53 @@ def close_pairs(p, stroke, code, radius, per_point=16.0):
     return out_i[:n_out], out_j[:n_out]
 
 
+@njit(cache=True, error_model="numpy")
+def crossing_deltas(edge, end_px, gap, ab, own, edges, edge_faces, face_count, faces, V, view, ortho, kept,
+                    no_delta):
+    """`occlusion.crossing_deltas` (which see) in one pass: view is the projection rays' direction
+    (ortho) or the eye; kept (F,) the faces the occluder hides with, (0,) for all. Each float
+    operation is the numpy version's, in its order (an einsum of three columns sums
+    (x0 y0 + x2 y2) + x1 y1)."""
+    K = edge.shape[0]
+    delta = np.full(K, no_delta, np.int64)
+    for i in range(K):
+        e = edge[i]
+        if e < 0 or face_count[e] > 2 or not (gap[i] > 1e-6) or not (end_px[i] > 1e-3):
+            continue
+        a, b = edges[e, 0], edges[e, 1]
+        x0, x1, x2 = V[a, 0], V[a, 1], V[a, 2]
+        g0, g1, g2 = V[b, 0] - x0, V[b, 1] - x1, V[b, 2] - x2
+        if ortho:
+            t0, t1, t2 = view[0], view[1], view[2]
+        else:
+            t0, t1, t2 = view[0] - x0, view[1] - x1, view[2] - x2
+        n0 = g1 * t2 - g2 * t1
+        n1 = g2 * t0 - g0 * t2
+        n2 = g0 * t1 - g1 * t0
+        nn = math.sqrt((n0 * n0 + n2 * n2) + n1 * n1)
+        a0, a1, a2 = ab[i, 0], ab[i, 1], ab[i, 2]
+        move = (n0 * a0 + n2 * a2) + n1 * a1
+        if not (abs(move) > 1e-6 * nn * math.sqrt((a0 * a0 + a2 * a2) + a1 * a1)):
+            continue
+        d = 0
+        ok = True
+        for col in range(2):
+            f = edge_faces[e, col]
+            if f < 0:
+                continue
+            third = faces[f, 0] + faces[f, 1] + faces[f, 2] - a - b
+            w0, w1, w2 = V[third, 0] - x0, V[third, 1] - x1, V[third, 2] - x2
+            side = (n0 * w0 + n2 * w2) + n1 * w1
+            if not (abs(side) > 1e-6 * nn * math.sqrt((w0 * w0 + w2 * w2) + w1 * w1)):
+                ok = False
+            if f == own[i, 0] or f == own[i, 1] or (kept.shape[0] > 0 and not kept[f]):
+                ok = False
+            d += 1 if (side > 0) == (move > 0) else -1
+        if ok:
+            delta[i] = d
+    return delta
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.5, 0.5], [4.0, 3.0]])
@@ -264,3 +312,10 @@ def warmup() -> None:
     for ortho in (False, True):
         outline_crossings(p, p[::-1].copy(), z, z, v, v, p, p, z, z, v, v, ortho, 8.0)
     close_pairs(p, v, v.astype(np.int8), 1.0)
+    e2 = np.array([[0, 1]], np.int64)
+    F = np.array([[0, 1, 2]], np.int64)
+    V = np.eye(3)
+    for ortho in (False, True):
+        for kept in (np.zeros(0, np.bool_), np.ones(1, np.bool_)):
+            crossing_deltas(np.zeros(1, np.int64), z[:1], z[:1], V[:1], np.full((1, 2), -1, np.int64), e2,
+                            np.array([[0, -1]], np.int64), np.ones(1, np.int64), F, V, V[2], ortho, kept, -1)

@@ -286,41 +286,13 @@ def crossing_deltas(scene: Scene, camera: Camera, occluder: Occluder, edge: np.n
     (K, 2) or one the occluder leaves out, a face or the segment within 1e-6 (relative) of the
     plane, the outline within 1e-6 (relative depth `gap`) in front of the segment, or the place
     within 1e-3 px (`end_px`) of the ends of the edge's image."""
-    K = len(edge)
-    delta = np.full(K, NO_DELTA, np.int64)
-    ok = edge >= 0
-    e = np.where(ok, edge, 0)
-    ok &= scene.edge_face_count[e] <= 2
-    ok &= gap > 1e-6
-    ok &= end_px > 1e-3
-    V, F = scene.vertices, scene.faces
-    ev = scene.edges.take(e, axis=0)
-    V0, V1 = V.take(ev[:, 0], axis=0), V.take(ev[:, 1], axis=0)
-    along = V1 - V0
-    to = np.broadcast_to(camera.ray_dir, along.shape) if camera.is_ortho else np.asarray(camera.eye, float) - V0
-    nrm = np.stack([along[:, 1] * to[:, 2] - along[:, 2] * to[:, 1], along[:, 2] * to[:, 0] - along[:, 0] * to[:, 2],
-                    along[:, 0] * to[:, 1] - along[:, 1] * to[:, 0]], axis=1)  # (np.cross costs ~10x more)
-    nn = np.sqrt(np.einsum("ij,ij->i", nrm, nrm))
-    move = np.einsum("ij,ij->i", nrm, ab)
-    ok &= np.abs(move) > 1e-6 * nn * np.sqrt(np.einsum("ij,ij->i", ab, ab))
     kept = _kept_faces(occluder)
-    d = np.zeros(K, np.int64)
-    ef = scene.edge_faces.take(e, axis=0)
-    for col in (0, 1):
-        f = ef[:, col]
-        has = f >= 0
-        fs = np.where(has, f, 0)
-        tri = F.take(fs, axis=0)
-        third = np.where(has, tri[:, 0] + tri[:, 1] + tri[:, 2] - ev[:, 0] - ev[:, 1], ev[:, 0])
-        w = V.take(third, axis=0) - V0
-        side = np.einsum("ij,ij->i", nrm, w)
-        ok &= ~has | (np.abs(side) > 1e-6 * nn * np.sqrt(np.einsum("ij,ij->i", w, w)))
-        ok &= ~has | ((fs != own[:, 0]) & (fs != own[:, 1]))
-        if kept is not None:
-            ok &= ~has | kept[fs]
-        d += np.where(has, np.where((side > 0) == (move > 0), 1, -1), 0)
-    delta[ok] = d[ok]
-    return delta
+    view = camera.ray_dir if camera.is_ortho else camera.eye
+    return kernels().crossing_deltas(
+        np.ascontiguousarray(edge, np.int64), end_px, gap, np.ascontiguousarray(ab), np.ascontiguousarray(own),
+        scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=False),
+        scene.faces.astype(np.int64, copy=False), scene.vertices, np.asarray(view, float), bool(camera.is_ortho),
+        np.zeros(0, bool) if kept is None else kept, NO_DELTA)
 
 
 def _kept_faces(occluder: Occluder) -> np.ndarray | None:
