@@ -302,7 +302,7 @@ def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float 
     S = len(strokes)
     L = strokes.lengths
     rank = np.empty(S, np.int64)
-    rank[np.lexsort((np.arange(S), -L))] = np.arange(S)  # 0: the longest
+    rank[np.argsort(-L, kind="stable")] = np.arange(S)  # 0: the longest (ties: lower index)
     reach = float(np.hypot(retraced_px, 0.5 * step_px)) if retraced_px > 0 else 0.0
     # All sample pairs closer than the larger radius; only pairs of two strokes of one kind matter.
     st = smp.stroke
@@ -316,7 +316,7 @@ def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float 
     a, b = pr[:, 0], pr[:, 1]
     swap = rank[st[a]] < rank[st[b]]
     a, b = np.where(swap, b, a), np.where(swap, a, b)
-    dp = smp.p[b] - smp.p[a]
+    dp = smp.p.take(b, axis=0) - smp.p.take(a, axis=0)
     d2 = np.einsum("ij,ij->i", dp, dp)
     gone = np.zeros(S, bool)
     if retraced_px > 0:
