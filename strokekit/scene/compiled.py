@@ -10,6 +10,7 @@ and the hits kept are bit for bit those of the numpy path.
   Occluder._segments), as open3d rays in the Embree frame, with what the hit filter needs.
 * `listed_hits`: list_intersections' hits within each segment, by ray then along it, less the
   hits on each ray's own faces, with the hits near its start to check in float64.
+* `crosses`: that float64 check (Occluder._crosses).
 """
 
 from __future__ import annotations
@@ -113,6 +114,33 @@ def listed_hits(t, ray, prim, face_index, length, k, skip, reach):
     return True, out_t[:n], out_r[:n], out_f[:n], close[:n]
 
 
+@njit(cache=True, error_model="numpy")
+def crosses(a, b, face, faces, V):
+    """Occluder._crosses (which see) of the open segments a -> b (M, 3) and scene faces `face`
+    (M,), the numpy version's operations in its order, bit for bit."""
+    m = face.shape[0]
+    out = np.empty(m, np.bool_)
+    for i in range(m):
+        f = face[i]
+        p, q, r = faces[f, 0], faces[f, 1], faces[f, 2]
+        A0, A1, A2 = V[p, 0], V[p, 1], V[p, 2]
+        e10, e11, e12 = V[q, 0] - A0, V[q, 1] - A1, V[q, 2] - A2
+        e20, e21, e22 = V[r, 0] - A0, V[r, 1] - A1, V[r, 2] - A2
+        d0, d1, d2 = b[i, 0] - a[i, 0], b[i, 1] - a[i, 1], b[i, 2] - a[i, 2]
+        pv0, pv1, pv2 = d1 * e22 - d2 * e21, d2 * e20 - d0 * e22, d0 * e21 - d1 * e20
+        det = (e10 * pv0 + e12 * pv2) + e11 * pv1
+        c0, c1, c2 = e11 * e22 - e12 * e21, e12 * e20 - e10 * e22, e10 * e21 - e11 * e20
+        scale = math.sqrt((c0 * c0 + c1 * c1) + c2 * c2) * math.sqrt((d0 * d0 + d1 * d1) + d2 * d2)
+        inv = 1.0 / det
+        t0, t1, t2 = a[i, 0] - A0, a[i, 1] - A1, a[i, 2] - A2
+        u = ((t0 * pv0 + t2 * pv2) + t1 * pv1) * inv
+        qv0, qv1, qv2 = t1 * e12 - t2 * e11, t2 * e10 - t0 * e12, t0 * e11 - t1 * e10
+        v = ((d0 * qv0 + d2 * qv2) + d1 * qv1) * inv
+        t = ((e20 * qv0 + e22 * qv2) + e21 * qv1) * inv
+        out[i] = abs(det) > 1e-12 * scale and u >= 0 and v >= 0 and u + v <= 1 and t > 0 and t < 1
+    return out
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     P = np.zeros((1, 3))
@@ -121,3 +149,4 @@ def warmup() -> None:
     for face_index in (np.zeros(0, np.int64), np.zeros(1, np.int64)):
         listed_hits(np.zeros(1, np.float32), np.zeros(1, np.uint32), np.zeros(1, np.uint32), face_index, length, 1.0,
                     skip, reach)
+    crosses(P, P + 1.0, np.zeros(1, np.int64), np.array([[0, 0, 0]], np.int64), P)

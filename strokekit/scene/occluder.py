@@ -55,6 +55,7 @@ class Occluder:
         #: The scene face of each Embree primitive (None: the same numbers, every face).
         self.face_index = None if faces is None else np.asarray(faces, np.int64)
         self.origin = scene.center.copy()
+        self._faces64 = np.ascontiguousarray(scene.faces, np.int64)
         self.radius = scene.radius
         #: world -> Embree frame: (X - origin) * inv_scale. Ray parameters (t in units of the
         #: direction) are the same in both frames.
@@ -354,7 +355,7 @@ class Occluder:
         if len(c):  # hits near the start count only where they cross in float64
             r_c = ray[c]
             keep = np.ones(len(t), bool)
-            keep[c] = self._crosses(points.take(r_c, axis=0), targets.take(r_c, axis=0), face[c])
+            keep[c] = K.crosses(points.take(r_c, axis=0), targets.take(r_c, axis=0), face[c], self._faces64, self.scene.vertices)
             t, ray, face = t[keep], ray[keep], face[keep]
         if len(t) == 0:
             return np.zeros(n, np.int64)
