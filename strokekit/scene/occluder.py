@@ -482,17 +482,17 @@ class Occluder:
         crossing the point does not have). Other points (lines inside faces, whose rays rise off
         the facets by design: lines.contours.view_lift) take the smaller count of the lifted ray
         and of the plain ray: each ray's failures there add crossings."""
-        c = points - self.origin
-        eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
         n = len(points)
-        count = np.zeros(n, np.int64)
         on_edge = np.zeros(n, bool) if ends is None or lift is None else ends[:, 0] >= 0
         e = np.flatnonzero(on_edge)
+        if n and len(e) == n and not camera.is_ortho and self.backend == "open3d" and own is not None:
+            count = self._levels_compiled(points, camera, offset, lift, scale, limit, own)
+            if count is not None:
+                return count
+        c = points - self.origin
+        eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
+        count = np.zeros(n, np.int64)
         if n and len(e) == n:  # (every point on an edge: no gathers)
-            if not camera.is_ortho and self.backend == "open3d" and own is not None:
-                count = self._levels_compiled(points, camera, offset, lift, scale, limit, own)
-                if count is not None:
-                    return count
             o, t = self._segments(points, camera, eps, offset)
             count, _ = self.count_crossings(o, t, limit, skip=own, verify=(points, t, 100.0 * row_norm(lift) + eps))
             return count
