@@ -15,7 +15,7 @@ from strokekit.numba_cache import choose_cache_dir, compile_needed
 from strokekit.scene.occluder import level_kernels
 
 #: About how long the first compile of the kernels takes (s), on this project's 2-core machine
-#: (18 to 35 s measured while other jobs ran, 2026-11-26).
+#: (35 s measured with other jobs running, 2026-11-26).
 COMPILE_SECONDS = 20
 
 _module = None
