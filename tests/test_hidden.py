@@ -437,7 +437,8 @@ def test_levels_carried_across_crossings_are_the_counted_ones():
 
     deltas = np.array([NO_DELTA, 2, -2, 1, NO_DELTA, 2, 2, -2])
     lev = _sample_levels(seg, s, first_smp, deltas, last, 16, level_at)
-    assert np.array_equal(lev, truth) and sum(counted) == 6  # the middle pieces' first samples: 4 rays saved
+    # Not counted: the middle pieces' first samples, and segment 0's last (its second sample checks it).
+    assert np.array_equal(lev, truth) and sum(counted) == 5
     counted.clear()
     wrong = deltas.copy()
     wrong[5] = 0  # segment 1's first crossing said 0: its next counted sample disagrees

@@ -156,9 +156,9 @@ def _sample_levels(seg, s, first_smp, p_delta, last, limit, level_at):
     Appel's rule: at an outline crossing whose delta is known (p_delta per piece; NO_DELTA:
     unknown) the level is the one of the sample before plus the delta. The first sample of such
     a piece is not counted when a counted sample further on checks its chain: the next counted
-    sample of the segment (the piece's second sample, or the first of a later piece, the last
-    piece's always counted) must equal the chain's level plus what lies between (0 inside a
-    piece, the known delta at a crossing). Where a check fails, cannot be made (an unknown
+    sample of the segment (the piece's second sample, or the first of a later piece; the last
+    piece's first sample is counted unless the piece has a second one) must equal the chain's
+    level plus what lies between (0 inside a piece, the known delta at a crossing). Where a check fails, cannot be made (an unknown
     delta) or a chain meets the counting limit (a count held at `limit` says nothing exact) or
     leaves [0, limit), every sample of the segment is counted: the levels are then the counts."""
     m = len(seg)
@@ -166,7 +166,9 @@ def _sample_levels(seg, s, first_smp, p_delta, last, limit, level_at):
     d[first_smp] = p_delta  # (a segment's first piece: NO_DELTA, never propagated)
     known = d != NO_DELTA
     prop = np.zeros(m, bool)
-    prop[first_smp[~last]] = True
+    # (a last piece only when its own second sample, counted, checks it)
+    two = np.append(first_smp[1:], m) - first_smp >= 2
+    prop[first_smp[~last | two]] = True
     prop &= known
     need = np.flatnonzero(~prop)
     lev = np.zeros(m, np.int64)
@@ -178,8 +180,7 @@ def _sample_levels(seg, s, first_smp, p_delta, last, limit, level_at):
     cd = np.cumsum(d_known)
     lev_p = lev.take(anchor) + (cd - cd.take(anchor))
     bad = prop & ((lev.take(anchor) >= limit) | (lev_p < 0) | (lev_p >= limit))
-    # Each chain ends at a counted sample of its segment (the last piece's first sample is
-    # counted): it must agree.
+    # Each chain ends at a counted sample of its segment: it must agree.
     end = np.flatnonzero(~prop[1:] & prop[:-1]) + 1
     bad[end - 1] |= ~known[end] | (lev[end] != lev_p[end - 1] + d_known[end])
     if bad.any():
