@@ -307,6 +307,14 @@ def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float 
     # All sample pairs closer than the larger radius; only pairs of two strokes of one kind matter.
     st = smp.stroke
     sk = strokes.kind[st]
+    if compiled and doubled_px <= 0 and retraced_px > 0:
+        # Only retraced strokes: every pair lies within reach (the kernel's test is the one
+        # below), so each marks its sample on the shorter stroke.
+        i, j = kernels().close_pairs(smp.p, st, sk, reach)
+        near = np.zeros(len(smp), bool)
+        near[np.where(rank[st[i]] < rank[st[j]], j, i)] = True
+        gone = np.bincount(st, weights=near, minlength=S) == np.bincount(st, minlength=S)
+        return strokes.select(~gone) if gone.any() else strokes
     if compiled:  # (the same pairs; most pairs within reach are neighbours on one stroke)
         pr = np.stack(kernels().close_pairs(smp.p, st, sk, max(reach, doubled_px)), axis=1)
     else:
