@@ -65,9 +65,10 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
 
     own, ends = own_faces(scene, features, idx)
 
-    def level_at(seg_i, s_i):
+    def level_at(seg_i, s_i):  # (rows gathered by take: fancy indexing costs several times more)
         return occluder.levels(world_at(seg_i, s_i), camera, options.occlusion_offset,
-                               None if lift is None else lift[seg_i], size[seg_i], limit, own[seg_i], ends[seg_i])
+                               None if lift is None else lift.take(seg_i, axis=0), size.take(seg_i), limit,
+                               own.take(seg_i, axis=0), ends.take(seg_i, axis=0))
 
     # Pieces between the outline crossings; samples at the middles of equal parts of each piece,
     # one part per sample_spacing_px (whole_edge_px: a short segment is one piece, one sample).
