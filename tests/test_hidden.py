@@ -411,3 +411,127 @@ def test_dash_paths_write_the_dashes_as_geometry():
     text = svg_document(st, 60, 20, ("hidden-silhouette",), dash_paths=True)
     d1 = text.split('id="s1"')[0].rsplit('d="', 1)[1]
     assert d1 == 'M2.50 5.00 10.00 5.00" '
+
+
+def test_levels_carried_across_crossings_are_the_counted_ones():
+    """_sample_levels counts fewer samples but gives every sample the count level_at gives it:
+    the first sample of a middle piece takes the sample before plus its crossing's delta. A
+    wrong delta is caught by the next counted sample (the segment is then counted whole), and a
+    chain at the counting limit is counted."""
+    from strokekit.lines.occlusion import NO_DELTA, _sample_levels
+
+    # Two segments; pieces (segment, first sample, delta at its start): levels along segment 0
+    # are 1 | 3 | 1 | 2 (crossings +2, -2, +1), segment 1 is 0 | 2 | 4 | 2 (+2, +2, -2).
+    truth = np.array([1, 1, 3, 1, 2, 2, 0, 2, 4, 2])
+    seg = np.array([0, 0, 0, 0, 0, 0, 1, 1, 1, 1])
+    first_smp = np.array([0, 2, 3, 4, 6, 7, 8, 9])  # segment 0: 4 pieces (the last two samples long)
+    last = np.array([False, False, False, True, False, False, False, True])
+    s = np.linspace(0.05, 0.95, 10)
+    counted = []
+    limit = [16]
+
+    def level_at(seg_i, s_i):  # (a count stops at the limit)
+        i = np.searchsorted(s, s_i)
+        counted.append(len(i))
+        return np.minimum(truth[i], limit[0])
+
+    deltas = np.array([NO_DELTA, 2, -2, 1, NO_DELTA, 2, 2, -2])
+    lev = _sample_levels(seg, s, first_smp, deltas, last, 16, level_at)
+    # Not counted: the middle pieces' first samples, and segment 0's last (its second sample checks it).
+    assert np.array_equal(lev, truth) and sum(counted) == 5
+    counted.clear()
+    wrong = deltas.copy()
+    wrong[5] = 0  # segment 1's first crossing said 0: its next counted sample disagrees
+    assert np.array_equal(_sample_levels(seg, s, first_smp, wrong, last, 16, level_at), truth)
+    limit[0] = 3  # segment 1's chain reaches 4: counted, held at 3
+    assert np.array_equal(_sample_levels(seg, s, first_smp, deltas, last, 3, level_at), np.minimum(truth, 3))
+
+
+def test_crossing_deltas_follow_appels_rule():
+    """Behind a border the level changes by one, behind a contour by two, with the sign of the
+    side the line passes into; a crossing too close to a tie says nothing (NO_DELTA)."""
+    from strokekit.lines.occlusion import NO_DELTA, crossing_deltas
+    from strokekit.scene.occluder import Occluder
+
+    # A sheet (z = 1, x and y in -1..1) and, apart from it, a fold: two flaps hinged on a crest
+    # along x at y = -3, both reaching toward -y (one up to z = 1.5, one down to z = 0.5), all
+    # before lines at z = -1 seen from above.
+    v = np.array([[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1],
+                  [-1, -3, 1], [1, -3, 1], [-1, -4, 1.5], [1, -4, 1.5], [-1, -4, 0.5], [1, -4, 0.5]], float)
+    f = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 7], [4, 7, 6], [4, 9, 5], [4, 8, 9]])
+    scene = build_scene(v, f)
+    cam = Camera(eye=(0.0, -1.5, 10.0), target=(0.0, -1.5, 0.0), fov_y=60, width=400, height=400)
+    occ = Occluder(scene)
+    V, E = scene.vertices, scene.edges
+    ends_at = [V[E[:, 0]], V[E[:, 1]]]
+    border = np.flatnonzero((ends_at[0][:, 0] == 1) & (ends_at[1][:, 0] == 1) & (ends_at[0][:, 1] > -2)
+                            & (ends_at[1][:, 1] > -2))  # the sheet's x = 1 side
+    crest = np.flatnonzero((ends_at[0][:, 1] == -3) & (ends_at[1][:, 1] == -3))
+    assert len(border) == len(crest) == 1 and scene.edge_face_count[crest[0]] == 2
+    own = np.full((4, 2), -1)
+    edge = np.array([border[0], border[0], crest[0], crest[0]])
+    # Lines crossing x = 1 toward +x (out of the sheet) and -x (into it); the crest toward -y
+    # (under both flaps) and +y.
+    ab = np.array([[1.0, 0, 0], [-1.0, 0, 0], [0, -1.0, 0], [0, 1.0, 0]])
+    d = crossing_deltas(scene, cam, occ, edge, np.full(4, 5.0), np.full(4, 0.5), ab, own)
+    assert d.tolist() == [-1, 1, 2, -2]
+    tie = crossing_deltas(scene, cam, occ, edge[:1], np.full(1, 5.0), np.full(1, 1e-9), ab[:1], own[:1])
+    assert tie[0] == NO_DELTA
+
+
+def test_close_pairs_are_the_kd_tree_pairs():
+    """The compiled grid search gives the pairs of scipy's query_pairs within the radius, less
+    those of one stroke or of two codes, each once: clustered points, a cell-sized radius."""
+    from scipy.spatial import cKDTree
+
+    from strokekit.lines.kernels import kernels
+
+    rng = np.random.default_rng(3)
+    p = np.concatenate([rng.random((3000, 2)) * 50, rng.random((500, 2)) * 2 + 20, np.round(rng.random((200, 2)) * 8)])
+    stroke = rng.integers(0, 400, len(p))
+    code = rng.integers(0, 3, len(p)).astype(np.int8)
+    for radius in (0.5, 1.0, 3.0):
+        i, j = kernels().close_pairs(p, stroke, code, radius)
+        pr = cKDTree(p).query_pairs(radius, output_type="ndarray")
+        pr = pr[(stroke[pr[:, 0]] != stroke[pr[:, 1]]) & (code[pr[:, 0]] == code[pr[:, 1]])]
+        got = {(min(a, b), max(a, b)) for a, b in zip(i.tolist(), j.tolist())}
+        assert len(got) == len(i) and got == {tuple(x) for x in pr.tolist()}
+
+
+def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
+    """Occluder.levels' compiled path (perspective, points on mesh edges) gives the numpy path's
+    counts, sample for sample."""
+    from strokekit.lines.occlusion import own_faces
+    from strokekit.model import row_norm
+
+    cam = _cameras()[0]
+    scene = torus_and_box
+    occ = LineRenderer(scene, HIDDEN).occluder_for(cam)
+    fe = feature_edges(scene, cam, HIDDEN, with_lift=True)
+    from strokekit.lines.surface import surface_lift
+
+    lift = fe.lift if fe.lift is not None else surface_lift(scene, fe, cam, HIDDEN.occlusion_offset)
+    _, _, idx, ab, A, B, _, _, _, _, _ = clipped_on_screen(fe.a, fe.b, cam, cam.near_distance(scene.radius))
+    own, ends = own_faces(scene, fe, idx)
+    on = np.flatnonzero(ends[:, 0] >= 0)
+    s = np.random.default_rng(0).random(len(on))
+    P = A[on] + s[:, None] * (B[on] - A[on])
+    size, L, off = row_norm(ab[on]), lift[idx][on], HIDDEN.occlusion_offset
+    compiled = occ.levels(P, cam, off, L, size, 16, own[on], ends[on])
+    c = P - occ.origin
+    eps = off * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), size)
+    o, t = occ._segments(P, cam, eps, off)
+    plain, _ = occ.count_crossings(o, t, 16, skip=own[on], verify=(P, t, 100.0 * row_norm(L) + eps))
+    assert np.array_equal(compiled, plain) and plain.max() >= 2
+
+
+def test_hidden_line_kernels_say_once_when_they_compile(monkeypatch):
+    """The warm-up says one line when the kernels compile, nothing when they load."""
+    from strokekit.lines import kernels as lk
+
+    said = []
+    monkeypatch.setattr(lk, "compile_needed", lambda mods: True)
+    assert lk.warm_kernels(said.append)[1] and len(said) == 1 and said[0].startswith("compiling the hidden-line")
+    monkeypatch.setattr(lk, "compile_needed", lambda mods: False)
+    said.clear()
+    assert lk.warm_kernels(said.append)[1] is False and said == []

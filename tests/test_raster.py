@@ -921,14 +921,15 @@ def test_numba_gets_a_writable_cache_folder(monkeypatch, tmp_path):
     points numba at its own cache folder (else a cache=True kernel refuses to compile)."""
     import numba
 
+    from strokekit import numba_cache
     from strokekit.raster import hits
 
     monkeypatch.setattr(numba.config, "CACHE_DIR", "")
     monkeypatch.setenv("STROKEKIT_CACHE_DIR", str(tmp_path / "sk"))
-    real = hits._writable
-    monkeypatch.setattr(hits, "_writable", lambda p: str(p).startswith(str(tmp_path)) and real(p))
+    real = numba_cache._writable
+    monkeypatch.setattr(numba_cache, "_writable", lambda p: str(p).startswith(str(tmp_path)) and real(p))
     assert hits.choose_cache_dir() == str(tmp_path / "sk" / "numba")
     assert numba.config.CACHE_DIR == str(tmp_path / "sk" / "numba")
-    monkeypatch.setattr(hits, "_writable", real)
+    monkeypatch.setattr(numba_cache, "_writable", real)
     monkeypatch.setattr(numba.config, "CACHE_DIR", "")
     assert hits.choose_cache_dir() is None  # the in-tree folder is writable here

@@ -16,7 +16,9 @@ the level changes that bisection found lay within 0.05 px of such a crossing. Th
 are caught as in `visibility.visible_runs`: a piece longer than `sample_spacing_px` gets a
 sample every spacing, and a change between two samples is bisected to `bisection_tol_px` (a
 middle with a third level splits the bracket: 0 -> 1 -> 2 between two samples gives two
-changes).
+changes). A piece after a crossing whose change Appel's rule gives clearly (`crossing_deltas`)
+takes the level before it plus that change instead of a ray, as long as the next counted sample
+of its edge agrees (`_sample_levels`): a fifth of a bunny frame's rays.
 
 A piece's level is written into its kind: code = kind + len(KINDS) * level (model.MAX_OCCLUSION),
 so that chaining, the cleanup of doubled lines and tracking, which keep kinds apart, keep levels
@@ -29,6 +31,7 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.lines.features import silhouette_mask
+from strokekit.lines.kernels import kernels
 from strokekit.lines.visibility import _visible_runs_of, clip_segments, clipped_on_screen, world_between
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
@@ -62,22 +65,29 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
 
     own, ends = own_faces(scene, features, idx)
 
-    def level_at(seg_i, s_i):
+    def level_at(seg_i, s_i):  # (rows gathered by take: fancy indexing costs several times more)
         return occluder.levels(world_at(seg_i, s_i), camera, options.occlusion_offset,
-                               None if lift is None else lift[seg_i], size[seg_i], limit, own[seg_i], ends[seg_i])
+                               None if lift is None else lift.take(seg_i, axis=0), size.take(seg_i), limit,
+                               own.take(seg_i, axis=0), ends.take(seg_i, axis=0))
 
     # Pieces between the outline crossings; samples at the middles of equal parts of each piece,
     # one part per sample_spacing_px (whole_edge_px: a short segment is one piece, one sample).
-    cx_seg, cx_s = outline_crossings(scene, camera, near, pa, pb, za, zb,
-                                     np.where(features.va[idx] >= 0, features.va[idx], -1),
-                                     np.where(features.vb[idx] >= 0, features.vb[idx], -1))
+    cx_seg, cx_s, cx_edge, cx_end, cx_gap = outline_crossings(
+        scene, camera, near, pa, pb, za, zb, np.where(features.va[idx] >= 0, features.va[idx], -1),
+        np.where(features.vb[idx] >= 0, features.vb[idx], -1), edges=True)
     whole = L < options.whole_edge_px
-    keep_cx = ~whole[cx_seg]
-    cx_seg, cx_s = cx_seg[keep_cx], cx_s[keep_cx]
+    keep_cx = np.flatnonzero(~whole[cx_seg])
+    if len(keep_cx) < len(cx_seg):
+        cx_seg, cx_s, cx_edge, cx_end, cx_gap = (x[keep_cx] for x in (cx_seg, cx_s, cx_edge, cx_end, cx_gap))
+    # What each crossing does to the level (Appel's rule), for mesh edges, where it can say.
+    cx_delta = crossing_deltas(scene, camera, occluder, cx_edge, cx_end, cx_gap, ab.take(cx_seg, axis=0),
+                               own.take(cx_seg, axis=0))
+    cx_delta[ends[cx_seg, 0] < 0] = NO_DELTA
     p_seg = np.concatenate([np.arange(n), cx_seg])
     p_s0 = np.concatenate([np.zeros(n), cx_s])
-    o = np.lexsort((p_s0, p_seg))
-    p_seg, p_s0 = p_seg[o], p_s0[o]
+    p_delta = np.concatenate([np.full(n, NO_DELTA), cx_delta])
+    o = _by_segment_then_s(p_seg, p_s0)
+    p_seg, p_s0, p_delta = p_seg[o], p_s0[o], p_delta[o]
     last = np.empty(len(p_seg), bool)
     last[-1:] = True
     np.not_equal(p_seg[1:], p_seg[:-1], out=last[:-1])
@@ -88,9 +98,9 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     k = np.arange(parts.sum()) - np.repeat(np.cumsum(parts) - parts, parts)
     seg = p_seg[smp_piece]
     s = p_s0[smp_piece] + (k + 0.5) / parts[smp_piece] * (p_s1 - p_s0)[smp_piece]
-    lev = level_at(seg, s)
-    # Changes: at a crossing (exact), or between two samples of one piece (bisected).
     first_smp = np.cumsum(parts) - parts
+    lev = _sample_levels(seg, s, first_smp, p_delta, last, limit, level_at)
+    # Changes: at a crossing (exact), or between two samples of one piece (bisected).
     piece_lev = lev[first_smp]
     at_cx = np.flatnonzero(~last[:-1] & (lev[first_smp[1:] - 1] != piece_lev[1:])) + 1  # piece starts
     same_piece = smp_piece[1:] == smp_piece[:-1]
@@ -112,8 +122,8 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
                             lev_right])
     e_seg = np.concatenate([p_seg[at_cx], cs, seg_ids])
     e_s1 = np.concatenate([p_s0[at_cx], c_lo, np.ones(n)])
-    o_start = np.lexsort((r_s0, r_seg))
-    o_end = np.lexsort((e_s1, e_seg))
+    o_start = _by_segment_then_s(r_seg, r_s0)
+    o_end = _by_segment_then_s(e_seg, e_s1)
     run_seg, s0, level = r_seg[o_start], r_s0[o_start], r_lev[o_start]
     s1 = e_s1[o_end]
     assert np.array_equal(run_seg, e_seg[o_end]), "level changes must pair up"
@@ -126,6 +136,62 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     code = runs.kind.astype(np.int64) + N_KINDS * np.minimum(level, MAX_OCCLUSION)
     return VisibleRuns(edge=runs.edge, X0=runs.X0, X1=runs.X1, p0=runs.p0, p1=runs.p1, key0=runs.key0,
                        key1=runs.key1, kind=code.astype(np.int8), face=runs.face)
+
+
+def _by_segment_then_s(seg: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """np.lexsort((s, seg)). Its inputs here are mostly runs already in that order (segment starts
+    or ends, and the crossings sorted by segment and s): a stable sort on the segment alone,
+    which finds the runs and merges them, gives the same order when s then ascends within each
+    segment (checked; the lexsort otherwise)."""
+    o = np.argsort(seg, kind="stable")
+    so, ss = seg.take(o), s.take(o)
+    if len(o) > 1 and not ((so[1:] != so[:-1]) | (ss[1:] >= ss[:-1])).all():
+        return np.lexsort((s, seg))
+    return o
+
+
+def _sample_levels(seg, s, first_smp, p_delta, last, limit, level_at):
+    """(M,) the level of every sample (segment seg, parameter s; pieces starting at samples
+    first_smp, `last` the last piece of its segment), as level_at counts it, with fewer rays.
+
+    Appel's rule: at an outline crossing whose delta is known (p_delta per piece; NO_DELTA:
+    unknown) the level is the one of the sample before plus the delta. The first sample of such
+    a piece is not counted when a counted sample further on checks its chain: the next counted
+    sample of the segment (the piece's second sample, or the first of a later piece; the last
+    piece's first sample is counted unless the piece has a second one) must equal the chain's
+    level plus what lies between (0 inside a piece, the known delta at a crossing). Where a check fails, cannot be made (an unknown
+    delta) or a chain meets the counting limit (a count held at `limit` says nothing exact) or
+    leaves [0, limit), every sample of the segment is counted: the levels are then the counts."""
+    m = len(seg)
+    d = np.zeros(m, np.int64)
+    d[first_smp] = p_delta  # (a segment's first piece: NO_DELTA, never propagated)
+    known = d != NO_DELTA
+    prop = np.zeros(m, bool)
+    # (a last piece only when its own second sample, counted, checks it)
+    two = np.append(first_smp[1:], m) - first_smp >= 2
+    prop[first_smp[~last | two]] = True
+    prop &= known
+    need = np.flatnonzero(~prop)
+    lev = np.zeros(m, np.int64)
+    lev[need] = level_at(seg.take(need), s.take(need))
+    if not prop.any():
+        return lev
+    d_known = np.where(known, d, 0)
+    anchor = need[np.cumsum(~prop) - 1]  # the counted sample each chain starts from
+    cd = np.cumsum(d_known)
+    lev_p = lev.take(anchor) + (cd - cd.take(anchor))
+    bad = prop & ((lev.take(anchor) >= limit) | (lev_p < 0) | (lev_p >= limit))
+    # Each chain ends at a counted sample of its segment: it must agree.
+    end = np.flatnonzero(~prop[1:] & prop[:-1]) + 1
+    bad[end - 1] |= ~known[end] | (lev[end] != lev_p[end - 1] + d_known[end])
+    if bad.any():
+        redo_seg = np.zeros(int(seg.max()) + 1, bool)
+        redo_seg[seg[bad]] = True
+        redo = np.flatnonzero(prop & redo_seg[seg])
+        lev[redo] = level_at(seg.take(redo), s.take(redo))
+        prop[redo] = False
+    lev[prop] = lev_p[prop]
+    return lev
 
 
 def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -147,7 +213,7 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
         m = np.flatnonzero(mesh)[found]
-        faces[m] = scene.edge_faces[pos[found]][:, :2]
+        faces[m] = scene.edge_faces.take(pos[found], axis=0)
         ends[m, 0], ends[m, 1] = va[m], vb[m]
     return faces, ends
 
@@ -163,107 +229,86 @@ def outline_edges(scene: Scene, camera: Camera, silhouettes: np.ndarray | None =
     return np.flatnonzero(sil | fixed)
 
 
-def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb, va, vb):
+def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb, va, vb, edges: bool = False):
     """(segment (K,), s (K,)): where the image of each clipped segment pa -> pb (px; view depths
     za, zb at its ends; mesh vertices va, vb, -1 for none) crosses the image of an outline edge
     (`outline_edges`, clipped alike) that lies in front of it there, at screen parameter 0 < s < 1,
     sorted by segment then s, each place once. Edges that share a vertex with the segment meet it
-    at its end, not across it, and are skipped."""
-    E = scene.edges[outline_edges(scene, camera)]
+    at its end, not across it, and are skipped. With `edges`, also per place: the scene edge
+    crossed (-1 where several meet there), the place's distance (px) to the nearer end of its
+    image and the relative depth gap (zf - zc) / zf of the outline in front of the segment."""
+    eid = outline_edges(scene, camera)
+    E = scene.edges.take(eid, axis=0)
     none = (np.zeros(0, np.int64), np.zeros(0))
+    if edges:
+        none = none + (np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
     if len(E) == 0 or len(pa) == 0:
         return none
     V = scene.vertices
-    c0, c1 = clip_segments(V[E[:, 0]], V[E[:, 1]], camera, near)
-    ok = c1 > c0
-    E, c0, c1 = E[ok], c0[ok], c1[ok]
-    if len(E) == 0:
+    Va, Vb = V.take(E[:, 0], axis=0), V.take(E[:, 1], axis=0)
+    c0, c1 = clip_segments(Va, Vb, camera, near)
+    ok = np.flatnonzero(c1 > c0)
+    if len(ok) == 0:
         return none
-    Va, Vb = V[E[:, 0]], V[E[:, 1]]
+    if len(ok) < len(E):
+        E, c0, c1, Va, Vb, eid = (E.take(ok, axis=0), c0[ok], c1[ok], Va.take(ok, axis=0), Vb.take(ok, axis=0),
+                                  eid[ok])
     qa, wa = camera.project(Va + c0[:, None] * (Vb - Va))
     qb, wb = camera.project(Va + c1[:, None] * (Vb - Va))
-    f_pair, c_pair = _close_pairs(pa, pb, qa, qb)
-    # Only an outline edge nearer than the segment's far end somewhere can lie in front of it
-    # (2 of 5 close pairs of a bunny frame are not): the cheap test before the crossing's.
-    ahead = np.minimum(wa, wb).take(c_pair) < np.maximum(za, zb).take(f_pair)
-    for k in (0, 1):  # and whose boxes overlap (pairs of a common cell often do not: 3 in 5)
-        lo_f, hi_f = np.minimum(pa[:, k], pb[:, k]), np.maximum(pa[:, k], pb[:, k])
-        lo_c, hi_c = np.minimum(qa[:, k], qb[:, k]), np.maximum(qa[:, k], qb[:, k])
-        ahead &= (lo_c.take(c_pair) <= hi_f.take(f_pair)) & (lo_f.take(f_pair) <= hi_c.take(c_pair))
-    f_pair, c_pair = f_pair[ahead], c_pair[ahead]
-    if len(f_pair) == 0:
-        return none
-    # Columns gathered per pair (take: fancy indexing of rows costs several times more).
-    pax, pay, d1x, d1y = pa[:, 0], pa[:, 1], pb[:, 0] - pa[:, 0], pb[:, 1] - pa[:, 1]
-    qax, qay, d2x, d2y = qa[:, 0], qa[:, 1], qb[:, 0] - qa[:, 0], qb[:, 1] - qa[:, 1]
-    ax, ay, ex, ey = d1x.take(f_pair), d1y.take(f_pair), d2x.take(c_pair), d2y.take(c_pair)
-    wx = qax.take(c_pair) - pax.take(f_pair)
-    wy = qay.take(c_pair) - pay.take(f_pair)
-    den = ax * ey - ay * ex
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (wx * ey - wy * ex) / den
-        u = (wx * ay - wy * ax) / den
-    hit = np.flatnonzero((den != 0) & (s > 0) & (s < 1) & (u >= 0) & (u <= 1))
-    f_pair, c_pair, s, u = f_pair[hit], c_pair[hit], s[hit], u[hit]
-    # Not the outline edges at the segment's own vertices (they meet it at an end).
-    e0, e1, a_, b_ = E[c_pair, 0], E[c_pair, 1], va[f_pair], vb[f_pair]
-    keep = ~((e0 == a_) | (e0 == b_) | (e1 == a_) | (e1 == b_))
-    f_pair, c_pair, s, u = f_pair[keep], c_pair[keep], s[keep], u[keep]
-    # In front: the outline's view depth there below the segment's (1/z is linear on screen under
-    # perspective, z under a parallel projection).
-    if camera.is_ortho:
-        zf = (1 - s) * za[f_pair] + s * zb[f_pair]
-        zc = (1 - u) * wa[c_pair] + u * wb[c_pair]
-    else:
-        zf = 1.0 / ((1 - s) / za[f_pair] + s / zb[f_pair])
-        zc = 1.0 / ((1 - u) / wa[c_pair] + u / wb[c_pair])
-    front = zc < zf
-    f_pair, s = f_pair[front], s[front]
-    o = np.lexsort((s, f_pair))
-    f_pair, s = f_pair[o], s[o]
-    # One place once: a pair found in two cells, or two outline edges meeting at a vertex on the
-    # segment, report it twice.
+    # Candidate pairs from a grid, the cheap depth and box tests, then the crossing's: one
+    # compiled pass (the numpy one made ~50k candidate pairs of a bunny frame in temporaries).
+    f_pair, s, c_pair, u, gap = kernels().outline_crossings(
+        np.ascontiguousarray(pa), np.ascontiguousarray(pb), za, zb, np.ascontiguousarray(va),
+        np.ascontiguousarray(vb), qa, qb, wa, wb, np.ascontiguousarray(E[:, 0]), np.ascontiguousarray(E[:, 1]),
+        bool(camera.is_ortho), GRID_PX)
+    # One place once: two outline edges meeting at a vertex on the segment report it twice.
     new = np.ones(len(s), bool)
     new[1:] = (f_pair[1:] != f_pair[:-1]) | (s[1:] - s[:-1] > 1e-12)
-    return f_pair[new], s[new]
+    if not edges:
+        return f_pair[new], s[new]
+    head = np.flatnonzero(new)
+    merged = np.minimum.reduceat(c_pair, head) != np.maximum.reduceat(c_pair, head) if len(head) else new[:0]
+    c_head = c_pair[head]
+    u = u[head]
+    end_px = np.minimum(u, 1 - u) * row_norm(qb - qa).take(c_head)
+    return f_pair[head], s[head], np.where(merged, -1, eid.take(c_head)), end_px, gap[head]
 
 
-def _cells(pa, pb):
-    """(cell keys, segment of each): the GRID_PX cells that each segment pa -> pb (px) may pass
-    through: cut into pieces at most GRID_PX long, each piece's bounding box (at most 2 x 2
-    cells). Non-finite segments have none."""
-    fin = np.isfinite(pa).all(axis=1) & np.isfinite(pb).all(axis=1)
-    L = np.where(fin, row_norm(pb - pa), 0.0)
-    m = np.where(fin, np.maximum(1, np.ceil(L / GRID_PX)), 0).astype(np.int64)
-    owner = np.repeat(np.arange(len(pa)), m)
-    k = np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)
-    d = (pb - pa)[owner]
-    a = pa[owner] + (k / m[owner])[:, None] * d
-    b = pa[owner] + ((k + 1) / m[owner])[:, None] * d
-    lo = np.floor(np.minimum(a, b) / GRID_PX).astype(np.int64)
-    hi = np.floor(np.maximum(a, b) / GRID_PX).astype(np.int64)
-    keys, owners = [], []
-    for dx in (0, 1):
-        for dy in (0, 1):
-            cx, cy = lo[:, 0] + dx, lo[:, 1] + dy
-            ok = (cx <= hi[:, 0]) & (cy <= hi[:, 1])
-            keys.append(cx[ok] * (1 << 32) + cy[ok])
-            owners.append(owner[ok])
-    return np.concatenate(keys), np.concatenate(owners)
+#: crossing_deltas' value where it cannot say (the level is counted there instead).
+NO_DELTA = np.iinfo(np.int64).min
 
 
-def _close_pairs(pa, pb, qa, qb):
-    """(i, j): the segments pa -> pb and qa -> qb (px) whose images may cross: they pass through a
-    common GRID_PX cell (a pair may come more than once)."""
-    kf, of = _cells(pa, pb)
-    kc, oc = _cells(qa, qb)
-    o = np.argsort(kc, kind="stable")
-    kc, oc = kc[o], oc[o]
-    lo = np.searchsorted(kc, kf, "left")
-    n = np.searchsorted(kc, kf, "right") - lo
-    i = np.repeat(of, n)
-    j = oc[np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n) + np.repeat(lo, n)]
-    return i, j
+def crossing_deltas(scene: Scene, camera: Camera, occluder: Occluder, edge: np.ndarray, end_px: np.ndarray,
+                    gap: np.ndarray, ab: np.ndarray, own: np.ndarray) -> np.ndarray:
+    """(K,) how the occlusion level of a segment changes where it passes behind outline edge
+    `edge` (K,) (outline_crossings; -1: several, no answer), moving along ab (K, 3) (its world
+    direction): Appel's rule, the faces of the edge on the side the ray sweeps into count +1, on
+    the side it leaves -1 (a contour's two faces lie on one side: +-2; a border's one: +-1).
+    A face's side is its third vertex's side of the plane through the edge and the eye (parallel
+    projections: along the projection rays). NO_DELTA where the geometry is too close to a
+    tie to trust it over a counted ray: a non-manifold edge, a face of the segment's own `own`
+    (K, 2) or one the occluder leaves out, a face or the segment within 1e-6 (relative) of the
+    plane, the outline within 1e-6 (relative depth `gap`) in front of the segment, or the place
+    within 1e-3 px (`end_px`) of the ends of the edge's image."""
+    kept = _kept_faces(occluder)
+    view = camera.ray_dir if camera.is_ortho else camera.eye
+    return kernels().crossing_deltas(
+        np.ascontiguousarray(edge, np.int64), end_px, gap, np.ascontiguousarray(ab), np.ascontiguousarray(own),
+        scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=False),
+        scene.faces.astype(np.int64, copy=False), scene.vertices, np.asarray(view, float), bool(camera.is_ortho),
+        np.zeros(0, bool) if kept is None else kept, NO_DELTA)
+
+
+def _kept_faces(occluder: Occluder) -> np.ndarray | None:
+    """(F,) the faces an occluder hides with, None for all."""
+    if occluder.face_index is None:
+        return None
+    kept = getattr(occluder, "_kept_mask", None)
+    if kept is None:
+        kept = np.zeros(len(occluder.scene.faces), bool)
+        kept[occluder.face_index] = True
+        occluder._kept_mask = kept
+    return kept
 
 
 def _bisect_levels(cs, lo, hi, lev_lo, lev_hi, L, level_at, tol_px):

@@ -76,7 +76,8 @@ class LineRenderer:
         has_length = strokes.lengths > 0.0
         if not has_length.all():
             strokes = strokes.select(has_length)
-        strokes = drop_overlaps(strokes, opts.overlap_tol_px if opts.merge_overlaps else 0.0, opts.doubled_px)
+        strokes = drop_overlaps(strokes, opts.overlap_tol_px if opts.merge_overlaps else 0.0, opts.doubled_px,
+                                compiled=opts.occlusion is not None)
         strokes = split_max_length(strokes, opts.max_length_px)
         strokes = drop_short(strokes, opts.min_length_px)
         strokes = simplify(strokes, opts.simplify_tol_px)

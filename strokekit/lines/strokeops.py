@@ -8,6 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from strokekit.lines.kernels import kernels
 from strokekit.model import KIND_INDEX, Strokes, bracket, kind_of, uclip
 from strokekit.sampling import resample_strokes, split_lengths, surface_between
 
@@ -271,7 +272,7 @@ def drop_doubled(strokes: Strokes, radius_px: float, min_piece_px: float = 1.0, 
 
 def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float = 1.0, *,
                   min_piece_px: float = 1.0, step_px: float = 1.0,
-                  kinds: tuple[str, ...] = CONTOUR_KINDS) -> Strokes:
+                  kinds: tuple[str, ...] = CONTOUR_KINDS, compiled: bool = False) -> Strokes:
     """The strokes without what draws a line twice, in one pass over one set of samples (every
     `step_px` along each stroke, one k-d tree, one query of the close sample pairs).
 
@@ -290,25 +291,40 @@ def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float 
        own kind: creases and borders are mesh edges, never shingled, and two of them close
        together are two lines. Pieces shorter than `min_piece_px` left over are dropped; cuts
        fall within half a step (coarser steps cost M1: the healing of the pieces left needs
-       precise ends). When something is cut, ids are renumbered and u = arc length / P."""
+       precise ends). When something is cut, ids are renumbered and u = arc length / P.
+
+    `compiled`: the close pairs from the compiled grid search of `lines.compiled` (the same
+    pairs, for runs that load numba anyway: hidden-line drawings, several times the strokes),
+    else from a k-d tree."""
     if len(strokes) < 2 or (retraced_px <= 0 and doubled_px <= 0):
         return strokes
     smp = resample_strokes(strokes, step_px, with_surface=False)
     S = len(strokes)
     L = strokes.lengths
     rank = np.empty(S, np.int64)
-    rank[np.lexsort((np.arange(S), -L))] = np.arange(S)  # 0: the longest
+    rank[np.argsort(-L, kind="stable")] = np.arange(S)  # 0: the longest (ties: lower index)
     reach = float(np.hypot(retraced_px, 0.5 * step_px)) if retraced_px > 0 else 0.0
     # All sample pairs closer than the larger radius; only pairs of two strokes of one kind matter.
-    pr = query_tree(smp.p).query_pairs(max(reach, doubled_px), output_type="ndarray")
     st = smp.stroke
     sk = strokes.kind[st]
-    pr = pr[(st[pr[:, 0]] != st[pr[:, 1]]) & (sk[pr[:, 0]] == sk[pr[:, 1]])]
+    if compiled and doubled_px <= 0 and retraced_px > 0:
+        # Only retraced strokes: every pair lies within reach (the kernel's test is the one
+        # below), so each marks its sample on the shorter stroke.
+        i, j = kernels().close_pairs(smp.p, st, sk, reach)
+        near = np.zeros(len(smp), bool)
+        near[np.where(rank[st[i]] < rank[st[j]], j, i)] = True
+        gone = np.bincount(st, weights=near, minlength=S) == np.bincount(st, minlength=S)
+        return strokes.select(~gone) if gone.any() else strokes
+    if compiled:  # (the same pairs; most pairs within reach are neighbours on one stroke)
+        pr = np.stack(kernels().close_pairs(smp.p, st, sk, max(reach, doubled_px)), axis=1)
+    else:
+        pr = query_tree(smp.p).query_pairs(max(reach, doubled_px), output_type="ndarray")
+        pr = pr[(st[pr[:, 0]] != st[pr[:, 1]]) & (sk[pr[:, 0]] == sk[pr[:, 1]])]
     # Orient each pair (sample, sample of the longer stroke beside it).
     a, b = pr[:, 0], pr[:, 1]
     swap = rank[st[a]] < rank[st[b]]
     a, b = np.where(swap, b, a), np.where(swap, a, b)
-    dp = smp.p[b] - smp.p[a]
+    dp = smp.p.take(b, axis=0) - smp.p.take(a, axis=0)
     d2 = np.einsum("ij,ij->i", dp, dp)
     gone = np.zeros(S, bool)
     if retraced_px > 0:

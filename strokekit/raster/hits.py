@@ -10,12 +10,8 @@ sample b * R + a at (px + (a + 0.5) / R, py + (b + 0.5) / R). Face int32 (-1: ba
 barycentrics float32 (u, v) with P = (1 - u - v) A + u B + v C, depth float32 view depth z
 (inf: background).
 
-The kernels are compiled once per machine and cached on disk by numba (`cache=True`): numba
-writes them to `__pycache__` next to `zbuffer.py` when that folder is writable (an editable or a
-root install), else to its user-wide cache (`~/.cache/numba`, `$XDG_CACHE_HOME/numba`), or
-`$NUMBA_CACHE_DIR` when set; when none of these is writable, `kernels()` points numba at
-strokekit's own cache folder (`$STROKEKIT_CACHE_DIR/numba`, else `~/.cache/strokekit/numba`, else
-a folder in the temporary directory). numba itself (about 0.3 s to import) is only imported when
+The kernels are compiled once per machine and cached on disk by numba (`cache=True`; where:
+`strokekit.numba_cache`). numba itself (about 0.3 s to import) is only imported when
 a raster pass runs: lines-only runs never load it.
 """
 
@@ -32,6 +28,8 @@ from typing import Callable
 import numpy as np
 
 from strokekit.camera.view import Camera
+from strokekit.numba_cache import choose_cache_dir as _choose_cache_dir
+from strokekit.numba_cache import compile_needed
 from strokekit.raster.rays import cast_pixels, cast_samples
 from strokekit.scene.load import Scene
 from strokekit.scene.tables import scene_cache
@@ -52,42 +50,9 @@ _kernels = None
 _lock = threading.Lock()
 
 
-def _writable(path: Path) -> bool:
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-        tempfile.TemporaryFile(dir=path).close()
-        return True
-    except OSError:
-        return False
-
-
-def _cache_folder() -> Path:
-    """strokekit's own folder for numba's cache when numba has no writable one."""
-    if os.environ.get("STROKEKIT_CACHE_DIR"):
-        return Path(os.environ["STROKEKIT_CACHE_DIR"]) / "numba"
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "strokekit" / "numba"
-
-
 def choose_cache_dir() -> str | None:
-    """Make sure numba can write its cache (else a `cache=True` kernel refuses to compile, and the
-    compile would be paid on every run): numba's own choice when one of its folders is writable
-    (None returned), else strokekit's cache folder or a temporary one, set as numba's CACHE_DIR
-    (returned). Call before the kernels' module is imported."""
-    import numba
-    from numba.misc.appdirs import AppDirs
-
-    if numba.config.CACHE_DIR:  # $NUMBA_CACHE_DIR
-        return None
-    if _writable(Path(__file__).resolve().parent / "__pycache__"):
-        return None
-    if _writable(Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)):
-        return None
-    for folder in (_cache_folder(), Path(tempfile.gettempdir()) / f"strokekit-numba-{os.getuid()}"):
-        if _writable(folder):
-            numba.config.CACHE_DIR = str(folder)
-            return str(folder)
-    return None  # nowhere to write: numba will say so when it compiles
+    """numba_cache.choose_cache_dir for the raster kernels' folder. Call before they are imported."""
+    return _choose_cache_dir(Path(__file__).resolve().parent)
 
 
 def kernels():
@@ -113,22 +78,9 @@ def _modules():
 
 
 def _compile_needed(modules) -> bool | None:
-    """Whether warming the serial kernels up will compile them: False when every one is already
-    in this process or has a fresh entry in numba's on-disk cache (the warm-up only loads them),
-    True when one has neither, None when numba does not tell (its cache internals changed). The
-    parallel kernels (`parallel=True`) are not warmed up: the raster pass runs serial ones (one
-    frame a process; the run's processes share the cores)."""
-    try:
-        disps = [v for m in modules for v in vars(m).values()
-                 if hasattr(v, "py_func") and getattr(v, "_cache", None) is not None
-                 and not v.targetoptions.get("parallel")]
-        if not disps:
-            return None
-        if all(d.signatures for d in disps):
-            return False
-        return not all(d.signatures or d._cache._cache_file._load_index() for d in disps)
-    except Exception:  # private numba API: any change means "cannot tell"
-        return None
+    """numba_cache.compile_needed: whether warming the kernels up will compile them. The raster
+    pass runs serial kernels (one frame a process; the run's processes share the cores)."""
+    return compile_needed(modules)
 
 
 _ASK = object()

@@ -18,6 +18,7 @@ from typing import Callable
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
+from strokekit.lines.kernels import warm_kernels as warm_line_kernels
 from strokekit.model import BrushPaths, Strokes
 from strokekit.paths.stage import PathTracker
 from strokekit.raster.hits import KernelWarmup
@@ -107,6 +108,12 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             # Compiled here, once, before any frame: the workers then load them from numba's disk
             # cache instead of each compiling them.
             kernels.join()
+        if write_error is None and spec.lines.occlusion is not None and spec.scheduler is None:
+            # Hidden lines' kernels: compiled here on a machine's first run, before any frame (the
+            # workers then load them from numba's disk cache instead of each compiling them).
+            t = time.perf_counter()
+            warm_line_kernels(notice)
+            stage["occlusion levels"].seconds += time.perf_counter() - t
         if write_error is None:
             write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
         if kernels is not None:

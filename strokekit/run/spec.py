@@ -211,8 +211,9 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
         lo, hi = L.occlusion
         st.append(StageRecord("visibility", False, "replaced by the occlusion levels (their level 0)"))
         st.append(StageRecord("occlusion levels", True,
-                              f"--hidden / --occlusion {lo}-{hi}: surfaces in front of every sample counted "
-                              "(rays continued past each hit), every change of level bisected"))
+                              f"--hidden / --occlusion {lo}-{hi}: surfaces in front of the samples counted "
+                              "(Embree hit lists), carried across outline crossings by Appel's rule where the "
+                              "geometry is clear, every other change of level bisected"))
     st.append(StageRecord("chaining", True, "visible runs linked into strokes"))
     n = len(spec.cameras)
     add("tracking", spec.tracking is not None and n > 1,

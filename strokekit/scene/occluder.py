@@ -6,11 +6,14 @@ scaled as a whole gets the same answers."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.errors import hold_interrupts
+from strokekit.model import row_norm
+from strokekit.numba_cache import choose_cache_dir
 from strokekit.scene.load import Scene
 
 
@@ -52,6 +55,7 @@ class Occluder:
         #: The scene face of each Embree primitive (None: the same numbers, every face).
         self.face_index = None if faces is None else np.asarray(faces, np.int64)
         self.origin = scene.center.copy()
+        self._faces64 = np.ascontiguousarray(scene.faces, np.int64)
         self.radius = scene.radius
         #: world -> Embree frame: (X - origin) * inv_scale. Ray parameters (t in units of the
         #: direction) are the same in both frames.
@@ -288,9 +292,10 @@ class Occluder:
         o = _order_along_rays(t, ray)  # by ray, then along it
         t, ray, face = t[o].astype(float), ray[o], self._scene_faces(prim[o])
         length = np.sqrt(np.einsum("ij,ij->i", d_local, d_local))
-        drop = self._skipped(ray, face, t * length.take(ray) / k, skip, near)
+        dist = t * length.take(ray) / k
+        drop = self._skipped(ray, face, dist, skip, near)
         if verify is not None:
-            close = np.flatnonzero(t * length.take(ray) / k <= verify[2].take(ray))
+            close = np.flatnonzero(dist <= verify[2].take(ray))
             if len(close):
                 if drop is None:
                     drop = np.zeros(len(t), bool)
@@ -300,6 +305,16 @@ class Occluder:
             t, ray, face = t[~drop], ray[~drop], face[~drop]
             if len(t) == 0:
                 return count, first
+        count, head = self._crossing_count(t, ray, face, length, d_local, n, limit)
+        firsts = np.flatnonzero(head)
+        first[ray[firsts]] = t[firsts] * length.take(ray[firsts]) / k
+        return count, first
+
+    def _crossing_count(self, t, ray, face, length, d_local, n, limit):
+        """(count (n,), head (K,)): the crossings of each of n rays, at most `limit`, from its hits
+        (K >= 1; t along the ray's local direction d_local (n, 3), of norm length (n,), by ray then
+        t; scene faces): consecutive hits on triangles that share a vertex, facing the ray alike,
+        within 1e-5 (Embree frame) count once (see count_crossings); head marks each ray's first."""
         head = np.empty(len(t), bool)
         head[0] = True
         np.not_equal(ray[1:], ray[:-1], out=head[1:])
@@ -315,27 +330,54 @@ class Occluder:
             side_a = np.einsum("ij,ij->i", nrm.take(face[i - 1], axis=0), d) > 0
             side_b = np.einsum("ij,ij->i", nrm.take(face[i], axis=0), d) > 0
             dup[i] = shared & (side_a == side_b)
-        count = np.minimum(np.bincount(ray[~dup], minlength=n), int(limit))
-        firsts = np.flatnonzero(head)
-        first[ray[firsts]] = t[firsts] * length.take(ray[firsts]) / k
-        return count, first
+        return np.minimum(np.bincount(ray[~dup], minlength=n), int(limit)), head
+
+    def _levels_compiled(self, points: np.ndarray, camera: Camera, offset: float, lift: np.ndarray,
+                         scale: np.ndarray, limit: int, own: np.ndarray) -> np.ndarray | None:
+        """levels of points that all lie on mesh edges, for a perspective camera: the same rays,
+        hits and counts, the rays built and the hits sorted and filtered by the compiled loops of
+        `strokekit.scene.compiled`. None when Embree's list does not come grouped by ray."""
+        K = level_kernels()
+        n = len(points)
+        eye = np.asarray(camera.eye, float)
+        eye_tail = offset * np.linalg.norm(eye - self.origin)
+        k = self.inv_scale
+        rays, targets, d_local, length, reach = K.level_rays(
+            np.ascontiguousarray(points, float), np.ascontiguousarray(lift, float), np.ascontiguousarray(scale, float),
+            eye, self.origin, k, offset, eye_tail)
+        lx = self._rs.list_intersections(self._o3c.Tensor(rays))
+        index = self.face_index if self.face_index is not None else np.zeros(0, np.int64)
+        ok, t, ray, face, close = K.listed_hits(lx["t_hit"].numpy(), lx["ray_ids"].numpy(), lx["primitive_ids"].numpy(),
+                                                index, length, k, np.ascontiguousarray(own, np.int64), reach)
+        if not ok:
+            return None
+        c = np.flatnonzero(close)
+        if len(c):  # hits near the start count only where they cross in float64
+            r_c = ray[c]
+            keep = np.ones(len(t), bool)
+            keep[c] = K.crosses(points.take(r_c, axis=0), targets.take(r_c, axis=0), face[c], self._faces64, self.scene.vertices)
+            t, ray, face = t[keep], ray[keep], face[keep]
+        if len(t) == 0:
+            return np.zeros(n, np.int64)
+        return self._crossing_count(t, ray, face, length, d_local, n, limit)[0]
 
     def _crosses(self, a: np.ndarray, b: np.ndarray, face: np.ndarray) -> np.ndarray:
         """(M,) whether the open segments a -> b (world, (M, 3)) cross the scene faces `face` (M,)
         in float64 (Moller-Trumbore on the closed triangle; a face seen edge-on crosses nothing)."""
         F, V = self.scene.faces, self.scene.vertices
-        A = V.take(F.take(face, axis=0)[:, 0], axis=0)
-        e1 = V.take(F.take(face, axis=0)[:, 1], axis=0) - A
-        e2 = V.take(F.take(face, axis=0)[:, 2], axis=0) - A
+        tri = F.take(face, axis=0)
+        A = V.take(tri[:, 0], axis=0)
+        e1 = V.take(tri[:, 1], axis=0) - A
+        e2 = V.take(tri[:, 2], axis=0) - A
         d = b - a
-        pv = np.cross(d, e2)
+        pv = _cross(d, e2)
         det = np.einsum("ij,ij->i", e1, pv)
-        scale = np.linalg.norm(np.cross(e1, e2), axis=1) * np.linalg.norm(d, axis=1)
+        scale = row_norm(_cross(e1, e2)) * row_norm(d)
         with np.errstate(divide="ignore", invalid="ignore"):
             inv = 1.0 / det
             tv = a - A
             u = np.einsum("ij,ij->i", tv, pv) * inv
-            qv = np.cross(tv, e1)
+            qv = _cross(tv, e1)
             v = np.einsum("ij,ij->i", d, qv) * inv
             t = np.einsum("ij,ij->i", e2, qv) * inv
         return (np.abs(det) > 1e-12 * scale) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1)
@@ -345,7 +387,7 @@ class Occluder:
         count_crossings); None for none."""
         drop = None
         if skip is not None:
-            drop = (face == skip[ray, 0]) | (face == skip[ray, 1])
+            drop = (face == skip[:, 0].take(ray)) | (face == skip[:, 1].take(ray))
         if near is not None:
             verts, reach = near
             close = dist <= reach[ray]
@@ -440,16 +482,24 @@ class Occluder:
         crossing the point does not have). Other points (lines inside faces, whose rays rise off
         the facets by design: lines.contours.view_lift) take the smaller count of the lifted ray
         and of the plain ray: each ray's failures there add crossings."""
-        c = points - self.origin
-        eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
         n = len(points)
-        count = np.zeros(n, np.int64)
         on_edge = np.zeros(n, bool) if ends is None or lift is None else ends[:, 0] >= 0
         e = np.flatnonzero(on_edge)
+        if n and len(e) == n and not camera.is_ortho and self.backend == "open3d" and own is not None:
+            count = self._levels_compiled(points, camera, offset, lift, scale, limit, own)
+            if count is not None:
+                return count
+        c = points - self.origin
+        eps = offset * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), scale)
+        count = np.zeros(n, np.int64)
+        if n and len(e) == n:  # (every point on an edge: no gathers)
+            o, t = self._segments(points, camera, eps, offset)
+            count, _ = self.count_crossings(o, t, limit, skip=own, verify=(points, t, 100.0 * row_norm(lift) + eps))
+            return count
         if len(e):
             P = points[e]
             o, t = self._segments(P, camera, eps[e], offset)
-            reach = 100.0 * np.linalg.norm(lift[e], axis=1) + eps[e]
+            reach = 100.0 * row_norm(lift[e]) + eps[e]
             count[e], _ = self.count_crossings(o, t, limit, skip=None if own is None else own[e],
                                                verify=(P, t, reach))
         rest = np.flatnonzero(~on_edge)
@@ -639,6 +689,13 @@ def _dot3(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross of (N, 3) rows, the same bits (each component a product minus a product), without
+    its generic machinery (several times faster on a frame's rows)."""
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
 def _einsum_sq(x: np.ndarray) -> np.ndarray:
     """np.einsum("ij,ij->i", X, X) of the (N, 3) X whose rows x (3, N) holds, same bits."""
     return (x[0] * x[0] + x[2] * x[2]) + x[1] * x[1]
@@ -668,6 +725,21 @@ def _order_along_rays(t: np.ndarray, ray: np.ndarray) -> np.ndarray:
         sel = np.flatnonzero(mark[ray])  # every hit of those rays (contiguous groups)
         o[sel] = sel[np.lexsort((t[sel], ray[sel]))]
     return o
+
+
+_level_kernels = None
+
+
+def level_kernels():
+    """The compiled loops of occlusion-level rays (`strokekit.scene.compiled`), imported on first
+    use: drawings of visible lines only never import numba."""
+    global _level_kernels
+    if _level_kernels is None:
+        import importlib
+
+        choose_cache_dir(Path(__file__).resolve().parent)
+        _level_kernels = importlib.import_module("strokekit.scene.compiled")
+    return _level_kernels
 
 
 def _has_embreex() -> bool:

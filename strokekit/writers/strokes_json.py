@@ -33,6 +33,7 @@ _STROKE = (b'{"id":%d,"kind":"%s","points":[%s],"u":[%s],"surface":[%s],"face":[
            b'"length_px":%s,"level":%s,"level_weight":%s}')
 _STROKE_OCCLUSION = _STROKE.replace(b'"kind":"%s",', b'"kind":"%s","occlusion":%d,')
 _KIND_BYTES = [k.encode() for k in KINDS]
+_KIND_BYTES_ARRAY = np.array(_KIND_BYTES, dtype=object)
 _NP = orjson.OPT_SERIALIZE_NUMPY
 
 
@@ -87,11 +88,11 @@ def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion
     cuts = _stroke_cuts(strokes)
     if cuts is None:
         return None
-    codes = strokes.kind.tolist()
-    cols = [strokes.ids.tolist(), [_KIND_BYTES[k % N_KINDS] for k in codes]]
+    codes = strokes.kind.astype(np.int64)  # (a hidden drawing has thousands: no Python loop over them)
+    cols = [strokes.ids.tolist(), _KIND_BYTES_ARRAY.take(codes % N_KINDS).tolist()]
     template = _STROKE
     if occlusion:
-        cols.append([k // N_KINDS for k in codes])
+        cols.append((codes // N_KINDS).tolist())
         template = _STROKE_OCCLUSION
     cols += [*cuts, _number_texts(strokes.lengths, 4, n), _number_texts(strokes.level, 6, n),
              _number_texts(strokes.level_weight, 6, n)]

@@ -220,8 +220,10 @@ def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ..
     lay_sorted = lay[order]
     present = np.unique(lay_sorted).tolist()
     bounds = np.searchsorted(lay_sorted, present).tolist() + [len(order)]
-    by_layer = {k: order[a:b].tolist() for k, a, b in zip(present, bounds[:-1], bounds[1:])}
-    ids = strokes.ids.tolist()
+    by_layer = {k: order[a:b] for k, a, b in zip(present, bounds[:-1], bounds[1:])}
+    # Per-stroke columns gathered per layer by numpy (a hidden drawing has thousands of strokes).
+    data_col = np.array(data, dtype=object)
+    ids = strokes.ids
     names = [(N_KINDS + i, "hidden-" + k, k) for i, k in enumerate(KINDS)
              if "hidden-" + k in kinds or N_KINDS + i in by_layer]
     names += [(i, k, k) for i, k in enumerate(KINDS) if k in kinds or i in by_layer]
@@ -235,8 +237,8 @@ def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ..
         group = (f'<g fill="none" id="layer-{name}" inkscape:groupmode="layer" inkscape:label="{name}" '
                  f'stroke="{KIND_COLORS.get(kind, "#000000")}"{dash} stroke-linecap="round" stroke-linejoin="round" '
                  f'stroke-width="{stroke_width:g}"')
-        members = by_layer.get(index, [])
-        if not members:
+        members = by_layer.get(index, ())
+        if not len(members):
             out.append(group + " />")
             continue
         out.append(group + ">")
@@ -244,15 +246,16 @@ def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ..
             u0 = strokes.u[strokes.offsets[:-1][members]] * strokes.period_px
             phase = np.mod(np.where(np.isfinite(u0), u0, 0.0), period)
             d = dash_path_data(strokes, members, phase, pattern, decimals)
-            out += [f'<path d="M{t}" id="s{ids[s]}" />' for s, t in zip(members, d) if t]
+            out += [f'<path d="M{t}" id="s{i}" />' for i, t in zip(ids.take(members).tolist(), d) if t]
         elif dash:
             u0 = strokes.u[strokes.offsets[:-1][members]] * strokes.period_px
             phase = np.round(np.mod(np.where(np.isfinite(u0), u0, 0.0), period), decimals) + 0.0
             template = f'<path d="M%s" id="s%d" stroke-dashoffset="%.{decimals}f" />'
             out.append((template * len(members)) % tuple(
-                chain.from_iterable(zip([data[s] for s in members], [ids[s] for s in members], phase.tolist()))))
+                chain.from_iterable(zip(data_col.take(members).tolist(), ids.take(members).tolist(), phase.tolist()))))
         else:
-            out += [f'<path d="M{data[s]}" id="s{ids[s]}" />' for s in members]
+            out.append(('<path d="M%s" id="s%d" />' * len(members)) % tuple(
+                chain.from_iterable(zip(data_col.take(members).tolist(), ids.take(members).tolist()))))
         out.append("</g>")
     out.append("</svg>\n")
     return "".join(out)
