@@ -62,7 +62,7 @@ def bracket(G: np.ndarray, r: np.ndarray, first: np.ndarray, last: np.ndarray) -
 def row_norm(x: np.ndarray) -> np.ndarray:
     """np.linalg.norm(x, axis=1) of an (N, 2) or (N, 3) float64 array, the same bits
     (sqrt((x0 x0 + x1 x1) + x2 x2), the order of numpy's reduction) without the generic
-    reduction machinery (several times faster on short rows)."""
+    reduction machinery (its overhead dominates on short rows)."""
     x = np.asarray(x)
     if x.ndim == 2 and x.dtype == np.float64 and x.shape[1] in (2, 3):
         s = x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1]

@@ -14,8 +14,8 @@ from typing import Callable
 from strokekit.numba_cache import choose_cache_dir, compile_needed
 from strokekit.scene.occluder import level_kernels
 
-#: About how long the first compile of the kernels takes (s), on this project's 2-core machine
-#: (35 s measured with other jobs running, 2026-11-26).
+#: About how long the first compile of the kernels takes (s) on a free 2-core machine (longer
+#: under load).
 COMPILE_SECONDS = 20
 
 _module = None

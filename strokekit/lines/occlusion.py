@@ -18,7 +18,7 @@ sample every spacing, and a change between two samples is bisected to `bisection
 middle with a third level splits the bracket: 0 -> 1 -> 2 between two samples gives two
 changes). A piece after a crossing whose change Appel's rule gives clearly (`crossing_deltas`)
 takes the level before it plus that change instead of a ray, as long as the next counted sample
-of its edge agrees (`_sample_levels`): a fifth of a bunny frame's rays.
+of its edge agrees (`_sample_levels`).
 
 A piece's level is written into its kind: code = kind + len(KINDS) * level (model.MAX_OCCLUSION),
 so that chaining, the cleanup of doubled lines and tracking, which keep kinds apart, keep levels
@@ -183,7 +183,8 @@ def _sample_levels(seg, s, first_smp, p_delta, last, limit, level_at):
     bad = prop & ((lev.take(anchor) >= limit) | (lev_p < 0) | (lev_p >= limit))
     # Each chain ends at a counted sample of its segment: it must agree.
     end = np.flatnonzero(~prop[1:] & prop[:-1]) + 1
-    bad[end - 1] |= ~known[end] | (lev[end] != lev_p[end - 1] + d_known[end])
+    # (a count held at the limit agrees with any chain that reaches it: it checks nothing)
+    bad[end - 1] |= ~known[end] | (lev[end] != lev_p[end - 1] + d_known[end]) | (lev[end] >= limit)
     if bad.any():
         redo_seg = np.zeros(int(seg.max()) + 1, bool)
         redo_seg[seg[bad]] = True
@@ -256,7 +257,7 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     qa, wa = camera.project(Va + c0[:, None] * (Vb - Va))
     qb, wb = camera.project(Va + c1[:, None] * (Vb - Va))
     # Candidate pairs from a grid, the cheap depth and box tests, then the crossing's: one
-    # compiled pass (the numpy one made ~50k candidate pairs of a bunny frame in temporaries).
+    # compiled pass (in numpy, the candidate pairs alone were large temporaries).
     f_pair, s, c_pair, u, gap = kernels().outline_crossings(
         np.ascontiguousarray(pa), np.ascontiguousarray(pb), za, zb, np.ascontiguousarray(va),
         np.ascontiguousarray(vb), qa, qb, wa, wb, np.ascontiguousarray(E[:, 0]), np.ascontiguousarray(E[:, 1]),

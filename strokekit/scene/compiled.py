@@ -2,7 +2,7 @@
 the rays built from the points, and the hit lists sorted and filtered, in one pass each instead of
 a few dozen numpy passes over a frame's rows. Imports numpy and numba only; loaded on first use
 by `occluder.level_kernels()` (numba's import is not paid by visible-only drawings), cached on
-disk (`cache=True`, no fastmath): every float operation is numpy's, in numpy's order (an einsum
+disk (`cache=True`, no fastmath): every float operation is numpy's, in numpy's order (numpy 2.4's: an einsum
 of three columns sums (x0 x0 + x2 x2) + x1 x1, a row norm (x0 x0 + x1 x1) + x2 x2), so the rays
 and the hits kept are bit for bit those of the numpy path.
 
