@@ -38,6 +38,7 @@ import numpy as np
 
 from strokekit.lines.strokeops import CONTOUR_KINDS, cut_pieces, drop_hairpins, join_arrays, query_tree
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
+from strokekit.paths.grid import SampleGrid, kernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
@@ -115,7 +116,7 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
                    stroke=None, s=None, w=None) if step > 1 else D
-    rm, rq = match_samples(back, prev.camera, V, query_tree(V.p), radius_px=to.search_radius_px,
+    rm, rq = match_samples(back, prev.camera, V, SampleGrid(V.p, to.search_radius_px), radius_px=to.search_radius_px,
                            min_tangent_dot=to.min_tangent_dot, k=2, return_projected=True, piece_distance=True)
     rh = np.flatnonzero(rm >= 0)
     src = rm[rh]
@@ -129,6 +130,10 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     return Votes(m=rh, vid=V.ids[src], u=V.u[src] + off * slope[src], w=step * D.w[rh],
                  sign=np.sign(np.einsum("ij,ij->i", vts, D.t.take(rh, axis=0))))
 
+
+#: The keywords of a neighbour search whose order does not matter (SampleGrid.query; a k-d tree
+#: has none).
+_AS_SET = {SampleGrid: {"as_set": True}}
 
 #: A bridge between two pieces is drawn only where every point of it lies within this many px of a
 #: line sample (BRIEF 2's 1 px: the brush paths invent nothing).
@@ -152,18 +157,32 @@ def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5, D: Sa
         far = dist > ON_DRAWING_PX
     else:
         reach = ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9 if len(D) else ON_DRAWING_PX
-        dist, idx = tree.query(q, k=2, distance_upper_bound=reach)
-        far = np.ones(len(q), bool)
-        for c in range(2):
-            ok = dist[:, c] < np.inf
-            j = np.where(ok, idx[:, c], 0)
-            dq = q - D.p.take(j, axis=0)
-            along = np.einsum("ij,ij->i", dq, D.t.take(j, axis=0))
-            beyond = np.maximum(np.abs(along) - 0.5 * D.w[j], 0.0)
-            d2 = np.maximum(dist[:, c] ** 2 - along * along, 0.0) + beyond * beyond
-            far &= ~(ok & (d2 <= ON_DRAWING_PX ** 2))
+        if isinstance(tree, SampleGrid) and tree.ok:
+            near, unsure = tree.near_lines(q, D.t, D.w, 2, reach, ON_DRAWING_PX)
+            far = ~near
+            redo = np.flatnonzero(unsure)
+            if len(redo):
+                far[redo] = _far_from_lines(tree.tree(), q.take(redo, axis=0), D, reach)
+        else:
+            far = _far_from_lines(tree, q, D, reach)
     bad = np.bincount(owner, weights=far, minlength=len(pa))
     return bad == 0
+
+
+def _far_from_lines(tree, q: np.ndarray, D: Samples, reach: float) -> np.ndarray:
+    """(M,) whether the points q (M, 2) lie further than ON_DRAWING_PX from the pieces of line of
+    their two nearest samples in `tree` within `reach` (see on_drawing)."""
+    dist, idx = tree.query(q, k=2, distance_upper_bound=reach)
+    far = np.ones(len(q), bool)
+    for c in range(2):
+        ok = dist[:, c] < np.inf
+        j = np.where(ok, idx[:, c], 0)
+        dq = q - D.p.take(j, axis=0)
+        along = np.einsum("ij,ij->i", dq, D.t.take(j, axis=0))
+        beyond = np.maximum(np.abs(along) - 0.5 * D.w[j], 0.0)
+        d2 = np.maximum(dist[:, c] ** 2 - along * along, 0.0) + beyond * beyond
+        far &= ~(ok & (d2 <= ON_DRAWING_PX ** 2))
+    return far
 
 
 def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.ndarray, radius_px: float,
@@ -179,6 +198,15 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     contour = _CONTOUR[sk % N_KINDS]
     if contour.sum() < 2:
         return out
+    if isinstance(tree, SampleGrid) and tree.ok:
+        x0, y0, cell, nx, ny, start, order = tree.index
+        rank_of_run = np.ascontiguousarray(rank, dtype=np.int64)
+        if kernels().cover(tree.data, np.ascontiguousarray(D.t), np.ascontiguousarray(D.w, dtype=np.float64),
+                           np.ascontiguousarray(sk, dtype=np.int64), contour, np.ascontiguousarray(run, dtype=np.int64),
+                           rank_of_run, x0, y0, cell, nx, ny, start, order, float(radius_px), _COVER_DOT, out):
+            return out
+        out[:] = -1
+        tree = tree.tree()  # (a pair at the radius, within rounding: as the tree counts it)
     if tree is not None:
         pr = tree.query_pairs(radius_px, output_type="ndarray")
         a, b = pr[:, 0], pr[:, 1]
@@ -410,8 +438,8 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
     rank = np.empty(R, np.int64)
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
-    # One k-d tree of the line samples: for the cover, and for the bridges (on_drawing).
-    line_tree = query_tree(D.p)
+    # One grid of the line samples: for the cover, the bridges (on_drawing) and held_back.
+    line_tree = SampleGrid(D.p, HOLD_RADIUS_PX)
     drawn_kind = hidden_as_one(lines.kind)
     cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_tree)
     # 5. Pieces: the uncovered parts of the runs.
@@ -549,7 +577,8 @@ def held_back(paths: Strokes, first_fresh: int, o: PathOptions, p: np.ndarray, o
     mine = np.flatnonzero((owner >= 0) & cand[np.maximum(owner, 0)])
     if len(mine) == 0:
         return hold
-    _, idx = tree.query(p.take(mine, axis=0), k=k, distance_upper_bound=HOLD_RADIUS_PX + 1e-9)
+    _, idx = tree.query(p.take(mine, axis=0), k=k, distance_upper_bound=HOLD_RADIUS_PX + 1e-9,
+                        **_AS_SET.get(type(tree), {}))
     ok = idx < len(p)  # (the tree marks "none within reach" with n)
     ow = owner[np.where(ok, idx, 0)]
     # (Against the paths that stay: two new strands side by side do not hold each other back.)

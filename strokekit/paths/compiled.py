@@ -1,0 +1,296 @@
+"""The brush path stage's compiled loops (numba): neighbour searches over a frame's samples on a
+uniform grid, in place of k-d tree queries built and run every frame. Imports numpy and numba
+only; loaded on first use by `paths.grid.kernels()` (lines-only runs never import numba),
+compiled once per machine and cached on disk (`cache=True`, no fastmath: the same results on
+every run and in every process).
+
+The searches give what scipy's cKDTree gives for the same points (the tree's squared distance
+dx * dx + dy * dy, its strict `<` against the squared bound), and say where they cannot: where
+two candidates tie at the same squared distance (the tree's choice then depends on its
+traversal), or a pair lies within rounding of the bound; the caller asks the tree there.
+
+* `grid_index`: the points sorted into square cells.
+* `knn`: the k nearest points within a bound of each query point.
+* `cover`: the covering sample of every line sample (paths.stage.covering_samples).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: Squared distances within this of the bound are ambiguous for the tree's pair search (it takes
+#: whole node pairs whose box distance, tracked incrementally, is below the bound) (px^2).
+PAIR_SLACK = 1e-6
+
+
+@njit(cache=True)
+def grid_index(p, cell):
+    """Points p (N, 2) (finite) sorted into square cells of about `cell` px (larger where the
+    points spread wide: at most max(4 N, 4096) cells). Returns (x0, y0, cell, nx, ny, start,
+    order): cell (cx, cy) = ((x - x0) // cell, (y - y0) // cell) holds points order[start[c] :
+    start[c + 1]] (in index order), c = cy * nx + cx."""
+    n = p.shape[0]
+    x0 = p[0, 0]
+    y0 = p[0, 1]
+    x1 = x0
+    y1 = y0
+    for i in range(1, n):
+        x = p[i, 0]
+        y = p[i, 1]
+        if x < x0:
+            x0 = x
+        if x > x1:
+            x1 = x
+        if y < y0:
+            y0 = y
+        if y > y1:
+            y1 = y
+    limit = max(4 * n, 4096)
+    while True:
+        nx = int((x1 - x0) / cell) + 1
+        ny = int((y1 - y0) / cell) + 1
+        if nx * ny <= limit:
+            break
+        cell *= 2.0
+    start = np.zeros(nx * ny + 1, np.int64)
+    key = np.empty(n, np.int64)
+    for i in range(n):
+        cx = min(int((p[i, 0] - x0) / cell), nx - 1)
+        cy = min(int((p[i, 1] - y0) / cell), ny - 1)
+        c = cy * nx + cx
+        key[i] = c
+        start[c + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, np.int64)
+    for i in range(n):
+        c = key[i]
+        order[fill[c]] = i
+        fill[c] += 1
+    return x0, y0, cell, nx, ny, start, order
+
+
+@njit(cache=True)
+def _window(v, v0, cell, reach, n):
+    """The first and last cell along one axis a point within `reach` of v can lie in (with a
+    margin for the rounding of the cell's computation)."""
+    a = math.floor((v - reach - v0) / cell - 1e-6)
+    b = math.floor((v + reach - v0) / cell + 1e-6)
+    if a < 0:
+        a = 0
+    if b > n - 1:
+        b = n - 1
+    return int(a), int(b)
+
+
+@njit(cache=True)
+def knn(q, p, x0, y0, cell, nx, ny, start, order, k, bound, as_set, out_d2, out_i, unsure):
+    """For every query point q (M, 2): its k nearest points of p (N, 2) (grid of grid_index) at
+    squared distance < bound**2, nearest first (equal distances: lower index first): out_d2 (M,
+    k) their squared distances (inf: none), out_i (M, k) their indices (N: none). unsure (M,) is
+    set where the tree could choose them otherwise (the k-th and the next at the same distance),
+    or order them otherwise (two of them at the same distance; not looked at with `as_set`),
+    and where q is not finite."""
+    n = p.shape[0]
+    b2 = bound * bound
+    bd = np.empty(k + 1)
+    bi = np.empty(k + 1, np.int64)
+    for m in range(q.shape[0]):
+        qx = q[m, 0]
+        qy = q[m, 1]
+        for s in range(k):
+            out_d2[m, s] = np.inf
+            out_i[m, s] = n
+        if not (math.isfinite(qx) and math.isfinite(qy)):
+            unsure[m] = True
+            continue
+        cnt = 0
+        ax, bx = _window(qx, x0, cell, bound, nx)
+        ay, by = _window(qy, y0, cell, bound, ny)
+        for cy in range(ay, by + 1):
+            row = cy * nx
+            for cx in range(ax, bx + 1):
+                c = row + cx
+                for t in range(start[c], start[c + 1]):
+                    j = order[t]
+                    dx = p[j, 0] - qx
+                    dy = p[j, 1] - qy
+                    d2 = dx * dx + dy * dy
+                    if not d2 < b2:
+                        continue
+                    cnt = _insert(bd, bi, cnt, d2, j)
+        for s in range(k - 1 if as_set else 0, min(cnt, k + 1) - 1):
+            if bd[s] == bd[s + 1]:
+                unsure[m] = True
+        for s in range(min(cnt, k)):
+            out_d2[m, s] = bd[s]
+            out_i[m, s] = bi[s]
+
+
+@njit(cache=True)
+def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, radius, min_dot, out):
+    """covering_samples on the grid of p (N, 2) (see paths.stage.covering_samples): for every
+    contour sample x, the sample y within `radius` (squared distance <= radius**2, the tree's
+    pair rule) of another run, the same kind sk and a run of higher rank (rank_of_run lower),
+    beside x (|(p_y - p_x) . t_x| <= (w_x + w_y) / 2 - 0.25) with |t_y . t_x| >= min_dot; of
+    several the one of the highest-ranked run, then the nearest, then the lowest index. out (N,)
+    is set where one is found (left as it is elsewhere). Returns False where a pair of contour
+    samples of two runs lies within PAIR_SLACK of the radius (the tree may count it either
+    way: the caller asks the tree), else True."""
+    r2 = radius * radius
+    for x in range(p.shape[0]):
+        if not contour[x]:
+            continue
+        px = p[x, 0]
+        py = p[x, 1]
+        tx0 = t[x, 0]
+        tx1 = t[x, 1]
+        rx = rank_of_run[run[x]]
+        best = -1
+        best_rank = 0
+        best_d2 = 0.0
+        ax, bx = _window(px, x0, cell, radius, nx)
+        ay, by = _window(py, y0, cell, radius, ny)
+        for cy in range(ay, by + 1):
+            row = cy * nx
+            for cx in range(ax, bx + 1):
+                c = row + cx
+                for s in range(start[c], start[c + 1]):
+                    y = order[s]
+                    if y == x or not contour[y] or run[y] == run[x] or sk[y] != sk[x]:
+                        continue
+                    ddx = p[y, 0] - px
+                    ddy = p[y, 1] - py
+                    d2 = ddx * ddx + ddy * ddy
+                    if abs(d2 - r2) <= PAIR_SLACK:
+                        return False
+                    if d2 > r2:
+                        continue
+                    ry = rank_of_run[run[y]]
+                    if not ry < rx:
+                        continue
+                    along = abs(ddx * tx0 + ddy * tx1)
+                    if not along <= 0.5 * (w[x] + w[y]) - 0.25:
+                        continue
+                    if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
+                        continue
+                    if best < 0 or ry < best_rank or (ry == best_rank and (d2 < best_d2 or (d2 == best_d2 and y < best))):
+                        best = y
+                        best_rank = ry
+                        best_d2 = d2
+        if best >= 0:
+            out[x] = best
+    return True
+
+
+@njit(cache=True)
+def _insert(bd, bi, cnt, d2, j):
+    """(d2, j) into the sorted (by d2, then j) buffer bd, bi holding cnt entries (at most its
+    size: the last one goes). Returns the new count."""
+    size = bd.shape[0]
+    if cnt == size:
+        if d2 > bd[size - 1] or (d2 == bd[size - 1] and j > bi[size - 1]):
+            return cnt
+        pos = size - 1
+    else:
+        pos = cnt
+        cnt += 1
+    while pos > 0 and (bd[pos - 1] > d2 or (bd[pos - 1] == d2 and bi[pos - 1] > j)):
+        bd[pos] = bd[pos - 1]
+        bi[pos] = bi[pos - 1]
+        pos -= 1
+    bd[pos] = d2
+    bi[pos] = j
+    return cnt
+
+
+@njit(cache=True)
+def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, k, bound, limit, out, unsure):
+    """paths.stage.on_drawing's test on the grid of the line samples p (N, 2), their tangents t
+    (N, 2) and lengths w (N,): out (M,) whether each query point q (M, 2) lies within `limit` px
+    of the piece of line of one of its k nearest samples within `bound` (the tree's k: where
+    samples tie at the k-th distance, out is what every choice among them gives; unsure (M,)
+    set where the choice decides, or q is not finite). The piece of sample j: length w_j along
+    t_j, centred on p_j; the distance across it from the tree's distance sqrt(d2)."""
+    b2 = bound * bound
+    lim2 = limit * limit
+    size = k + 8
+    bd = np.empty(size)
+    bi = np.empty(size, np.int64)
+    for m in range(q.shape[0]):
+        qx = q[m, 0]
+        qy = q[m, 1]
+        out[m] = False
+        if not (math.isfinite(qx) and math.isfinite(qy)):
+            unsure[m] = True
+            continue
+        cnt = 0
+        ax, bx = _window(qx, x0, cell, bound, nx)
+        ay, by = _window(qy, y0, cell, bound, ny)
+        for cy in range(ay, by + 1):
+            row = cy * nx
+            for cx in range(ax, bx + 1):
+                c = row + cx
+                for s in range(start[c], start[c + 1]):
+                    j = order[s]
+                    dx = p[j, 0] - qx
+                    dy = p[j, 1] - qy
+                    d2 = dx * dx + dy * dy
+                    if d2 < b2:
+                        cnt = _insert(bd, bi, cnt, d2, j)
+        # The tree keeps the k nearest: those nearer than the k-th for sure, then some of the
+        # samples at the k-th's distance.
+        last = bd[k - 1] if cnt >= k else np.inf
+        any_sure = False
+        n_sure = 0
+        tied_near = 0
+        tied = 0
+        for s in range(cnt):
+            j = bi[s]
+            if bd[s] > last:
+                break
+            dist = math.sqrt(bd[s])
+            along = (qx - p[j, 0]) * t[j, 0] + (qy - p[j, 1]) * t[j, 1]
+            beyond = abs(along) - 0.5 * w[j]
+            if beyond < 0.0:
+                beyond = 0.0
+            across = dist * dist - along * along
+            if across < 0.0:
+                across = 0.0
+            near = across + beyond * beyond <= lim2
+            if bd[s] < last:
+                n_sure += 1
+                any_sure |= near
+            else:
+                tied += 1
+                tied_near += near
+        if any_sure or (tied_near > 0 and tied_near == tied):
+            out[m] = True
+        elif tied_near > 0:
+            # Some of the tied samples are near, some not: it depends on which the tree keeps,
+            # unless it keeps them all.
+            if tied == k - n_sure and not (cnt == size and bd[size - 1] == last):
+                out[m] = True
+            else:
+                unsure[m] = True
+        elif cnt == size and bd[size - 1] == last:
+            unsure[m] = True  # (more samples at the k-th's distance than the buffer holds)
+
+
+def warmup() -> None:
+    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
+    x0, y0, cell, nx, ny, start, order = grid_index(p, 2.0)
+    out_d2 = np.zeros((2, 2))
+    out_i = np.zeros((2, 2), np.int64)
+    knn(p[:2], p, x0, y0, cell, nx, ny, start, order, 2, 3.0, False, out_d2, out_i, np.zeros(2, np.bool_))
+    t = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
+    near_lines(p[:2], p, t, np.ones(3), x0, y0, cell, nx, ny, start, order, 2, 1.5, 1.0, np.zeros(2, np.bool_),
+               np.zeros(2, np.bool_))
+    i3 = np.zeros(3, np.int64)
+    cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), x0, y0, cell, nx, ny, start, order,
+          2.0, 0.9, np.full(3, -1, np.int64))
