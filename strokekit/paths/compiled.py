@@ -29,7 +29,7 @@ PAIR_SLACK = 1e-6
 @njit(cache=True)
 def grid_index(p, cell):
     """Points p (N, 2) (finite) sorted into square cells of about `cell` px (larger where the
-    points spread wide: at most max(4 N, 4096) cells). Returns (x0, y0, cell, nx, ny, start,
+    points spread wide: at most max(8 N, 65536) cells). Returns (x0, y0, cell, nx, ny, start,
     order): cell (cx, cy) = ((x - x0) // cell, (y - y0) // cell) holds points order[start[c] :
     start[c + 1]] (in index order), c = cy * nx + cx."""
     n = p.shape[0]
@@ -48,7 +48,7 @@ def grid_index(p, cell):
             y0 = y
         if y > y1:
             y1 = y
-    limit = max(4 * n, 4096)
+    limit = max(8 * n, 65536)
     while True:
         nx = int((x1 - x0) / cell) + 1
         ny = int((y1 - y0) / cell) + 1
@@ -74,7 +74,7 @@ def grid_index(p, cell):
     return x0, y0, cell, nx, ny, start, order
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _window(v, v0, cell, reach, n):
     """The first and last cell along one axis a point within `reach` of v can lie in (with a
     margin for the rounding of the cell's computation)."""
@@ -187,7 +187,7 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _insert(bd, bi, cnt, d2, j):
     """(d2, j) into the sorted (by d2, then j) buffer bd, bi holding cnt entries (at most its
     size: the last one goes). Returns the new count."""
@@ -281,6 +281,170 @@ def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, k, bound, limit, 
             unsure[m] = True  # (more samples at the k-th's distance than the buffer holds)
 
 
+@njit(cache=True)
+def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, k, bound, min_dot, out, unsure):
+    """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
+    tangents t (N, 2) and half lengths hw (N,): for every query point q (M, 2) (finite) with
+    tangent st (M, 2), among its k nearest samples within `bound` those whose tangent agrees
+    (|t . st| >= min_dot), the first of least squared distance to its piece of line (across:
+    the tree's distance squared less the part along t; beyond its ends along t): out (M,) its
+    index, or -1. unsure (M,) set where two of the k + 1 nearest lie at the same distance (the
+    tree's order decides)."""
+    b2 = bound * bound
+    bd = np.empty(k + 1)
+    bi = np.empty(k + 1, np.int64)
+    for m in range(q.shape[0]):
+        qx = q[m, 0]
+        qy = q[m, 1]
+        s0 = st[m, 0]
+        s1 = st[m, 1]
+        cnt = 0
+        ax, bx = _window(qx, x0, cell, bound, nx)
+        ay, by = _window(qy, y0, cell, bound, ny)
+        for cy in range(ay, by + 1):
+            row = cy * nx
+            for cx in range(ax, bx + 1):
+                c = row + cx
+                for s in range(start[c], start[c + 1]):
+                    j = order[s]
+                    dx = p[j, 0] - qx
+                    dy = p[j, 1] - qy
+                    d2 = dx * dx + dy * dy
+                    if d2 < b2:
+                        cnt = _insert(bd, bi, cnt, d2, j)
+        for s in range(cnt - 1):
+            if bd[s] == bd[s + 1]:
+                unsure[m] = True
+        best = np.inf
+        found = -1
+        for s in range(min(cnt, k)):
+            j = bi[s]
+            t0 = t[j, 0]
+            t1 = t[j, 1]
+            if not abs(t0 * s0 + t1 * s1) >= min_dot:
+                continue
+            dist = math.sqrt(bd[s])
+            along = (qx - p[j, 0]) * t0 + (qy - p[j, 1]) * t1
+            beyond = abs(along) - hw[j]
+            if beyond < 0.0:
+                beyond = 0.0
+            cost = dist * dist - along * along
+            if cost < 0.0:
+                cost = 0.0
+            cost += beyond * beyond
+            if found < 0 or cost < best:
+                found = j
+                best = cost
+        out[m] = found
+
+
+@njit(cache=True)
+def _fill(lab, stroke, s, out):
+    """tracking.votes.segment_by_votes' fill: every sample without a label (-1) takes that of the
+    nearest labelled sample of its stroke (ties: the one before), or stays -1."""
+    D = lab.shape[0]
+    # b[i]: the first labelled sample at or after i (D: none), found from the end.
+    nxt = np.empty(D, np.int64)
+    b = D
+    for i in range(D - 1, -1, -1):
+        if lab[i] >= 0:
+            b = i
+        nxt[i] = b
+    f = -1
+    for i in range(D):
+        if lab[i] >= 0:
+            f = i
+        b = nxt[i]
+        fok = f >= 0 and stroke[f] == stroke[i]
+        bok = b < D and stroke[b] == stroke[i]
+        df = s[i] - s[f] if fok else np.inf
+        db = s[b] - s[i] if bok else np.inf
+        if not (fok or bok):
+            out[i] = -1
+        elif df <= db:
+            out[i] = lab[f]
+        else:
+            out[i] = lab[b]
+
+
+@njit(cache=True)
+def _runs(lab, stroke, w, run):
+    """Runs of one label along a stroke: run (D,) set, returns the run lengths (sums of w)."""
+    D = lab.shape[0]
+    r = -1
+    for i in range(D):
+        if i == 0 or lab[i] != lab[i - 1] or stroke[i] != stroke[i - 1]:
+            r += 1
+        run[i] = r
+    rl = np.zeros(r + 1)
+    for i in range(D):
+        rl[run[i]] += w[i]
+    return rl
+
+
+@njit(cache=True)
+def segment_runs(label, stroke, s, w, lengths, min_segment_px):
+    """tracking.votes.segment_by_votes from its samples' labels (D,) (the id of most vote weight,
+    -1: no vote; D >= 1): returns run (D,), and per run stroke, s0, s1 (px) and label."""
+    D = label.shape[0]
+    lab = np.empty(D, np.int64)
+    _fill(label, stroke, s, lab)
+    run = np.empty(D, np.int64)
+    tmp = np.empty(D, np.int64)
+    for _ in range(4):
+        rl = _runs(lab, stroke, w, run)
+        R = rl.shape[0]
+        # Per stroke its longest run (ties: the first) is never short.
+        first = np.empty(R, np.int64)
+        for i in range(D - 1, -1, -1):
+            first[run[i]] = i
+        short = np.zeros(R, np.bool_)
+        any_short = False
+        r0 = 0
+        while r0 < R:
+            st = stroke[first[r0]]
+            r1 = r0
+            best = r0
+            while r1 < R and stroke[first[r1]] == st:
+                if rl[r1] > rl[best]:
+                    best = r1
+                r1 += 1
+            for r in range(r0, r1):
+                if r != best and rl[r] < min_segment_px and lab[first[r]] >= 0:
+                    short[r] = True
+                    any_short = True
+            r0 = r1
+        if not any_short:
+            break
+        for i in range(D):
+            tmp[i] = -1 if short[run[i]] else lab[i]
+        _fill(tmp, stroke, s, lab)
+    else:
+        rl = _runs(lab, stroke, w, run)
+    R = rl.shape[0]
+    first = np.empty(R, np.int64)
+    last = np.empty(R, np.int64)
+    for i in range(D - 1, -1, -1):
+        first[run[i]] = i
+    for i in range(D):
+        last[run[i]] = i
+    rs = np.empty(R, np.int64)
+    s0 = np.empty(R)
+    s1 = np.empty(R)
+    rlab = np.empty(R, np.int64)
+    for r in range(R):
+        a = first[r]
+        b = last[r]
+        rs[r] = stroke[a]
+        rlab[r] = lab[a]
+        head = r == 0 or stroke[first[r - 1]] != stroke[a]
+        tail = r == R - 1 or stroke[first[r + 1]] != stroke[a]
+        # Runs meet halfway between their samples; strokes are covered from 0 to their length.
+        s0[r] = 0.0 if head else 0.5 * (s[a] + s[max(a - 1, 0)])
+        s1[r] = lengths[stroke[a]] if tail else 0.5 * (s[b] + s[min(b + 1, D - 1)])
+    return run, rs, s0, s1, rlab
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -289,6 +453,9 @@ def warmup() -> None:
     out_i = np.zeros((2, 2), np.int64)
     knn(p[:2], p, x0, y0, cell, nx, ny, start, order, 2, 3.0, False, out_d2, out_i, np.zeros(2, np.bool_))
     t = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
+    match_pieces(p[:2], t[:2], p, t, np.ones(3), x0, y0, cell, nx, ny, start, order, 2, 3.0, 0.5,
+                 np.zeros(2, np.int64), np.zeros(2, np.bool_))
+    segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
     near_lines(p[:2], p, t, np.ones(3), x0, y0, cell, nx, ny, start, order, 2, 1.5, 1.0, np.zeros(2, np.bool_),
                np.zeros(2, np.bool_))
     i3 = np.zeros(3, np.int64)

@@ -44,7 +44,7 @@ from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import _local_slope, levels_from_slope
-from strokekit.tracking.votes import _first_max_per_group, _u_trend, _unique_inverse, assign_ids, segment_by_votes
+from strokekit.tracking.votes import _first_max_per_group, _u_trend, _unique_inverse, assign_ids, sample_labels
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -116,8 +116,7 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
                    stroke=None, s=None, w=None) if step > 1 else D
-    rm, rq = match_samples(back, prev.camera, V, SampleGrid(V.p, to.search_radius_px), radius_px=to.search_radius_px,
-                           min_tangent_dot=to.min_tangent_dot, k=2, return_projected=True, piece_distance=True)
+    rm, rq = _lookback(back, prev.camera, V, to.search_radius_px, to.min_tangent_dot)
     rh = np.flatnonzero(rm >= 0)
     src = rm[rh]
     rq = rq.take(rh, axis=0)
@@ -129,6 +128,36 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     slope = _local_slope(V)
     return Votes(m=rh, vid=V.ids[src], u=V.u[src] + off * slope[src], w=step * D.w[rh],
                  sign=np.sign(np.einsum("ij,ij->i", vts, D.t.take(rh, axis=0))))
+
+
+def _lookback(src: Samples, camera, V: Samples, radius_px: float, min_tangent_dot: float,
+              k: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """match_samples(src, camera, V, radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=k,
+    return_projected=True, piece_distance=True) (the same (M,) matches and (M, 2) projected
+    points), searched on a grid of V's samples."""
+    q, z = camera.project(src.X)
+    out = np.full(len(src), -1, np.int64)
+    fin = np.isfinite(q)
+    ok = fin[:, 0] & fin[:, 1] & ((z > 0) | camera.is_ortho)
+    if not ok.any():
+        return out, q
+    grid = SampleGrid(V.p, radius_px)
+    if grid.ok:
+        every = ok.all()
+        qq = q if every else q[ok]
+        st = src.t if every else src.t[ok]
+        m = np.empty(len(qq), np.int64)
+        unsure = np.zeros(len(qq), bool)
+        x0, y0, cell, nx, ny, start, order = grid.index
+        kernels().match_pieces(np.ascontiguousarray(qq), np.ascontiguousarray(st, dtype=np.float64), grid.data,
+                               np.ascontiguousarray(V.t, dtype=np.float64), V.w * 0.5, x0, y0, cell, nx, ny, start,
+                               order, min(k, len(V)), float(radius_px), float(min_tangent_dot), m, unsure)
+        if not unsure.any():
+            out[ok] = m
+            return out, q
+    # (Samples tied at the distance that decides: as the tree orders them.)
+    return match_samples(src, camera, V, grid.tree(), radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=k,
+                         return_projected=True, piece_distance=True)
 
 
 #: The keywords of a neighbour search whose order does not matter (SampleGrid.query; a k-d tree
@@ -427,7 +456,8 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     history = prev is not None and len(prev) > 0 and lines.camera is not None and prev.camera is not None
     votes = carried_votes(prev, lines, D, o) if history else Votes.none()
     # 3. Labels: runs of one carried id along the lines.
-    run, r_line, r_s0, r_s1, r_label = segment_by_votes(D, lines.lengths, votes.m, votes.vid, votes.w, o.min_run_px)
+    run, r_line, r_s0, r_s1, r_label = kernels().segment_runs(
+        sample_labels(len(D), votes.m, votes.vid, votes.w), D.stroke, D.s, D.w, lines.lengths, o.min_run_px)
     R = len(r_line)
     r_len = r_s1 - r_s0
     # 4. Cover. Rank: the total length of the run's label, then its own length.
