@@ -453,11 +453,11 @@ def warmup() -> None:
     out_i = np.zeros((2, 2), np.int64)
     knn(p[:2], p, x0, y0, cell, nx, ny, start, order, 2, 3.0, False, out_d2, out_i, np.zeros(2, np.bool_))
     t = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
+    i3 = np.zeros(3, np.int64)
     match_pieces(p[:2], t[:2], p, t, np.ones(3), x0, y0, cell, nx, ny, start, order, 2, 3.0, 0.5,
                  np.zeros(2, np.int64), np.zeros(2, np.bool_))
     segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
     near_lines(p[:2], p, t, np.ones(3), x0, y0, cell, nx, ny, start, order, 2, 1.5, 1.0, np.zeros(2, np.bool_),
                np.zeros(2, np.bool_))
-    i3 = np.zeros(3, np.int64)
     cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), x0, y0, cell, nx, ny, start, order,
           2.0, 0.9, np.full(3, -1, np.int64))
