@@ -30,8 +30,9 @@ PAIR_SLACK = 1e-6
 def grid_index(p, cell):
     """Points p (N, 2) (finite) sorted into square cells of about `cell` px (larger where the
     points spread wide: at most max(8 N, 65536) cells). Returns (x0, y0, cell, nx, ny, start,
-    order): cell (cx, cy) = ((x - x0) // cell, (y - y0) // cell) holds points order[start[c] :
-    start[c + 1]] (in index order), c = cy * nx + cx."""
+    order, ps): cell (cx, cy) = ((x - x0) // cell, (y - y0) // cell) holds points order[start[c] :
+    start[c + 1]] (in index order), c = cy * nx + cx; ps (N, 2) the points in that order (read
+    one after the other by the searches)."""
     n = p.shape[0]
     x0 = p[0, 0]
     y0 = p[0, 1]
@@ -67,11 +68,14 @@ def grid_index(p, cell):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
     order = np.empty(n, np.int64)
+    ps = np.empty((n, 2))
     for i in range(n):
         c = key[i]
         order[fill[c]] = i
+        ps[fill[c], 0] = p[i, 0]
+        ps[fill[c], 1] = p[i, 1]
         fill[c] += 1
-    return x0, y0, cell, nx, ny, start, order
+    return x0, y0, cell, nx, ny, start, order, ps
 
 
 @njit(cache=True, inline="always")
@@ -88,14 +92,13 @@ def _window(v, v0, cell, reach, n):
 
 
 @njit(cache=True)
-def knn(q, p, x0, y0, cell, nx, ny, start, order, k, bound, as_set, out_d2, out_i, unsure):
-    """For every query point q (M, 2): its k nearest points of p (N, 2) (grid of grid_index) at
+def knn(q, n, x0, y0, cell, nx, ny, start, order, ps, k, bound, as_set, out_d2, out_i, unsure):
+    """For every query point q (M, 2): its k nearest of the n points of a grid (grid_index) at
     squared distance < bound**2, nearest first (equal distances: lower index first): out_d2 (M,
     k) their squared distances (inf: none), out_i (M, k) their indices (N: none). unsure (M,) is
     set where the tree could choose them otherwise (the k-th and the next at the same distance),
     or order them otherwise (two of them at the same distance; not looked at with `as_set`),
     and where q is not finite."""
-    n = p.shape[0]
     b2 = bound * bound
     bd = np.empty(k + 1)
     bi = np.empty(k + 1, np.int64)
@@ -116,13 +119,11 @@ def knn(q, p, x0, y0, cell, nx, ny, start, order, k, bound, as_set, out_d2, out_
             for cx in range(ax, bx + 1):
                 c = row + cx
                 for t in range(start[c], start[c + 1]):
-                    j = order[t]
-                    dx = p[j, 0] - qx
-                    dy = p[j, 1] - qy
+                    dx = ps[t, 0] - qx
+                    dy = ps[t, 1] - qy
                     d2 = dx * dx + dy * dy
-                    if not d2 < b2:
-                        continue
-                    cnt = _insert(bd, bi, cnt, d2, j)
+                    if d2 < b2:
+                        cnt = _insert(bd, bi, cnt, d2, order[t])
         for s in range(k - 1 if as_set else 0, min(cnt, k + 1) - 1):
             if bd[s] == bd[s + 1]:
                 unsure[m] = True
@@ -132,7 +133,7 @@ def knn(q, p, x0, y0, cell, nx, ny, start, order, k, bound, as_set, out_d2, out_
 
 
 @njit(cache=True)
-def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, radius, min_dot, out):
+def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot, out):
     """covering_samples on the grid of p (N, 2) (see paths.stage.covering_samples): for every
     contour sample x, the sample y within `radius` (squared distance <= radius**2, the tree's
     pair rule) of another run, the same kind sk and a run of higher rank (rank_of_run lower),
@@ -160,12 +161,14 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
             for cx in range(ax, bx + 1):
                 c = row + cx
                 for s in range(start[c], start[c + 1]):
+                    ddx = ps[s, 0] - px
+                    ddy = ps[s, 1] - py
+                    d2 = ddx * ddx + ddy * ddy
+                    if d2 > r2 + PAIR_SLACK:
+                        continue
                     y = order[s]
                     if y == x or not contour[y] or run[y] == run[x] or sk[y] != sk[x]:
                         continue
-                    ddx = p[y, 0] - px
-                    ddy = p[y, 1] - py
-                    d2 = ddx * ddx + ddy * ddy
                     if abs(d2 - r2) <= PAIR_SLACK:
                         return False
                     if d2 > r2:
@@ -209,7 +212,7 @@ def _insert(bd, bi, cnt, d2, j):
 
 
 @njit(cache=True)
-def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, k, bound, limit, out, unsure):
+def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, out, unsure):
     """paths.stage.on_drawing's test on the grid of the line samples p (N, 2), their tangents t
     (N, 2) and lengths w (N,): out (M,) whether each query point q (M, 2) lies within `limit` px
     of the piece of line of one of its k nearest samples within `bound` (the tree's k: where
@@ -236,12 +239,11 @@ def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, k, bound, limit, 
             for cx in range(ax, bx + 1):
                 c = row + cx
                 for s in range(start[c], start[c + 1]):
-                    j = order[s]
-                    dx = p[j, 0] - qx
-                    dy = p[j, 1] - qy
+                    dx = ps[s, 0] - qx
+                    dy = ps[s, 1] - qy
                     d2 = dx * dx + dy * dy
                     if d2 < b2:
-                        cnt = _insert(bd, bi, cnt, d2, j)
+                        cnt = _insert(bd, bi, cnt, d2, order[s])
         # The tree keeps the k nearest: those nearer than the k-th for sure, then some of the
         # samples at the k-th's distance.
         last = bd[k - 1] if cnt >= k else np.inf
@@ -282,7 +284,7 @@ def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, k, bound, limit, 
 
 
 @njit(cache=True)
-def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, k, bound, min_dot, out, unsure):
+def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
     """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
     tangents t (N, 2) and half lengths hw (N,): for every query point q (M, 2) (finite) with
     tangent st (M, 2), among its k nearest samples within `bound` those whose tangent agrees
@@ -306,12 +308,11 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, k, bound, 
             for cx in range(ax, bx + 1):
                 c = row + cx
                 for s in range(start[c], start[c + 1]):
-                    j = order[s]
-                    dx = p[j, 0] - qx
-                    dy = p[j, 1] - qy
+                    dx = ps[s, 0] - qx
+                    dy = ps[s, 1] - qy
                     d2 = dx * dx + dy * dy
                     if d2 < b2:
-                        cnt = _insert(bd, bi, cnt, d2, j)
+                        cnt = _insert(bd, bi, cnt, d2, order[s])
         for s in range(cnt - 1):
             if bd[s] == bd[s + 1]:
                 unsure[m] = True
@@ -445,19 +446,96 @@ def segment_runs(label, stroke, s, w, lengths, min_segment_px):
     return run, rs, s0, s1, rlab
 
 
+@njit(cache=True)
+def lexsort3(s, b, a):
+    """np.lexsort((s, b, a)) for integer a, b (>= 0) and float s (not NaN): by a, then b, then s,
+    then index."""
+    n = s.shape[0]
+    M = 1
+    for i in range(n):
+        if b[i] + 1 > M:
+            M = b[i] + 1
+    key = np.empty(n, np.int64)
+    for i in range(n):
+        key[i] = a[i] * M + b[i]
+    o = np.argsort(key, kind="mergesort")
+    # Within each run of one key (in index order: the sort is stable), by s, stably: insertion
+    # for short runs, a merge sort for long ones.
+    g0 = 0
+    while g0 < n:
+        g1 = g0 + 1
+        while g1 < n and key[o[g1]] == key[o[g0]]:
+            g1 += 1
+        if g1 - g0 > 32:
+            sub = o[g0:g1].copy()
+            oo = np.argsort(s[sub], kind="mergesort")
+            for i in range(g1 - g0):
+                o[g0 + i] = sub[oo[i]]
+        else:
+            for i in range(g0 + 1, g1):
+                v = o[i]
+                sv = s[v]
+                j = i
+                while j > g0 and s[o[j - 1]] > sv:
+                    o[j] = o[j - 1]
+                    j -= 1
+                o[j] = v
+        g0 = g1
+    return o
+
+
+@njit(cache=True)
+def jump_order(st, vid, s, u, P, min_jump):
+    """heal_jumps' order of the votes (np.lexsort((s, vid, st))) and whether a step between two
+    votes of one path and id, next to each other in it, has |du - ds / P| >= min_jump (rounded:
+    a jump to heal)."""
+    o = lexsort3(s, vid, st)
+    for i in range(1, o.shape[0]):
+        a = o[i - 1]
+        b = o[i]
+        if st[a] == st[b] and vid[a] == vid[b] and abs((u[b] - u[a]) - (s[b] - s[a]) / P) >= min_jump:
+            if np.round((u[b] - u[a]) - (s[b] - s[a]) / P) != 0.0:
+                return o, True
+    return o, False
+
+
+@njit(cache=True)
+def u_trend(rk, pk, u, R):
+    """tracking.votes._u_trend after its selection: the votes rk (K,) (run), pk (K,) (position,
+    px, shifted to start at 0), u (K,): per run the px along which u increases less those along
+    which it decreases, over steps between votes next to each other by position."""
+    K = rk.shape[0]
+    out = np.zeros(R)
+    if K < 2:
+        return out
+    top = pk.max() + 1.0
+    key = np.empty(K)
+    for i in range(K):
+        key[i] = rk[i] * top + pk[i]
+    o = np.argsort(key, kind="mergesort")
+    for i in range(1, K):
+        a = o[i - 1]
+        b = o[i]
+        if rk[b] == rk[a]:
+            out[rk[b]] += np.sign(u[b] - u[a]) * (pk[b] - pk[a])
+    return out
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
-    x0, y0, cell, nx, ny, start, order = grid_index(p, 2.0)
+    g = grid_index(p, 2.0)
     out_d2 = np.zeros((2, 2))
     out_i = np.zeros((2, 2), np.int64)
-    knn(p[:2], p, x0, y0, cell, nx, ny, start, order, 2, 3.0, False, out_d2, out_i, np.zeros(2, np.bool_))
+    knn(p[:2], 3, *g, 2, 3.0, False, out_d2, out_i, np.zeros(2, np.bool_))
     t = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
     i3 = np.zeros(3, np.int64)
-    match_pieces(p[:2], t[:2], p, t, np.ones(3), x0, y0, cell, nx, ny, start, order, 2, 3.0, 0.5,
+    match_pieces(p[:2], t[:2], p, t, np.ones(3), *g, 2, 3.0, 0.5,
                  np.zeros(2, np.int64), np.zeros(2, np.bool_))
     segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
-    near_lines(p[:2], p, t, np.ones(3), x0, y0, cell, nx, ny, start, order, 2, 1.5, 1.0, np.zeros(2, np.bool_),
+    near_lines(p[:2], p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_),
                np.zeros(2, np.bool_))
-    cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), x0, y0, cell, nx, ny, start, order,
-          2.0, 0.9, np.full(3, -1, np.int64))
+    lexsort3(np.array([0.5, 0.25]), np.array([1, 1]), np.array([0, 0]))
+    jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
+    u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
+    cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))

@@ -61,8 +61,7 @@ class SampleGrid:
         d2 = np.empty((M, k))
         idx = np.empty((M, k), np.int64)
         unsure = np.zeros(M, bool)
-        x0, y0, cell, nx, ny, start, order = self.index
-        kernels().knn(q, self.data, x0, y0, cell, nx, ny, start, order, k, float(distance_upper_bound), as_set, d2,
+        kernels().knn(q, len(self.data), *self.index, k, float(distance_upper_bound), as_set, d2,
                       idx, unsure)
         dist = np.sqrt(d2)
         redo = np.flatnonzero(unsure)
@@ -81,8 +80,7 @@ class SampleGrid:
         q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, 2)
         near = np.zeros(len(q), bool)
         unsure = np.zeros(len(q), bool)
-        x0, y0, cell, nx, ny, start, order = self.index
         kernels().near_lines(q, self.data, np.ascontiguousarray(t, dtype=np.float64),
-                             np.ascontiguousarray(w, dtype=np.float64), x0, y0, cell, nx, ny, start, order, k,
+                             np.ascontiguousarray(w, dtype=np.float64), *self.index, k,
                              float(bound), float(limit), near, unsure)
         return near, unsure

@@ -44,7 +44,7 @@ from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import _local_slope, levels_from_slope
-from strokekit.tracking.votes import _first_max_per_group, _u_trend, _unique_inverse, assign_ids, sample_labels
+from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, assign_ids, sample_labels
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -148,10 +148,8 @@ def _lookback(src: Samples, camera, V: Samples, radius_px: float, min_tangent_do
         st = src.t if every else src.t[ok]
         m = np.empty(len(qq), np.int64)
         unsure = np.zeros(len(qq), bool)
-        x0, y0, cell, nx, ny, start, order = grid.index
         kernels().match_pieces(np.ascontiguousarray(qq), np.ascontiguousarray(st, dtype=np.float64), grid.data,
-                               np.ascontiguousarray(V.t, dtype=np.float64), V.w * 0.5, x0, y0, cell, nx, ny, start,
-                               order, min(k, len(V)), float(radius_px), float(min_tangent_dot), m, unsure)
+                               np.ascontiguousarray(V.t, dtype=np.float64), V.w * 0.5, *grid.index, min(k, len(V)), float(radius_px), float(min_tangent_dot), m, unsure)
         if not unsure.any():
             out[ok] = m
             return out, q
@@ -228,11 +226,10 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     if contour.sum() < 2:
         return out
     if isinstance(tree, SampleGrid) and tree.ok:
-        x0, y0, cell, nx, ny, start, order = tree.index
-        rank_of_run = np.ascontiguousarray(rank, dtype=np.int64)
         if kernels().cover(tree.data, np.ascontiguousarray(D.t), np.ascontiguousarray(D.w, dtype=np.float64),
                            np.ascontiguousarray(sk, dtype=np.int64), contour, np.ascontiguousarray(run, dtype=np.int64),
-                           rank_of_run, x0, y0, cell, nx, ny, start, order, float(radius_px), _COVER_DOT, out):
+                           np.ascontiguousarray(rank, dtype=np.int64), *tree.index, float(radius_px), _COVER_DOT,
+                           out):
             return out
         out[:] = -1
         tree = tree.tree()  # (a pair at the radius, within rounding: as the tree counts it)
@@ -401,6 +398,15 @@ def _seams(S: int, closed: np.ndarray, L: np.ndarray, st: np.ndarray, s: np.ndar
     return stq[k], 0.5 * (sq[k] + sq[k + 1])
 
 
+def _trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarray, u: np.ndarray, R: int) -> np.ndarray:
+    """tracking.votes._u_trend (the same (R,) px), its sort and sums compiled."""
+    keep = np.flatnonzero(vid == label.take(run))
+    if len(keep) < 2:
+        return np.zeros(R)
+    pk = pos.take(keep)
+    return kernels().u_trend(run.take(keep), pk - pk.min(), u.take(keep), R)
+
+
 def heal_jumps(st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray, w: np.ndarray, P: float,
                min_jump: float = 2.0) -> np.ndarray:
     """Votes u (V,) made continuous where a path's votes of one id jump: along path st[k] at arc
@@ -412,7 +418,9 @@ def heal_jumps(st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray, w:
     of most of its weight `w`."""
     if len(u) < 2:
         return u
-    o = np.lexsort((s, vid, st))
+    o, jumps = kernels().jump_order(st, vid, s, u, float(P), float(min_jump))
+    if not jumps:
+        return u
     sq, uq, stq, idq = s[o], u[o], st[o], vid[o]
     same = (stq[1:] == stq[:-1]) & (idq[1:] == idq[:-1])
     step = np.diff(uq) - np.diff(sq) / P
@@ -556,7 +564,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu = heal_jumps(vst, vs, vu, vid, vw, P)
     # Each path turned so that its own carried u increases along it (or, where u does not tell,
     # the way the old tangents ran).
-    trend = _u_trend(vst, vid, ids, vs, vu, S)
+    trend = _trend(vst, vid, ids, vs, vu, S)
     r_sign = np.bincount(vst, weights=vw * vsign, minlength=S)
     flip = np.where(np.abs(trend) >= 2.0 * o.sample_px, trend, r_sign) < 0
     if flip.any():
