@@ -521,6 +521,104 @@ def u_trend(rk, pk, u, R):
     return out
 
 
+@njit(cache=True)
+def link_paths(a, b, e_run, n, S):
+    """tracking.joins._touching_paths' links and walk: the candidate links a, b (L,) between
+    stroke ends (node i < n: the start of stroke e_run[i], else its end), in the order they are
+    taken (each end in one link at most), walked into paths. Returns group (S,) (the lowest
+    stroke of each path), rev (S,) and pos (S,) as _touching_paths does."""
+    group = np.arange(S)
+    rev = np.zeros(S, np.bool_)
+    pos = np.zeros(S, np.int64)
+    nn = 2 * n
+    code = np.empty(nn, np.int64)
+    for i in range(nn):
+        code[i] = 2 * e_run[i] + (1 if i >= n else 0)
+    deg = np.zeros(nn, np.int64)
+    for i in range(a.shape[0]):
+        deg[a[i]] += 1
+        deg[b[i]] += 1
+    # nxt[c]: code of the end linked to end c (-1: free); entering at c, one leaves at c ^ 1.
+    nxt = np.full(2 * S, -1, np.int64)
+    taken = np.zeros(nn, np.bool_)
+    for i in range(a.shape[0]):
+        x = a[i]
+        y = b[i]
+        if deg[x] == 1 and deg[y] == 1:  # (in no other link: taken whatever the order)
+            nxt[code[x]] = code[y]
+            nxt[code[y]] = code[x]
+    for i in range(a.shape[0]):
+        x = a[i]
+        y = b[i]
+        if (deg[x] == 1 and deg[y] == 1) or taken[x] or taken[y]:
+            continue
+        taken[x] = True
+        taken[y] = True
+        nxt[code[x]] = code[y]
+        nxt[code[y]] = code[x]
+    walk = np.empty(S, np.int64)
+    heads = np.empty(S + 1, np.int64)
+    nw = 0
+    nh = 0
+    seen = np.zeros(S, np.bool_)
+    n_runs = 0
+    # Path starts: strokes with one linked end, entered through the free end, in stroke order; a
+    # path's other end stroke is a start left to skip.
+    for r in range(S):
+        l0 = nxt[2 * r] >= 0
+        l1 = nxt[2 * r + 1] >= 0
+        if l0 or l1:
+            n_runs += 1
+        if l0 == l1 or seen[r]:
+            continue
+        c = 2 * r + (1 if l0 else 0)
+        heads[nh] = nw
+        nh += 1
+        while True:
+            walk[nw] = c
+            nw += 1
+            seen[c >> 1] = True
+            nc = nxt[c ^ 1]
+            if nc < 0:
+                break
+            c = nc
+    if nw < n_runs:
+        # Rings (linked strokes no path reached), entered through their start.
+        for r in range(S):
+            if seen[r] or (nxt[2 * r] < 0 and nxt[2 * r + 1] < 0):
+                continue
+            c = 2 * r
+            heads[nh] = nw
+            nh += 1
+            while not seen[c >> 1]:
+                seen[c >> 1] = True
+                walk[nw] = c
+                nw += 1
+                c = nxt[c ^ 1]
+                if c < 0:
+                    break
+    heads[nh] = nw
+    for h in range(nh):
+        h0 = heads[h]
+        h1 = heads[h + 1]
+        ln = h1 - h0
+        # A path goes backwards when more of its strokes are entered at their end.
+        ends = 0
+        low = walk[h0] >> 1
+        for i in range(h0, h1):
+            ends += walk[i] & 1
+            if (walk[i] >> 1) < low:
+                low = walk[i] >> 1
+        flip = 2 * ends > ln
+        for i in range(h0, h1):
+            r = walk[i] >> 1
+            k = i - h0
+            group[r] = low
+            rev[r] = ((walk[i] & 1) == 1) != flip
+            pos[r] = ln - 1 - k if flip else k
+    return group, rev, pos
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -535,6 +633,7 @@ def warmup() -> None:
     segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
     near_lines(p[:2], p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_),
                np.zeros(2, np.bool_))
+    link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     lexsort3(np.array([0.5, 0.25]), np.array([1, 1]), np.array([0, 0]))
     jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)

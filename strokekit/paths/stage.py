@@ -535,7 +535,8 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
     group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
-                                      bridge_ok=lambda pa, pb: on_drawing(line_tree, pa, pb, D=D), free_px=2.0)
+                                      bridge_ok=lambda pa, pb: on_drawing(line_tree, pa, pb, D=D), free_px=2.0,
+                                      link=kernels().link_paths)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree, D)
