@@ -447,49 +447,51 @@ def segment_runs(label, stroke, s, w, lengths, min_segment_px):
 
 
 @njit(cache=True)
-def lexsort3(s, b, a):
-    """np.lexsort((s, b, a)) for integer a, b (>= 0) and float s (not NaN): by a, then b, then s,
-    then index."""
-    n = s.shape[0]
-    M = 1
-    for i in range(n):
-        if b[i] + 1 > M:
-            M = b[i] + 1
-    key = np.empty(n, np.int64)
-    for i in range(n):
-        key[i] = a[i] * M + b[i]
-    o = np.argsort(key, kind="mergesort")
-    # Within each run of one key (in index order: the sort is stable), by s, stably: insertion
-    # for short runs, a merge sort for long ones.
+def sort_within(o, key, s):
+    """o (n,) an order by the integer `key` that keeps index order among equal keys (a stable
+    argsort), made the order by key, then s (float, not NaN), then index: each run of one key
+    sorted by s, stably (np.lexsort((s, key)))."""
+    n = o.shape[0]
     g0 = 0
     while g0 < n:
         g1 = g0 + 1
         while g1 < n and key[o[g1]] == key[o[g0]]:
             g1 += 1
-        if g1 - g0 > 32:
-            sub = o[g0:g1].copy()
-            oo = np.argsort(s[sub], kind="mergesort")
-            for i in range(g1 - g0):
-                o[g0 + i] = sub[oo[i]]
-        else:
-            for i in range(g0 + 1, g1):
-                v = o[i]
-                sv = s[v]
-                j = i
-                while j > g0 and s[o[j - 1]] > sv:
-                    o[j] = o[j - 1]
-                    j -= 1
-                o[j] = v
+        up = True
+        down = True
+        for i in range(g0 + 1, g1):
+            if s[o[i]] < s[o[i - 1]]:
+                up = False
+            if not s[o[i]] < s[o[i - 1]]:
+                down = False
+        if down:
+            # (strictly decreasing: no ties whose index order a reversal would break)
+            o[g0:g1] = o[g0:g1][::-1].copy()
+        elif not up:
+            if g1 - g0 > 32:
+                sub = o[g0:g1].copy()
+                oo = np.argsort(s[sub], kind="mergesort")
+                for i in range(g1 - g0):
+                    o[g0 + i] = sub[oo[i]]
+            else:
+                for i in range(g0 + 1, g1):
+                    v = o[i]
+                    sv = s[v]
+                    j = i
+                    while j > g0 and s[o[j - 1]] > sv:
+                        o[j] = o[j - 1]
+                        j -= 1
+                    o[j] = v
         g0 = g1
     return o
 
 
 @njit(cache=True)
-def jump_order(st, vid, s, u, P, min_jump):
-    """heal_jumps' order of the votes (np.lexsort((s, vid, st))) and whether a step between two
-    votes of one path and id, next to each other in it, has |du - ds / P| >= min_jump (rounded:
-    a jump to heal)."""
-    o = lexsort3(s, vid, st)
+def jump_order(o, key, st, vid, s, u, P, min_jump):
+    """heal_jumps' order of the votes, np.lexsort((s, vid, st)), from o, key as sort_within takes
+    them (key: st and vid as one integer), and whether a step between two votes of one path and
+    id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to heal)."""
+    o = sort_within(o, key, s)
     for i in range(1, o.shape[0]):
         a = o[i - 1]
         b = o[i]
@@ -634,7 +636,8 @@ def warmup() -> None:
     near_lines(p[:2], p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_),
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
-    lexsort3(np.array([0.5, 0.25]), np.array([1, 1]), np.array([0, 0]))
-    jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
+    two = np.array([0, 1])
+    jump_order(two, np.array([1, 1]), np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]),
+               10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
     cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))
