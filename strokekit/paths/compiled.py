@@ -621,6 +621,57 @@ def link_paths(a, b, e_run, n, S):
     return group, rev, pos
 
 
+@njit(cache=True)
+def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
+    """paths.stage.carried_votes from the lookback's matches: rm (M,) the previous path sample
+    each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
+    projected. Returns the votes where the kind classes (cls_d of the line samples, cls_v of the
+    path samples) agree: line sample m, id, u (refined along the old tangent by the local slope
+    of u, the offset clipped to the sample's piece), weight (step times the line sample's
+    length) and the sign of the tangents' agreement."""
+    M = rm.shape[0]
+    K = 0
+    for i in range(M):
+        j = rm[i]
+        if j >= 0 and cls_d[sub[i]] == cls_v[j]:
+            K += 1
+    m = np.empty(K, np.int64)
+    vid = np.empty(K, np.int64)
+    u = np.empty(K)
+    w = np.empty(K)
+    sign = np.empty(K)
+    nv = Vp.shape[0]
+    k = 0
+    for i in range(M):
+        j = rm[i]
+        if j < 0:
+            continue
+        h = sub[i]
+        if cls_d[h] != cls_v[j]:
+            continue
+        t0 = Vt[j, 0]
+        t1 = Vt[j, 1]
+        off = (rq[i, 0] - Vp[j, 0]) * t0 + (rq[i, 1] - Vp[j, 1]) * t1
+        lo = -0.5 * Vw[j]
+        hi = 0.5 * Vw[j]
+        if off < lo:
+            off = lo
+        if off > hi:
+            off = hi
+        # du/ds at the path sample, from its neighbours on its stroke (tracking.ufit._local_slope).
+        nx = j + 1 if j + 1 < nv and Vstroke[j + 1] == Vstroke[j] else j
+        pv = j - 1 if j >= 1 and Vstroke[j - 1] == Vstroke[j] else j
+        ds = Vs[nx] - Vs[pv]
+        slope = (Vu[nx] - Vu[pv]) / ds if ds > 0 else 0.0
+        m[k] = h
+        vid[k] = Vids[j]
+        u[k] = Vu[j] + off * slope
+        w[k] = step * Dw[h]
+        sign[k] = np.sign(t0 * Dt[h, 0] + t1 * Dt[h, 1])
+        k += 1
+    return m, vid, u, w, sign
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -637,6 +688,7 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)
     jump_order(two, np.array([1, 1]), np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]),
                10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)

@@ -43,7 +43,7 @@ from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
 from strokekit.tracking.kalnins import fit_u
-from strokekit.tracking.ufit import _local_slope, levels_from_slope
+from strokekit.tracking.ufit import levels_from_slope
 from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, assign_ids, sample_labels
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
@@ -117,17 +117,9 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
                    stroke=None, s=None, w=None) if step > 1 else D
     rm, rq = _lookback(back, prev.camera, V, to.search_radius_px, to.min_tangent_dot)
-    rh = np.flatnonzero(rm >= 0)
-    src = rm[rh]
-    rq = rq.take(rh, axis=0)
-    rh = sub[rh]
-    keep = cls_d[rh] == cls_v[src]
-    rh, src, rq = rh[keep], src[keep], rq[keep]
-    vts = V.t.take(src, axis=0)
-    off = np.clip(np.einsum("ij,ij->i", rq - V.p.take(src, axis=0), vts), -0.5 * V.w[src], 0.5 * V.w[src])
-    slope = _local_slope(V)
-    return Votes(m=rh, vid=V.ids[src], u=V.u[src] + off * slope[src], w=step * D.w[rh],
-                 sign=np.sign(np.einsum("ij,ij->i", vts, D.t.take(rh, axis=0))))
+    m, vid, u, w, sign = kernels().carried(rm, rq, sub, cls_d, cls_v, V.p, V.t, V.w, V.u, V.s, V.stroke, V.ids, D.w, D.t,
+                                           step)
+    return Votes(m=m, vid=vid, u=u, w=w, sign=sign)
 
 
 def _lookback(src: Samples, camera, V: Samples, radius_px: float, min_tangent_dot: float,
