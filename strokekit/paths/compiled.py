@@ -672,6 +672,87 @@ def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt
     return m, vid, u, w, sign
 
 
+@njit(cache=True)
+def _sorted_unique(x):
+    x = np.sort(x)
+    n = 0
+    for j in range(x.shape[0]):
+        if j == 0 or x[j] != x[j - 1]:
+            x[n] = x[j]
+            n += 1
+    return x[:n].copy()
+
+
+@njit(cache=True)
+def hairpins(P, ends, i, cos_max, max_px):
+    """lines.strokeops.drop_hairpins' points kept (N,): P (N, 2) the points, ends (N,) the
+    strokes' ends, i the sorted interior points looked at (hairpin_candidates)."""
+    n = P.shape[0]
+    alive = np.ones(n, np.bool_)
+    live = np.arange(n)
+    dropped = False
+    mx2 = max_px * max_px
+    for _ in range(8):
+        m = i.shape[0]
+        if m == 0:
+            break
+        bad = np.zeros(m, np.bool_)
+        kk = np.empty(m, np.int64)
+        any_bad = False
+        for e in range(m):
+            c = i[e]
+            # Neighbours among the points still there (ends are never dropped).
+            k = np.searchsorted(live, c) if dropped else c
+            kk[e] = k
+            pv = live[k - 1]
+            nx = live[k + 1]
+            ax = P[c, 0] - P[pv, 0]
+            ay = P[c, 1] - P[pv, 1]
+            bx = P[nx, 0] - P[c, 0]
+            by = P[nx, 1] - P[c, 1]
+            la = ax * ax + ay * ay
+            lb = bx * bx + by * by
+            dot = ax * bx + ay * by
+            if min(la, lb) <= mx2 and la > 0 and lb > 0 and dot < cos_max * math.sqrt(la * lb):
+                bad[e] = True
+                any_bad = True
+        if not any_bad:
+            break
+        # Of neighbouring candidates (next to each other among the live points) the first goes;
+        # the fold can move to a neighbour of a dropped point: those are looked at too.
+        cand = np.empty(m, np.int64)
+        near = np.empty(2 * m, np.int64)
+        nc = 0
+        last_k = -2
+        for e in range(m):
+            if not bad[e]:
+                continue
+            k = kk[e]
+            if nc == 0 or k - last_k > 1:
+                cand[nc] = i[e]
+                near[2 * nc] = live[k - 1]
+                near[2 * nc + 1] = live[min(k + 1, live.shape[0] - 1)]
+                nc += 1
+            last_k = k
+        for e in range(nc):
+            alive[cand[e]] = False
+        live = np.flatnonzero(alive)
+        dropped = True
+        nxt = np.empty(m + 2 * nc, np.int64)
+        t = 0
+        for e in range(m):
+            if alive[i[e]]:
+                nxt[t] = i[e]
+                t += 1
+        for e in range(2 * nc):
+            c = near[e]
+            if alive[c] and not ends[c]:
+                nxt[t] = c
+                t += 1
+        i = _sorted_unique(nxt[:t])
+    return alive
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -688,6 +769,8 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
+             0.0, 1.0)
     carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)
     jump_order(two, np.array([1, 1]), np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]),
                10.0, 2.0)

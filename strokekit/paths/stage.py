@@ -36,7 +36,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from strokekit.lines.strokeops import CONTOUR_KINDS, cut_pieces, drop_hairpins, join_arrays, query_tree
+from strokekit.lines.strokeops import (
+    CONTOUR_KINDS,
+    cut_pieces,
+    hairpin_candidates,
+    join_arrays,
+    keep_points,
+    query_tree,
+)
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.paths.grid import SampleGrid, kernels
 from strokekit.paths.options import PathOptions
@@ -293,6 +300,16 @@ def _reverse(strokes: Strokes, which: np.ndarray) -> Strokes:
                            face=strokes.face[src], u=strokes.u[src])
 
 
+def _drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndarray) -> tuple[Strokes, np.ndarray]:
+    """drop_hairpins(strokes, angle_deg, max_px, at, return_kept=True), its loop compiled."""
+    n = len(strokes.points)
+    if n < 3 or max_px <= 0:
+        return strokes, np.ones(n, bool)
+    ends, i = hairpin_candidates(strokes, at)
+    kept = kernels().hairpins(strokes.points, ends, i, np.cos(np.radians(angle_deg)), float(max_px))
+    return (strokes if kept.all() else keep_points(strokes, kept)), kept
+
+
 def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray, angle_deg: float, tol_px: float):
     """The pieces joined into paths (group, rev, pos of tracking.joins._touching_paths): the points of
     each path in order (reversed pieces backwards; a joint point that repeats the previous one is
@@ -310,7 +327,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
                     level_weight=np.ones(len(first)), camera=pieces.camera, frame=pieces.frame,
                     period_px=pieces.period_px)
     j = joint - np.searchsorted(drop, joint)
-    paths, kept = drop_hairpins(paths, angle_deg, tol_px, at=join_arrays(j - 1, j), return_kept=True)
+    paths, kept = _drop_hairpins(paths, angle_deg, tol_px, join_arrays(j - 1, j))
     # Where each piece starts in the output (a point dropped as a repeat or a hairpin: the kept
     # point before it, or the path's first point).
     at = c0 - np.searchsorted(drop, c0, side="right")
