@@ -1,6 +1,6 @@
 """The brush path stage's compiled loops (numba): neighbour searches over a frame's samples on a
 uniform grid, in place of k-d tree queries built and run every frame. Imports numpy and numba
-only; loaded on first use by `paths.grid.kernels()` (lines-only runs never import numba),
+only; loaded on first use by `paths.kernels.kernels()` (lines-only runs never import numba),
 compiled once per machine and cached on disk (`cache=True`, no fastmath: the same results on
 every run and in every process).
 

@@ -1,33 +1,13 @@
 """Neighbours among a frame's samples on a uniform grid (`SampleGrid`): the k-d tree queries the
 brush path stage makes every frame, with the same answers, from compiled loops
-(`strokekit.paths.compiled`, imported on first use: numba's import is not paid by runs that draw
-no brush paths)."""
+(`strokekit.paths.compiled`, see `strokekit.paths.kernels`)."""
 
 from __future__ import annotations
-
-import threading
 
 import numpy as np
 
 from strokekit.lines.strokeops import query_tree
-
-#: The module of the compiled loops, imported on first use.
-KERNELS = "strokekit.paths.compiled"
-
-_kernels = None
-_lock = threading.Lock()
-
-
-def kernels():
-    """The brush path stage's compiled loops (`strokekit.paths.compiled`), imported on first use."""
-    global _kernels
-    if _kernels is None:
-        import importlib
-
-        with _lock:
-            if _kernels is None:
-                _kernels = importlib.import_module(KERNELS)
-    return _kernels
+from strokekit.paths.kernels import kernels
 
 
 class SampleGrid:

@@ -45,7 +45,8 @@ from strokekit.lines.strokeops import (
     query_tree,
 )
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
-from strokekit.paths.grid import SampleGrid, kernels
+from strokekit.paths.grid import SampleGrid
+from strokekit.paths.kernels import kernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed

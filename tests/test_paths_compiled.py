@@ -1,0 +1,153 @@
+"""The brush path stage's compiled loops (strokekit.paths.compiled) give what the numpy and k-d
+tree steps they stand in for give, to the bit, on inputs made to tie: points on a lattice (equal
+distances everywhere), repeated points, pairs exactly at the cover radius."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from strokekit.lines.strokeops import drop_hairpins, query_tree
+from strokekit.model import Strokes
+from strokekit.paths.grid import SampleGrid
+from strokekit.paths.kernels import kernels
+from strokekit.paths.stage import _drop_hairpins, _far_from_lines, _lookback, _trend, covering_samples, on_drawing
+from strokekit.sampling import Samples, match_samples
+from strokekit.tracking.joins import _touching_paths
+from strokekit.tracking.votes import _u_trend, sample_labels, segment_by_votes
+
+
+def _points(rng, n, lattice):
+    """n points in a 40 px square: on a half-pixel lattice (ties everywhere, repeats) or not."""
+    if lattice:
+        return rng.integers(0, 80, (n, 2)) * 0.5
+    return rng.random((n, 2)) * 40.0
+
+
+def _samples(rng, n, lattice):
+    p = _points(rng, n, lattice)
+    a = rng.random(n) * np.pi
+    t = np.c_[np.cos(a), np.sin(a)]
+    if lattice:  # (tangents along the axes and diagonals: dot products tie too)
+        t = np.round(t * 2) / 2
+        t /= np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
+    stroke = np.sort(rng.integers(0, max(1, n // 8), n))
+    w = np.where(rng.random(n) < 0.5, 1.0, 0.5 + rng.random(n))
+    return Samples(p=p, X=np.c_[p, np.ones(n)], u=rng.random(n) * 5, t=t, ids=np.zeros(n, np.int64), stroke=stroke,
+                   s=np.arange(n) * 1.0, w=w)
+
+
+@pytest.mark.parametrize("lattice", [False, True])
+def test_grid_queries_are_the_trees(lattice):
+    rng = np.random.default_rng(1 + lattice)
+    for _ in range(20):
+        p = _points(rng, int(rng.integers(1, 300)), lattice)
+        q = np.r_[_points(rng, 200, lattice), p[:20], [[-50.0, 3.0], [400.0, 400.0]]]
+        tree, grid = query_tree(p), SampleGrid(p, float(rng.choice([1.0, 3.0, 6.0])))
+        for k in (1, 2, 16):
+            for bound in (1.5, 3.0 + 1e-9, 6.0):
+                d0, i0 = tree.query(q, k=k, distance_upper_bound=bound)
+                d1, i1 = grid.query(q, k=k, distance_upper_bound=bound)
+                assert np.array_equal(d0, d1) and np.array_equal(i0, i1)
+                # as a set: the same neighbours, in an order of equal distances of its own
+                d2, i2 = grid.query(q, k=k, distance_upper_bound=bound, as_set=True)
+                assert np.array_equal(d0, d2)
+                assert np.array_equal(np.sort(i0.reshape(len(q), -1), axis=1), np.sort(i2.reshape(len(q), -1), axis=1))
+
+
+@pytest.mark.parametrize("lattice", [False, True])
+def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
+    rng = np.random.default_rng(3 + lattice)
+    for _ in range(20):
+        n = int(rng.integers(2, 400))
+        D = _samples(rng, n, lattice)
+        kind = rng.integers(0, 3, D.stroke.max() + 1)  # silhouette, smooth contour, crease
+        run = np.cumsum(rng.random(n) < 0.2)
+        rank = rng.permutation(run.max() + 1)
+        tree, grid = query_tree(D.p), SampleGrid(D.p, 3.0)
+        for radius in (2.0, 1.0):  # (lattice points: many pairs exactly at the radius)
+            assert np.array_equal(covering_samples(D, kind, run, rank, radius, tree),
+                                  covering_samples(D, kind, run, rank, radius, grid))
+        pa, pb = _points(rng, 30, lattice), _points(rng, 30, lattice)
+        assert np.array_equal(on_drawing(tree, pa, pb, D=D), on_drawing(grid, pa, pb, D=D))
+        q = _points(rng, 300, lattice)
+        reach = 1.0 + 0.5 * D.w.max() + 1e-9
+        near, unsure = grid.near_lines(q, D.t, D.w, 2, reach, 1.0)
+        far = _far_from_lines(tree, q, D, reach)
+        assert np.array_equal(~near[~unsure], far[~unsure])
+        # the lookback: line samples (their surface points seen by an identity-like camera) to
+        # the previous paths' samples
+        src = _samples(rng, 200, lattice)
+        cam = _Flat()
+        m0, q0 = match_samples(src, cam, D, tree, radius_px=6.0, min_tangent_dot=0.65, k=2, return_projected=True,
+                               piece_distance=True)
+        m1, q1 = _lookback(src, cam, D, 6.0, 0.65)
+        assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
+
+
+class _Flat:
+    """A camera that draws a surface point (x, y, z) at pixel (x, y)."""
+
+    is_ortho = True
+
+    def project(self, X):
+        return X[:, :2].copy(), X[:, 2].copy()
+
+
+def test_segment_runs_are_segment_by_votes():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        n = int(rng.integers(1, 300))
+        counts = rng.integers(1, 40, n // 10 + 1)
+        stroke = np.repeat(np.arange(len(counts)), counts)[:n]
+        n = len(stroke)
+        w = np.where(rng.random(n) < 0.7, 1.0, rng.random(n))
+        s = np.zeros(n)
+        for k in range(stroke.max() + 1):
+            on = stroke == k
+            s[on] = np.cumsum(w[on]) - 0.5 * w[on]
+        lengths = np.bincount(stroke, weights=w)
+        dense = Samples(p=np.zeros((n, 2)), X=np.zeros((n, 3)), u=np.zeros(n), t=np.zeros((n, 2)),
+                        ids=np.zeros(n, np.int64), stroke=stroke, s=s, w=w)
+        V = int(rng.integers(0, 2 * n))
+        vm, vid, vw = rng.integers(0, n, V), rng.integers(0, 6, V), rng.random(V).round(1)
+        for min_px in (1.5, 6.0):
+            a = segment_by_votes(dense, lengths, vm, vid, vw, min_px)
+            b = kernels().segment_runs(sample_labels(n, vm, vid, vw), stroke, s, w, lengths, min_px)
+            assert all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
+    rng = np.random.default_rng(7)
+    K = kernels()
+    for trial in range(200):
+        n = int(rng.integers(1, 300))
+        a, b = rng.integers(0, rng.integers(1, 6), n), rng.integers(0, rng.integers(1, 5), n)
+        s = np.round(rng.random(n) * 10, int(rng.integers(0, 3)))
+        s = (np.sort(s), -np.sort(-s), s)[trial % 3]  # in order, reversed, mixed; ties
+        key = a * (b.max() + 1) + b
+        assert np.array_equal(K.sort_within(key.argsort(kind="stable"), key, s), np.lexsort((s, b, a)))
+        u, label = rng.random(n).round(1), rng.integers(0, 4, a.max() + 1)
+        assert np.array_equal(_u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+    for trial in range(100):
+        S = int(rng.integers(1, 12))
+        counts = rng.integers(1, 8, S)
+        N = int(counts.sum())
+        # ends on a coarse lattice: many meet, three or more at a point
+        pts = np.cumsum(rng.normal(0, 0.6, (N, 2)), axis=0)
+        if trial % 2:
+            pts = np.round(pts)
+        st = Strokes(points=pts, surface=np.zeros((N, 3)), face=np.zeros(N, np.int64),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S), u=np.zeros(N), level=np.zeros(S), level_weight=np.ones(S), camera=None, frame=0,
+                     period_px=10.0)
+        label = rng.integers(-1, 3, S)
+        for lab in (None, label):
+            ref = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5)
+            got = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5, link=K.link_paths)
+            assert all(np.array_equal(x, y) for x, y in zip(ref, got))
+        at = rng.integers(0, N, int(rng.integers(0, N + 1)))
+        ref, kept = drop_hairpins(st, 90.0, 1.0, at=at, return_kept=True)
+        got, kept2 = _drop_hairpins(st, 90.0, 1.0, at)
+        assert np.array_equal(kept, kept2) and np.array_equal(ref.points, got.points)
+        assert np.array_equal(ref.offsets, got.offsets)
