@@ -115,7 +115,7 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     landing on the nearest new one, change nothing measurable once every line sample looks back:
     bunny M1 0.9489 either way over 48 frames.)"""
     to = o.tracking
-    V = resample_strokes(prev, to.vote_spacing_px)
+    V = resample_strokes(prev, to.vote_spacing_px, with_surface=False)  # (their surface points are not used)
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
     cls_v = _kind_class(prev.kind[V.stroke])
