@@ -11,8 +11,16 @@ from strokekit.lines.strokeops import drop_hairpins, query_tree
 from strokekit.model import Strokes
 from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
-from strokekit.paths.stage import _drop_hairpins, _far_from_lines, _lookback, _trend, covering_samples, on_drawing
-from strokekit.sampling import Samples, match_samples
+from strokekit.paths.stage import (
+    _drop_hairpins,
+    _far_from_lines,
+    _lookback,
+    _resample,
+    _trend,
+    covering_samples,
+    on_drawing,
+)
+from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths
 from strokekit.tracking.votes import _u_trend, sample_labels, segment_by_votes
 
@@ -151,3 +159,21 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
         got, kept2 = _drop_hairpins(st, 90.0, 1.0, at)
         assert np.array_equal(kept, kept2) and np.array_equal(ref.points, got.points)
         assert np.array_equal(ref.offsets, got.offsets)
+
+
+def test_resampling_is_resample_strokes():
+    rng = np.random.default_rng(9)
+    for _ in range(100):
+        S = int(rng.integers(1, 10))
+        counts = rng.integers(1, 9, S)  # (one-point strokes too)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
+        pts[rng.random(N) < 0.2] = 0.0  # (repeated points: zero-length segments)
+        st = Strokes(points=pts, surface=rng.random((N, 3)), face=np.zeros(N, np.int64),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S) + 7, u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                     frame=0, period_px=10.0)
+        for step in (1.0, 4.0, 0.3):
+            a, b = resample_strokes(st, step), _resample(st, step)
+            for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
+                assert np.array_equal(getattr(a, f), getattr(b, f)), f

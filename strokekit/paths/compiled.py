@@ -753,6 +753,85 @@ def hairpins(P, ends, i, cos_max, max_px):
     return alive
 
 
+@njit(cache=True)
+def resample_at(L, step, base, G, offsets):
+    """sampling.resample_strokes' samples, before their points are read: every stroke of lengths L
+    (S,) cut into n = max(1, ceil(L / step - 1e-9)) equal pieces, a sample at the middle of each.
+    base, G: the strokes' global arc (Strokes.global_arc); offsets (S + 1,). Returns per sample
+    its stroke, arc length s and length w (px), and the segment i -> j and fraction a (in [0, 1])
+    of the polyline where it lies."""
+    S = L.shape[0]
+    n = np.empty(S, np.int64)
+    M = 0
+    for k in range(S):
+        v = math.ceil(L[k] / step - 1e-9)
+        n[k] = int(max(1.0, v))
+        M += n[k]
+    stroke = np.empty(M, np.int64)
+    s = np.empty(M)
+    w = np.empty(M)
+    i = np.empty(M, np.int64)
+    j = np.empty(M, np.int64)
+    a = np.empty(M)
+    last_g = G.shape[0] - 1
+    m = 0
+    for k in range(S):
+        wk = L[k] / n[k]
+        first = offsets[k]
+        last = offsets[k + 1] - 1
+        for q in range(n[k]):
+            sm = (q + 0.5) * wk
+            g = sm + base[k]
+            # bracket(G, G.searchsorted(g, "right"), first, last)
+            r = np.searchsorted(G, g, side="right")
+            jj = min(max(r, first + 1), max(last, first + 1))
+            jj = min(jj, last_g)
+            ii = max(jj - 1, first)
+            if last == first:  # (one-point stroke)
+                ii = first
+                jj = first
+            gi = G[ii]
+            d = G[jj] - gi
+            f = (g - gi) / d if d > 0 else 0.0
+            f = min(max(f, 0.0), 1.0)
+            stroke[m] = k
+            s[m] = sm
+            w[m] = wk
+            i[m] = ii
+            j[m] = jj
+            a[m] = f
+            m += 1
+    return stroke, s, w, i, j, a
+
+
+@njit(cache=True)
+def resample_points(P, U, i, j, a):
+    """sampling.resample_strokes' positions (M, 2), unit tangents (M, 2) (0 on a zero-length
+    segment) and u (M,) of the samples at fraction a of the segments i -> j."""
+    M = i.shape[0]
+    p = np.empty((M, 2))
+    t = np.empty((M, 2))
+    u = np.empty(M)
+    for m in range(M):
+        ii = i[m]
+        jj = j[m]
+        f = a[m]
+        g = 1 - f
+        u[m] = U[ii] * g + U[jj] * f
+        t0 = P[jj, 0] - P[ii, 0]
+        t1 = P[jj, 1] - P[ii, 1]
+        tn = math.sqrt(t0 * t0 + t1 * t1)
+        if tn > 0:
+            t[m, 0] = t0 / tn
+            t[m, 1] = t1 / tn
+        else:
+            t[m, 0] = 0.0
+            t[m, 1] = 0.0
+        p[m, 0] = P[ii, 0] * g + P[jj, 0] * f
+        p[m, 1] = P[ii, 1] * g + P[jj, 1] * f
+    return p, t, u
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -769,6 +848,8 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
+    resample_points(p, np.zeros(3), i, j, a)
     hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
              0.0, 1.0)
     carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)

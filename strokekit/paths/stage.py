@@ -48,7 +48,7 @@ from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.options import PathOptions
-from strokekit.sampling import Samples, match_samples, resample_strokes
+from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import levels_from_slope
@@ -89,6 +89,17 @@ _COVER_DOT = 0.9
 _HAIRPIN_PX = 1.0
 
 
+def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
+    """resample_strokes(strokes, step_px, with_surface) (the same samples), its loops compiled."""
+    if len(strokes) == 0 or len(strokes.points) == 0:
+        return resample_strokes(strokes, step_px, with_surface)
+    base, G = strokes.global_arc
+    stroke, s, w, i, j, a = kernels().resample_at(strokes.lengths, float(step_px), base, G, strokes.offsets)
+    X = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
+    p, t, u = kernels().resample_points(strokes.points, strokes.u, i, j, a)
+    return Samples(p=p, X=X, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
+
+
 class Votes:
     """Votes of the previous paths on the line samples: sample index m, carried id, u, weight w
     and sign of the tangents' agreement."""
@@ -115,7 +126,7 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     landing on the nearest new one, change nothing measurable once every line sample looks back:
     bunny M1 0.9489 either way over 48 frames.)"""
     to = o.tracking
-    V = resample_strokes(prev, to.vote_spacing_px, with_surface=False)  # (their surface points are not used)
+    V = _resample(prev, to.vote_spacing_px, with_surface=False)  # (their surface points are not used)
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
     cls_v = _kind_class(prev.kind[V.stroke])
@@ -473,7 +484,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     P = lines.period_px
     to = o.tracking
     first_fresh = next_id
-    D = resample_strokes(lines, o.sample_px)
+    D = _resample(lines, o.sample_px)
     history = prev is not None and len(prev) > 0 and lines.camera is not None and prev.camera is not None
     votes = carried_votes(prev, lines, D, o) if history else Votes.none()
     # 3. Labels: runs of one carried id along the lines.
