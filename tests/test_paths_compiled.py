@@ -12,8 +12,10 @@ from strokekit.model import Strokes
 from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.stage import (
+    Votes,
     _drop_hairpins,
     _far_from_lines,
+    _labels,
     _lookback,
     _resample,
     _trend,
@@ -119,6 +121,8 @@ def test_segment_runs_are_segment_by_votes():
                         ids=np.zeros(n, np.int64), stroke=stroke, s=s, w=w)
         V = int(rng.integers(0, 2 * n))
         vm, vid, vw = rng.integers(0, n, V), rng.integers(0, 6, V), rng.random(V).round(1)
+        vw = np.where(rng.random(V) < 0.5, vw, rng.random(V))  # (sums that round to ties, and not)
+        assert np.array_equal(sample_labels(n, vm, vid, vw), _labels(n, Votes(vm, vid, np.zeros(V), vw, np.zeros(V))))
         for min_px in (1.5, 6.0):
             a = segment_by_votes(dense, lengths, vm, vid, vw, min_px)
             b = kernels().segment_runs(sample_labels(n, vm, vid, vw), stroke, s, w, lengths, min_px)

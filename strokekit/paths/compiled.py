@@ -832,6 +832,35 @@ def resample_points(P, U, i, j, a):
     return p, t, u
 
 
+@njit(cache=True)
+def vote_labels(D, o, key, M, w):
+    """tracking.votes.sample_labels: (D,) the id of most vote weight on every sample (ties: the
+    lower id; -1: no vote), from the votes' keys sample * M + id (V,) and o (V,) a stable argsort
+    of them. A key's weight is summed in vote order and rounded to 9 decimals as np.round does."""
+    label = np.full(D, -1, np.int64)
+    V = o.shape[0]
+    g0 = 0
+    best = 0.0
+    while g0 < V:
+        kg = key[o[g0]]
+        tot = 0.0
+        g1 = g0
+        while g1 < V and key[o[g1]] == kg:
+            tot += w[o[g1]]
+            g1 += 1
+        kw = np.rint(tot * 1e9) / 1e9
+        smp = kg // M
+        # keys come sorted by (sample, id): the first of a sample holding its maximum wins
+        if g0 == 0 or key[o[g0 - 1]] // M != smp:
+            label[smp] = kg % M
+            best = kw
+        elif kw > best:
+            label[smp] = kg % M
+            best = kw
+        g0 = g1
+    return label
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -848,6 +877,7 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
     st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
     resample_points(p, np.zeros(3), i, j, a)
     hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,

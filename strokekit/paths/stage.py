@@ -52,7 +52,7 @@ from strokekit.sampling import Samples, match_samples, resample_strokes, surface
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import levels_from_slope
-from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, assign_ids, sample_labels
+from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, assign_ids
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -87,6 +87,15 @@ _COVER_DOT = 0.9
 #: joint point goes when a segment beside it is at most this long (px). (Longer spurs stay: the
 #: chord that would replace them could leave the drawing by more than 1 px.)
 _HAIRPIN_PX = 1.0
+
+
+def _labels(D: int, votes: "Votes") -> np.ndarray:
+    """sample_labels(D, votes.m, votes.vid, votes.w) (the same labels), its sums compiled."""
+    if len(votes) == 0:
+        return np.full(D, -1, np.int64)
+    M = int(votes.vid.max()) + 1
+    key = votes.m.astype(np.int64) * M + votes.vid
+    return kernels().vote_labels(D, key.argsort(kind="stable"), key, M, votes.w)
 
 
 def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
@@ -489,7 +498,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     votes = carried_votes(prev, lines, D, o) if history else Votes.none()
     # 3. Labels: runs of one carried id along the lines.
     run, r_line, r_s0, r_s1, r_label = kernels().segment_runs(
-        sample_labels(len(D), votes.m, votes.vid, votes.w), D.stroke, D.s, D.w, lines.lengths, o.min_run_px)
+        _labels(len(D), votes), D.stroke, D.s, D.w, lines.lengths, o.min_run_px)
     R = len(r_line)
     r_len = r_s1 - r_s0
     # 4. Cover. Rank: the total length of the run's label, then its own length.
