@@ -13,6 +13,7 @@ from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.stage import (
     Votes,
+    _assign_ids,
     _drop_hairpins,
     _far_from_lines,
     _labels,
@@ -24,7 +25,7 @@ from strokekit.paths.stage import (
 )
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths
-from strokekit.tracking.votes import _u_trend, sample_labels, segment_by_votes
+from strokekit.tracking.votes import _u_trend, assign_ids, sample_labels, segment_by_votes
 
 
 def _points(rng, n, lattice):
@@ -181,3 +182,15 @@ def test_resampling_is_resample_strokes():
             a, b = resample_strokes(st, step), _resample(st, step)
             for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
                 assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+def test_id_assignment_is_assign_ids():
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        n = int(rng.integers(0, 40))
+        S = int(rng.integers(1, 12))
+        cs, ci = rng.integers(0, S, n), rng.integers(0, 15, n)
+        cw = np.where(rng.random(n) < 0.3, 0.0, rng.integers(1, 5, n) * 0.5)  # (ties, and weightless pairs)
+        a = assign_ids(S, cs, ci, cw, 20)
+        b = _assign_ids(S, cs, ci, cw, 20)
+        assert np.array_equal(a[0], b[0]) and a[1] == b[1]

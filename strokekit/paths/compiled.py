@@ -861,6 +861,29 @@ def vote_labels(D, o, key, M, w):
     return label
 
 
+@njit(cache=True)
+def greedy_ids(order, cs, ci, n_strokes, next_id):
+    """tracking.votes.assign_ids' pass: the (stroke cs, id ci) pairs in `order` (heaviest first),
+    each stroke and each id used once; strokes left without an id get fresh ids from next_id in
+    stroke order. Returns (ids (n_strokes,), the new next_id)."""
+    ids = np.full(n_strokes, -1, np.int64)
+    top = 0
+    for p in range(ci.shape[0]):
+        if ci[p] + 1 > top:
+            top = ci[p] + 1
+    used = np.zeros(top, np.bool_)
+    for p in order:
+        s = cs[p]
+        if ids[s] < 0 and not used[ci[p]]:
+            ids[s] = ci[p]
+            used[ci[p]] = True
+    for s in range(n_strokes):
+        if ids[s] < 0:
+            ids[s] = next_id
+            next_id += 1
+    return ids, next_id
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -877,6 +900,7 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    greedy_ids(two, two, two, 3, 5)
     vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
     st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
     resample_points(p, np.zeros(3), i, j, a)

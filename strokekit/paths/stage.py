@@ -52,7 +52,7 @@ from strokekit.sampling import Samples, match_samples, resample_strokes, surface
 from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import levels_from_slope
-from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, assign_ids
+from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -96,6 +96,17 @@ def _labels(D: int, votes: "Votes") -> np.ndarray:
     M = int(votes.vid.max()) + 1
     key = votes.m.astype(np.int64) * M + votes.vid
     return kernels().vote_labels(D, key.argsort(kind="stable"), key, M, votes.w)
+
+
+def _assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, cand_w: np.ndarray,
+                next_id: int) -> tuple[np.ndarray, int]:
+    """assign_ids(n_strokes, cand_stroke, cand_id, cand_w, next_id) (the same ids), its greedy
+    pass compiled."""
+    keep = cand_w >= 1e-12
+    cs, ci, cw = cand_stroke[keep], cand_id[keep], cand_w[keep]
+    order = np.lexsort((ci, cs, -np.round(cw, 9)))
+    ids, next_id = kernels().greedy_ids(order, cs, ci, n_strokes, next_id)
+    return ids, int(next_id)
 
 
 def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
@@ -583,7 +594,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     if len(lk):
         M = int(p_label.max()) + 1
         uk, kinv = np.unique(path_of[lk] * M + p_label[lk], return_inverse=True)
-        ids, next_id = assign_ids(S, uk // M, uk % M, np.bincount(kinv, weights=plen[lk]), next_id)
+        ids, next_id = _assign_ids(S, uk // M, uk % M, np.bincount(kinv, weights=plen[lk]), next_id)
     else:
         ids, next_id = np.arange(next_id, next_id + S, dtype=np.int64), next_id + S
     paths = paths.replace(ids=ids)
