@@ -25,6 +25,7 @@ from strokekit.paths.stage import (
 )
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths
+from strokekit.tracking.ufit import PiecewiseU
 from strokekit.tracking.votes import _u_trend, assign_ids, sample_labels, segment_by_votes
 
 
@@ -194,3 +195,17 @@ def test_id_assignment_is_assign_ids():
         a = assign_ids(S, cs, ci, cw, 20)
         b = _assign_ids(S, cs, ci, cw, 20)
         assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+
+
+def test_band_terms_are_piecewise_fits():
+    rng = np.random.default_rng(13)
+    for _ in range(50):
+        S = int(rng.integers(1, 8))
+        L = rng.random(S) * 80 + rng.integers(0, 2, S) * 0.5
+        pw = PiecewiseU(L, 16.0)
+        V = int(rng.integers(1, 200))
+        st = rng.integers(0, S, V)
+        s = rng.random(V) * L[st]
+        u, w = rng.random(V) * 4, np.where(rng.random(V) < 0.2, 0.0, rng.random(V))
+        args = (st, s, u, w, rng.random(S), rng.random(S) * 0.1, 0.1, 3e-4 * 100, 1e-3)
+        assert np.array_equal(pw.fit(*args), pw.fit(*args, band_terms=kernels().band_terms))

@@ -884,6 +884,48 @@ def greedy_ids(order, cs, ci, n_strokes, next_id):
     return ids, next_id
 
 
+@njit(cache=True)
+def band_terms(k, a, w, u, f0, f1, f2, f3):
+    """tracking.ufit.PiecewiseU.fit's banded normal equations: the votes' terms (vote i: knots
+    k[i], k[i] + 1 at fraction a[i], weight w[i], value u[i]), each summed over the votes in
+    their order, then the fixed terms' rows f0 .. f3 (the stretch, bend and anchor rows of band
+    rows 0, 1, 2 and the right-hand side) added one row after the other, as np.add.reduce over
+    the stacked rows adds them. Returns band (3, nk) and rhs (nk,)."""
+    nk = f0.shape[1]
+    band = np.zeros((3, nk))
+    rhs = np.zeros(nk)
+    b01 = np.zeros(nk)
+    rhs1 = np.zeros(nk)
+    for i in range(k.shape[0]):
+        sw = math.sqrt(w[i])
+        v0 = sw * (1 - a[i])
+        v1 = sw * a[i]
+        y = sw * u[i]
+        band[0, k[i]] += v0 * v0
+        b01[k[i] + 1] += v1 * v1
+        band[1, k[i]] += v0 * v1
+        rhs[k[i]] += v0 * y
+        rhs1[k[i] + 1] += v1 * y
+    for c in range(nk):
+        band[0, c] += b01[c]
+        rhs[c] += rhs1[c]
+    for r in range(f0.shape[0]):
+        for c in range(nk):
+            band[0, c] += f0[r, c]
+    for r in range(f1.shape[0]):
+        for c in range(nk):
+            band[1, c] += f1[r, c]
+    for c in range(nk):
+        band[2, c] = f2[0, c]
+    for r in range(1, f2.shape[0]):
+        for c in range(nk):
+            band[2, c] += f2[r, c]
+    for r in range(f3.shape[0]):
+        for c in range(nk):
+            rhs[c] += f3[r, c]
+    return band, rhs
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -900,6 +942,8 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    f = np.ones((1, 3))
+    band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)
     vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
     st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))

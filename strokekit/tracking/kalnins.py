@@ -158,14 +158,14 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
 
 
 def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray,
-          w: np.ndarray, o: TrackingOptions):
+          w: np.ndarray, o: TrackingOptions, band_terms=None):
     """u along the strokes `cur` fitted to the votes carried from `prev`: vote k lands on stroke
     st[k] at arc length s[k] (px) with u[k] (periods), carried id vid[k] and weight w[k]. Per
     stroke the votes of its primary id (most weight) set the fit, those of other ids join it
     shifted by whole periods; u is piecewise linear (knots every o.knot_spacing_px, inserted as
     points) or linear, outliers (o.outlier_px) dropped and the fit redone. Returns (cur with the
     knots inserted, u at its points, the slope du/ds per stroke, and the vote groups (stroke,
-    id, inlier weight) that assign_ids takes)."""
+    id, inlier weight) that assign_ids takes). `band_terms`: see PiecewiseU.fit."""
     P = cur.period_px
     S = len(cur)
     L = cur.lengths
@@ -215,7 +215,7 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
             # (perspective, edges of a loop growing at different rates) without sliding.
             pw = PiecewiseU(L, o.knot_spacing_px)
             for _ in range(2):
-                knots = pw.fit(st, s, u, w * inlier, a, b, b0, o.stretch_weight * P * P, o.bend_weight)
+                knots = pw.fit(st, s, u, w * inlier, a, b, b0, o.stretch_weight * P * P, o.bend_weight, band_terms)
                 inlier = (np.abs(u - pw.eval(knots, st, s)) * P <= o.outlier_px).astype(float)
         else:
             inlier = (np.abs(u - (a[st] + b[st] * s)) * P <= o.outlier_px).astype(float)
