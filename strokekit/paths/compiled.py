@@ -1,17 +1,28 @@
-"""The brush path stage's compiled loops (numba): neighbour searches over a frame's samples on a
-uniform grid, in place of k-d tree queries built and run every frame. Imports numpy and numba
-only; loaded on first use by `paths.kernels.kernels()` (lines-only runs never import numba),
-compiled once per machine and cached on disk (`cache=True`, no fastmath: the same results on
-every run and in every process).
+"""The brush path stage's compiled loops (numba): the steps of a frame that were k-d tree queries
+or chains of small numpy calls. Imports numpy and numba only; loaded on first use by
+`paths.kernels.kernels()` (runs that draw no brush paths never import numba), compiled once per
+machine and cached on disk (`cache=True`, no fastmath: the same results on every run and in every
+process).
 
-The searches give what scipy's cKDTree gives for the same points (the tree's squared distance
-dx * dx + dy * dy, its strict `<` against the squared bound), and say where they cannot: where
-two candidates tie at the same squared distance (the tree's choice then depends on its
-traversal), or a pair lies within rounding of the bound; the caller asks the tree there.
+Each gives, to the bit, what the step it stands in for gives (tests/test_paths_compiled.py): the
+same arithmetic in the same order (sums in the order numpy's bincount and add.reduce take them;
+no fused multiply-adds), the same tie rules. The neighbour searches give what scipy's cKDTree
+gives for the same points (its squared distance dx * dx + dy * dy, its strict `<` against the
+squared bound) and say where they cannot: where candidates tie at the distance that decides (the
+tree's choice then depends on its traversal) or a pair lies within rounding of the cover radius;
+the caller asks the tree there. Matrix products (surface points, projections) stay numpy's: their
+rounding depends on the BLAS kernel.
 
-* `grid_index`: the points sorted into square cells.
-* `knn`: the k nearest points within a bound of each query point.
-* `cover`: the covering sample of every line sample (paths.stage.covering_samples).
+* Neighbours on a grid of the samples: `grid_index`; `knn` (the k nearest); `match_pieces` (the
+  lookback, sampling.match_samples with piece distances); `cover` (paths.stage.covering_samples);
+  `near_lines` (the bridges' test, paths.stage.on_drawing).
+* Samples and votes: `resample_at`, `resample_points` (sampling.resample_strokes less its surface
+  points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
+  `segment_runs` (tracking.votes.segment_by_votes after the labels).
+* Paths: `link_paths` (tracking.joins._touching_paths' links and walk); `hairpins`
+  (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
+* u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
+  `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations).
 """
 
 from __future__ import annotations
@@ -143,7 +154,15 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     samples of two runs lies within PAIR_SLACK of the radius (the tree may count it either
     way: the caller asks the tree), else True."""
     r2 = radius * radius
-    for x in range(p.shape[0]):
+    # The run (-1: not a contour) and kind of every grid slot, read one after the other below.
+    n = p.shape[0]
+    run_s = np.empty(n, np.int64)
+    sk_s = np.empty(n, np.int64)
+    for s in range(n):
+        j = order[s]
+        run_s[s] = run[j] if contour[j] else -1
+        sk_s[s] = sk[j]
+    for x in range(n):
         if not contour[x]:
             continue
         px = p[x, 0]
@@ -164,11 +183,9 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
                     ddx = ps[s, 0] - px
                     ddy = ps[s, 1] - py
                     d2 = ddx * ddx + ddy * ddy
-                    if d2 > r2 + PAIR_SLACK:
+                    if d2 > r2 + PAIR_SLACK or run_s[s] < 0 or run_s[s] == run[x] or sk_s[s] != sk[x]:
                         continue
-                    y = order[s]
-                    if y == x or not contour[y] or run[y] == run[x] or sk[y] != sk[x]:
-                        continue
+                    y = order[s]  # (not x: x is of its own run)
                     if abs(d2 - r2) <= PAIR_SLACK:
                         return False
                     if d2 > r2:
