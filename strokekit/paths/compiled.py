@@ -89,7 +89,7 @@ def grid_index(p, cell):
     return x0, y0, cell, nx, ny, start, order, ps
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _window(v, v0, cell, reach, n):
     """The first and last cell along one axis a point within `reach` of v can lie in (with a
     margin for the rounding of the cell's computation)."""
@@ -207,7 +207,7 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _insert(bd, bi, cnt, d2, j):
     """(d2, j) into the sorted (by d2, then j) buffer bd, bi holding cnt entries (at most its
     size: the last one goes). Returns the new count."""
@@ -229,6 +229,64 @@ def _insert(bd, bi, cnt, d2, j):
 
 
 @njit(cache=True)
+def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, bd, bi):
+    """near_lines for one point: (near, unsure); bd, bi: buffers of size k + 8."""
+    if not (math.isfinite(qx) and math.isfinite(qy)):
+        return False, True
+    b2 = bound * bound
+    size = bd.shape[0]
+    cnt = 0
+    ax, bx = _window(qx, x0, cell, bound, nx)
+    ay, by = _window(qy, y0, cell, bound, ny)
+    for cy in range(ay, by + 1):
+        row = cy * nx
+        for cx in range(ax, bx + 1):
+            c = row + cx
+            for s in range(start[c], start[c + 1]):
+                dx = ps[s, 0] - qx
+                dy = ps[s, 1] - qy
+                d2 = dx * dx + dy * dy
+                if d2 < b2:
+                    cnt = _insert(bd, bi, cnt, d2, order[s])
+    # The tree keeps the k nearest: those nearer than the k-th for sure, then some of the
+    # samples at the k-th's distance.
+    last = bd[k - 1] if cnt >= k else np.inf
+    any_sure = False
+    n_sure = 0
+    tied_near = 0
+    tied = 0
+    for s in range(cnt):
+        j = bi[s]
+        if bd[s] > last:
+            break
+        dist = math.sqrt(bd[s])
+        along = (qx - p[j, 0]) * t[j, 0] + (qy - p[j, 1]) * t[j, 1]
+        beyond = abs(along) - 0.5 * w[j]
+        if beyond < 0.0:
+            beyond = 0.0
+        across = dist * dist - along * along
+        if across < 0.0:
+            across = 0.0
+        near = across + beyond * beyond <= limit * limit
+        if bd[s] < last:
+            n_sure += 1
+            any_sure |= near
+        else:
+            tied += 1
+            tied_near += near
+    full = cnt == size and bd[size - 1] == last  # (more samples at the k-th's distance than the buffer holds)
+    if any_sure or (tied_near > 0 and tied_near == tied):
+        return True, False
+    if tied_near > 0:
+        # Some of the tied samples are near, some not: it depends on which the tree keeps, unless
+        # it keeps them all.
+        if tied == k - n_sure and not full:
+            return True, False
+        return False, True
+    return False, full
+
+
+@njit(cache=True)
 def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, out, unsure):
     """paths.stage.on_drawing's test on the grid of the line samples p (N, 2), their tangents t
     (N, 2) and lengths w (N,): out (M,) whether each query point q (M, 2) lies within `limit` px
@@ -236,68 +294,35 @@ def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, lim
     samples tie at the k-th distance, out is what every choice among them gives; unsure (M,)
     set where the choice decides, or q is not finite). The piece of sample j: length w_j along
     t_j, centred on p_j; the distance across it from the tree's distance sqrt(d2)."""
-    b2 = bound * bound
-    lim2 = limit * limit
-    size = k + 8
-    bd = np.empty(size)
-    bi = np.empty(size, np.int64)
+    bd = np.empty(k + 8)
+    bi = np.empty(k + 8, np.int64)
     for m in range(q.shape[0]):
-        qx = q[m, 0]
-        qy = q[m, 1]
-        out[m] = False
-        if not (math.isfinite(qx) and math.isfinite(qy)):
-            unsure[m] = True
-            continue
-        cnt = 0
-        ax, bx = _window(qx, x0, cell, bound, nx)
-        ay, by = _window(qy, y0, cell, bound, ny)
-        for cy in range(ay, by + 1):
-            row = cy * nx
-            for cx in range(ax, bx + 1):
-                c = row + cx
-                for s in range(start[c], start[c + 1]):
-                    dx = ps[s, 0] - qx
-                    dy = ps[s, 1] - qy
-                    d2 = dx * dx + dy * dy
-                    if d2 < b2:
-                        cnt = _insert(bd, bi, cnt, d2, order[s])
-        # The tree keeps the k nearest: those nearer than the k-th for sure, then some of the
-        # samples at the k-th's distance.
-        last = bd[k - 1] if cnt >= k else np.inf
-        any_sure = False
-        n_sure = 0
-        tied_near = 0
-        tied = 0
-        for s in range(cnt):
-            j = bi[s]
-            if bd[s] > last:
-                break
-            dist = math.sqrt(bd[s])
-            along = (qx - p[j, 0]) * t[j, 0] + (qy - p[j, 1]) * t[j, 1]
-            beyond = abs(along) - 0.5 * w[j]
-            if beyond < 0.0:
-                beyond = 0.0
-            across = dist * dist - along * along
-            if across < 0.0:
-                across = 0.0
-            near = across + beyond * beyond <= lim2
-            if bd[s] < last:
-                n_sure += 1
-                any_sure |= near
-            else:
-                tied += 1
-                tied_near += near
-        if any_sure or (tied_near > 0 and tied_near == tied):
-            out[m] = True
-        elif tied_near > 0:
-            # Some of the tied samples are near, some not: it depends on which the tree keeps,
-            # unless it keeps them all.
-            if tied == k - n_sure and not (cnt == size and bd[size - 1] == last):
-                out[m] = True
-            else:
-                unsure[m] = True
-        elif cnt == size and bd[size - 1] == last:
-            unsure[m] = True  # (more samples at the k-th's distance than the buffer holds)
+        out[m], unsure[m] = _near_one(q[m, 0], q[m, 1], p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound,
+                                      limit, bd, bi)
+
+
+@njit(cache=True)
+def bridges(pa, pb, step, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, ok, unsure):
+    """paths.stage.on_drawing on the grid: ok (K,) whether every point of the segments pa -> pb
+    (K, 2) tested every `step` px (pa + (pb - pa) i / n, 0 < i < n, n = max(1, ceil(length /
+    step))) passes near_lines' test; unsure (K,) where one of them is unsure (ok is then
+    False)."""
+    bd = np.empty(k + 8)
+    bi = np.empty(k + 8, np.int64)
+    for e in range(pa.shape[0]):
+        dx = pb[e, 0] - pa[e, 0]
+        dy = pb[e, 1] - pa[e, 1]
+        n = int(max(1.0, math.ceil(math.sqrt(dx * dx + dy * dy) / step)))
+        good = True
+        for i in range(1, n):
+            f = i / n
+            g = 1 - f
+            near, un = _near_one(pa[e, 0] * g + pb[e, 0] * f, pa[e, 1] * g + pb[e, 1] * f, p, t, w, x0, y0, cell,
+                                 nx, ny, start, order, ps, k, bound, limit, bd, bi)
+            if un:
+                unsure[e] = True
+            good &= near
+        ok[e] = good and not unsure[e]
 
 
 @njit(cache=True)
@@ -955,6 +980,7 @@ def warmup() -> None:
     match_pieces(p[:2], t[:2], p, t, np.ones(3), *g, 2, 3.0, 0.5,
                  np.zeros(2, np.int64), np.zeros(2, np.bool_))
     segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
+    bridges(p[:2], p[1:], 0.5, p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_), np.zeros(2, np.bool_))
     near_lines(p[:2], p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_),
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)

@@ -64,3 +64,17 @@ class SampleGrid:
                              np.ascontiguousarray(w, dtype=np.float64), *self.index, k,
                              float(bound), float(limit), near, unsure)
         return near, unsure
+
+    def bridges(self, pa: np.ndarray, pb: np.ndarray, step_px: float, t: np.ndarray, w: np.ndarray, k: int,
+                bound: float, limit: float) -> tuple[np.ndarray, np.ndarray]:
+        """(ok, unsure), (K,) each: whether every point of the segments pa -> pb (K, 2), tested
+        every `step_px` (see paths.stage.on_drawing), passes near_lines' test; `unsure` where the
+        tree's choice among points at equal distances decides for one of them (ok is then False:
+        the caller asks the tree)."""
+        ok = np.zeros(len(pa), bool)
+        unsure = np.zeros(len(pa), bool)
+        kernels().bridges(np.ascontiguousarray(pa, dtype=np.float64), np.ascontiguousarray(pb, dtype=np.float64),
+                          float(step_px), self.data, np.ascontiguousarray(t, dtype=np.float64),
+                          np.ascontiguousarray(w, dtype=np.float64), *self.index, k, float(bound), float(limit), ok,
+                          unsure)
+        return ok, unsure

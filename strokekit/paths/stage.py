@@ -204,6 +204,13 @@ def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5, D: Sa
     tangents and lengths): within ON_DRAWING_PX of the lines themselves, the piece of line each
     sample stands for (a point beside a line lies up to half a sample spacing further from the
     nearest sample than from the line: bridges 0.9 px from a line were refused)."""
+    if D is not None and isinstance(tree, SampleGrid) and tree.ok:
+        reach = ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9
+        ok, unsure = tree.bridges(pa, pb, step_px, D.t, D.w, 2, reach, ON_DRAWING_PX)
+        redo = np.flatnonzero(unsure)
+        if len(redo):  # (as the tree chooses among samples at equal distances)
+            ok[redo] = on_drawing(tree.tree(), pa.take(redo, axis=0), pb.take(redo, axis=0), step_px, D)
+        return ok
     d = row_norm(pb - pa)
     n = np.maximum(1, np.ceil(d / step_px)).astype(np.int64)
     owner = np.repeat(np.arange(len(pa)), n - 1)
@@ -214,15 +221,7 @@ def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5, D: Sa
         dist, _ = tree.query(q, distance_upper_bound=ON_DRAWING_PX + 1e-9)
         far = dist > ON_DRAWING_PX
     else:
-        reach = ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9 if len(D) else ON_DRAWING_PX
-        if isinstance(tree, SampleGrid) and tree.ok:
-            near, unsure = tree.near_lines(q, D.t, D.w, 2, reach, ON_DRAWING_PX)
-            far = ~near
-            redo = np.flatnonzero(unsure)
-            if len(redo):
-                far[redo] = _far_from_lines(tree.tree(), q.take(redo, axis=0), D, reach)
-        else:
-            far = _far_from_lines(tree, q, D, reach)
+        far = _far_from_lines(tree, q, D, ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9 if len(D) else ON_DRAWING_PX)
     bad = np.bincount(owner, weights=far, minlength=len(pa))
     return bad == 0
 
