@@ -209,3 +209,49 @@ def test_band_terms_are_piecewise_fits():
         u, w = rng.random(V) * 4, np.where(rng.random(V) < 0.2, 0.0, rng.random(V))
         args = (st, s, u, w, rng.random(S), rng.random(S) * 0.1, 0.1, 3e-4 * 100, 1e-3)
         assert np.array_equal(pw.fit(*args), pw.fit(*args, band_terms=kernels().band_terms))
+
+
+def _pieces_numpy(cover, run, s, w, r_s0, r_s1, vm):
+    """brush_step's pieces and vote landing as numpy steps (the code the kernels replaced)."""
+    keep = cover < 0
+    N = len(run)
+    start = np.r_[True, (keep[1:] != keep[:-1]) | (run[1:] != run[:-1])]
+    first = np.flatnonzero(start)
+    last = np.r_[first[1:] - 1, N - 1]
+    fr = run[first]
+    head = np.r_[True, fr[1:] != fr[:-1]]
+    tail = np.r_[fr[1:] != fr[:-1], True]
+    s0 = np.where(head, r_s0[fr], s[first] - 0.5 * w[first])
+    s1 = np.where(tail, r_s1[fr], s[last] + 0.5 * w[last])
+    sel = keep[first] & ((s1 - s0 >= 1.0) | (head & tail)) & (s1 > s0)
+    p_run, p_s0, p_s1 = fr[sel], s0[sel], s1[sel]
+    smp_piece = np.searchsorted(first[sel], np.arange(N), side="right") - 1
+    smp_piece[(smp_piece < 0) | (np.arange(N) > last[sel][np.maximum(smp_piece, 0)])] = -1
+    hit = np.where(cover[vm] >= 0, cover[vm], vm)
+    vk = smp_piece[hit]
+    ok = vk >= 0
+    vk = vk[ok]
+    s_in = np.clip(s[hit[ok]] - p_s0[vk], 0.0, (p_s1 - p_s0)[vk])
+    return p_run, p_s0, p_s1, smp_piece, ok, vk, s_in
+
+
+def test_pieces_and_vote_landing_are_the_numpy_steps():
+    rng = np.random.default_rng(17)
+    K = kernels()
+    for _ in range(200):
+        N = int(rng.integers(1, 200))
+        run = np.cumsum(rng.random(N) < 0.1)
+        run -= run[0]
+        w = np.where(rng.random(N) < 0.7, 1.0, rng.random(N))
+        s = np.cumsum(w) - 0.5 * w
+        R = run.max() + 1
+        r_s0 = np.array([s[run == r][0] - 0.5 * w[run == r][0] for r in range(R)])
+        r_s1 = np.array([s[run == r][-1] + 0.5 * w[run == r][-1] for r in range(R)])
+        cover = np.where(rng.random(N) < 0.3, rng.integers(0, N, N), -1)
+        cover = np.where((cover >= 0) & (np.roll(cover, 1) >= 0) & (rng.random(N) < 0.5), -1, cover)
+        vm = rng.integers(0, N, int(rng.integers(0, 2 * N)))
+        p_run, p_s0, p_s1, smp = K.pieces_of_runs(cover, run, s, w, r_s0, r_s1, 1.0)
+        ok, vk, s_in = K.votes_landing(vm, cover, smp, s, p_s0, p_s1)
+        ref = _pieces_numpy(cover, run, s, w, r_s0, r_s1, vm)
+        for x, y in zip(ref, (p_run, p_s0, p_s1, smp, ok, vk, s_in)):
+            assert np.array_equal(x, y)

@@ -968,6 +968,69 @@ def band_terms(k, a, w, u, f0, f1, f2, f3):
     return band, rhs
 
 
+@njit(cache=True)
+def pieces_of_runs(cover, run, s, w, r_s0, r_s1, min_piece_px):
+    """paths.stage.brush_step's pieces: the stretches of samples (N,) of one run not covered
+    (cover < 0) from arc length s0 to s1 (px; a run's own ends where the stretch reaches them,
+    else halfway to the next sample), kept where at least min_piece_px long or a whole run, and
+    not empty. Returns their run, s0, s1 (P,) and the piece of every sample (N,) (-1: none)."""
+    N = run.shape[0]
+    smp_piece = np.full(N, -1, np.int64)
+    p_run = np.empty(N, np.int64)
+    p_s0 = np.empty(N)
+    p_s1 = np.empty(N)
+    P = 0
+    a = 0
+    while a < N:
+        b = a
+        while b + 1 < N and (cover[b + 1] < 0) == (cover[a] < 0) and run[b + 1] == run[a]:
+            b += 1
+        r = run[a]
+        head = a == 0 or run[a - 1] != r
+        tail = b == N - 1 or run[b + 1] != r
+        s0 = r_s0[r] if head else s[a] - 0.5 * w[a]
+        s1 = r_s1[r] if tail else s[b] + 0.5 * w[b]
+        if cover[a] < 0 and (s1 - s0 >= min_piece_px or (head and tail)) and s1 > s0:
+            p_run[P] = r
+            p_s0[P] = s0
+            p_s1[P] = s1
+            for i in range(a, b + 1):
+                smp_piece[i] = P
+            P += 1
+        a = b + 1
+    return p_run[:P].copy(), p_s0[:P].copy(), p_s1[:P].copy(), smp_piece
+
+
+@njit(cache=True)
+def votes_landing(vm, cover, smp_piece, s, p_s0, p_s1):
+    """Where every vote (on line sample vm (V,)) lands: on its sample, or where a covered sample's
+    covering sample lies; ok (V,) where that sample draws a piece, and for those (in order) the
+    piece and the arc length within it (px, clipped to the piece)."""
+    V = vm.shape[0]
+    ok = np.zeros(V, np.bool_)
+    n = 0
+    for v in range(V):
+        h = cover[vm[v]] if cover[vm[v]] >= 0 else vm[v]
+        if smp_piece[h] >= 0:
+            ok[v] = True
+            n += 1
+    vk = np.empty(n, np.int64)
+    s_in = np.empty(n)
+    n = 0
+    for v in range(V):
+        if not ok[v]:
+            continue
+        h = cover[vm[v]] if cover[vm[v]] >= 0 else vm[v]
+        k = smp_piece[h]
+        x = s[h] - p_s0[k]
+        x = max(x, 0.0)
+        x = min(x, p_s1[k] - p_s0[k])
+        vk[n] = k
+        s_in[n] = x
+        n += 1
+    return ok, vk, s_in
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -985,6 +1048,9 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
+                                   1.0)
+    votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
     f = np.ones((1, 3))
     band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)

@@ -524,18 +524,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     drawn_kind = hidden_as_one(lines.kind)
     cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_tree)
     # 5. Pieces: the uncovered parts of the runs.
-    keep = cover < 0
-    N = len(D)
-    start = join_arrays(True, (keep[1:] != keep[:-1]) | (run[1:] != run[:-1]))
-    first = np.flatnonzero(start)
-    last = join_arrays(first[1:] - 1, N - 1)
-    fr = run[first]
-    head = join_arrays(True, fr[1:] != fr[:-1])
-    tail = join_arrays(fr[1:] != fr[:-1], True)
-    s0 = np.where(head, r_s0[fr], D.s[first] - 0.5 * D.w[first])
-    s1 = np.where(tail, r_s1[fr], D.s[last] + 0.5 * D.w[last])
-    sel = keep[first] & ((s1 - s0 >= _MIN_PIECE_PX) | (head & tail)) & (s1 > s0)
-    p_run, p_s0, p_s1 = fr[sel], s0[sel], s1[sel]
+    p_run, p_s0, p_s1, smp_piece = kernels().pieces_of_runs(cover, run, D.s, D.w, r_s0, r_s1, _MIN_PIECE_PX)
     if len(p_run) == 0:
         return _empty(lines), next_id
     p_line, p_label = r_line[p_run], r_label[p_run]
@@ -560,21 +549,10 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         link_label = p_label.copy()
         link_label[lk[small[inv]]] = -1
     pieces = cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
-    # The piece of every drawn sample (-1 for covered samples and short leftovers): pieces come
-    # in sample order, a sample's piece is the last one starting at or before it.
-    p_first, p_last = first[sel], last[sel]
-    smp_piece = np.searchsorted(p_first, np.arange(N), side="right") - 1
-    smp_piece[(smp_piece < 0) | (np.arange(N) > p_last[np.maximum(smp_piece, 0)])] = -1
     plen = p_s1 - p_s0
     # Where every vote lands: its piece and arc length within it (on a covered sample, where the
     # covering sample lies).
-    vm = votes.m
-    hit = np.where(cover[vm] >= 0, cover[vm], vm)
-    vk = smp_piece[hit]
-    ok = vk >= 0
-    vk = vk[ok]
-    s_line = D.s[hit[ok]]
-    s_in = np.clip(s_line - p_s0[vk], 0.0, plen[vk])
+    ok, vk, s_in = kernels().votes_landing(votes.m, cover, smp_piece, D.s, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
     group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
