@@ -255,3 +255,29 @@ def test_pieces_and_vote_landing_are_the_numpy_steps():
         ref = _pieces_numpy(cover, run, s, w, r_s0, r_s1, vm)
         for x, y in zip(ref, (p_run, p_s0, p_s1, smp, ok, vk, s_in)):
             assert np.array_equal(x, y)
+
+
+def test_u_fit_is_the_numpy_one():
+    from strokekit.paths.options import path_tracking
+    from strokekit.tracking.kalnins import fit_u
+
+    rng = np.random.default_rng(19)
+    for _ in range(40):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(2, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 8.0, (N, 2)), axis=0)
+        cur = Strokes(points=pts, surface=rng.random((N, 3)), face=np.zeros(N, np.int64),
+                      offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                      ids=np.arange(S), u=np.zeros(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                      frame=0, period_px=10.0)
+        V = int(rng.integers(1, 150))
+        st = rng.integers(0, S, V)
+        s = rng.random(V) * cur.lengths[st]
+        u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, S, V), rng.random(V)
+        for o in (path_tracking(), path_tracking().__class__(knot_spacing_px=0.0)):
+            ref = fit_u(cur, cur, st, s, u, vid, w, o)
+            got = fit_u(cur, cur, st, s, u, vid, w, o, compiled=kernels())
+            assert np.array_equal(ref[0].points, got[0].points)
+            for x, y in zip((ref[1], ref[2], *ref[3]), (got[1], got[2], *got[3])):
+                assert np.array_equal(x, y)

@@ -22,7 +22,8 @@ rounding depends on the BLAS kernel.
 * Paths: `link_paths` (tracking.joins._touching_paths' links and walk); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
-  `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations).
+  `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
+  fit).
 """
 
 from __future__ import annotations
@@ -1031,6 +1032,45 @@ def votes_landing(vm, cover, smp_piece, s, p_s0, p_s1):
     return ok, vk, s_in
 
 
+@njit(cache=True)
+def line_fit(st, s, u, w, mask, lam, b0):
+    """tracking.kalnins.fit_u's linear fit u = a + b s per stroke (S = lam.shape[0]) of the votes
+    st, s, u weighted w * mask (sums in vote order, as np.bincount takes them), with the prior
+    lam (b - b0)^2 on the slope. Returns a, b (b0 where the fit is singular), ok (S,)."""
+    S = lam.shape[0]
+    S0 = np.zeros(S)
+    S1 = np.zeros(S)
+    S2 = np.zeros(S)
+    T0 = np.zeros(S)
+    T1 = np.zeros(S)
+    for i in range(st.shape[0]):
+        k = st[i]
+        wm = w[i] * mask[i]
+        ws = wm * s[i]
+        S0[k] += wm
+        S1[k] += ws
+        S2[k] += ws * s[i]
+        T0[k] += wm * u[i]
+        T1[k] += ws * u[i]
+    a = np.zeros(S)
+    b = np.empty(S)
+    ok = np.zeros(S, np.bool_)
+    for k in range(S):
+        A11 = S0[k]
+        A12 = S1[k]
+        A22 = S2[k] + lam[k]
+        R1 = T0[k]
+        R2 = T1[k] + lam[k] * b0
+        det = A11 * A22 - A12 * A12
+        ok[k] = S0[k] > 0 and det > 1e-12 * max(A11 * A22, 1e-300)
+        if ok[k]:
+            a[k] = (R1 * A22 - A12 * R2) / det
+            b[k] = (A11 * R2 - A12 * R1) / det
+        else:
+            b[k] = b0
+    return a, b, ok
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -1048,6 +1088,7 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    line_fit(two, np.ones(2), np.ones(2), np.ones(2), np.ones(2), np.ones(2), 0.1)
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)

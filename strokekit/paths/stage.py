@@ -602,7 +602,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             shift = np.zeros(S)
             shift[which] = seam
             vs = np.mod(vs - shift[vst], np.where(L > 0, L, 1.0)[vst])
-    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to, band_terms=kernels().band_terms)
+    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to, compiled=kernels())
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
