@@ -16,6 +16,8 @@ from strokekit.paths.stage import (
     _assign_ids,
     _drop_hairpins,
     _far_from_lines,
+    _FitKernels,
+    _insert_points,
     _labels,
     _lookback,
     _resample,
@@ -277,7 +279,33 @@ def test_u_fit_is_the_numpy_one():
         u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, S, V), rng.random(V)
         for o in (path_tracking(), path_tracking().__class__(knot_spacing_px=0.0)):
             ref = fit_u(cur, cur, st, s, u, vid, w, o)
-            got = fit_u(cur, cur, st, s, u, vid, w, o, compiled=kernels())
+            got = fit_u(cur, cur, st, s, u, vid, w, o, compiled=_FitKernels(kernels()))
             assert np.array_equal(ref[0].points, got[0].points)
             for x, y in zip((ref[1], ref[2], *ref[3]), (got[1], got[2], *got[3])):
                 assert np.array_equal(x, y)
+
+
+def test_inserted_points_are_insert_points():
+    from strokekit.tracking.joins import insert_points
+
+    rng = np.random.default_rng(23)
+    for trial in range(100):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(1, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
+        pts[rng.random(N) < 0.2] = 0.0  # (zero-length segments)
+        st = Strokes(points=pts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S), u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                     frame=0, period_px=10.0)
+        K = int(rng.integers(0, 20))
+        stroke = rng.integers(0, S, K)
+        s = rng.random(K) * st.lengths[stroke]
+        s = np.where(rng.random(K) < 0.2, np.minimum(np.round(s), st.lengths[stroke]), s)  # (on points, ties)
+        if trial % 3:  # (in order along the strokes, as the knots come; else not)
+            o = np.lexsort((s, stroke))
+            stroke, s = stroke[o], s[o]
+        a, b = insert_points(st, stroke, s), _insert_points(st, stroke, s)
+        for f in ("points", "surface", "face", "u", "offsets"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f

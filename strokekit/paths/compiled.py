@@ -23,7 +23,7 @@ rounding depends on the BLAS kernel.
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
-  fit).
+  fit), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made points).
 """
 
 from __future__ import annotations
@@ -1071,6 +1071,101 @@ def line_fit(st, s, u, w, mask, lam, b0):
     return a, b, ok
 
 
+@njit(cache=True)
+def insert_at(base, G, offsets, stroke, s):
+    """tracking.joins.insert_points' new points: at arc length s (px) of strokes `stroke`, the
+    segment i -> j and fraction a holding it, its global arc g; points within 1e-6 px of an
+    existing point (or on a zero-length segment) left out. Returns i, j, a, g, stroke (kept)."""
+    K = stroke.shape[0]
+    last_g = G.shape[0] - 1
+    ii = np.empty(K, np.int64)
+    jj = np.empty(K, np.int64)
+    aa = np.empty(K)
+    gg = np.empty(K)
+    ss = np.empty(K, np.int64)
+    n = 0
+    for k in range(K):
+        st = stroke[k]
+        g = base[st] + s[k]
+        first = offsets[st]
+        last = offsets[st + 1] - 1
+        r = np.searchsorted(G, g, side="right")
+        j = min(max(r, first + 1), max(last, first + 1))
+        j = min(j, last_g)
+        i = max(j - 1, first)
+        gi = G[i]
+        gj = G[j]
+        if gj - gi > 0 and g - gi > 1e-6 and gj - g > 1e-6:
+            ii[n] = i
+            jj[n] = j
+            aa[n] = (g - gi) / (gj - gi)
+            gg[n] = g
+            ss[n] = st
+            n += 1
+    return ii[:n].copy(), jj[:n].copy(), aa[:n].copy(), gg[:n].copy(), ss[:n].copy()
+
+
+@njit(cache=True)
+def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
+    """tracking.joins.insert_points' strokes: the points P, X, F, U (N) with the new ones
+    (interpolated at fraction a of segments i -> j; surface points Xn) merged in by global arc
+    (G (N,) increasing; g (K,) non-decreasing: an old point before a new one at the same
+    place). Returns (in order, P, X, F, U, offsets); in order False (and nothing merged) where g
+    is not in order."""
+    N = G.shape[0]
+    K = g.shape[0]
+    for k in range(1, K):
+        if g[k] < g[k - 1]:
+            return False, P[:0], X[:0], F[:0], U[:0], offsets[:0]
+    M = N + K
+    P2 = np.empty((M, 2))
+    X2 = np.empty((M, 3))
+    F2 = np.empty(M, F.dtype)
+    U2 = np.empty(M)
+    m = 0
+    k = 0
+    for q in range(N):
+        while k < K and g[k] < G[q]:
+            f = a[k]
+            P2[m, 0] = P[i[k], 0] * (1 - f) + P[j[k], 0] * f
+            P2[m, 1] = P[i[k], 1] * (1 - f) + P[j[k], 1] * f
+            X2[m, 0] = Xn[k, 0]
+            X2[m, 1] = Xn[k, 1]
+            X2[m, 2] = Xn[k, 2]
+            F2[m] = F[i[k]] if f < 0.5 else F[j[k]]
+            U2[m] = U[i[k]] * (1 - f) + U[j[k]] * f
+            m += 1
+            k += 1
+        P2[m, 0] = P[q, 0]
+        P2[m, 1] = P[q, 1]
+        X2[m, 0] = X[q, 0]
+        X2[m, 1] = X[q, 1]
+        X2[m, 2] = X[q, 2]
+        F2[m] = F[q]
+        U2[m] = U[q]
+        m += 1
+    while k < K:
+        f = a[k]
+        P2[m, 0] = P[i[k], 0] * (1 - f) + P[j[k], 0] * f
+        P2[m, 1] = P[i[k], 1] * (1 - f) + P[j[k], 1] * f
+        X2[m, 0] = Xn[k, 0]
+        X2[m, 1] = Xn[k, 1]
+        X2[m, 2] = Xn[k, 2]
+        F2[m] = F[i[k]] if f < 0.5 else F[j[k]]
+        U2[m] = U[i[k]] * (1 - f) + U[j[k]] * f
+        m += 1
+        k += 1
+    S = offsets.shape[0] - 1
+    off = np.empty(S + 1, np.int64)
+    off[0] = 0
+    extra = np.zeros(S, np.int64)
+    for k in range(K):
+        extra[stroke[k]] += 1
+    for t in range(S):
+        off[t + 1] = off[t] + (offsets[t + 1] - offsets[t]) + extra[t]
+    return True, P2, X2, F2, U2, off
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -1088,6 +1183,9 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    G3 = np.array([0.0, 1.0, 2.0])
+    i1, j1, a1, g1, s1 = insert_at(np.zeros(1), G3, np.array([0, 3]), np.array([0]), np.array([0.5]))
+    insert_merge(p, np.zeros((3, 3)), i3, np.zeros(3), G3, np.array([0, 3]), i1, j1, a1, g1, s1, np.zeros((1, 3)))
     line_fit(two, np.ones(2), np.ones(2), np.ones(2), np.ones(2), np.ones(2), 0.1)
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)

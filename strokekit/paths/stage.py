@@ -49,7 +49,7 @@ from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
-from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
+from strokekit.tracking.joins import _touching_paths, gather_paths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import levels_from_slope
 from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
@@ -107,6 +107,31 @@ def _assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, ca
     order = np.lexsort((ci, cs, -np.round(cw, 9)))
     ids, next_id = kernels().greedy_ids(order, cs, ci, n_strokes, next_id)
     return ids, int(next_id)
+
+
+def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
+    """insert_points(strokes, stroke, s) (the same strokes), its loops compiled."""
+    if len(stroke) == 0:
+        return strokes
+    K = kernels()
+    base, G = strokes.global_arc
+    i, j, a, g, st = K.insert_at(base, G, strokes.offsets, np.asarray(stroke, np.int64), np.asarray(s, float))
+    if len(i) == 0:
+        return strokes
+    Xn = surface_between(strokes, i, j, a)
+    ok, P, X, F, U, off = K.insert_merge(strokes.points, strokes.surface, strokes.face, strokes.u, G,
+                                         strokes.offsets, i, j, a, g, st, Xn)
+    if not ok:
+        return insert_points(strokes, stroke, s)
+    return strokes.replace(points=P, surface=X, face=F, u=U, offsets=off)
+
+
+class _FitKernels:
+    """fit_u's compiled steps (its `compiled`): the linear fit, the piecewise fit's sums and the
+    knots made points."""
+
+    def __init__(self, K):
+        self.line_fit, self.band_terms, self.insert_points = K.line_fit, K.band_terms, _insert_points
 
 
 def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
@@ -602,7 +627,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             shift = np.zeros(S)
             shift[which] = seam
             vs = np.mod(vs - shift[vst], np.where(L > 0, L, 1.0)[vst])
-    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to, compiled=kernels())
+    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to, compiled=_FitKernels(kernels()))
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)

@@ -165,9 +165,9 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
     shifted by whole periods; u is piecewise linear (knots every o.knot_spacing_px, inserted as
     points) or linear, outliers (o.outlier_px) dropped and the fit redone. Returns (cur with the
     knots inserted, u at its points, the slope du/ds per stroke, and the vote groups (stroke,
-    id, inlier weight) that assign_ids takes). `compiled`: another implementation of the linear fit
-    (`line_fit`) and of the piecewise fit's sums (`band_terms`, see PiecewiseU.fit), the brush
-    path stage's compiled one."""
+    id, inlier weight) that assign_ids takes). `compiled`: other implementations of the linear fit
+    (`line_fit`), of the piecewise fit's sums (`band_terms`, see PiecewiseU.fit) and of
+    insert_points (`insert_points`): the brush path stage's compiled ones."""
     P = cur.period_px
     S = len(cur)
     L = cur.lengths
@@ -236,7 +236,8 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
     sop = cur.stroke_of_point
     if len(st) and o.knot_spacing_px > 0:
         # u is interpolated linearly between points downstream: give it the knots as points.
-        cur = insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
+        cur = (insert_points if compiled is None else compiled.insert_points)(cur, pw.inner_knot_stroke(),
+                                                                              pw.inner_knot_s())
         sop = cur.stroke_of_point
         u_new = pw.eval(knots, sop, cur.arc_length)
         b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
