@@ -163,8 +163,9 @@ def keep_points(strokes: Strokes, alive: np.ndarray) -> Strokes:
     gone = np.flatnonzero(~alive)
     counts = np.diff(strokes.offsets) - np.bincount(np.searchsorted(strokes.offsets, gone, side="right") - 1,
                                                     minlength=len(strokes))
-    return replace(strokes, points=strokes.points[alive], surface=strokes.surface[alive], face=strokes.face[alive],
-                   u=None if strokes.u is None else strokes.u[alive],
+    kept = np.flatnonzero(alive)  # (take: a boolean mask over (N, 2) rows is ~4x slower, same values)
+    return replace(strokes, points=strokes.points.take(kept, axis=0), surface=strokes.surface.take(kept, axis=0),
+                   face=strokes.face.take(kept), u=None if strokes.u is None else strokes.u.take(kept),
                    offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
 
 

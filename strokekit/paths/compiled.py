@@ -1166,6 +1166,26 @@ def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
     return True, P2, X2, F2, U2, off
 
 
+@njit(cache=True)
+def hairpin_points(P, offsets, at, cos_max, max_px):
+    """lines.strokeops.drop_hairpins' points kept (N,), from the strokes' offsets (S + 1,) and the
+    points looked at `at` (hairpin_candidates' ends and interior points, then hairpins)."""
+    n = P.shape[0]
+    ends = np.zeros(n, np.bool_)
+    for k in range(offsets.shape[0] - 1):
+        if offsets[k + 1] > offsets[k]:  # (an empty stroke has no ends)
+            ends[offsets[k]] = True
+            ends[offsets[k + 1] - 1] = True
+    i = _sorted_unique(at)
+    m = 0
+    for e in range(i.shape[0]):
+        c = i[e]
+        if c > 0 and c < n - 1 and not ends[c]:
+            i[m] = c
+            m += 1
+    return hairpins(P, ends, i[:m].copy(), cos_max, max_px)
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -1183,6 +1203,7 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    hairpin_points(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([0, 4]), two + 1, 0.0, 1.0)
     G3 = np.array([0.0, 1.0, 2.0])
     i1, j1, a1, g1, s1 = insert_at(np.zeros(1), G3, np.array([0, 3]), np.array([0]), np.array([0.5]))
     insert_merge(p, np.zeros((3, 3)), i3, np.zeros(3), G3, np.array([0, 3]), i1, j1, a1, g1, s1, np.zeros((1, 3)))

@@ -39,7 +39,6 @@ import numpy as np
 from strokekit.lines.strokeops import (
     CONTOUR_KINDS,
     cut_pieces,
-    hairpin_candidates,
     join_arrays,
     keep_points,
     query_tree,
@@ -361,8 +360,8 @@ def _drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.nda
     n = len(strokes.points)
     if n < 3 or max_px <= 0:
         return strokes, np.ones(n, bool)
-    ends, i = hairpin_candidates(strokes, at)
-    kept = kernels().hairpins(strokes.points, ends, i, np.cos(np.radians(angle_deg)), float(max_px))
+    kept = kernels().hairpin_points(strokes.points, strokes.offsets, np.asarray(at, np.int64),
+                                    np.cos(np.radians(angle_deg)), float(max_px))
     return (strokes if kept.all() else keep_points(strokes, kept)), kept
 
 
