@@ -14,6 +14,7 @@ from strokekit.paths.kernels import kernels
 from strokekit.paths.stage import (
     Votes,
     _assign_ids,
+    _cut_pieces,
     _drop_hairpins,
     _far_from_lines,
     _FitKernels,
@@ -308,4 +309,28 @@ def test_inserted_points_are_insert_points():
             stroke, s = stroke[o], s[o]
         a, b = insert_points(st, stroke, s), _insert_points(st, stroke, s)
         for f in ("points", "surface", "face", "u", "offsets"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+def test_cut_pieces_are_cut_pieces():
+    from strokekit.lines.strokeops import cut_pieces
+
+    rng = np.random.default_rng(29)
+    for _ in range(100):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(2, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
+        pts[rng.random(N) < 0.15] = 0.0  # (zero-length segments)
+        st = Strokes(points=pts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S), u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                     frame=0, period_px=10.0)
+        K = int(rng.integers(0, 12))
+        stroke = rng.integers(0, S, K)
+        L = st.lengths[stroke]
+        s0 = np.where(rng.random(K) < 0.3, 0.0, rng.random(K) * L * 0.5)
+        s1 = np.where(rng.random(K) < 0.3, L, s0 + rng.random(K) * (L - s0))
+        a, b = cut_pieces(st, stroke, s0, s1), _cut_pieces(st, stroke, s0, s1)
+        for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
             assert np.array_equal(getattr(a, f), getattr(b, f)), f

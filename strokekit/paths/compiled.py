@@ -24,6 +24,7 @@ rounding depends on the BLAS kernel.
 * u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
   fit), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made points).
+* Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
 """
 
 from __future__ import annotations
@@ -1186,6 +1187,81 @@ def hairpin_points(P, offsets, at, cos_max, max_px):
     return hairpins(P, ends, i[:m].copy(), cos_max, max_px)
 
 
+@njit(cache=True)
+def cut_ends(G, base, offsets, stroke, s0, s1):
+    """lines.strokeops.cut_pieces' bookkeeping: for every piece k (stroke[k] from arc length s0[k]
+    to s1[k], px) its first interior original point lo and their count n_in (G strictly inside),
+    and the segments i -> j and fractions a of its two ends (2K: the starts, then the ends)."""
+    K = stroke.shape[0]
+    last_g = G.shape[0] - 1
+    lo = np.empty(K, np.int64)
+    n_in = np.empty(K, np.int64)
+    i = np.empty(2 * K, np.int64)
+    j = np.empty(2 * K, np.int64)
+    a = np.empty(2 * K)
+    for k in range(K):
+        st = stroke[k]
+        first = offsets[st]
+        last = offsets[st + 1] - 1
+        for e in range(2):
+            g = base[st] + (s0[k] if e == 0 else s1[k])
+            r = np.searchsorted(G, g, side="right")
+            if e == 0:
+                lo[k] = max(r, first)
+            else:
+                hi = min(np.searchsorted(G, g, side="left"), last + 1)
+                n_in[k] = max(hi - lo[k], 0)
+            jj = min(max(r, first + 1), max(last, first + 1))
+            jj = min(jj, last_g)
+            ii = max(jj - 1, first)
+            gi = G[ii]
+            d = G[jj] - gi
+            f = (g - gi) / d if d > 0 else 0.0
+            m = k + e * K
+            i[m] = ii
+            j[m] = jj
+            a[m] = min(max(f, 0.0), 1.0)
+    return lo, n_in, i, j, a
+
+
+@njit(cache=True)
+def cut_assemble(P, X, F, lo, n_in, i, j, a, Xe):
+    """cut_pieces' points (not reversed): each piece's interpolated start, its interior original
+    points, its interpolated end; Xe (2K, 3) the ends' surface points. Returns points, surface,
+    face and offsets."""
+    K = lo.shape[0]
+    off = np.empty(K + 1, np.int64)
+    off[0] = 0
+    for k in range(K):
+        off[k + 1] = off[k] + n_in[k] + 2
+    N = off[K]
+    p = np.empty((N, 2))
+    x = np.empty((N, 3))
+    fc = np.empty(N, F.dtype)
+    for k in range(K):
+        t = off[k]
+        for e in range(2):
+            m = k + e * K
+            q = t if e == 0 else off[k + 1] - 1
+            f = a[m]
+            p[q, 0] = P[i[m], 0] * (1 - f) + P[j[m], 0] * f
+            p[q, 1] = P[i[m], 1] * (1 - f) + P[j[m], 1] * f
+            x[q, 0] = Xe[m, 0]
+            x[q, 1] = Xe[m, 1]
+            x[q, 2] = Xe[m, 2]
+            fc[q] = F[i[m]] if f < 0.5 else F[j[m]]
+        for c in range(n_in[k]):
+            src = lo[k] + c
+            q = t + 1 + c
+            p[q, 0] = P[src, 0]
+            p[q, 1] = P[src, 1]
+            x[q, 0] = X[src, 0]
+            x[q, 1] = X[src, 1]
+            x[q, 2] = X[src, 2]
+            fc[q] = F[src]
+    return p, x, fc, off
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
@@ -1203,6 +1279,9 @@ def warmup() -> None:
                np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
+    lo, n_in, ci, cj, ca = cut_ends(np.array([0.0, 1.0, 2.0, 4.0]), np.array([0.0, 4.0]), np.array([0, 3, 4]), two,
+                                    np.array([0.5, 0.0]), np.array([1.5, 0.0]))
+    cut_assemble(np.zeros((4, 2)), np.zeros((4, 3)), np.zeros(4, np.int64), lo, n_in, ci, cj, ca, np.zeros((4, 3)))
     hairpin_points(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([0, 4]), two + 1, 0.0, 1.0)
     G3 = np.array([0.0, 1.0, 2.0])
     i1, j1, a1, g1, s1 = insert_at(np.zeros(1), G3, np.array([0, 3]), np.array([0]), np.array([0.5]))

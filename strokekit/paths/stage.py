@@ -133,6 +133,23 @@ class _FitKernels:
         self.line_fit, self.band_terms, self.insert_points = K.line_fit, K.band_terms, _insert_points
 
 
+def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> Strokes:
+    """cut_pieces(strokes, stroke, s0, s1) (the same pieces), its loops compiled."""
+    K = len(stroke)
+    if K < 2:  # (cut_pieces finds a single piece's surface points one end at a time)
+        return cut_pieces(strokes, stroke, s0, s1)
+    base, G = strokes.global_arc
+    stroke = np.asarray(stroke, np.int64)
+    lo, n_in, i, j, a = kernels().cut_ends(G, base, strokes.offsets, stroke, np.asarray(s0, float),
+                                           np.asarray(s1, float))
+    Xe = surface_between(strokes, i, j, a)  # (both ends in one batch, as cut_pieces takes them)
+    p, x, f, off = kernels().cut_assemble(strokes.points, strokes.surface, strokes.face, lo, n_in, i, j, a, Xe)
+    out = Strokes(points=p, surface=x, face=f, offsets=off, kind=strokes.kind[stroke], ids=np.arange(K, dtype=np.int64),
+                  u=None, level=strokes.level[stroke], level_weight=strokes.level_weight[stroke],
+                  camera=strokes.camera, frame=strokes.frame, period_px=strokes.period_px)
+    return out.replace(u=out.arc_length / out.period_px)
+
+
 def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
     """resample_strokes(strokes, step_px, with_surface) (the same samples), its loops compiled."""
     if len(strokes) == 0 or len(strokes.points) == 0:
@@ -572,7 +589,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             small &= was < o.merge_px
         link_label = p_label.copy()
         link_label[lk[small[inv]]] = -1
-    pieces = cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
+    pieces = _cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
     plen = p_s1 - p_s0
     # Where every vote lands: its piece and arc length within it (on a covered sample, where the
     # covering sample lies).
