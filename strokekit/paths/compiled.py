@@ -345,6 +345,8 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
         s0 = st[m, 0]
         s1 = st[m, 1]
         cnt = 0
+        e0 = e1 = e2 = np.inf
+        j0 = j1 = j2 = -1
         ax, bx = _window(qx, x0, cell, bound, nx)
         ay, by = _window(qy, y0, cell, bound, ny)
         for cy in range(ay, by + 1):
@@ -355,8 +357,29 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
                     dx = ps[s, 0] - qx
                     dy = ps[s, 1] - qy
                     d2 = dx * dx + dy * dy
-                    if d2 < b2:
+                    if not d2 < b2:
+                        continue
+                    if k != 2:
                         cnt = _insert(bd, bi, cnt, d2, order[s])
+                        continue
+                    # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
+                    j = order[s]
+                    if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
+                        continue
+                    cnt = min(cnt + 1, 3)
+                    if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
+                        e2, j2 = e1, j1
+                        if d2 < e0 or (d2 == e0 and j < j0):
+                            e1, j1 = e0, j0
+                            e0, j0 = d2, j
+                        else:
+                            e1, j1 = d2, j
+                    elif cnt >= 2:
+                        e2, j2 = d2, j
+                    elif cnt == 1:
+                        e0, j0 = d2, j
+        if k == 2:
+            bd[0], bi[0], bd[1], bi[1], bd[2], bi[2] = e0, j0, e1, j1, e2, j2
         for s in range(cnt - 1):
             if bd[s] == bd[s + 1]:
                 unsure[m] = True
