@@ -15,7 +15,7 @@ rounding depends on the BLAS kernel.
 
 * Neighbours on a grid of the samples: `grid_index`; `knn` (the k nearest); `match_pieces` (the
   lookback, sampling.match_samples with piece distances); `cover` (paths.stage.covering_samples);
-  `near_lines` (the bridges' test, paths.stage.on_drawing).
+  `bridges` (paths.stage.on_drawing).
 * Samples and votes: `resample_at`, `resample_points` (sampling.resample_strokes less its surface
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
@@ -232,7 +232,13 @@ def _insert(bd, bi, cnt, d2, j):
 
 @njit(cache=True)
 def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, bd, bi):
-    """near_lines for one point: (near, unsure); bd, bi: buffers of size k + 8."""
+    """paths.stage.on_drawing's test of one point (qx, qy) on the grid of the line samples p (N,
+    2), their tangents t (N, 2) and lengths w (N,): (near, unsure), whether it lies within
+    `limit` px of the piece of line of one of its k nearest samples within `bound`, as the tree's
+    k nearest give it (where samples tie at the k-th distance: what every choice among them
+    gives; unsure where the choice decides, or the point is not finite). The piece of sample j:
+    length w_j along t_j, centred on p_j; the distance across it from the tree's distance
+    sqrt(d2). bd, bi: buffers of size k + 8."""
     if not (math.isfinite(qx) and math.isfinite(qy)):
         return False, True
     b2 = bound * bound
@@ -289,25 +295,10 @@ def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound,
 
 
 @njit(cache=True)
-def near_lines(q, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, out, unsure):
-    """paths.stage.on_drawing's test on the grid of the line samples p (N, 2), their tangents t
-    (N, 2) and lengths w (N,): out (M,) whether each query point q (M, 2) lies within `limit` px
-    of the piece of line of one of its k nearest samples within `bound` (the tree's k: where
-    samples tie at the k-th distance, out is what every choice among them gives; unsure (M,)
-    set where the choice decides, or q is not finite). The piece of sample j: length w_j along
-    t_j, centred on p_j; the distance across it from the tree's distance sqrt(d2)."""
-    bd = np.empty(k + 8)
-    bi = np.empty(k + 8, np.int64)
-    for m in range(q.shape[0]):
-        out[m], unsure[m] = _near_one(q[m, 0], q[m, 1], p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound,
-                                      limit, bd, bi)
-
-
-@njit(cache=True)
 def bridges(pa, pb, step, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, ok, unsure):
     """paths.stage.on_drawing on the grid: ok (K,) whether every point of the segments pa -> pb
     (K, 2) tested every `step` px (pa + (pb - pa) i / n, 0 < i < n, n = max(1, ceil(length /
-    step))) passes near_lines' test; unsure (K,) where one of them is unsure (ok is then
+    step))) passes _near_one's test; unsure (K,) where one of them is unsure (ok is then
     False)."""
     bd = np.empty(k + 8)
     bi = np.empty(k + 8, np.int64)
@@ -1298,8 +1289,6 @@ def warmup() -> None:
                  np.zeros(2, np.int64), np.zeros(2, np.bool_))
     segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
     bridges(p[:2], p[1:], 0.5, p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_), np.zeros(2, np.bool_))
-    near_lines(p[:2], p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_),
-               np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
     two = np.array([0, 1])
     lo, n_in, ci, cj, ca = cut_ends(np.array([0.0, 1.0, 2.0, 4.0]), np.array([0.0, 4.0]), np.array([0, 3, 4]), two,

@@ -51,24 +51,10 @@ class SampleGrid:
             idx[redo] = it.reshape(len(redo), k)
         return (dist[:, 0], idx[:, 0]) if k == 1 else (dist, idx)
 
-    def near_lines(self, q: np.ndarray, t: np.ndarray, w: np.ndarray, k: int, bound: float,
-                   limit: float) -> tuple[np.ndarray, np.ndarray]:
-        """(near, unsure), (M,) each: whether each point q (M, 2) lies within `limit` px of the
-        piece of line (length w (N,) along t (N, 2), centred on the point) of one of its k nearest
-        points within `bound`, as the tree's k nearest give it; `unsure` where the tree's choice
-        among points at equal distances decides (near is then False: the caller asks the tree)."""
-        q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, 2)
-        near = np.zeros(len(q), bool)
-        unsure = np.zeros(len(q), bool)
-        kernels().near_lines(q, self.data, np.ascontiguousarray(t, dtype=np.float64),
-                             np.ascontiguousarray(w, dtype=np.float64), *self.index, k,
-                             float(bound), float(limit), near, unsure)
-        return near, unsure
-
     def bridges(self, pa: np.ndarray, pb: np.ndarray, step_px: float, t: np.ndarray, w: np.ndarray, k: int,
                 bound: float, limit: float) -> tuple[np.ndarray, np.ndarray]:
         """(ok, unsure), (K,) each: whether every point of the segments pa -> pb (K, 2), tested
-        every `step_px` (see paths.stage.on_drawing), passes near_lines' test; `unsure` where the
+        every `step_px` (see paths.stage.on_drawing), passes its test (paths.compiled._near_one); `unsure` where the
         tree's choice among points at equal distances decides for one of them (ok is then False:
         the caller asks the tree)."""
         ok = np.zeros(len(pa), bool)

@@ -221,7 +221,8 @@ def _lookback(src: Samples, camera, V: Samples, radius_px: float, min_tangent_do
         m = np.empty(len(qq), np.int64)
         unsure = np.zeros(len(qq), bool)
         kernels().match_pieces(np.ascontiguousarray(qq), np.ascontiguousarray(st, dtype=np.float64), grid.data,
-                               np.ascontiguousarray(V.t, dtype=np.float64), V.w * 0.5, *grid.index, min(k, len(V)), float(radius_px), float(min_tangent_dot), m, unsure)
+                               np.ascontiguousarray(V.t, dtype=np.float64), V.w * 0.5, *grid.index, min(k, len(V)),
+                               float(radius_px), float(min_tangent_dot), m, unsure)
         if not unsure.any():
             out[ok] = m
             return out, q
@@ -411,7 +412,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     return paths, path, offset
 
 
-def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree, D: Samples) -> Strokes:
+def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_grid, D: Samples) -> Strokes:
     """Paths whose two ends meet (within tol_px, turning by at most angle_deg at the joint, the
     bridge on the drawing, see on_drawing, beyond 2 px) closed into loops: their first point is
     repeated at their end. A ring of pieces, or one piece whose chaining stopped short of its own
@@ -441,7 +442,7 @@ def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree, D: 
     ok = np.where(tiny, cos(a, c) >= cmin, (cos(a, br) >= cmin) & (cos(br, c) >= cmin))
     far = gap[cand] > 2.0
     if far.any():
-        ok[far] &= on_drawing(line_tree, P[last[cand[far]]], P[first[cand[far]]], D=D)
+        ok[far] &= on_drawing(line_grid, P[last[cand[far]]], P[first[cand[far]]], D=D)
     cand = cand[ok]
     if len(cand) == 0:
         return paths
@@ -561,9 +562,9 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     rank = np.empty(R, np.int64)
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
     # One grid of the line samples: for the cover, the bridges (on_drawing) and held_back.
-    line_tree = SampleGrid(D.p, HOLD_RADIUS_PX)
+    line_grid = SampleGrid(D.p, HOLD_RADIUS_PX)
     drawn_kind = hidden_as_one(lines.kind)
-    cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_tree)
+    cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_grid)
     # 5. Pieces: the uncovered parts of the runs.
     p_run, p_s0, p_s1, smp_piece = kernels().pieces_of_runs(cover, run, D.s, D.w, r_s0, r_s1, _MIN_PIECE_PX)
     if len(p_run) == 0:
@@ -597,11 +598,11 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
     group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
-                                      bridge_ok=lambda pa, pb: on_drawing(line_tree, pa, pb, D=D), free_px=2.0,
+                                      bridge_ok=lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0,
                                       link=kernels().link_paths)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
-    paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree, D)
+    paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_grid, D)
     S = len(paths)
     # A hidden path's level: the fewest surfaces that hide any piece of it.
     occ_level = np.full(S, np.iinfo(np.int64).max)
@@ -647,7 +648,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
-    hold = held_back(paths, first_fresh, o, D.p, owner, line_tree)
+    hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
     return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece, hold), next_id
 
 
