@@ -330,3 +330,20 @@ def test_cut_pieces_are_cut_pieces():
         a, b = cut_pieces(st, stroke, s0, s1), _cut_pieces(st, stroke, s0, s1)
         for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
             assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+def test_a_ctrl_c_in_a_compiled_loop_stays_a_keyboard_interrupt():
+    from strokekit.paths.kernels import keyboard_interrupts
+
+    def in_loop():  # what the interpreter raises when one lands as a loop hands back its arrays
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as k:
+            raise SystemError("CPUDispatcher(line_fit) returned a result with an exception set") from k
+
+    with pytest.raises(KeyboardInterrupt):
+        with keyboard_interrupts():
+            in_loop()
+    with pytest.raises(SystemError):
+        with keyboard_interrupts():
+            raise SystemError("not an interrupt")

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
@@ -33,6 +34,19 @@ def kernels():
     return _module
 
 
+@contextmanager
+def keyboard_interrupts():
+    """Ctrl-C raised as KeyboardInterrupt in the block: one that lands while a compiled loop hands
+    its arrays back to Python surfaces as a SystemError ("... returned a result with an
+    exception set") whose cause is the KeyboardInterrupt."""
+    try:
+        yield
+    except SystemError as e:
+        if isinstance(e.__cause__, KeyboardInterrupt):
+            raise e.__cause__ from None
+        raise
+
+
 def warm_kernels(notify: Callable[[str], None] | None = None) -> tuple[float, bool]:
     """Load the kernels (from numba's disk cache), or compile them (the first brush path run on a
     machine) before any frame: (seconds, compiled). `notify(line)` is told once, before the
@@ -42,5 +56,6 @@ def warm_kernels(notify: Callable[[str], None] | None = None) -> tuple[float, bo
     compiles = compile_needed([mod])
     if compiles and notify is not None:
         notify(f"compiling the brush path kernels (first run on this machine, about {COMPILE_SECONDS} s)")
-    mod.warmup()
+    with keyboard_interrupts():
+        mod.warmup()
     return time.perf_counter() - t, bool(compiles)

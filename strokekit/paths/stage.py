@@ -45,7 +45,7 @@ from strokekit.lines.strokeops import (
 )
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.paths.grid import SampleGrid
-from strokekit.paths.kernels import kernels
+from strokekit.paths.kernels import kernels, keyboard_interrupts
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
 from strokekit.tracking.joins import _touching_paths, gather_paths, insert_points, rotate_closed
@@ -744,6 +744,10 @@ class PathTracker:
 
     def step(self, lines: Strokes) -> BrushPaths:
         """The brush paths of one frame's lines (as LineRenderer gives them)."""
+        with keyboard_interrupts():  # (a Ctrl-C in a compiled loop stays a KeyboardInterrupt)
+            return self._step(lines)
+
+    def _step(self, lines: Strokes) -> BrushPaths:
         o = self.options
         if not o.history:
             out, _ = brush_step(None, lines, o, 0)
