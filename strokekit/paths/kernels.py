@@ -38,12 +38,15 @@ def kernels():
 def keyboard_interrupts():
     """Ctrl-C raised as KeyboardInterrupt in the block: one that lands while a compiled loop hands
     its arrays back to Python surfaces as a SystemError ("... returned a result with an
-    exception set") whose cause is the KeyboardInterrupt."""
+    exception set") with the KeyboardInterrupt as its cause (or further down its chain)."""
     try:
         yield
     except SystemError as e:
-        if isinstance(e.__cause__, KeyboardInterrupt):
-            raise e.__cause__ from None
+        c = e
+        while c is not None and not isinstance(c, KeyboardInterrupt):
+            c = c.__cause__ or c.__context__
+        if c is not None:
+            raise c from None
         raise
 
 
