@@ -234,10 +234,13 @@ class Strokes:
     def select(self, mask: np.ndarray) -> "Strokes":
         """The strokes where mask (S,) is true, in order."""
         mask = np.asarray(mask, bool)
-        counts = np.diff(self.offsets)[mask]
-        pm = np.repeat(mask, np.diff(self.offsets))
-        return replace(self, points=self.points[pm], surface=self.surface[pm], face=self.face[pm], u=self.u[pm],
-                       offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=self.kind[mask],
+        n = np.diff(self.offsets)
+        counts = n[mask]
+        # take(axis=0) of the points kept: a boolean mask over (N, 2) rows is ~4x slower (same values)
+        pm = np.flatnonzero(np.repeat(mask, n))
+        return replace(self, points=self.points.take(pm, axis=0), surface=self.surface.take(pm, axis=0),
+                       face=self.face.take(pm), u=self.u.take(pm),
+                       offsets=np.concatenate(((0,), np.cumsum(counts))).astype(np.int64), kind=self.kind[mask],
                        ids=self.ids[mask], level=self.level[mask], level_weight=self.level_weight[mask])
 
     @staticmethod

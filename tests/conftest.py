@@ -36,3 +36,12 @@ def raster_kernels():
     from strokekit.raster.hits import warm_kernels
 
     warm_kernels()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def path_kernels():
+    """The brush path stage's numba kernels, compiled (a machine's first run: about 25 s) or loaded
+    once for the session, before any test (see raster_kernels)."""
+    from strokekit.paths.kernels import warm_kernels
+
+    warm_kernels()

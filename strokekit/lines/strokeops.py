@@ -112,13 +112,7 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
     n = len(P)
     if n < 3 or max_px <= 0:
         return (strokes, np.ones(n, bool)) if return_kept else strokes
-    ends = np.zeros(n, bool)
-    full = np.flatnonzero(np.diff(strokes.offsets) > 0)  # (an empty stroke has no ends)
-    ends[strokes.offsets[:-1][full]] = True
-    ends[strokes.offsets[1:][full] - 1] = True
-    i = np.arange(1, n - 1) if at is None else _sorted_unique(np.asarray(at, np.int64))
-    i = i[(i > 0) & (i < n - 1)]
-    i = i[~ends[i]]  # interior points only (never a stroke's first or last)
+    ends, i = hairpin_candidates(strokes, at)
     alive = np.ones(n, bool)
     live = None  # indices of the points still there, once some are dropped
     for _ in range(8):
@@ -148,14 +142,32 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
         alive[cand] = False
         live = np.flatnonzero(alive)
         i = _sorted_unique(np.concatenate([i[alive[i]], near[alive[near] & ~ends[near]]]))
-    if alive.all():
-        return (strokes, alive) if return_kept else strokes
+    out = strokes if alive.all() else keep_points(strokes, alive)
+    return (out, alive) if return_kept else out
+
+
+def hairpin_candidates(strokes: Strokes, at: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """drop_hairpins' (N,) stroke ends and the sorted interior points it looks at (all, or those
+    of `at`)."""
+    n = len(strokes.points)
+    ends = np.zeros(n, bool)
+    full = np.flatnonzero(np.diff(strokes.offsets) > 0)  # (an empty stroke has no ends)
+    ends[strokes.offsets[:-1][full]] = True
+    ends[strokes.offsets[1:][full] - 1] = True
+    i = np.arange(1, n - 1) if at is None else _sorted_unique(np.asarray(at, np.int64))
+    i = i[(i > 0) & (i < n - 1)]
+    return ends, i[~ends[i]]  # interior points only (never a stroke's first or last)
+
+
+def keep_points(strokes: Strokes, alive: np.ndarray) -> Strokes:
+    """The strokes with only their points where `alive` (N,) is true (every stroke keeps one)."""
     gone = np.flatnonzero(~alive)
     counts = np.diff(strokes.offsets) - np.bincount(np.searchsorted(strokes.offsets, gone, side="right") - 1,
                                                     minlength=len(strokes))
-    out = replace(strokes, points=P[alive], surface=strokes.surface[alive], face=strokes.face[alive],
-                  u=None if strokes.u is None else strokes.u[alive], offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
-    return (out, alive) if return_kept else out
+    kept = np.flatnonzero(alive)  # (take: a boolean mask over (N, 2) rows is ~4x slower, same values)
+    return replace(strokes, points=strokes.points.take(kept, axis=0), surface=strokes.surface.take(kept, axis=0),
+                   face=strokes.face.take(kept), u=None if strokes.u is None else strokes.u.take(kept),
+                   offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
 
 
 def _sorted_unique(x: np.ndarray) -> np.ndarray:

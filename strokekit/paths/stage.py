@@ -36,14 +36,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from strokekit.lines.strokeops import CONTOUR_KINDS, cut_pieces, drop_hairpins, join_arrays, query_tree
+from strokekit.lines.strokeops import (
+    CONTOUR_KINDS,
+    cut_pieces,
+    join_arrays,
+    keep_points,
+    query_tree,
+)
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
+from strokekit.paths.grid import SampleGrid
+from strokekit.paths.kernels import kernels, keyboard_interrupts
 from strokekit.paths.options import PathOptions
-from strokekit.sampling import Samples, match_samples, resample_strokes
-from strokekit.tracking.joins import _touching_paths, gather_paths, rotate_closed
+from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
+from strokekit.tracking.joins import _touching_paths, gather_paths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
-from strokekit.tracking.ufit import _local_slope, levels_from_slope
-from strokekit.tracking.votes import _first_max_per_group, _u_trend, _unique_inverse, assign_ids, segment_by_votes
+from strokekit.tracking.ufit import levels_from_slope
+from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -80,6 +88,79 @@ _COVER_DOT = 0.9
 _HAIRPIN_PX = 1.0
 
 
+def _labels(D: int, votes: "Votes") -> np.ndarray:
+    """sample_labels(D, votes.m, votes.vid, votes.w) (the same labels), its sums compiled."""
+    if len(votes) == 0:
+        return np.full(D, -1, np.int64)
+    M = int(votes.vid.max()) + 1
+    key = votes.m.astype(np.int64) * M + votes.vid
+    return kernels().vote_labels(D, key.argsort(kind="stable"), key, M, votes.w)
+
+
+def _assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, cand_w: np.ndarray,
+                next_id: int) -> tuple[np.ndarray, int]:
+    """assign_ids(n_strokes, cand_stroke, cand_id, cand_w, next_id) (the same ids), its greedy
+    pass compiled."""
+    keep = cand_w >= 1e-12
+    cs, ci, cw = cand_stroke[keep], cand_id[keep], cand_w[keep]
+    order = np.lexsort((ci, cs, -np.round(cw, 9)))
+    ids, next_id = kernels().greedy_ids(order, cs, ci, n_strokes, next_id)
+    return ids, int(next_id)
+
+
+def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
+    """insert_points(strokes, stroke, s) (the same strokes), its loops compiled."""
+    if len(stroke) == 0:
+        return strokes
+    K = kernels()
+    base, G = strokes.global_arc
+    i, j, a, g, st = K.insert_at(base, G, strokes.offsets, np.asarray(stroke, np.int64), np.asarray(s, float))
+    if len(i) == 0:
+        return strokes
+    Xn = surface_between(strokes, i, j, a)
+    ok, P, X, F, U, off = K.insert_merge(strokes.points, strokes.surface, strokes.face, strokes.u, G,
+                                         strokes.offsets, i, j, a, g, st, Xn)
+    if not ok:
+        return insert_points(strokes, stroke, s)
+    return strokes.replace(points=P, surface=X, face=F, u=U, offsets=off)
+
+
+class _FitKernels:
+    """fit_u's compiled steps (its `compiled`): the linear fit, the piecewise fit's sums and the
+    knots made points."""
+
+    def __init__(self, K):
+        self.line_fit, self.band_terms, self.insert_points = K.line_fit, K.band_terms, _insert_points
+
+
+def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> Strokes:
+    """cut_pieces(strokes, stroke, s0, s1) (the same pieces), its loops compiled."""
+    K = len(stroke)
+    if K < 2:  # (cut_pieces finds a single piece's surface points one end at a time)
+        return cut_pieces(strokes, stroke, s0, s1)
+    base, G = strokes.global_arc
+    stroke = np.asarray(stroke, np.int64)
+    lo, n_in, i, j, a = kernels().cut_ends(G, base, strokes.offsets, stroke, np.asarray(s0, float),
+                                           np.asarray(s1, float))
+    Xe = surface_between(strokes, i, j, a)  # (both ends in one batch, as cut_pieces takes them)
+    p, x, f, off = kernels().cut_assemble(strokes.points, strokes.surface, strokes.face, lo, n_in, i, j, a, Xe)
+    out = Strokes(points=p, surface=x, face=f, offsets=off, kind=strokes.kind[stroke], ids=np.arange(K, dtype=np.int64),
+                  u=None, level=strokes.level[stroke], level_weight=strokes.level_weight[stroke],
+                  camera=strokes.camera, frame=strokes.frame, period_px=strokes.period_px)
+    return out.replace(u=out.arc_length / out.period_px)
+
+
+def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
+    """resample_strokes(strokes, step_px, with_surface) (the same samples), its loops compiled."""
+    if len(strokes) == 0 or len(strokes.points) == 0:
+        return resample_strokes(strokes, step_px, with_surface)
+    base, G = strokes.global_arc
+    stroke, s, w, i, j, a = kernels().resample_at(strokes.lengths, float(step_px), base, G, strokes.offsets)
+    X = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
+    p, t, u = kernels().resample_points(strokes.points, strokes.u, i, j, a)
+    return Samples(p=p, X=X, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
+
+
 class Votes:
     """Votes of the previous paths on the line samples: sample index m, carried id, u, weight w
     and sign of the tangents' agreement."""
@@ -106,7 +187,7 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     landing on the nearest new one, change nothing measurable once every line sample looks back:
     bunny M1 0.9489 either way over 48 frames.)"""
     to = o.tracking
-    V = resample_strokes(prev, to.vote_spacing_px)
+    V = _resample(prev, to.vote_spacing_px, with_surface=False)  # (their surface points are not used)
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
     cls_v = _kind_class(prev.kind[V.stroke])
@@ -115,20 +196,44 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
                    stroke=None, s=None, w=None) if step > 1 else D
-    rm, rq = match_samples(back, prev.camera, V, query_tree(V.p), radius_px=to.search_radius_px,
-                           min_tangent_dot=to.min_tangent_dot, k=2, return_projected=True, piece_distance=True)
-    rh = np.flatnonzero(rm >= 0)
-    src = rm[rh]
-    rq = rq.take(rh, axis=0)
-    rh = sub[rh]
-    keep = cls_d[rh] == cls_v[src]
-    rh, src, rq = rh[keep], src[keep], rq[keep]
-    vts = V.t.take(src, axis=0)
-    off = np.clip(np.einsum("ij,ij->i", rq - V.p.take(src, axis=0), vts), -0.5 * V.w[src], 0.5 * V.w[src])
-    slope = _local_slope(V)
-    return Votes(m=rh, vid=V.ids[src], u=V.u[src] + off * slope[src], w=step * D.w[rh],
-                 sign=np.sign(np.einsum("ij,ij->i", vts, D.t.take(rh, axis=0))))
+    rm, rq = _lookback(back, prev.camera, V, to.search_radius_px, to.min_tangent_dot)
+    m, vid, u, w, sign = kernels().carried(rm, rq, sub, cls_d, cls_v, V.p, V.t, V.w, V.u, V.s, V.stroke, V.ids, D.w, D.t,
+                                           step)
+    return Votes(m=m, vid=vid, u=u, w=w, sign=sign)
 
+
+def _lookback(src: Samples, camera, V: Samples, radius_px: float, min_tangent_dot: float,
+              k: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """match_samples(src, camera, V, radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=k,
+    return_projected=True, piece_distance=True) (the same (M,) matches and (M, 2) projected
+    points), searched on a grid of V's samples."""
+    q, z = camera.project(src.X)
+    out = np.full(len(src), -1, np.int64)
+    fin = np.isfinite(q)
+    ok = fin[:, 0] & fin[:, 1] & ((z > 0) | camera.is_ortho)
+    if not ok.any():
+        return out, q
+    grid = SampleGrid(V.p, radius_px)
+    if grid.ok:
+        every = ok.all()
+        qq = q if every else q[ok]
+        st = src.t if every else src.t[ok]
+        m = np.empty(len(qq), np.int64)
+        unsure = np.zeros(len(qq), bool)
+        kernels().match_pieces(np.ascontiguousarray(qq), np.ascontiguousarray(st, dtype=np.float64), grid.data,
+                               np.ascontiguousarray(V.t, dtype=np.float64), V.w * 0.5, *grid.index, min(k, len(V)),
+                               float(radius_px), float(min_tangent_dot), m, unsure)
+        if not unsure.any():
+            out[ok] = m
+            return out, q
+    # (Samples tied at the distance that decides: as the tree orders them.)
+    return match_samples(src, camera, V, grid.tree(), radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=k,
+                         return_projected=True, piece_distance=True)
+
+
+#: The keywords of a neighbour search whose order does not matter (SampleGrid.query; a k-d tree
+#: has none).
+_AS_SET = {SampleGrid: {"as_set": True}}
 
 #: A bridge between two pieces is drawn only where every point of it lies within this many px of a
 #: line sample (BRIEF 2's 1 px: the brush paths invent nothing).
@@ -141,6 +246,13 @@ def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5, D: Sa
     tangents and lengths): within ON_DRAWING_PX of the lines themselves, the piece of line each
     sample stands for (a point beside a line lies up to half a sample spacing further from the
     nearest sample than from the line: bridges 0.9 px from a line were refused)."""
+    if D is not None and isinstance(tree, SampleGrid) and tree.ok:
+        reach = ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9
+        ok, unsure = tree.bridges(pa, pb, step_px, D.t, D.w, 2, reach, ON_DRAWING_PX)
+        redo = np.flatnonzero(unsure)
+        if len(redo):  # (as the tree chooses among samples at equal distances)
+            ok[redo] = on_drawing(tree.tree(), pa.take(redo, axis=0), pb.take(redo, axis=0), step_px, D)
+        return ok
     d = row_norm(pb - pa)
     n = np.maximum(1, np.ceil(d / step_px)).astype(np.int64)
     owner = np.repeat(np.arange(len(pa)), n - 1)
@@ -151,19 +263,25 @@ def on_drawing(tree, pa: np.ndarray, pb: np.ndarray, step_px: float = 0.5, D: Sa
         dist, _ = tree.query(q, distance_upper_bound=ON_DRAWING_PX + 1e-9)
         far = dist > ON_DRAWING_PX
     else:
-        reach = ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9 if len(D) else ON_DRAWING_PX
-        dist, idx = tree.query(q, k=2, distance_upper_bound=reach)
-        far = np.ones(len(q), bool)
-        for c in range(2):
-            ok = dist[:, c] < np.inf
-            j = np.where(ok, idx[:, c], 0)
-            dq = q - D.p.take(j, axis=0)
-            along = np.einsum("ij,ij->i", dq, D.t.take(j, axis=0))
-            beyond = np.maximum(np.abs(along) - 0.5 * D.w[j], 0.0)
-            d2 = np.maximum(dist[:, c] ** 2 - along * along, 0.0) + beyond * beyond
-            far &= ~(ok & (d2 <= ON_DRAWING_PX ** 2))
+        far = _far_from_lines(tree, q, D, ON_DRAWING_PX + 0.5 * float(D.w.max()) + 1e-9 if len(D) else ON_DRAWING_PX)
     bad = np.bincount(owner, weights=far, minlength=len(pa))
     return bad == 0
+
+
+def _far_from_lines(tree, q: np.ndarray, D: Samples, reach: float) -> np.ndarray:
+    """(M,) whether the points q (M, 2) lie further than ON_DRAWING_PX from the pieces of line of
+    their two nearest samples in `tree` within `reach` (see on_drawing)."""
+    dist, idx = tree.query(q, k=2, distance_upper_bound=reach)
+    far = np.ones(len(q), bool)
+    for c in range(2):
+        ok = dist[:, c] < np.inf
+        j = np.where(ok, idx[:, c], 0)
+        dq = q - D.p.take(j, axis=0)
+        along = np.einsum("ij,ij->i", dq, D.t.take(j, axis=0))
+        beyond = np.maximum(np.abs(along) - 0.5 * D.w[j], 0.0)
+        d2 = np.maximum(dist[:, c] ** 2 - along * along, 0.0) + beyond * beyond
+        far &= ~(ok & (d2 <= ON_DRAWING_PX ** 2))
+    return far
 
 
 def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.ndarray, radius_px: float,
@@ -179,6 +297,14 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     contour = _CONTOUR[sk % N_KINDS]
     if contour.sum() < 2:
         return out
+    if isinstance(tree, SampleGrid) and tree.ok:
+        if kernels().cover(tree.data, np.ascontiguousarray(D.t), np.ascontiguousarray(D.w, dtype=np.float64),
+                           np.ascontiguousarray(sk, dtype=np.int64), contour, np.ascontiguousarray(run, dtype=np.int64),
+                           np.ascontiguousarray(rank, dtype=np.int64), *tree.index, float(radius_px), _COVER_DOT,
+                           out):
+            return out
+        out[:] = -1
+        tree = tree.tree()  # (a pair at the radius, within rounding: as the tree counts it)
     if tree is not None:
         pr = tree.query_pairs(radius_px, output_type="ndarray")
         a, b = pr[:, 0], pr[:, 1]
@@ -247,6 +373,16 @@ def _reverse(strokes: Strokes, which: np.ndarray) -> Strokes:
                            face=strokes.face[src], u=strokes.u[src])
 
 
+def _drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndarray) -> tuple[Strokes, np.ndarray]:
+    """drop_hairpins(strokes, angle_deg, max_px, at, return_kept=True), its loop compiled."""
+    n = len(strokes.points)
+    if n < 3 or max_px <= 0:
+        return strokes, np.ones(n, bool)
+    kept = kernels().hairpin_points(strokes.points, strokes.offsets, np.asarray(at, np.int64),
+                                    np.cos(np.radians(angle_deg)), float(max_px))
+    return (strokes if kept.all() else keep_points(strokes, kept)), kept
+
+
 def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray, angle_deg: float, tol_px: float):
     """The pieces joined into paths (group, rev, pos of tracking.joins._touching_paths): the points of
     each path in order (reversed pieces backwards; a joint point that repeats the previous one is
@@ -264,7 +400,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
                     level_weight=np.ones(len(first)), camera=pieces.camera, frame=pieces.frame,
                     period_px=pieces.period_px)
     j = joint - np.searchsorted(drop, joint)
-    paths, kept = drop_hairpins(paths, angle_deg, tol_px, at=join_arrays(j - 1, j), return_kept=True)
+    paths, kept = _drop_hairpins(paths, angle_deg, tol_px, join_arrays(j - 1, j))
     # Where each piece starts in the output (a point dropped as a repeat or a hairpin: the kept
     # point before it, or the path's first point).
     at = c0 - np.searchsorted(drop, c0, side="right")
@@ -276,7 +412,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     return paths, path, offset
 
 
-def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree, D: Samples) -> Strokes:
+def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_grid, D: Samples) -> Strokes:
     """Paths whose two ends meet (within tol_px, turning by at most angle_deg at the joint, the
     bridge on the drawing, see on_drawing, beyond 2 px) closed into loops: their first point is
     repeated at their end. A ring of pieces, or one piece whose chaining stopped short of its own
@@ -306,7 +442,7 @@ def _close_loops(paths: Strokes, tol_px: float, angle_deg: float, line_tree, D: 
     ok = np.where(tiny, cos(a, c) >= cmin, (cos(a, br) >= cmin) & (cos(br, c) >= cmin))
     far = gap[cand] > 2.0
     if far.any():
-        ok[far] &= on_drawing(line_tree, P[last[cand[far]]], P[first[cand[far]]], D=D)
+        ok[far] &= on_drawing(line_grid, P[last[cand[far]]], P[first[cand[far]]], D=D)
     cand = cand[ok]
     if len(cand) == 0:
         return paths
@@ -344,6 +480,15 @@ def _seams(S: int, closed: np.ndarray, L: np.ndarray, st: np.ndarray, s: np.ndar
     return stq[k], 0.5 * (sq[k] + sq[k + 1])
 
 
+def _trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarray, u: np.ndarray, R: int) -> np.ndarray:
+    """tracking.votes._u_trend (the same (R,) px), its sort and sums compiled."""
+    keep = np.flatnonzero(vid == label.take(run))
+    if len(keep) < 2:
+        return np.zeros(R)
+    pk = pos.take(keep)
+    return kernels().u_trend(run.take(keep), pk - pk.min(), u.take(keep), R)
+
+
 def heal_jumps(st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray, w: np.ndarray, P: float,
                min_jump: float = 2.0) -> np.ndarray:
     """Votes u (V,) made continuous where a path's votes of one id jump: along path st[k] at arc
@@ -355,7 +500,12 @@ def heal_jumps(st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray, w:
     of most of its weight `w`."""
     if len(u) < 2:
         return u
-    o = np.lexsort((s, vid, st))
+    # np.lexsort((s, vid, st)): a stable sort by (st, vid) as one integer (cheap: partly in
+    # order), then by s within each (compiled).
+    key = st * (int(vid.max()) + 1) + vid
+    o, jumps = kernels().jump_order(key.argsort(kind="stable"), key, st, vid, s, u, float(P), float(min_jump))
+    if not jumps:
+        return u
     sq, uq, stq, idq = s[o], u[o], st[o], vid[o]
     same = (stq[1:] == stq[:-1]) & (idq[1:] == idq[:-1])
     step = np.diff(uq) - np.diff(sq) / P
@@ -395,11 +545,12 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     P = lines.period_px
     to = o.tracking
     first_fresh = next_id
-    D = resample_strokes(lines, o.sample_px)
+    D = _resample(lines, o.sample_px)
     history = prev is not None and len(prev) > 0 and lines.camera is not None and prev.camera is not None
     votes = carried_votes(prev, lines, D, o) if history else Votes.none()
     # 3. Labels: runs of one carried id along the lines.
-    run, r_line, r_s0, r_s1, r_label = segment_by_votes(D, lines.lengths, votes.m, votes.vid, votes.w, o.min_run_px)
+    run, r_line, r_s0, r_s1, r_label = kernels().segment_runs(
+        _labels(len(D), votes), D.stroke, D.s, D.w, lines.lengths, o.min_run_px)
     R = len(r_line)
     r_len = r_s1 - r_s0
     # 4. Cover. Rank: the total length of the run's label, then its own length.
@@ -410,23 +561,12 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
     rank = np.empty(R, np.int64)
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
-    # One k-d tree of the line samples: for the cover, and for the bridges (on_drawing).
-    line_tree = query_tree(D.p)
+    # One grid of the line samples: for the cover, the bridges (on_drawing) and held_back.
+    line_grid = SampleGrid(D.p, HOLD_RADIUS_PX)
     drawn_kind = hidden_as_one(lines.kind)
-    cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_tree)
+    cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_grid)
     # 5. Pieces: the uncovered parts of the runs.
-    keep = cover < 0
-    N = len(D)
-    start = join_arrays(True, (keep[1:] != keep[:-1]) | (run[1:] != run[:-1]))
-    first = np.flatnonzero(start)
-    last = join_arrays(first[1:] - 1, N - 1)
-    fr = run[first]
-    head = join_arrays(True, fr[1:] != fr[:-1])
-    tail = join_arrays(fr[1:] != fr[:-1], True)
-    s0 = np.where(head, r_s0[fr], D.s[first] - 0.5 * D.w[first])
-    s1 = np.where(tail, r_s1[fr], D.s[last] + 0.5 * D.w[last])
-    sel = keep[first] & ((s1 - s0 >= _MIN_PIECE_PX) | (head & tail)) & (s1 > s0)
-    p_run, p_s0, p_s1 = fr[sel], s0[sel], s1[sel]
+    p_run, p_s0, p_s1, smp_piece = kernels().pieces_of_runs(cover, run, D.s, D.w, r_s0, r_s1, _MIN_PIECE_PX)
     if len(p_run) == 0:
         return _empty(lines), next_id
     p_line, p_label = r_line[p_run], r_label[p_run]
@@ -450,29 +590,19 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             small &= was < o.merge_px
         link_label = p_label.copy()
         link_label[lk[small[inv]]] = -1
-    pieces = cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
-    # The piece of every drawn sample (-1 for covered samples and short leftovers): pieces come
-    # in sample order, a sample's piece is the last one starting at or before it.
-    p_first, p_last = first[sel], last[sel]
-    smp_piece = np.searchsorted(p_first, np.arange(N), side="right") - 1
-    smp_piece[(smp_piece < 0) | (np.arange(N) > p_last[np.maximum(smp_piece, 0)])] = -1
+    pieces = _cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
     plen = p_s1 - p_s0
     # Where every vote lands: its piece and arc length within it (on a covered sample, where the
     # covering sample lies).
-    vm = votes.m
-    hit = np.where(cover[vm] >= 0, cover[vm], vm)
-    vk = smp_piece[hit]
-    ok = vk >= 0
-    vk = vk[ok]
-    s_line = D.s[hit[ok]]
-    s_in = np.clip(s_line - p_s0[vk], 0.0, plen[vk])
+    ok, vk, s_in = kernels().votes_landing(votes.m, cover, smp_piece, D.s, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
     group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
-                                      bridge_ok=lambda pa, pb: on_drawing(line_tree, pa, pb, D=D), free_px=2.0)
+                                      bridge_ok=lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0,
+                                      link=kernels().link_paths)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
-    paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_tree, D)
+    paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_grid, D)
     S = len(paths)
     # A hidden path's level: the fewest surfaces that hide any piece of it.
     occ_level = np.full(S, np.iinfo(np.int64).max)
@@ -483,7 +613,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     if len(lk):
         M = int(p_label.max()) + 1
         uk, kinv = np.unique(path_of[lk] * M + p_label[lk], return_inverse=True)
-        ids, next_id = assign_ids(S, uk // M, uk % M, np.bincount(kinv, weights=plen[lk]), next_id)
+        ids, next_id = _assign_ids(S, uk // M, uk % M, np.bincount(kinv, weights=plen[lk]), next_id)
     else:
         ids, next_id = np.arange(next_id, next_id + S, dtype=np.int64), next_id + S
     paths = paths.replace(ids=ids)
@@ -498,7 +628,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu = heal_jumps(vst, vs, vu, vid, vw, P)
     # Each path turned so that its own carried u increases along it (or, where u does not tell,
     # the way the old tangents ran).
-    trend = _u_trend(vst, vid, ids, vs, vu, S)
+    trend = _trend(vst, vid, ids, vs, vu, S)
     r_sign = np.bincount(vst, weights=vw * vsign, minlength=S)
     flip = np.where(np.abs(trend) >= 2.0 * o.sample_px, trend, r_sign) < 0
     if flip.any():
@@ -514,11 +644,11 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             shift = np.zeros(S)
             shift[which] = seam
             vs = np.mod(vs - shift[vst], np.where(L > 0, L, 1.0)[vst])
-    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to)
+    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to, compiled=_FitKernels(kernels()))
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
-    hold = held_back(paths, first_fresh, o, D.p, owner, line_tree)
+    hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
     return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece, hold), next_id
 
 
@@ -549,7 +679,8 @@ def held_back(paths: Strokes, first_fresh: int, o: PathOptions, p: np.ndarray, o
     mine = np.flatnonzero((owner >= 0) & cand[np.maximum(owner, 0)])
     if len(mine) == 0:
         return hold
-    _, idx = tree.query(p.take(mine, axis=0), k=k, distance_upper_bound=HOLD_RADIUS_PX + 1e-9)
+    _, idx = tree.query(p.take(mine, axis=0), k=k, distance_upper_bound=HOLD_RADIUS_PX + 1e-9,
+                        **_AS_SET.get(type(tree), {}))
     ok = idx < len(p)  # (the tree marks "none within reach" with n)
     ow = owner[np.where(ok, idx, 0)]
     # (Against the paths that stay: two new strands side by side do not hold each other back.)
@@ -613,6 +744,10 @@ class PathTracker:
 
     def step(self, lines: Strokes) -> BrushPaths:
         """The brush paths of one frame's lines (as LineRenderer gives them)."""
+        with keyboard_interrupts():  # (a Ctrl-C in a compiled loop stays a KeyboardInterrupt)
+            return self._step(lines)
+
+    def _step(self, lines: Strokes) -> BrushPaths:
         o = self.options
         if not o.history:
             out, _ = brush_step(None, lines, o, 0)

@@ -20,6 +20,7 @@ from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
 from strokekit.lines.kernels import warm_kernels as warm_line_kernels
 from strokekit.model import BrushPaths, Strokes
+from strokekit.paths.kernels import warm_kernels as warm_path_kernels
 from strokekit.paths.stage import PathTracker
 from strokekit.raster.hits import KernelWarmup
 from strokekit.raster.rays import check_raster_fits
@@ -104,6 +105,12 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
         except OSError as e:
             write_error = e
+        if write_error is None and spec.paths is not None:
+            # Brush path kernels (this process draws the paths): loaded, or compiled on a
+            # machine's first run (said), before any frame.
+            t = time.perf_counter()
+            warm_path_kernels(notice)
+            stage["brush paths"].seconds += time.perf_counter() - t
         if write_error is None and kernels is not None and kernels.compiles() is not False:
             # Compiled here, once, before any frame: the workers then load them from numba's disk
             # cache instead of each compiling them.

@@ -265,7 +265,7 @@ def _straightest_order(straight: np.ndarray, ra: np.ndarray, rb: np.ndarray, S: 
 
 def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np.ndarray | None = None,
                     other_tol_px: float | None = None, bridge_ok=None, free_px: float = 2.0,
-                    weight: np.ndarray | None = None):
+                    weight: np.ndarray | None = None, link=None):
     """_join_segments(strokes, arange(S), zeros(S), lengths, zeros(S), ones(S), tol_px, angle_deg,
     straightest_first=True), the call chain_touching makes, specialized (same group, rev, pos): every
     run is a whole stroke, all labels agree and all signs are +1, so the label healing is moot, the
@@ -280,7 +280,9 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np
     of turn), then of the heaviest stroke (the larger `weight` (S,) of the two, default their
     lengths): at a junction of shingles the straight continuation wins over a turn onto a longer
     piece (120-frame orbits, M1: bunny +0.0004, rocker-arm +0.0015). `bridge_ok(pa, pb) -> (K,) bool`: where two ends are more
-    than `free_px` apart, they join only where it says the bridge between them may be drawn."""
+    than `free_px` apart, they join only where it says the bridge between them may be drawn.
+    `link(a, b, e_run, n, S) -> (group, rev, pos)`: the links taken and walked into paths by
+    another implementation of the steps below (the brush path stage's compiled one)."""
     S = len(strokes)
     group = np.arange(S)
     rev = np.zeros(S, bool)
@@ -335,6 +337,8 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np
         cost = gap[ok] + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))
         o = np.lexsort((e_run[b], e_run[a], -np.round(heavy, 6), np.round(cost, 6), -tier[ok]))
     a, b = a[o], b[o]
+    if link is not None:
+        return link(a, b, e_run, n, S)
     code = 2 * e_run + (np.arange(2 * n) >= n)
     partner = np.full(2 * n, -1, np.int64)
     # A link whose two ends are in no other candidate link is taken whatever the order (most of

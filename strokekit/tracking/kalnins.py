@@ -158,14 +158,16 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
 
 
 def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray,
-          w: np.ndarray, o: TrackingOptions):
+          w: np.ndarray, o: TrackingOptions, compiled=None):
     """u along the strokes `cur` fitted to the votes carried from `prev`: vote k lands on stroke
     st[k] at arc length s[k] (px) with u[k] (periods), carried id vid[k] and weight w[k]. Per
     stroke the votes of its primary id (most weight) set the fit, those of other ids join it
     shifted by whole periods; u is piecewise linear (knots every o.knot_spacing_px, inserted as
     points) or linear, outliers (o.outlier_px) dropped and the fit redone. Returns (cur with the
     knots inserted, u at its points, the slope du/ds per stroke, and the vote groups (stroke,
-    id, inlier weight) that assign_ids takes)."""
+    id, inlier weight) that assign_ids takes). `compiled`: other implementations of the linear fit
+    (`line_fit`), of the piecewise fit's sums (`band_terms`, see PiecewiseU.fit) and of
+    insert_points (`insert_points`): the brush path stage's compiled ones."""
     P = cur.period_px
     S = len(cur)
     L = cur.lengths
@@ -191,6 +193,8 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
     lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
 
     def fit(mask):
+        if compiled is not None:
+            return compiled.line_fit(st, s, u, w, mask, lam, b0)
         w_ = w * mask
         S0, S1, S2, T0, T1 = _segment_sums(st, S, w_, w_ * s, w_ * s * s, w_ * u, w_ * s * u)
         A11, A12, A22 = S0, S1, S2 + lam
@@ -215,7 +219,8 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
             # (perspective, edges of a loop growing at different rates) without sliding.
             pw = PiecewiseU(L, o.knot_spacing_px)
             for _ in range(2):
-                knots = pw.fit(st, s, u, w * inlier, a, b, b0, o.stretch_weight * P * P, o.bend_weight)
+                knots = pw.fit(st, s, u, w * inlier, a, b, b0, o.stretch_weight * P * P, o.bend_weight,
+                               None if compiled is None else compiled.band_terms)
                 inlier = (np.abs(u - pw.eval(knots, st, s)) * P <= o.outlier_px).astype(float)
         else:
             inlier = (np.abs(u - (a[st] + b[st] * s)) * P <= o.outlier_px).astype(float)
@@ -231,7 +236,8 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
     sop = cur.stroke_of_point
     if len(st) and o.knot_spacing_px > 0:
         # u is interpolated linearly between points downstream: give it the knots as points.
-        cur = insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
+        cur = (insert_points if compiled is None else compiled.insert_points)(cur, pw.inner_knot_stroke(),
+                                                                              pw.inner_knot_s())
         sop = cur.stroke_of_point
         u_new = pw.eval(knots, sop, cur.arc_length)
         b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)

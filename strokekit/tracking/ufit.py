@@ -122,11 +122,13 @@ class PiecewiseU:
         self._fixed = (key, bufs)
         return bufs
 
-    def fit(self, st, s, u, w, prior_a, prior_b, b0, stretch_weight, bend_weight) -> np.ndarray:
+    def fit(self, st, s, u, w, prior_a, prior_b, b0, stretch_weight, bend_weight, band_terms=None) -> np.ndarray:
         """Knot values minimizing sum w (u(s) - u)^2 (votes) + stretch_weight / h (du - h b0)^2
         per interval (slope close to the nominal b0 = 1/P) +
         bend_weight L (second difference)^2 per inner knot (even stretch) + 1e-6 (knot - prior)^2
-        (the line fit a + b s; fixes strokes without votes)."""
+        (the line fit a + b s; fixes strokes without votes). `band_terms(k, a, w, u, f0, f1, f2,
+        f3) -> (band, rhs)`: the normal equations summed by another implementation of the steps
+        below (the brush path stage's compiled one; f_r: the fixed terms' rows)."""
         nk = int(self.base[-1])
         # Normal equations accumulated straight into the 3 lower bands of a symmetric banded
         # matrix (every residual touches at most 3 consecutive knots of one stroke), in a fixed
@@ -135,13 +137,16 @@ class PiecewiseU:
         # first axis adds the rows one after the other, elementwise: the same sums as adding
         # the terms one by one into zeros, whose first addition is exact).
         k, a = self._interval(st, s)
-        sw = np.sqrt(w)
-        votes = self._terms(nk, [k, k + 1], [sw * (1 - a), sw * a], sw * u, ([], [], [], []))
         bufs = self._fixed_terms(prior_a, prior_b, b0, stretch_weight, bend_weight)
-        band = np.empty((3, nk))
-        for r in range(3):  # (every buffer holds 1+ terms: each term is added for every stroke)
-            np.add.reduce(_fill_rows(bufs[r], votes[r]), axis=0, out=band[r])
-        rhs = np.add.reduce(_fill_rows(bufs[3], votes[3]), axis=0)
+        if band_terms is not None and nk > 0:
+            band, rhs = band_terms(k, a, w, u, *(b[n:] for b, n in zip(bufs, self._VOTE_TERMS)))
+        else:
+            sw = np.sqrt(w)
+            votes = self._terms(nk, [k, k + 1], [sw * (1 - a), sw * a], sw * u, ([], [], [], []))
+            band = np.empty((3, nk))
+            for r in range(3):  # (every buffer holds 1+ terms: each term is added for every stroke)
+                np.add.reduce(_fill_rows(bufs[r], votes[r]), axis=0, out=band[r])
+            rhs = np.add.reduce(_fill_rows(bufs[3], votes[3]), axis=0)
         band[1, -1:] = 0.0
         band[2, -2:] = 0.0
         if nk == 0:

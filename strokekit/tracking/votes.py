@@ -224,16 +224,9 @@ def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1,
     return s0, s1
 
 
-def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: np.ndarray, w: np.ndarray,
-                     min_segment_px: float):
-    """Cut the strokes sampled by `dense` (1 px samples, in stroke order; lengths (S,) px) into runs of the same
-    carried id. vm (V,) dense sample hit by each vote, vid (V,) its carried id, w (V,) its weight.
-    A sample is labelled with the id of most vote weight on it; samples without a vote take the
-    label of the nearest voted sample of their stroke; runs shorter than `min_segment_px` (except
-    the longest of a stroke) are absorbed by neighbours.
-    Returns run (D,) run of each dense sample, and per run: stroke, s0, s1 (px), label (carried
-    id, -1 where the stroke had no vote)."""
-    D = len(dense)
+def sample_labels(D: int, vm: np.ndarray, vid: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(D,) the carried id of every one of D samples (-1: no vote on it): the id of most vote
+    weight (votes: vm (V,) the sample each lands on, vid (V,) its id, w (V,) its weight)."""
     label = np.full(D, -1, np.int64)
     if len(vm):
         # The id with the most vote weight on a sample wins it (ties: the lower id). Summed, not
@@ -249,6 +242,20 @@ def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: n
         # 3-key lexsort of ~1000 keys cost ~50 us).
         win = _first_max_per_group(ks, kw)
         label[ks[win]] = ki[win]
+    return label
+
+
+def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: np.ndarray, w: np.ndarray,
+                     min_segment_px: float):
+    """Cut the strokes sampled by `dense` (1 px samples, in stroke order; lengths (S,) px) into runs of the same
+    carried id. vm (V,) dense sample hit by each vote, vid (V,) its carried id, w (V,) its weight.
+    A sample is labelled with the id of most vote weight on it; samples without a vote take the
+    label of the nearest voted sample of their stroke; runs shorter than `min_segment_px` (except
+    the longest of a stroke) are absorbed by neighbours.
+    Returns run (D,) run of each dense sample, and per run: stroke, s0, s1 (px), label (carried
+    id, -1 where the stroke had no vote)."""
+    D = len(dense)
+    label = sample_labels(D, vm, vid, w)
     idx = np.arange(D)
     stroke, s = dense.stroke, dense.s
 

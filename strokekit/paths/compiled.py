@@ -1,0 +1,1317 @@
+"""The brush path stage's compiled loops (numba): the steps of a frame that were k-d tree queries
+or chains of small numpy calls. Imports numpy and numba only; loaded on first use by
+`paths.kernels.kernels()` (runs that draw no brush paths never import numba), compiled once per
+machine and cached on disk (`cache=True`, no fastmath: the same results on every run and in every
+process).
+
+Each gives, to the bit, what the step it stands in for gives (tests/test_paths_compiled.py): the
+same arithmetic in the same order (sums in the order numpy's bincount and add.reduce take them;
+no fused multiply-adds), the same tie rules. The neighbour searches give what scipy's cKDTree
+gives for the same points (its squared distance dx * dx + dy * dy, its strict `<` against the
+squared bound) and say where they cannot: where candidates tie at the distance that decides (the
+tree's choice then depends on its traversal) or a pair lies within rounding of the cover radius;
+the caller asks the tree there. Matrix products (surface points, projections) stay numpy's: their
+rounding depends on the BLAS kernel.
+
+* Neighbours on a grid of the samples: `grid_index`; `knn` (the k nearest); `match_pieces` (the
+  lookback, sampling.match_samples with piece distances); `cover` (paths.stage.covering_samples);
+  `bridges` (paths.stage.on_drawing).
+* Samples and votes: `resample_at`, `resample_points` (sampling.resample_strokes less its surface
+  points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
+  `segment_runs` (tracking.votes.segment_by_votes after the labels).
+* Paths: `link_paths` (tracking.joins._touching_paths' links and walk); `hairpins`
+  (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
+* u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
+  `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
+  fit), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made points).
+* Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: Squared distances within this of the bound are ambiguous for the tree's pair search (it takes
+#: whole node pairs whose box distance, tracked incrementally, is below the bound) (px^2).
+PAIR_SLACK = 1e-6
+
+
+@njit(cache=True)
+def grid_index(p, cell):
+    """Points p (N, 2) (finite) sorted into square cells of about `cell` px (larger where the
+    points spread wide: at most max(8 N, 65536) cells). Returns (x0, y0, cell, nx, ny, start,
+    order, ps): cell (cx, cy) = ((x - x0) // cell, (y - y0) // cell) holds points order[start[c] :
+    start[c + 1]] (in index order), c = cy * nx + cx; ps (N, 2) the points in that order (read
+    one after the other by the searches)."""
+    n = p.shape[0]
+    x0 = p[0, 0]
+    y0 = p[0, 1]
+    x1 = x0
+    y1 = y0
+    for i in range(1, n):
+        x = p[i, 0]
+        y = p[i, 1]
+        if x < x0:
+            x0 = x
+        if x > x1:
+            x1 = x
+        if y < y0:
+            y0 = y
+        if y > y1:
+            y1 = y
+    limit = max(8 * n, 65536)
+    while True:
+        nx = int((x1 - x0) / cell) + 1
+        ny = int((y1 - y0) / cell) + 1
+        if nx * ny <= limit:
+            break
+        cell *= 2.0
+    start = np.zeros(nx * ny + 1, np.int64)
+    key = np.empty(n, np.int64)
+    for i in range(n):
+        cx = min(int((p[i, 0] - x0) / cell), nx - 1)
+        cy = min(int((p[i, 1] - y0) / cell), ny - 1)
+        c = cy * nx + cx
+        key[i] = c
+        start[c + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, np.int64)
+    ps = np.empty((n, 2))
+    for i in range(n):
+        c = key[i]
+        order[fill[c]] = i
+        ps[fill[c], 0] = p[i, 0]
+        ps[fill[c], 1] = p[i, 1]
+        fill[c] += 1
+    return x0, y0, cell, nx, ny, start, order, ps
+
+
+@njit(cache=True)
+def _window(v, v0, cell, reach, n):
+    """The first and last cell along one axis a point within `reach` of v can lie in (with a
+    margin for the rounding of the cell's computation)."""
+    a = math.floor((v - reach - v0) / cell - 1e-6)
+    b = math.floor((v + reach - v0) / cell + 1e-6)
+    if a < 0:
+        a = 0
+    if b > n - 1:
+        b = n - 1
+    return int(a), int(b)
+
+
+@njit(cache=True)
+def knn(q, n, x0, y0, cell, nx, ny, start, order, ps, k, bound, as_set, out_d2, out_i, unsure):
+    """For every query point q (M, 2): its k nearest of the n points of a grid (grid_index) at
+    squared distance < bound**2, nearest first (equal distances: lower index first): out_d2 (M,
+    k) their squared distances (inf: none), out_i (M, k) their indices (N: none). unsure (M,) is
+    set where the tree could choose them otherwise (the k-th and the next at the same distance),
+    or order them otherwise (two of them at the same distance; not looked at with `as_set`),
+    and where q is not finite."""
+    b2 = bound * bound
+    bd = np.empty(k + 1)
+    bi = np.empty(k + 1, np.int64)
+    for m in range(q.shape[0]):
+        qx = q[m, 0]
+        qy = q[m, 1]
+        for s in range(k):
+            out_d2[m, s] = np.inf
+            out_i[m, s] = n
+        if not (math.isfinite(qx) and math.isfinite(qy)):
+            unsure[m] = True
+            continue
+        cnt = 0
+        ax, bx = _window(qx, x0, cell, bound, nx)
+        ay, by = _window(qy, y0, cell, bound, ny)
+        for cy in range(ay, by + 1):
+            row = cy * nx
+            for cx in range(ax, bx + 1):
+                c = row + cx
+                for t in range(start[c], start[c + 1]):
+                    dx = ps[t, 0] - qx
+                    dy = ps[t, 1] - qy
+                    d2 = dx * dx + dy * dy
+                    if d2 < b2:
+                        cnt = _insert(bd, bi, cnt, d2, order[t])
+        for s in range(k - 1 if as_set else 0, min(cnt, k + 1) - 1):
+            if bd[s] == bd[s + 1]:
+                unsure[m] = True
+        for s in range(min(cnt, k)):
+            out_d2[m, s] = bd[s]
+            out_i[m, s] = bi[s]
+
+
+@njit(cache=True)
+def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot, out):
+    """covering_samples on the grid of p (N, 2) (see paths.stage.covering_samples): for every
+    contour sample x, the sample y within `radius` (squared distance <= radius**2, the tree's
+    pair rule) of another run, the same kind sk and a run of higher rank (rank_of_run lower),
+    beside x (|(p_y - p_x) . t_x| <= (w_x + w_y) / 2 - 0.25) with |t_y . t_x| >= min_dot; of
+    several the one of the highest-ranked run, then the nearest, then the lowest index. out (N,)
+    is set where one is found (left as it is elsewhere). Returns False where a pair of contour
+    samples of two runs lies within PAIR_SLACK of the radius (the tree may count it either
+    way: the caller asks the tree), else True."""
+    r2 = radius * radius
+    # The run (-1: not a contour) and kind of every grid slot, read one after the other below.
+    n = p.shape[0]
+    run_s = np.empty(n, np.int64)
+    sk_s = np.empty(n, np.int64)
+    for s in range(n):
+        j = order[s]
+        run_s[s] = run[j] if contour[j] else -1
+        sk_s[s] = sk[j]
+    for x in range(n):
+        if not contour[x]:
+            continue
+        px = p[x, 0]
+        py = p[x, 1]
+        tx0 = t[x, 0]
+        tx1 = t[x, 1]
+        rx = rank_of_run[run[x]]
+        best = -1
+        best_rank = 0
+        best_d2 = 0.0
+        ax, bx = _window(px, x0, cell, radius, nx)
+        ay, by = _window(py, y0, cell, radius, ny)
+        for cy in range(ay, by + 1):
+            row = cy * nx
+            for cx in range(ax, bx + 1):
+                c = row + cx
+                for s in range(start[c], start[c + 1]):
+                    ddx = ps[s, 0] - px
+                    ddy = ps[s, 1] - py
+                    d2 = ddx * ddx + ddy * ddy
+                    if d2 > r2 + PAIR_SLACK or run_s[s] < 0 or run_s[s] == run[x] or sk_s[s] != sk[x]:
+                        continue
+                    y = order[s]  # (not x: x is of its own run)
+                    if abs(d2 - r2) <= PAIR_SLACK:
+                        return False
+                    if d2 > r2:
+                        continue
+                    ry = rank_of_run[run[y]]
+                    if not ry < rx:
+                        continue
+                    along = abs(ddx * tx0 + ddy * tx1)
+                    if not along <= 0.5 * (w[x] + w[y]) - 0.25:
+                        continue
+                    if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
+                        continue
+                    if best < 0 or ry < best_rank or (ry == best_rank and (d2 < best_d2 or (d2 == best_d2 and y < best))):
+                        best = y
+                        best_rank = ry
+                        best_d2 = d2
+        if best >= 0:
+            out[x] = best
+    return True
+
+
+@njit(cache=True)
+def _insert(bd, bi, cnt, d2, j):
+    """(d2, j) into the sorted (by d2, then j) buffer bd, bi holding cnt entries (at most its
+    size: the last one goes). Returns the new count."""
+    size = bd.shape[0]
+    if cnt == size:
+        if d2 > bd[size - 1] or (d2 == bd[size - 1] and j > bi[size - 1]):
+            return cnt
+        pos = size - 1
+    else:
+        pos = cnt
+        cnt += 1
+    while pos > 0 and (bd[pos - 1] > d2 or (bd[pos - 1] == d2 and bi[pos - 1] > j)):
+        bd[pos] = bd[pos - 1]
+        bi[pos] = bi[pos - 1]
+        pos -= 1
+    bd[pos] = d2
+    bi[pos] = j
+    return cnt
+
+
+@njit(cache=True)
+def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, bd, bi):
+    """paths.stage.on_drawing's test of one point (qx, qy) on the grid of the line samples p (N,
+    2), their tangents t (N, 2) and lengths w (N,): (near, unsure), whether it lies within
+    `limit` px of the piece of line of one of its k nearest samples within `bound`, as the tree's
+    k nearest give it (where samples tie at the k-th distance: what every choice among them
+    gives; unsure where the choice decides, or the point is not finite). The piece of sample j:
+    length w_j along t_j, centred on p_j; the distance across it from the tree's distance
+    sqrt(d2). bd, bi: buffers of size k + 8."""
+    if not (math.isfinite(qx) and math.isfinite(qy)):
+        return False, True
+    b2 = bound * bound
+    size = bd.shape[0]
+    cnt = 0
+    ax, bx = _window(qx, x0, cell, bound, nx)
+    ay, by = _window(qy, y0, cell, bound, ny)
+    for cy in range(ay, by + 1):
+        row = cy * nx
+        for cx in range(ax, bx + 1):
+            c = row + cx
+            for s in range(start[c], start[c + 1]):
+                dx = ps[s, 0] - qx
+                dy = ps[s, 1] - qy
+                d2 = dx * dx + dy * dy
+                if d2 < b2:
+                    cnt = _insert(bd, bi, cnt, d2, order[s])
+    # The tree keeps the k nearest: those nearer than the k-th for sure, then some of the
+    # samples at the k-th's distance.
+    last = bd[k - 1] if cnt >= k else np.inf
+    any_sure = False
+    n_sure = 0
+    tied_near = 0
+    tied = 0
+    for s in range(cnt):
+        j = bi[s]
+        if bd[s] > last:
+            break
+        dist = math.sqrt(bd[s])
+        along = (qx - p[j, 0]) * t[j, 0] + (qy - p[j, 1]) * t[j, 1]
+        beyond = abs(along) - 0.5 * w[j]
+        if beyond < 0.0:
+            beyond = 0.0
+        across = dist * dist - along * along
+        if across < 0.0:
+            across = 0.0
+        near = across + beyond * beyond <= limit * limit
+        if bd[s] < last:
+            n_sure += 1
+            any_sure |= near
+        else:
+            tied += 1
+            tied_near += near
+    full = cnt == size and bd[size - 1] == last  # (more samples at the k-th's distance than the buffer holds)
+    if any_sure or (tied_near > 0 and tied_near == tied):
+        return True, False
+    if tied_near > 0:
+        # Some of the tied samples are near, some not: it depends on which the tree keeps, unless
+        # it keeps them all.
+        if tied == k - n_sure and not full:
+            return True, False
+        return False, True
+    return False, full
+
+
+@njit(cache=True)
+def bridges(pa, pb, step, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, ok, unsure):
+    """paths.stage.on_drawing on the grid: ok (K,) whether every point of the segments pa -> pb
+    (K, 2) tested every `step` px (pa + (pb - pa) i / n, 0 < i < n, n = max(1, ceil(length /
+    step))) passes _near_one's test; unsure (K,) where one of them is unsure (ok is then
+    False)."""
+    bd = np.empty(k + 8)
+    bi = np.empty(k + 8, np.int64)
+    for e in range(pa.shape[0]):
+        dx = pb[e, 0] - pa[e, 0]
+        dy = pb[e, 1] - pa[e, 1]
+        n = int(max(1.0, math.ceil(math.sqrt(dx * dx + dy * dy) / step)))
+        good = True
+        for i in range(1, n):
+            f = i / n
+            g = 1 - f
+            near, un = _near_one(pa[e, 0] * g + pb[e, 0] * f, pa[e, 1] * g + pb[e, 1] * f, p, t, w, x0, y0, cell,
+                                 nx, ny, start, order, ps, k, bound, limit, bd, bi)
+            if un:
+                unsure[e] = True
+            good &= near
+        ok[e] = good and not unsure[e]
+
+
+@njit(cache=True)
+def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
+    """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
+    tangents t (N, 2) and half lengths hw (N,): for every query point q (M, 2) (finite) with
+    tangent st (M, 2), among its k nearest samples within `bound` those whose tangent agrees
+    (|t . st| >= min_dot), the first of least squared distance to its piece of line (across:
+    the tree's distance squared less the part along t; beyond its ends along t): out (M,) its
+    index, or -1. unsure (M,) set where two of the k + 1 nearest lie at the same distance (the
+    tree's order decides)."""
+    b2 = bound * bound
+    bd = np.empty(k + 1)
+    bi = np.empty(k + 1, np.int64)
+    for m in range(q.shape[0]):
+        qx = q[m, 0]
+        qy = q[m, 1]
+        s0 = st[m, 0]
+        s1 = st[m, 1]
+        cnt = 0
+        e0 = e1 = e2 = np.inf
+        j0 = j1 = j2 = -1
+        ax, bx = _window(qx, x0, cell, bound, nx)
+        ay, by = _window(qy, y0, cell, bound, ny)
+        for cy in range(ay, by + 1):
+            row = cy * nx
+            for cx in range(ax, bx + 1):
+                c = row + cx
+                for s in range(start[c], start[c + 1]):
+                    dx = ps[s, 0] - qx
+                    dy = ps[s, 1] - qy
+                    d2 = dx * dx + dy * dy
+                    if not d2 < b2:
+                        continue
+                    if k != 2:
+                        cnt = _insert(bd, bi, cnt, d2, order[s])
+                        continue
+                    # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
+                    j = order[s]
+                    if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
+                        continue
+                    cnt = min(cnt + 1, 3)
+                    if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
+                        e2, j2 = e1, j1
+                        if d2 < e0 or (d2 == e0 and j < j0):
+                            e1, j1 = e0, j0
+                            e0, j0 = d2, j
+                        else:
+                            e1, j1 = d2, j
+                    elif cnt >= 2:
+                        e2, j2 = d2, j
+                    elif cnt == 1:
+                        e0, j0 = d2, j
+        if k == 2:
+            bd[0], bi[0], bd[1], bi[1], bd[2], bi[2] = e0, j0, e1, j1, e2, j2
+        for s in range(cnt - 1):
+            if bd[s] == bd[s + 1]:
+                unsure[m] = True
+        best = np.inf
+        found = -1
+        for s in range(min(cnt, k)):
+            j = bi[s]
+            t0 = t[j, 0]
+            t1 = t[j, 1]
+            if not abs(t0 * s0 + t1 * s1) >= min_dot:
+                continue
+            dist = math.sqrt(bd[s])
+            along = (qx - p[j, 0]) * t0 + (qy - p[j, 1]) * t1
+            beyond = abs(along) - hw[j]
+            if beyond < 0.0:
+                beyond = 0.0
+            cost = dist * dist - along * along
+            if cost < 0.0:
+                cost = 0.0
+            cost += beyond * beyond
+            if found < 0 or cost < best:
+                found = j
+                best = cost
+        out[m] = found
+
+
+@njit(cache=True)
+def _fill(lab, stroke, s, out):
+    """tracking.votes.segment_by_votes' fill: every sample without a label (-1) takes that of the
+    nearest labelled sample of its stroke (ties: the one before), or stays -1."""
+    D = lab.shape[0]
+    # b[i]: the first labelled sample at or after i (D: none), found from the end.
+    nxt = np.empty(D, np.int64)
+    b = D
+    for i in range(D - 1, -1, -1):
+        if lab[i] >= 0:
+            b = i
+        nxt[i] = b
+    f = -1
+    for i in range(D):
+        if lab[i] >= 0:
+            f = i
+        b = nxt[i]
+        fok = f >= 0 and stroke[f] == stroke[i]
+        bok = b < D and stroke[b] == stroke[i]
+        df = s[i] - s[f] if fok else np.inf
+        db = s[b] - s[i] if bok else np.inf
+        if not (fok or bok):
+            out[i] = -1
+        elif df <= db:
+            out[i] = lab[f]
+        else:
+            out[i] = lab[b]
+
+
+@njit(cache=True)
+def _runs(lab, stroke, w, run):
+    """Runs of one label along a stroke: run (D,) set, returns the run lengths (sums of w)."""
+    D = lab.shape[0]
+    r = -1
+    for i in range(D):
+        if i == 0 or lab[i] != lab[i - 1] or stroke[i] != stroke[i - 1]:
+            r += 1
+        run[i] = r
+    rl = np.zeros(r + 1)
+    for i in range(D):
+        rl[run[i]] += w[i]
+    return rl
+
+
+@njit(cache=True)
+def segment_runs(label, stroke, s, w, lengths, min_segment_px):
+    """tracking.votes.segment_by_votes from its samples' labels (D,) (the id of most vote weight,
+    -1: no vote; D >= 1): returns run (D,), and per run stroke, s0, s1 (px) and label."""
+    D = label.shape[0]
+    lab = np.empty(D, np.int64)
+    _fill(label, stroke, s, lab)
+    run = np.empty(D, np.int64)
+    tmp = np.empty(D, np.int64)
+    for _ in range(4):
+        rl = _runs(lab, stroke, w, run)
+        R = rl.shape[0]
+        # Per stroke its longest run (ties: the first) is never short.
+        first = np.empty(R, np.int64)
+        for i in range(D - 1, -1, -1):
+            first[run[i]] = i
+        short = np.zeros(R, np.bool_)
+        any_short = False
+        r0 = 0
+        while r0 < R:
+            st = stroke[first[r0]]
+            r1 = r0
+            best = r0
+            while r1 < R and stroke[first[r1]] == st:
+                if rl[r1] > rl[best]:
+                    best = r1
+                r1 += 1
+            for r in range(r0, r1):
+                if r != best and rl[r] < min_segment_px and lab[first[r]] >= 0:
+                    short[r] = True
+                    any_short = True
+            r0 = r1
+        if not any_short:
+            break
+        for i in range(D):
+            tmp[i] = -1 if short[run[i]] else lab[i]
+        _fill(tmp, stroke, s, lab)
+    else:
+        rl = _runs(lab, stroke, w, run)
+    R = rl.shape[0]
+    first = np.empty(R, np.int64)
+    last = np.empty(R, np.int64)
+    for i in range(D - 1, -1, -1):
+        first[run[i]] = i
+    for i in range(D):
+        last[run[i]] = i
+    rs = np.empty(R, np.int64)
+    s0 = np.empty(R)
+    s1 = np.empty(R)
+    rlab = np.empty(R, np.int64)
+    for r in range(R):
+        a = first[r]
+        b = last[r]
+        rs[r] = stroke[a]
+        rlab[r] = lab[a]
+        head = r == 0 or stroke[first[r - 1]] != stroke[a]
+        tail = r == R - 1 or stroke[first[r + 1]] != stroke[a]
+        # Runs meet halfway between their samples; strokes are covered from 0 to their length.
+        s0[r] = 0.0 if head else 0.5 * (s[a] + s[max(a - 1, 0)])
+        s1[r] = lengths[stroke[a]] if tail else 0.5 * (s[b] + s[min(b + 1, D - 1)])
+    return run, rs, s0, s1, rlab
+
+
+@njit(cache=True)
+def sort_within(o, key, s):
+    """o (n,) an order by the integer `key` that keeps index order among equal keys (a stable
+    argsort), made the order by key, then s (float, not NaN), then index: each run of one key
+    sorted by s, stably (np.lexsort((s, key)))."""
+    n = o.shape[0]
+    g0 = 0
+    while g0 < n:
+        g1 = g0 + 1
+        while g1 < n and key[o[g1]] == key[o[g0]]:
+            g1 += 1
+        up = True
+        down = True
+        for i in range(g0 + 1, g1):
+            if s[o[i]] < s[o[i - 1]]:
+                up = False
+            if not s[o[i]] < s[o[i - 1]]:
+                down = False
+        if down:
+            # (strictly decreasing: no ties whose index order a reversal would break)
+            o[g0:g1] = o[g0:g1][::-1].copy()
+        elif not up:
+            if g1 - g0 > 32:
+                sub = o[g0:g1].copy()
+                oo = np.argsort(s[sub], kind="mergesort")
+                for i in range(g1 - g0):
+                    o[g0 + i] = sub[oo[i]]
+            else:
+                for i in range(g0 + 1, g1):
+                    v = o[i]
+                    sv = s[v]
+                    j = i
+                    while j > g0 and s[o[j - 1]] > sv:
+                        o[j] = o[j - 1]
+                        j -= 1
+                    o[j] = v
+        g0 = g1
+    return o
+
+
+@njit(cache=True)
+def jump_order(o, key, st, vid, s, u, P, min_jump):
+    """heal_jumps' order of the votes, np.lexsort((s, vid, st)), from o, key as sort_within takes
+    them (key: st and vid as one integer), and whether a step between two votes of one path and
+    id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to heal)."""
+    o = sort_within(o, key, s)
+    for i in range(1, o.shape[0]):
+        a = o[i - 1]
+        b = o[i]
+        if st[a] == st[b] and vid[a] == vid[b] and abs((u[b] - u[a]) - (s[b] - s[a]) / P) >= min_jump:
+            if np.round((u[b] - u[a]) - (s[b] - s[a]) / P) != 0.0:
+                return o, True
+    return o, False
+
+
+@njit(cache=True)
+def u_trend(rk, pk, u, R):
+    """tracking.votes._u_trend after its selection: the votes rk (K,) (run), pk (K,) (position,
+    px, shifted to start at 0), u (K,): per run the px along which u increases less those along
+    which it decreases, over steps between votes next to each other by position."""
+    K = rk.shape[0]
+    out = np.zeros(R)
+    if K < 2:
+        return out
+    top = pk.max() + 1.0
+    key = np.empty(K)
+    for i in range(K):
+        key[i] = rk[i] * top + pk[i]
+    o = np.argsort(key, kind="mergesort")
+    for i in range(1, K):
+        a = o[i - 1]
+        b = o[i]
+        if rk[b] == rk[a]:
+            out[rk[b]] += np.sign(u[b] - u[a]) * (pk[b] - pk[a])
+    return out
+
+
+@njit(cache=True)
+def link_paths(a, b, e_run, n, S):
+    """tracking.joins._touching_paths' links and walk: the candidate links a, b (L,) between
+    stroke ends (node i < n: the start of stroke e_run[i], else its end), in the order they are
+    taken (each end in one link at most), walked into paths. Returns group (S,) (the lowest
+    stroke of each path), rev (S,) and pos (S,) as _touching_paths does."""
+    group = np.arange(S)
+    rev = np.zeros(S, np.bool_)
+    pos = np.zeros(S, np.int64)
+    nn = 2 * n
+    code = np.empty(nn, np.int64)
+    for i in range(nn):
+        code[i] = 2 * e_run[i] + (1 if i >= n else 0)
+    deg = np.zeros(nn, np.int64)
+    for i in range(a.shape[0]):
+        deg[a[i]] += 1
+        deg[b[i]] += 1
+    # nxt[c]: code of the end linked to end c (-1: free); entering at c, one leaves at c ^ 1.
+    nxt = np.full(2 * S, -1, np.int64)
+    taken = np.zeros(nn, np.bool_)
+    for i in range(a.shape[0]):
+        x = a[i]
+        y = b[i]
+        if deg[x] == 1 and deg[y] == 1:  # (in no other link: taken whatever the order)
+            nxt[code[x]] = code[y]
+            nxt[code[y]] = code[x]
+    for i in range(a.shape[0]):
+        x = a[i]
+        y = b[i]
+        if (deg[x] == 1 and deg[y] == 1) or taken[x] or taken[y]:
+            continue
+        taken[x] = True
+        taken[y] = True
+        nxt[code[x]] = code[y]
+        nxt[code[y]] = code[x]
+    walk = np.empty(S, np.int64)
+    heads = np.empty(S + 1, np.int64)
+    nw = 0
+    nh = 0
+    seen = np.zeros(S, np.bool_)
+    n_runs = 0
+    # Path starts: strokes with one linked end, entered through the free end, in stroke order; a
+    # path's other end stroke is a start left to skip.
+    for r in range(S):
+        l0 = nxt[2 * r] >= 0
+        l1 = nxt[2 * r + 1] >= 0
+        if l0 or l1:
+            n_runs += 1
+        if l0 == l1 or seen[r]:
+            continue
+        c = 2 * r + (1 if l0 else 0)
+        heads[nh] = nw
+        nh += 1
+        while True:
+            walk[nw] = c
+            nw += 1
+            seen[c >> 1] = True
+            nc = nxt[c ^ 1]
+            if nc < 0:
+                break
+            c = nc
+    if nw < n_runs:
+        # Rings (linked strokes no path reached), entered through their start.
+        for r in range(S):
+            if seen[r] or (nxt[2 * r] < 0 and nxt[2 * r + 1] < 0):
+                continue
+            c = 2 * r
+            heads[nh] = nw
+            nh += 1
+            while not seen[c >> 1]:
+                seen[c >> 1] = True
+                walk[nw] = c
+                nw += 1
+                c = nxt[c ^ 1]
+                if c < 0:
+                    break
+    heads[nh] = nw
+    for h in range(nh):
+        h0 = heads[h]
+        h1 = heads[h + 1]
+        ln = h1 - h0
+        # A path goes backwards when more of its strokes are entered at their end.
+        ends = 0
+        low = walk[h0] >> 1
+        for i in range(h0, h1):
+            ends += walk[i] & 1
+            if (walk[i] >> 1) < low:
+                low = walk[i] >> 1
+        flip = 2 * ends > ln
+        for i in range(h0, h1):
+            r = walk[i] >> 1
+            k = i - h0
+            group[r] = low
+            rev[r] = ((walk[i] & 1) == 1) != flip
+            pos[r] = ln - 1 - k if flip else k
+    return group, rev, pos
+
+
+@njit(cache=True)
+def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
+    """paths.stage.carried_votes from the lookback's matches: rm (M,) the previous path sample
+    each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
+    projected. Returns the votes where the kind classes (cls_d of the line samples, cls_v of the
+    path samples) agree: line sample m, id, u (refined along the old tangent by the local slope
+    of u, the offset clipped to the sample's piece), weight (step times the line sample's
+    length) and the sign of the tangents' agreement."""
+    M = rm.shape[0]
+    K = 0
+    for i in range(M):
+        j = rm[i]
+        if j >= 0 and cls_d[sub[i]] == cls_v[j]:
+            K += 1
+    m = np.empty(K, np.int64)
+    vid = np.empty(K, np.int64)
+    u = np.empty(K)
+    w = np.empty(K)
+    sign = np.empty(K)
+    nv = Vp.shape[0]
+    k = 0
+    for i in range(M):
+        j = rm[i]
+        if j < 0:
+            continue
+        h = sub[i]
+        if cls_d[h] != cls_v[j]:
+            continue
+        t0 = Vt[j, 0]
+        t1 = Vt[j, 1]
+        off = (rq[i, 0] - Vp[j, 0]) * t0 + (rq[i, 1] - Vp[j, 1]) * t1
+        lo = -0.5 * Vw[j]
+        hi = 0.5 * Vw[j]
+        if off < lo:
+            off = lo
+        if off > hi:
+            off = hi
+        # du/ds at the path sample, from its neighbours on its stroke (tracking.ufit._local_slope).
+        nx = j + 1 if j + 1 < nv and Vstroke[j + 1] == Vstroke[j] else j
+        pv = j - 1 if j >= 1 and Vstroke[j - 1] == Vstroke[j] else j
+        ds = Vs[nx] - Vs[pv]
+        slope = (Vu[nx] - Vu[pv]) / ds if ds > 0 else 0.0
+        m[k] = h
+        vid[k] = Vids[j]
+        u[k] = Vu[j] + off * slope
+        w[k] = step * Dw[h]
+        sign[k] = np.sign(t0 * Dt[h, 0] + t1 * Dt[h, 1])
+        k += 1
+    return m, vid, u, w, sign
+
+
+@njit(cache=True)
+def _sorted_unique(x):
+    x = np.sort(x)
+    n = 0
+    for j in range(x.shape[0]):
+        if j == 0 or x[j] != x[j - 1]:
+            x[n] = x[j]
+            n += 1
+    return x[:n].copy()
+
+
+@njit(cache=True)
+def hairpins(P, ends, i, cos_max, max_px):
+    """lines.strokeops.drop_hairpins' points kept (N,): P (N, 2) the points, ends (N,) the
+    strokes' ends, i the sorted interior points looked at (hairpin_candidates)."""
+    n = P.shape[0]
+    alive = np.ones(n, np.bool_)
+    live = np.arange(n)
+    dropped = False
+    mx2 = max_px * max_px
+    for _ in range(8):
+        m = i.shape[0]
+        if m == 0:
+            break
+        bad = np.zeros(m, np.bool_)
+        kk = np.empty(m, np.int64)
+        any_bad = False
+        for e in range(m):
+            c = i[e]
+            # Neighbours among the points still there (ends are never dropped).
+            k = np.searchsorted(live, c) if dropped else c
+            kk[e] = k
+            pv = live[k - 1]
+            nx = live[k + 1]
+            ax = P[c, 0] - P[pv, 0]
+            ay = P[c, 1] - P[pv, 1]
+            bx = P[nx, 0] - P[c, 0]
+            by = P[nx, 1] - P[c, 1]
+            la = ax * ax + ay * ay
+            lb = bx * bx + by * by
+            dot = ax * bx + ay * by
+            if min(la, lb) <= mx2 and la > 0 and lb > 0 and dot < cos_max * math.sqrt(la * lb):
+                bad[e] = True
+                any_bad = True
+        if not any_bad:
+            break
+        # Of neighbouring candidates (next to each other among the live points) the first goes;
+        # the fold can move to a neighbour of a dropped point: those are looked at too.
+        cand = np.empty(m, np.int64)
+        near = np.empty(2 * m, np.int64)
+        nc = 0
+        last_k = -2
+        for e in range(m):
+            if not bad[e]:
+                continue
+            k = kk[e]
+            if nc == 0 or k - last_k > 1:
+                cand[nc] = i[e]
+                near[2 * nc] = live[k - 1]
+                near[2 * nc + 1] = live[min(k + 1, live.shape[0] - 1)]
+                nc += 1
+            last_k = k
+        for e in range(nc):
+            alive[cand[e]] = False
+        live = np.flatnonzero(alive)
+        dropped = True
+        nxt = np.empty(m + 2 * nc, np.int64)
+        t = 0
+        for e in range(m):
+            if alive[i[e]]:
+                nxt[t] = i[e]
+                t += 1
+        for e in range(2 * nc):
+            c = near[e]
+            if alive[c] and not ends[c]:
+                nxt[t] = c
+                t += 1
+        i = _sorted_unique(nxt[:t])
+    return alive
+
+
+@njit(cache=True)
+def resample_at(L, step, base, G, offsets):
+    """sampling.resample_strokes' samples, before their points are read: every stroke of lengths L
+    (S,) cut into n = max(1, ceil(L / step - 1e-9)) equal pieces, a sample at the middle of each.
+    base, G: the strokes' global arc (Strokes.global_arc); offsets (S + 1,). Returns per sample
+    its stroke, arc length s and length w (px), and the segment i -> j and fraction a (in [0, 1])
+    of the polyline where it lies."""
+    S = L.shape[0]
+    n = np.empty(S, np.int64)
+    M = 0
+    for k in range(S):
+        v = math.ceil(L[k] / step - 1e-9)
+        n[k] = int(max(1.0, v))
+        M += n[k]
+    stroke = np.empty(M, np.int64)
+    s = np.empty(M)
+    w = np.empty(M)
+    i = np.empty(M, np.int64)
+    j = np.empty(M, np.int64)
+    a = np.empty(M)
+    last_g = G.shape[0] - 1
+    m = 0
+    for k in range(S):
+        wk = L[k] / n[k]
+        first = offsets[k]
+        last = offsets[k + 1] - 1
+        for q in range(n[k]):
+            sm = (q + 0.5) * wk
+            g = sm + base[k]
+            # bracket(G, G.searchsorted(g, "right"), first, last)
+            r = np.searchsorted(G, g, side="right")
+            jj = min(max(r, first + 1), max(last, first + 1))
+            jj = min(jj, last_g)
+            ii = max(jj - 1, first)
+            if last == first:  # (one-point stroke)
+                ii = first
+                jj = first
+            gi = G[ii]
+            d = G[jj] - gi
+            f = (g - gi) / d if d > 0 else 0.0
+            f = min(max(f, 0.0), 1.0)
+            stroke[m] = k
+            s[m] = sm
+            w[m] = wk
+            i[m] = ii
+            j[m] = jj
+            a[m] = f
+            m += 1
+    return stroke, s, w, i, j, a
+
+
+@njit(cache=True)
+def resample_points(P, U, i, j, a):
+    """sampling.resample_strokes' positions (M, 2), unit tangents (M, 2) (0 on a zero-length
+    segment) and u (M,) of the samples at fraction a of the segments i -> j."""
+    M = i.shape[0]
+    p = np.empty((M, 2))
+    t = np.empty((M, 2))
+    u = np.empty(M)
+    for m in range(M):
+        ii = i[m]
+        jj = j[m]
+        f = a[m]
+        g = 1 - f
+        u[m] = U[ii] * g + U[jj] * f
+        t0 = P[jj, 0] - P[ii, 0]
+        t1 = P[jj, 1] - P[ii, 1]
+        tn = math.sqrt(t0 * t0 + t1 * t1)
+        if tn > 0:
+            t[m, 0] = t0 / tn
+            t[m, 1] = t1 / tn
+        else:
+            t[m, 0] = 0.0
+            t[m, 1] = 0.0
+        p[m, 0] = P[ii, 0] * g + P[jj, 0] * f
+        p[m, 1] = P[ii, 1] * g + P[jj, 1] * f
+    return p, t, u
+
+
+@njit(cache=True)
+def vote_labels(D, o, key, M, w):
+    """tracking.votes.sample_labels: (D,) the id of most vote weight on every sample (ties: the
+    lower id; -1: no vote), from the votes' keys sample * M + id (V,) and o (V,) a stable argsort
+    of them. A key's weight is summed in vote order and rounded to 9 decimals as np.round does."""
+    label = np.full(D, -1, np.int64)
+    V = o.shape[0]
+    g0 = 0
+    best = 0.0
+    while g0 < V:
+        kg = key[o[g0]]
+        tot = 0.0
+        g1 = g0
+        while g1 < V and key[o[g1]] == kg:
+            tot += w[o[g1]]
+            g1 += 1
+        kw = np.rint(tot * 1e9) / 1e9
+        smp = kg // M
+        # keys come sorted by (sample, id): the first of a sample holding its maximum wins
+        if g0 == 0 or key[o[g0 - 1]] // M != smp:
+            label[smp] = kg % M
+            best = kw
+        elif kw > best:
+            label[smp] = kg % M
+            best = kw
+        g0 = g1
+    return label
+
+
+@njit(cache=True)
+def greedy_ids(order, cs, ci, n_strokes, next_id):
+    """tracking.votes.assign_ids' pass: the (stroke cs, id ci) pairs in `order` (heaviest first),
+    each stroke and each id used once; strokes left without an id get fresh ids from next_id in
+    stroke order. Returns (ids (n_strokes,), the new next_id)."""
+    ids = np.full(n_strokes, -1, np.int64)
+    top = 0
+    for p in range(ci.shape[0]):
+        if ci[p] + 1 > top:
+            top = ci[p] + 1
+    used = np.zeros(top, np.bool_)
+    for p in order:
+        s = cs[p]
+        if ids[s] < 0 and not used[ci[p]]:
+            ids[s] = ci[p]
+            used[ci[p]] = True
+    for s in range(n_strokes):
+        if ids[s] < 0:
+            ids[s] = next_id
+            next_id += 1
+    return ids, next_id
+
+
+@njit(cache=True)
+def band_terms(k, a, w, u, f0, f1, f2, f3):
+    """tracking.ufit.PiecewiseU.fit's banded normal equations: the votes' terms (vote i: knots
+    k[i], k[i] + 1 at fraction a[i], weight w[i], value u[i]), each summed over the votes in
+    their order, then the fixed terms' rows f0 .. f3 (the stretch, bend and anchor rows of band
+    rows 0, 1, 2 and the right-hand side) added one row after the other, as np.add.reduce over
+    the stacked rows adds them. Returns band (3, nk) and rhs (nk,)."""
+    nk = f0.shape[1]
+    band = np.zeros((3, nk))
+    rhs = np.zeros(nk)
+    b01 = np.zeros(nk)
+    rhs1 = np.zeros(nk)
+    for i in range(k.shape[0]):
+        sw = math.sqrt(w[i])
+        v0 = sw * (1 - a[i])
+        v1 = sw * a[i]
+        y = sw * u[i]
+        band[0, k[i]] += v0 * v0
+        b01[k[i] + 1] += v1 * v1
+        band[1, k[i]] += v0 * v1
+        rhs[k[i]] += v0 * y
+        rhs1[k[i] + 1] += v1 * y
+    for c in range(nk):
+        band[0, c] += b01[c]
+        rhs[c] += rhs1[c]
+    for r in range(f0.shape[0]):
+        for c in range(nk):
+            band[0, c] += f0[r, c]
+    for r in range(f1.shape[0]):
+        for c in range(nk):
+            band[1, c] += f1[r, c]
+    for c in range(nk):
+        band[2, c] = f2[0, c]
+    for r in range(1, f2.shape[0]):
+        for c in range(nk):
+            band[2, c] += f2[r, c]
+    for r in range(f3.shape[0]):
+        for c in range(nk):
+            rhs[c] += f3[r, c]
+    return band, rhs
+
+
+@njit(cache=True)
+def pieces_of_runs(cover, run, s, w, r_s0, r_s1, min_piece_px):
+    """paths.stage.brush_step's pieces: the stretches of samples (N,) of one run not covered
+    (cover < 0) from arc length s0 to s1 (px; a run's own ends where the stretch reaches them,
+    else halfway to the next sample), kept where at least min_piece_px long or a whole run, and
+    not empty. Returns their run, s0, s1 (P,) and the piece of every sample (N,) (-1: none)."""
+    N = run.shape[0]
+    smp_piece = np.full(N, -1, np.int64)
+    p_run = np.empty(N, np.int64)
+    p_s0 = np.empty(N)
+    p_s1 = np.empty(N)
+    P = 0
+    a = 0
+    while a < N:
+        b = a
+        while b + 1 < N and (cover[b + 1] < 0) == (cover[a] < 0) and run[b + 1] == run[a]:
+            b += 1
+        r = run[a]
+        head = a == 0 or run[a - 1] != r
+        tail = b == N - 1 or run[b + 1] != r
+        s0 = r_s0[r] if head else s[a] - 0.5 * w[a]
+        s1 = r_s1[r] if tail else s[b] + 0.5 * w[b]
+        if cover[a] < 0 and (s1 - s0 >= min_piece_px or (head and tail)) and s1 > s0:
+            p_run[P] = r
+            p_s0[P] = s0
+            p_s1[P] = s1
+            for i in range(a, b + 1):
+                smp_piece[i] = P
+            P += 1
+        a = b + 1
+    return p_run[:P].copy(), p_s0[:P].copy(), p_s1[:P].copy(), smp_piece
+
+
+@njit(cache=True)
+def votes_landing(vm, cover, smp_piece, s, p_s0, p_s1):
+    """Where every vote (on line sample vm (V,)) lands: on its sample, or where a covered sample's
+    covering sample lies; ok (V,) where that sample draws a piece, and for those (in order) the
+    piece and the arc length within it (px, clipped to the piece)."""
+    V = vm.shape[0]
+    ok = np.zeros(V, np.bool_)
+    n = 0
+    for v in range(V):
+        h = cover[vm[v]] if cover[vm[v]] >= 0 else vm[v]
+        if smp_piece[h] >= 0:
+            ok[v] = True
+            n += 1
+    vk = np.empty(n, np.int64)
+    s_in = np.empty(n)
+    n = 0
+    for v in range(V):
+        if not ok[v]:
+            continue
+        h = cover[vm[v]] if cover[vm[v]] >= 0 else vm[v]
+        k = smp_piece[h]
+        x = s[h] - p_s0[k]
+        x = max(x, 0.0)
+        x = min(x, p_s1[k] - p_s0[k])
+        vk[n] = k
+        s_in[n] = x
+        n += 1
+    return ok, vk, s_in
+
+
+@njit(cache=True)
+def line_fit(st, s, u, w, mask, lam, b0):
+    """tracking.kalnins.fit_u's linear fit u = a + b s per stroke (S = lam.shape[0]) of the votes
+    st, s, u weighted w * mask (sums in vote order, as np.bincount takes them), with the prior
+    lam (b - b0)^2 on the slope. Returns a, b (b0 where the fit is singular), ok (S,)."""
+    S = lam.shape[0]
+    S0 = np.zeros(S)
+    S1 = np.zeros(S)
+    S2 = np.zeros(S)
+    T0 = np.zeros(S)
+    T1 = np.zeros(S)
+    for i in range(st.shape[0]):
+        k = st[i]
+        wm = w[i] * mask[i]
+        ws = wm * s[i]
+        S0[k] += wm
+        S1[k] += ws
+        S2[k] += ws * s[i]
+        T0[k] += wm * u[i]
+        T1[k] += ws * u[i]
+    a = np.zeros(S)
+    b = np.empty(S)
+    ok = np.zeros(S, np.bool_)
+    for k in range(S):
+        A11 = S0[k]
+        A12 = S1[k]
+        A22 = S2[k] + lam[k]
+        R1 = T0[k]
+        R2 = T1[k] + lam[k] * b0
+        det = A11 * A22 - A12 * A12
+        ok[k] = S0[k] > 0 and det > 1e-12 * max(A11 * A22, 1e-300)
+        if ok[k]:
+            a[k] = (R1 * A22 - A12 * R2) / det
+            b[k] = (A11 * R2 - A12 * R1) / det
+        else:
+            b[k] = b0
+    return a, b, ok
+
+
+@njit(cache=True)
+def insert_at(base, G, offsets, stroke, s):
+    """tracking.joins.insert_points' new points: at arc length s (px) of strokes `stroke`, the
+    segment i -> j and fraction a holding it, its global arc g; points within 1e-6 px of an
+    existing point (or on a zero-length segment) left out. Returns i, j, a, g, stroke (kept)."""
+    K = stroke.shape[0]
+    last_g = G.shape[0] - 1
+    ii = np.empty(K, np.int64)
+    jj = np.empty(K, np.int64)
+    aa = np.empty(K)
+    gg = np.empty(K)
+    ss = np.empty(K, np.int64)
+    n = 0
+    for k in range(K):
+        st = stroke[k]
+        g = base[st] + s[k]
+        first = offsets[st]
+        last = offsets[st + 1] - 1
+        r = np.searchsorted(G, g, side="right")
+        j = min(max(r, first + 1), max(last, first + 1))
+        j = min(j, last_g)
+        i = max(j - 1, first)
+        gi = G[i]
+        gj = G[j]
+        if gj - gi > 0 and g - gi > 1e-6 and gj - g > 1e-6:
+            ii[n] = i
+            jj[n] = j
+            aa[n] = (g - gi) / (gj - gi)
+            gg[n] = g
+            ss[n] = st
+            n += 1
+    return ii[:n].copy(), jj[:n].copy(), aa[:n].copy(), gg[:n].copy(), ss[:n].copy()
+
+
+@njit(cache=True)
+def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
+    """tracking.joins.insert_points' strokes: the points P, X, F, U (N) with the new ones
+    (interpolated at fraction a of segments i -> j; surface points Xn) merged in by global arc
+    (G (N,) increasing; g (K,) non-decreasing: an old point before a new one at the same
+    place). Returns (in order, P, X, F, U, offsets); in order False (and nothing merged) where g
+    is not in order."""
+    N = G.shape[0]
+    K = g.shape[0]
+    for k in range(1, K):
+        if g[k] < g[k - 1]:
+            return False, P[:0], X[:0], F[:0], U[:0], offsets[:0]
+    M = N + K
+    P2 = np.empty((M, 2))
+    X2 = np.empty((M, 3))
+    F2 = np.empty(M, F.dtype)
+    U2 = np.empty(M)
+    m = 0
+    k = 0
+    for q in range(N):
+        while k < K and g[k] < G[q]:
+            f = a[k]
+            P2[m, 0] = P[i[k], 0] * (1 - f) + P[j[k], 0] * f
+            P2[m, 1] = P[i[k], 1] * (1 - f) + P[j[k], 1] * f
+            X2[m, 0] = Xn[k, 0]
+            X2[m, 1] = Xn[k, 1]
+            X2[m, 2] = Xn[k, 2]
+            F2[m] = F[i[k]] if f < 0.5 else F[j[k]]
+            U2[m] = U[i[k]] * (1 - f) + U[j[k]] * f
+            m += 1
+            k += 1
+        P2[m, 0] = P[q, 0]
+        P2[m, 1] = P[q, 1]
+        X2[m, 0] = X[q, 0]
+        X2[m, 1] = X[q, 1]
+        X2[m, 2] = X[q, 2]
+        F2[m] = F[q]
+        U2[m] = U[q]
+        m += 1
+    while k < K:
+        f = a[k]
+        P2[m, 0] = P[i[k], 0] * (1 - f) + P[j[k], 0] * f
+        P2[m, 1] = P[i[k], 1] * (1 - f) + P[j[k], 1] * f
+        X2[m, 0] = Xn[k, 0]
+        X2[m, 1] = Xn[k, 1]
+        X2[m, 2] = Xn[k, 2]
+        F2[m] = F[i[k]] if f < 0.5 else F[j[k]]
+        U2[m] = U[i[k]] * (1 - f) + U[j[k]] * f
+        m += 1
+        k += 1
+    S = offsets.shape[0] - 1
+    off = np.empty(S + 1, np.int64)
+    off[0] = 0
+    extra = np.zeros(S, np.int64)
+    for k in range(K):
+        extra[stroke[k]] += 1
+    for t in range(S):
+        off[t + 1] = off[t] + (offsets[t + 1] - offsets[t]) + extra[t]
+    return True, P2, X2, F2, U2, off
+
+
+@njit(cache=True)
+def hairpin_points(P, offsets, at, cos_max, max_px):
+    """lines.strokeops.drop_hairpins' points kept (N,), from the strokes' offsets (S + 1,) and the
+    points looked at `at` (hairpin_candidates' ends and interior points, then hairpins)."""
+    n = P.shape[0]
+    ends = np.zeros(n, np.bool_)
+    for k in range(offsets.shape[0] - 1):
+        if offsets[k + 1] > offsets[k]:  # (an empty stroke has no ends)
+            ends[offsets[k]] = True
+            ends[offsets[k + 1] - 1] = True
+    i = _sorted_unique(at)
+    m = 0
+    for e in range(i.shape[0]):
+        c = i[e]
+        if c > 0 and c < n - 1 and not ends[c]:
+            i[m] = c
+            m += 1
+    return hairpins(P, ends, i[:m].copy(), cos_max, max_px)
+
+
+@njit(cache=True)
+def cut_ends(G, base, offsets, stroke, s0, s1):
+    """lines.strokeops.cut_pieces' bookkeeping: for every piece k (stroke[k] from arc length s0[k]
+    to s1[k], px) its first interior original point lo and their count n_in (G strictly inside),
+    and the segments i -> j and fractions a of its two ends (2K: the starts, then the ends)."""
+    K = stroke.shape[0]
+    last_g = G.shape[0] - 1
+    lo = np.empty(K, np.int64)
+    n_in = np.empty(K, np.int64)
+    i = np.empty(2 * K, np.int64)
+    j = np.empty(2 * K, np.int64)
+    a = np.empty(2 * K)
+    for k in range(K):
+        st = stroke[k]
+        first = offsets[st]
+        last = offsets[st + 1] - 1
+        for e in range(2):
+            g = base[st] + (s0[k] if e == 0 else s1[k])
+            r = np.searchsorted(G, g, side="right")
+            if e == 0:
+                lo[k] = max(r, first)
+            else:
+                hi = min(np.searchsorted(G, g, side="left"), last + 1)
+                n_in[k] = max(hi - lo[k], 0)
+            jj = min(max(r, first + 1), max(last, first + 1))
+            jj = min(jj, last_g)
+            ii = max(jj - 1, first)
+            gi = G[ii]
+            d = G[jj] - gi
+            f = (g - gi) / d if d > 0 else 0.0
+            m = k + e * K
+            i[m] = ii
+            j[m] = jj
+            a[m] = min(max(f, 0.0), 1.0)
+    return lo, n_in, i, j, a
+
+
+@njit(cache=True)
+def cut_assemble(P, X, F, lo, n_in, i, j, a, Xe):
+    """cut_pieces' points (not reversed): each piece's interpolated start, its interior original
+    points, its interpolated end; Xe (2K, 3) the ends' surface points. Returns points, surface,
+    face and offsets."""
+    K = lo.shape[0]
+    off = np.empty(K + 1, np.int64)
+    off[0] = 0
+    for k in range(K):
+        off[k + 1] = off[k] + n_in[k] + 2
+    N = off[K]
+    p = np.empty((N, 2))
+    x = np.empty((N, 3))
+    fc = np.empty(N, F.dtype)
+    for k in range(K):
+        t = off[k]
+        for e in range(2):
+            m = k + e * K
+            q = t if e == 0 else off[k + 1] - 1
+            f = a[m]
+            p[q, 0] = P[i[m], 0] * (1 - f) + P[j[m], 0] * f
+            p[q, 1] = P[i[m], 1] * (1 - f) + P[j[m], 1] * f
+            x[q, 0] = Xe[m, 0]
+            x[q, 1] = Xe[m, 1]
+            x[q, 2] = Xe[m, 2]
+            fc[q] = F[i[m]] if f < 0.5 else F[j[m]]
+        for c in range(n_in[k]):
+            src = lo[k] + c
+            q = t + 1 + c
+            p[q, 0] = P[src, 0]
+            p[q, 1] = P[src, 1]
+            x[q, 0] = X[src, 0]
+            x[q, 1] = X[src, 1]
+            x[q, 2] = X[src, 2]
+            fc[q] = F[src]
+    return p, x, fc, off
+
+
+def warmup() -> None:
+    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
+    p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
+    g = grid_index(p, 2.0)
+    out_d2 = np.zeros((2, 2))
+    out_i = np.zeros((2, 2), np.int64)
+    knn(p[:2], 3, *g, 2, 3.0, False, out_d2, out_i, np.zeros(2, np.bool_))
+    t = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
+    i3 = np.zeros(3, np.int64)
+    match_pieces(p[:2], t[:2], p, t, np.ones(3), *g, 2, 3.0, 0.5,
+                 np.zeros(2, np.int64), np.zeros(2, np.bool_))
+    segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
+    bridges(p[:2], p[1:], 0.5, p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_), np.zeros(2, np.bool_))
+    link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
+    two = np.array([0, 1])
+    lo, n_in, ci, cj, ca = cut_ends(np.array([0.0, 1.0, 2.0, 4.0]), np.array([0.0, 4.0]), np.array([0, 3, 4]), two,
+                                    np.array([0.5, 0.0]), np.array([1.5, 0.0]))
+    cut_assemble(np.zeros((4, 2)), np.zeros((4, 3)), np.zeros(4, np.int64), lo, n_in, ci, cj, ca, np.zeros((4, 3)))
+    hairpin_points(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([0, 4]), two + 1, 0.0, 1.0)
+    G3 = np.array([0.0, 1.0, 2.0])
+    i1, j1, a1, g1, s1 = insert_at(np.zeros(1), G3, np.array([0, 3]), np.array([0]), np.array([0.5]))
+    insert_merge(p, np.zeros((3, 3)), i3, np.zeros(3), G3, np.array([0, 3]), i1, j1, a1, g1, s1, np.zeros((1, 3)))
+    line_fit(two, np.ones(2), np.ones(2), np.ones(2), np.ones(2), np.ones(2), 0.1)
+    _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
+                                   1.0)
+    votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
+    f = np.ones((1, 3))
+    band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
+    greedy_ids(two, two, two, 3, 5)
+    vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
+    st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
+    resample_points(p, np.zeros(3), i, j, a)
+    hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
+             0.0, 1.0)
+    carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)
+    jump_order(two, np.array([1, 1]), np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]),
+               10.0, 2.0)
+    u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
+    cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))

@@ -1,0 +1,349 @@
+"""The brush path stage's compiled loops (strokekit.paths.compiled) give what the numpy and k-d
+tree steps they stand in for give, to the bit, on inputs made to tie: points on a lattice (equal
+distances everywhere), repeated points, pairs exactly at the cover radius."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from strokekit.lines.strokeops import drop_hairpins, query_tree
+from strokekit.model import Strokes
+from strokekit.paths.grid import SampleGrid
+from strokekit.paths.kernels import kernels
+from strokekit.paths.stage import (
+    Votes,
+    _assign_ids,
+    _cut_pieces,
+    _drop_hairpins,
+    _FitKernels,
+    _insert_points,
+    _labels,
+    _lookback,
+    _resample,
+    _trend,
+    covering_samples,
+    on_drawing,
+)
+from strokekit.sampling import Samples, match_samples, resample_strokes
+from strokekit.tracking.joins import _touching_paths
+from strokekit.tracking.ufit import PiecewiseU
+from strokekit.tracking.votes import _u_trend, assign_ids, sample_labels, segment_by_votes
+
+
+def _points(rng, n, lattice):
+    """n points in a 40 px square: on a half-pixel lattice (ties everywhere, repeats) or not."""
+    if lattice:
+        return rng.integers(0, 80, (n, 2)) * 0.5
+    return rng.random((n, 2)) * 40.0
+
+
+def _samples(rng, n, lattice):
+    p = _points(rng, n, lattice)
+    a = rng.random(n) * np.pi
+    t = np.c_[np.cos(a), np.sin(a)]
+    if lattice:  # (tangents along the axes and diagonals: dot products tie too)
+        t = np.round(t * 2) / 2
+        t /= np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
+    stroke = np.sort(rng.integers(0, max(1, n // 8), n))
+    w = np.where(rng.random(n) < 0.5, 1.0, 0.5 + rng.random(n))
+    return Samples(p=p, X=np.c_[p, np.ones(n)], u=rng.random(n) * 5, t=t, ids=np.zeros(n, np.int64), stroke=stroke,
+                   s=np.arange(n) * 1.0, w=w)
+
+
+@pytest.mark.parametrize("lattice", [False, True])
+def test_grid_queries_are_the_trees(lattice):
+    rng = np.random.default_rng(1 + lattice)
+    for _ in range(20):
+        p = _points(rng, int(rng.integers(1, 300)), lattice)
+        q = np.r_[_points(rng, 200, lattice), p[:20], [[-50.0, 3.0], [400.0, 400.0]]]
+        tree, grid = query_tree(p), SampleGrid(p, float(rng.choice([1.0, 3.0, 6.0])))
+        for k in (1, 2, 16):
+            for bound in (1.5, 3.0 + 1e-9, 6.0):
+                d0, i0 = tree.query(q, k=k, distance_upper_bound=bound)
+                d1, i1 = grid.query(q, k=k, distance_upper_bound=bound)
+                assert np.array_equal(d0, d1) and np.array_equal(i0, i1)
+                # as a set: the same neighbours, in an order of equal distances of its own
+                d2, i2 = grid.query(q, k=k, distance_upper_bound=bound, as_set=True)
+                assert np.array_equal(d0, d2)
+                assert np.array_equal(np.sort(i0.reshape(len(q), -1), axis=1), np.sort(i2.reshape(len(q), -1), axis=1))
+
+
+@pytest.mark.parametrize("lattice", [False, True])
+def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
+    rng = np.random.default_rng(3 + lattice)
+    for _ in range(20):
+        n = int(rng.integers(2, 400))
+        D = _samples(rng, n, lattice)
+        kind = rng.integers(0, 3, D.stroke.max() + 1)  # silhouette, smooth contour, crease
+        run = np.cumsum(rng.random(n) < 0.2)
+        rank = rng.permutation(run.max() + 1)
+        tree, grid = query_tree(D.p), SampleGrid(D.p, 3.0)
+        for radius in (2.0, 1.0):  # (lattice points: many pairs exactly at the radius)
+            assert np.array_equal(covering_samples(D, kind, run, rank, radius, tree),
+                                  covering_samples(D, kind, run, rank, radius, grid))
+        pa, pb = _points(rng, 30, lattice), _points(rng, 30, lattice)
+        assert np.array_equal(on_drawing(tree, pa, pb, D=D), on_drawing(grid, pa, pb, D=D))
+        pa, pb = D.p[rng.integers(0, n, 30)], D.p[rng.integers(0, n, 30)]  # (bridges between samples)
+        assert np.array_equal(on_drawing(tree, pa, pb, D=D), on_drawing(grid, pa, pb, D=D))
+        # the lookback: line samples (their surface points seen by an identity-like camera) to
+        # the previous paths' samples
+        src = _samples(rng, 200, lattice)
+        cam = _Flat()
+        m0, q0 = match_samples(src, cam, D, tree, radius_px=6.0, min_tangent_dot=0.65, k=2, return_projected=True,
+                               piece_distance=True)
+        m1, q1 = _lookback(src, cam, D, 6.0, 0.65)
+        assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
+
+
+class _Flat:
+    """A camera that draws a surface point (x, y, z) at pixel (x, y)."""
+
+    is_ortho = True
+
+    def project(self, X):
+        return X[:, :2].copy(), X[:, 2].copy()
+
+
+def test_segment_runs_are_segment_by_votes():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        n = int(rng.integers(1, 300))
+        counts = rng.integers(1, 40, n // 10 + 1)
+        stroke = np.repeat(np.arange(len(counts)), counts)[:n]
+        n = len(stroke)
+        w = np.where(rng.random(n) < 0.7, 1.0, rng.random(n))
+        s = np.zeros(n)
+        for k in range(stroke.max() + 1):
+            on = stroke == k
+            s[on] = np.cumsum(w[on]) - 0.5 * w[on]
+        lengths = np.bincount(stroke, weights=w)
+        dense = Samples(p=np.zeros((n, 2)), X=np.zeros((n, 3)), u=np.zeros(n), t=np.zeros((n, 2)),
+                        ids=np.zeros(n, np.int64), stroke=stroke, s=s, w=w)
+        V = int(rng.integers(0, 2 * n))
+        vm, vid, vw = rng.integers(0, n, V), rng.integers(0, 6, V), rng.random(V).round(1)
+        vw = np.where(rng.random(V) < 0.5, vw, rng.random(V))  # (sums that round to ties, and not)
+        assert np.array_equal(sample_labels(n, vm, vid, vw), _labels(n, Votes(vm, vid, np.zeros(V), vw, np.zeros(V))))
+        for min_px in (1.5, 6.0):
+            a = segment_by_votes(dense, lengths, vm, vid, vw, min_px)
+            b = kernels().segment_runs(sample_labels(n, vm, vid, vw), stroke, s, w, lengths, min_px)
+            assert all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
+    rng = np.random.default_rng(7)
+    K = kernels()
+    for trial in range(200):
+        n = int(rng.integers(1, 300))
+        a, b = rng.integers(0, rng.integers(1, 6), n), rng.integers(0, rng.integers(1, 5), n)
+        s = np.round(rng.random(n) * 10, int(rng.integers(0, 3)))
+        s = (np.sort(s), -np.sort(-s), s)[trial % 3]  # in order, reversed, mixed; ties
+        key = a * (b.max() + 1) + b
+        assert np.array_equal(K.sort_within(key.argsort(kind="stable"), key, s), np.lexsort((s, b, a)))
+        u, label = rng.random(n).round(1), rng.integers(0, 4, a.max() + 1)
+        assert np.array_equal(_u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+    for trial in range(100):
+        S = int(rng.integers(1, 12))
+        counts = rng.integers(1, 8, S)
+        N = int(counts.sum())
+        # ends on a coarse lattice: many meet, three or more at a point
+        pts = np.cumsum(rng.normal(0, 0.6, (N, 2)), axis=0)
+        if trial % 2:
+            pts = np.round(pts)
+        st = Strokes(points=pts, surface=np.zeros((N, 3)), face=np.zeros(N, np.int64),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S), u=np.zeros(N), level=np.zeros(S), level_weight=np.ones(S), camera=None, frame=0,
+                     period_px=10.0)
+        label = rng.integers(-1, 3, S)
+        for lab in (None, label):
+            ref = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5)
+            got = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5, link=K.link_paths)
+            assert all(np.array_equal(x, y) for x, y in zip(ref, got))
+        at = rng.integers(0, N, int(rng.integers(0, N + 1)))
+        ref, kept = drop_hairpins(st, 90.0, 1.0, at=at, return_kept=True)
+        got, kept2 = _drop_hairpins(st, 90.0, 1.0, at)
+        assert np.array_equal(kept, kept2) and np.array_equal(ref.points, got.points)
+        assert np.array_equal(ref.offsets, got.offsets)
+
+
+def test_resampling_is_resample_strokes():
+    rng = np.random.default_rng(9)
+    for _ in range(100):
+        S = int(rng.integers(1, 10))
+        counts = rng.integers(1, 9, S)  # (one-point strokes too)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
+        pts[rng.random(N) < 0.2] = 0.0  # (repeated points: zero-length segments)
+        st = Strokes(points=pts, surface=rng.random((N, 3)), face=np.zeros(N, np.int64),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S) + 7, u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                     frame=0, period_px=10.0)
+        for step in (1.0, 4.0, 0.3):
+            a, b = resample_strokes(st, step), _resample(st, step)
+            for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
+                assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+def test_id_assignment_is_assign_ids():
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        n = int(rng.integers(0, 40))
+        S = int(rng.integers(1, 12))
+        cs, ci = rng.integers(0, S, n), rng.integers(0, 15, n)
+        cw = np.where(rng.random(n) < 0.3, 0.0, rng.integers(1, 5, n) * 0.5)  # (ties, and weightless pairs)
+        a = assign_ids(S, cs, ci, cw, 20)
+        b = _assign_ids(S, cs, ci, cw, 20)
+        assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+
+
+def test_band_terms_are_piecewise_fits():
+    rng = np.random.default_rng(13)
+    for _ in range(50):
+        S = int(rng.integers(1, 8))
+        L = rng.random(S) * 80 + rng.integers(0, 2, S) * 0.5
+        pw = PiecewiseU(L, 16.0)
+        V = int(rng.integers(1, 200))
+        st = rng.integers(0, S, V)
+        s = rng.random(V) * L[st]
+        u, w = rng.random(V) * 4, np.where(rng.random(V) < 0.2, 0.0, rng.random(V))
+        args = (st, s, u, w, rng.random(S), rng.random(S) * 0.1, 0.1, 3e-4 * 100, 1e-3)
+        assert np.array_equal(pw.fit(*args), pw.fit(*args, band_terms=kernels().band_terms))
+
+
+def _pieces_numpy(cover, run, s, w, r_s0, r_s1, vm):
+    """brush_step's pieces and vote landing as numpy steps (the code the kernels replaced)."""
+    keep = cover < 0
+    N = len(run)
+    start = np.r_[True, (keep[1:] != keep[:-1]) | (run[1:] != run[:-1])]
+    first = np.flatnonzero(start)
+    last = np.r_[first[1:] - 1, N - 1]
+    fr = run[first]
+    head = np.r_[True, fr[1:] != fr[:-1]]
+    tail = np.r_[fr[1:] != fr[:-1], True]
+    s0 = np.where(head, r_s0[fr], s[first] - 0.5 * w[first])
+    s1 = np.where(tail, r_s1[fr], s[last] + 0.5 * w[last])
+    sel = keep[first] & ((s1 - s0 >= 1.0) | (head & tail)) & (s1 > s0)
+    p_run, p_s0, p_s1 = fr[sel], s0[sel], s1[sel]
+    smp_piece = np.searchsorted(first[sel], np.arange(N), side="right") - 1
+    smp_piece[(smp_piece < 0) | (np.arange(N) > last[sel][np.maximum(smp_piece, 0)])] = -1
+    hit = np.where(cover[vm] >= 0, cover[vm], vm)
+    vk = smp_piece[hit]
+    ok = vk >= 0
+    vk = vk[ok]
+    s_in = np.clip(s[hit[ok]] - p_s0[vk], 0.0, (p_s1 - p_s0)[vk])
+    return p_run, p_s0, p_s1, smp_piece, ok, vk, s_in
+
+
+def test_pieces_and_vote_landing_are_the_numpy_steps():
+    rng = np.random.default_rng(17)
+    K = kernels()
+    for _ in range(200):
+        N = int(rng.integers(1, 200))
+        run = np.cumsum(rng.random(N) < 0.1)
+        run -= run[0]
+        w = np.where(rng.random(N) < 0.7, 1.0, rng.random(N))
+        s = np.cumsum(w) - 0.5 * w
+        R = run.max() + 1
+        r_s0 = np.array([s[run == r][0] - 0.5 * w[run == r][0] for r in range(R)])
+        r_s1 = np.array([s[run == r][-1] + 0.5 * w[run == r][-1] for r in range(R)])
+        cover = np.where(rng.random(N) < 0.3, rng.integers(0, N, N), -1)
+        cover = np.where((cover >= 0) & (np.roll(cover, 1) >= 0) & (rng.random(N) < 0.5), -1, cover)
+        vm = rng.integers(0, N, int(rng.integers(0, 2 * N)))
+        p_run, p_s0, p_s1, smp = K.pieces_of_runs(cover, run, s, w, r_s0, r_s1, 1.0)
+        ok, vk, s_in = K.votes_landing(vm, cover, smp, s, p_s0, p_s1)
+        ref = _pieces_numpy(cover, run, s, w, r_s0, r_s1, vm)
+        for x, y in zip(ref, (p_run, p_s0, p_s1, smp, ok, vk, s_in)):
+            assert np.array_equal(x, y)
+
+
+def test_u_fit_is_the_numpy_one():
+    from strokekit.paths.options import path_tracking
+    from strokekit.tracking.kalnins import fit_u
+
+    rng = np.random.default_rng(19)
+    for _ in range(40):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(2, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 8.0, (N, 2)), axis=0)
+        cur = Strokes(points=pts, surface=rng.random((N, 3)), face=np.zeros(N, np.int64),
+                      offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                      ids=np.arange(S), u=np.zeros(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                      frame=0, period_px=10.0)
+        V = int(rng.integers(1, 150))
+        st = rng.integers(0, S, V)
+        s = rng.random(V) * cur.lengths[st]
+        u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, S, V), rng.random(V)
+        for o in (path_tracking(), path_tracking().__class__(knot_spacing_px=0.0)):
+            ref = fit_u(cur, cur, st, s, u, vid, w, o)
+            got = fit_u(cur, cur, st, s, u, vid, w, o, compiled=_FitKernels(kernels()))
+            assert np.array_equal(ref[0].points, got[0].points)
+            for x, y in zip((ref[1], ref[2], *ref[3]), (got[1], got[2], *got[3])):
+                assert np.array_equal(x, y)
+
+
+def test_inserted_points_are_insert_points():
+    from strokekit.tracking.joins import insert_points
+
+    rng = np.random.default_rng(23)
+    for trial in range(100):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(1, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
+        pts[rng.random(N) < 0.2] = 0.0  # (zero-length segments)
+        st = Strokes(points=pts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S), u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                     frame=0, period_px=10.0)
+        K = int(rng.integers(0, 20))
+        stroke = rng.integers(0, S, K)
+        s = rng.random(K) * st.lengths[stroke]
+        s = np.where(rng.random(K) < 0.2, np.minimum(np.round(s), st.lengths[stroke]), s)  # (on points, ties)
+        if trial % 3:  # (in order along the strokes, as the knots come; else not)
+            o = np.lexsort((s, stroke))
+            stroke, s = stroke[o], s[o]
+        a, b = insert_points(st, stroke, s), _insert_points(st, stroke, s)
+        for f in ("points", "surface", "face", "u", "offsets"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+def test_cut_pieces_are_cut_pieces():
+    from strokekit.lines.strokeops import cut_pieces
+
+    rng = np.random.default_rng(29)
+    for _ in range(100):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(2, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
+        pts[rng.random(N) < 0.15] = 0.0  # (zero-length segments)
+        st = Strokes(points=pts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N),
+                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                     ids=np.arange(S), u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
+                     frame=0, period_px=10.0)
+        K = int(rng.integers(0, 12))
+        stroke = rng.integers(0, S, K)
+        L = st.lengths[stroke]
+        s0 = np.where(rng.random(K) < 0.3, 0.0, rng.random(K) * L * 0.5)
+        s1 = np.where(rng.random(K) < 0.3, L, s0 + rng.random(K) * (L - s0))
+        a, b = cut_pieces(st, stroke, s0, s1), _cut_pieces(st, stroke, s0, s1)
+        for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+def test_a_ctrl_c_in_a_compiled_loop_stays_a_keyboard_interrupt():
+    from strokekit.paths.kernels import keyboard_interrupts
+
+    def in_loop():  # what the interpreter raises when one lands as a loop hands back its arrays
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as k:
+            raise SystemError("CPUDispatcher(line_fit) returned a result with an exception set") from k
+
+    with pytest.raises(KeyboardInterrupt):
+        with keyboard_interrupts():
+            in_loop()
+    with pytest.raises(SystemError):
+        with keyboard_interrupts():
+            raise SystemError("not an interrupt")
