@@ -333,7 +333,7 @@ def test_cut_pieces_are_cut_pieces():
 
 
 def test_a_ctrl_c_in_a_compiled_loop_stays_a_keyboard_interrupt():
-    from strokekit.paths.kernels import keyboard_interrupts
+    from strokekit.numba_cache import keyboard_interrupts
 
     def in_loop():  # what the interpreter raises when one lands as a loop hands back its arrays
         try:
