@@ -1,6 +1,8 @@
-"""Where numba keeps strokekit's compiled kernels (the raster pass's, hidden lines'), and whether
-loading them will compile them. Imports numba only inside its functions: the modules that load
-kernels call them on first use, so runs that need none never import numba.
+"""Where numba keeps strokekit's compiled kernels (the raster pass's, hidden lines', brush
+paths'), whether loading them will compile them, `LazyKernels`, which imports a module of
+kernels on first use, and `keyboard_interrupts`, which keeps a Ctrl-C in a compiled loop a
+KeyboardInterrupt. Imports numba only inside its functions: the modules that load kernels call
+them on first use, so runs that need none never import numba.
 
 Kernels are compiled once per machine and cached on disk by numba (`cache=True`): numba writes
 them to the `__pycache__` next to their module when that folder is writable (an editable or a
@@ -11,9 +13,15 @@ else a folder in the temporary directory)."""
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import os
 import tempfile
+import threading
+import time
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Callable
 
 
 def _writable(path: Path) -> bool:
@@ -71,3 +79,55 @@ def compile_needed(modules) -> bool | None:
         return not all(d.signatures or d._cache._cache_file._load_index() for d in disps)
     except Exception:  # private numba API: any change means "cannot tell"
         return None
+
+
+@contextmanager
+def keyboard_interrupts():
+    """Ctrl-C raised as KeyboardInterrupt in the block: one that lands while a compiled loop hands
+    its arrays back to Python surfaces as a SystemError ("... returned a result with an
+    exception set") with the KeyboardInterrupt as its cause (or further down its chain)."""
+    try:
+        yield
+    except SystemError as e:
+        c = e
+        while c is not None and not isinstance(c, KeyboardInterrupt):
+            c = c.__cause__ or c.__context__
+        if c is not None:
+            raise c from None
+        raise
+
+
+class LazyKernels:
+    """A module of numba kernels (`module`, by name), imported on first use (`kernels()`) after
+    `choose_cache_dir`, so runs that never call it never import numba. For `warm`: `label` names
+    the kernels in the compile notice, `compile_seconds` is about how long their first compile
+    takes (s), `also` are other LazyKernels warmed up (and counted) with these."""
+
+    def __init__(self, module: str, label: str = "", compile_seconds: float = 0,
+                 also: tuple["LazyKernels", ...] = ()):
+        self.module, self.label, self.compile_seconds, self.also = module, label, compile_seconds, also
+        self._module = None
+        self._lock = threading.Lock()
+
+    def kernels(self):
+        """The module, imported (its kernels loaded from numba's disk cache, or compiled) on first use."""
+        if self._module is None:
+            with self._lock:  # (two threads asking at once import it once)
+                if self._module is None:
+                    choose_cache_dir(Path(importlib.util.find_spec(self.module).origin).resolve().parent)
+                    self._module = importlib.import_module(self.module)
+        return self._module
+
+    def warm(self, notify: Callable[[str], None] | None = None) -> tuple[float, bool]:
+        """Load the kernels (and those of `also`), or compile them (the first such run on a
+        machine), before any frame: (seconds, compiled). `notify(line)` is told once, before the
+        wait, when they compile."""
+        t = time.perf_counter()
+        mods = [self.kernels(), *(k.kernels() for k in self.also)]
+        compiles = compile_needed(mods)
+        if compiles and notify is not None:
+            notify(f"compiling the {self.label} kernels (first run on this machine, about {self.compile_seconds} s)")
+        with keyboard_interrupts():
+            for mod in mods:
+                mod.warmup()
+        return time.perf_counter() - t, bool(compiles)

@@ -539,11 +539,29 @@ def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
 
 def test_hidden_line_kernels_say_once_when_they_compile(monkeypatch):
     """The warm-up says one line when the kernels compile, nothing when they load."""
+    from strokekit import numba_cache
     from strokekit.lines import kernels as lk
 
     said = []
-    monkeypatch.setattr(lk, "compile_needed", lambda mods: True)
+    monkeypatch.setattr(numba_cache, "compile_needed", lambda mods: True)
     assert lk.warm_kernels(said.append)[1] and len(said) == 1 and said[0].startswith("compiling the hidden-line")
-    monkeypatch.setattr(lk, "compile_needed", lambda mods: False)
+    monkeypatch.setattr(numba_cache, "compile_needed", lambda mods: False)
     said.clear()
     assert lk.warm_kernels(said.append)[1] is False and said == []
+
+
+def test_a_ctrl_c_in_a_hidden_line_compiled_loop_stays_a_keyboard_interrupt():
+    """A KeyboardInterrupt that lands as a compiled loop hands back its arrays (a SystemError
+    caused by it) comes out of LineRenderer.render as the KeyboardInterrupt."""
+    from types import SimpleNamespace
+
+    from strokekit.lines.renderer import LineRenderer
+
+    def in_loop(camera, frame, timings):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as k:
+            raise SystemError("CPUDispatcher(close_pairs) returned a result with an exception set") from k
+
+    with pytest.raises(KeyboardInterrupt):
+        LineRenderer.render(SimpleNamespace(_render=in_loop), None)

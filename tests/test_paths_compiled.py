@@ -51,6 +51,18 @@ def _samples(rng, n, lattice):
                    s=np.arange(n) * 1.0, w=w)
 
 
+def _strokes(pts, counts, surface=None, face=None, ids=None, u=None) -> Strokes:
+    """Strokes of kind 0 and level 0 from the points pts (N, 2), counts[i] of them in stroke i;
+    surface (N, 3), face (N,), u (N,) zeros and ids 0..S-1 unless given. (Callers draw the
+    given ones from their rng in the order they always did.)"""
+    N, S = len(pts), len(counts)
+    return Strokes(points=pts, surface=np.zeros((N, 3)) if surface is None else surface,
+                   face=np.zeros(N, np.int64) if face is None else face,
+                   offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
+                   ids=np.arange(S) if ids is None else ids, u=np.zeros(N) if u is None else u, level=np.zeros(S),
+                   level_weight=np.ones(S), camera=None, frame=0, period_px=10.0)
+
+
 @pytest.mark.parametrize("lattice", [False, True])
 def test_grid_queries_are_the_trees(lattice):
     rng = np.random.default_rng(1 + lattice)
@@ -150,10 +162,7 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
         pts = np.cumsum(rng.normal(0, 0.6, (N, 2)), axis=0)
         if trial % 2:
             pts = np.round(pts)
-        st = Strokes(points=pts, surface=np.zeros((N, 3)), face=np.zeros(N, np.int64),
-                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
-                     ids=np.arange(S), u=np.zeros(N), level=np.zeros(S), level_weight=np.ones(S), camera=None, frame=0,
-                     period_px=10.0)
+        st = _strokes(pts, counts)
         label = rng.integers(-1, 3, S)
         for lab in (None, label):
             ref = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5)
@@ -174,10 +183,7 @@ def test_resampling_is_resample_strokes():
         N = int(counts.sum())
         pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
         pts[rng.random(N) < 0.2] = 0.0  # (repeated points: zero-length segments)
-        st = Strokes(points=pts, surface=rng.random((N, 3)), face=np.zeros(N, np.int64),
-                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
-                     ids=np.arange(S) + 7, u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
-                     frame=0, period_px=10.0)
+        st = _strokes(pts, counts, surface=rng.random((N, 3)), ids=np.arange(S) + 7, u=rng.random(N))
         for step in (1.0, 4.0, 0.3):
             a, b = resample_strokes(st, step), _resample(st, step)
             for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
@@ -266,10 +272,7 @@ def test_u_fit_is_the_numpy_one():
         counts = rng.integers(2, 8, S)
         N = int(counts.sum())
         pts = np.cumsum(rng.normal(0, 8.0, (N, 2)), axis=0)
-        cur = Strokes(points=pts, surface=rng.random((N, 3)), face=np.zeros(N, np.int64),
-                      offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
-                      ids=np.arange(S), u=np.zeros(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
-                      frame=0, period_px=10.0)
+        cur = _strokes(pts, counts, surface=rng.random((N, 3)))
         V = int(rng.integers(1, 150))
         st = rng.integers(0, S, V)
         s = rng.random(V) * cur.lengths[st]
@@ -292,10 +295,7 @@ def test_inserted_points_are_insert_points():
         N = int(counts.sum())
         pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
         pts[rng.random(N) < 0.2] = 0.0  # (zero-length segments)
-        st = Strokes(points=pts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N),
-                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
-                     ids=np.arange(S), u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
-                     frame=0, period_px=10.0)
+        st = _strokes(pts, counts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N), u=rng.random(N))
         K = int(rng.integers(0, 20))
         stroke = rng.integers(0, S, K)
         s = rng.random(K) * st.lengths[stroke]
@@ -318,10 +318,7 @@ def test_cut_pieces_are_cut_pieces():
         N = int(counts.sum())
         pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
         pts[rng.random(N) < 0.15] = 0.0  # (zero-length segments)
-        st = Strokes(points=pts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N),
-                     offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
-                     ids=np.arange(S), u=rng.random(N), level=np.zeros(S), level_weight=np.ones(S), camera=None,
-                     frame=0, period_px=10.0)
+        st = _strokes(pts, counts, surface=rng.random((N, 3)), face=rng.integers(0, 9, N), u=rng.random(N))
         K = int(rng.integers(0, 12))
         stroke = rng.integers(0, S, K)
         L = st.lengths[stroke]
@@ -333,7 +330,7 @@ def test_cut_pieces_are_cut_pieces():
 
 
 def test_a_ctrl_c_in_a_compiled_loop_stays_a_keyboard_interrupt():
-    from strokekit.paths.kernels import keyboard_interrupts
+    from strokekit.numba_cache import keyboard_interrupts
 
     def in_loop():  # what the interpreter raises when one lands as a loop hands back its arrays
         try:

@@ -16,6 +16,7 @@ from strokekit.lines.strokeops import drop_overlaps, drop_short, simplify, split
 from strokekit.lines.surface import edge_on_faces, surface_lift
 from strokekit.lines.visibility import visible_runs
 from strokekit.model import Strokes
+from strokekit.numba_cache import keyboard_interrupts
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
@@ -57,6 +58,10 @@ class LineRenderer:
     def render(self, camera: Camera, frame: int = 0, timings: dict | None = None) -> Strokes:
         """Visible strokes of one frame, in pixels, before tracking (ids in chain order).
         `timings`, if given, accumulates seconds per stage ('feature edges', 'visibility', 'chaining')."""
+        with keyboard_interrupts():  # (a Ctrl-C in a hidden-line compiled loop stays a KeyboardInterrupt)
+            return self._render(camera, frame, timings)
+
+    def _render(self, camera: Camera, frame: int, timings: dict | None) -> Strokes:
         opts = self.options
         clock = _Clock(timings)
         fe = feature_edges(self.scene, camera, opts, self.static, with_lift=True)

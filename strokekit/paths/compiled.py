@@ -124,19 +124,7 @@ def knn(q, n, x0, y0, cell, nx, ny, start, order, ps, k, bound, as_set, out_d2, 
         if not (math.isfinite(qx) and math.isfinite(qy)):
             unsure[m] = True
             continue
-        cnt = 0
-        ax, bx = _window(qx, x0, cell, bound, nx)
-        ay, by = _window(qy, y0, cell, bound, ny)
-        for cy in range(ay, by + 1):
-            row = cy * nx
-            for cx in range(ax, bx + 1):
-                c = row + cx
-                for t in range(start[c], start[c + 1]):
-                    dx = ps[t, 0] - qx
-                    dy = ps[t, 1] - qy
-                    d2 = dx * dx + dy * dy
-                    if d2 < b2:
-                        cnt = _insert(bd, bi, cnt, d2, order[t])
+        cnt = _nearest(qx, qy, x0, y0, cell, nx, ny, start, order, ps, bound, b2, bd, bi)
         for s in range(k - 1 if as_set else 0, min(cnt, k + 1) - 1):
             if bd[s] == bd[s + 1]:
                 unsure[m] = True
@@ -231,18 +219,10 @@ def _insert(bd, bi, cnt, d2, j):
 
 
 @njit(cache=True)
-def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, bd, bi):
-    """paths.stage.on_drawing's test of one point (qx, qy) on the grid of the line samples p (N,
-    2), their tangents t (N, 2) and lengths w (N,): (near, unsure), whether it lies within
-    `limit` px of the piece of line of one of its k nearest samples within `bound`, as the tree's
-    k nearest give it (where samples tie at the k-th distance: what every choice among them
-    gives; unsure where the choice decides, or the point is not finite). The piece of sample j:
-    length w_j along t_j, centred on p_j; the distance across it from the tree's distance
-    sqrt(d2). bd, bi: buffers of size k + 8."""
-    if not (math.isfinite(qx) and math.isfinite(qy)):
-        return False, True
-    b2 = bound * bound
-    size = bd.shape[0]
+def _nearest(qx, qy, x0, y0, cell, nx, ny, start, order, ps, bound, b2, bd, bi):
+    """The grid points (grid_index: ps (N, 2) in cell order, `order` their indices) at squared
+    distance < b2 (bound**2) from (qx, qy), the nearest kept in the sorted buffers bd (squared
+    distances) and bi (indices) as _insert keeps them: returns how many bd, bi hold."""
     cnt = 0
     ax, bx = _window(qx, x0, cell, bound, nx)
     ay, by = _window(qy, y0, cell, bound, ny)
@@ -256,6 +236,23 @@ def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound,
                 d2 = dx * dx + dy * dy
                 if d2 < b2:
                     cnt = _insert(bd, bi, cnt, d2, order[s])
+    return cnt
+
+
+@njit(cache=True)
+def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, bd, bi):
+    """paths.stage.on_drawing's test of one point (qx, qy) on the grid of the line samples p (N,
+    2), their tangents t (N, 2) and lengths w (N,): (near, unsure), whether it lies within
+    `limit` px of the piece of line of one of its k nearest samples within `bound`, as the tree's
+    k nearest give it (where samples tie at the k-th distance: what every choice among them
+    gives; unsure where the choice decides, or the point is not finite). The piece of sample j:
+    length w_j along t_j, centred on p_j; the distance across it from the tree's distance
+    sqrt(d2). bd, bi: buffers of size k + 8."""
+    if not (math.isfinite(qx) and math.isfinite(qy)):
+        return False, True
+    b2 = bound * bound
+    size = bd.shape[0]
+    cnt = _nearest(qx, qy, x0, y0, cell, nx, ny, start, order, ps, bound, b2, bd, bi)
     # The tree keeps the k nearest: those nearer than the k-th for sure, then some of the
     # samples at the k-th's distance.
     last = bd[k - 1] if cnt >= k else np.inf

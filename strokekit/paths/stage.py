@@ -44,8 +44,9 @@ from strokekit.lines.strokeops import (
     query_tree,
 )
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
+from strokekit.numba_cache import keyboard_interrupts
 from strokekit.paths.grid import SampleGrid
-from strokekit.paths.kernels import kernels, keyboard_interrupts
+from strokekit.paths.kernels import kernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
 from strokekit.tracking.joins import _touching_paths, gather_paths, insert_points, rotate_closed

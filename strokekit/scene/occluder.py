@@ -6,14 +6,13 @@ scaled as a whole gets the same answers."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.errors import hold_interrupts
 from strokekit.model import row_norm
-from strokekit.numba_cache import choose_cache_dir
+from strokekit.numba_cache import LazyKernels
 from strokekit.scene.load import Scene
 
 
@@ -727,19 +726,14 @@ def _order_along_rays(t: np.ndarray, ray: np.ndarray) -> np.ndarray:
     return o
 
 
-_level_kernels = None
+#: The compiled loops of occlusion-level rays (`strokekit.scene.compiled`), imported on first use:
+#: drawings of visible lines only never import numba (warmed up with the hidden-line kernels).
+LEVEL_KERNELS = LazyKernels("strokekit.scene.compiled")
 
 
 def level_kernels():
-    """The compiled loops of occlusion-level rays (`strokekit.scene.compiled`), imported on first
-    use: drawings of visible lines only never import numba."""
-    global _level_kernels
-    if _level_kernels is None:
-        import importlib
-
-        choose_cache_dir(Path(__file__).resolve().parent)
-        _level_kernels = importlib.import_module("strokekit.scene.compiled")
-    return _level_kernels
+    """The module `strokekit.scene.compiled`, imported (its kernels loaded or compiled) on first use."""
+    return LEVEL_KERNELS.kernels()
 
 
 def _has_embreex() -> bool:
