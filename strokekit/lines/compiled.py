@@ -1,9 +1,10 @@
 """Compiled loops (numba) of hidden-line drawings (`LineOptions.occlusion`): the pair searches
-that numpy does with large temporaries. Imports numpy, numba and the level rays' kernels
-(`strokekit.scene.compiled`, for a shared sort) only; loaded on first use by
+that numpy does with large temporaries. Imports numpy and numba only; loaded on first use by
 `kernels()` (numba's import is not paid by visible-only drawings), compiled once per machine
 and cached on disk like the raster kernels (`cache=True`, no fastmath: every float operation is
-the one numpy does, in the same order, so results are bit for bit numpy's).
+the one numpy does, in the same order, so results are bit for bit numpy's). Self-contained:
+numba's disk cache is keyed by this file alone and would not see a change in a compiled helper
+imported from another module (so the insertion sort by run is also in `scene.compiled`).
 
 * `outline_crossings`: where segments' images cross the images of outline edges in front of
   them (`occlusion.outline_crossings`), candidates from a grid of GRID_PX cells.
@@ -18,8 +19,6 @@ import math
 
 import numpy as np
 from numba import njit
-
-from strokekit.scene.compiled import sort_within_runs
 
 
 @njit(cache=True, error_model="numpy")
@@ -162,11 +161,22 @@ def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, gri
             out_u[n_out] = u
             out_g[n_out] = (zf - zc) / zf
             n_out += 1
-    # The places come grouped by segment, in segment order: each group sorted by s (stable; a
-    # segment crosses few outline edges) gives np.lexsort((s, f))'s order.
-    o = np.arange(n_out)
-    sort_within_runs(out_f, out_s, o, n_out)
-    return out_f[:n_out], out_s[:n_out], out_c[o], out_u[o], out_g[o]
+    # The places come grouped by segment, in segment order: each group sorted by s (stable, an
+    # insertion sort: a segment crosses few outline edges) gives np.lexsort((s, f))'s order.
+    a = 0
+    while a < n_out:
+        b = a + 1
+        while b < n_out and out_f[b] == out_f[a]:
+            b += 1
+        for i in range(a + 1, b):
+            s_i, c_i, u_i, g_i = out_s[i], out_c[i], out_u[i], out_g[i]
+            j = i
+            while j > a and out_s[j - 1] > s_i:
+                out_s[j], out_c[j], out_u[j], out_g[j] = out_s[j - 1], out_c[j - 1], out_u[j - 1], out_g[j - 1]
+                j -= 1
+            out_s[j], out_c[j], out_u[j], out_g[j] = s_i, c_i, u_i, g_i
+        a = b
+    return out_f[:n_out], out_s[:n_out], out_c[:n_out], out_u[:n_out], out_g[:n_out]
 
 
 @njit(cache=True)

@@ -11,8 +11,6 @@ and the hits kept are bit for bit those of the numpy path.
 * `listed_hits`: list_intersections' hits within each segment, by ray then along it, less the
   hits on each ray's own faces, with the hits near its start to check in float64.
 * `crosses`: that float64 check (Occluder._crosses).
-* `sort_within_runs`: a stable sort within runs of one group (the hits along a ray here, the
-  crossings along a segment in `strokekit.lines.compiled`).
 """
 
 from __future__ import annotations
@@ -61,27 +59,6 @@ def level_rays(P, lift, scale, eye, origin, k, offset, eye_tail):
     return rays, targets, d_local, length, reach
 
 
-@njit(cache=True)
-def sort_within_runs(run, key, item, n):
-    """Sorts key[:n] (item[:n] moved with it) by key within each run of equal values of run[:n],
-    in place: stable (equal keys keep their order), an insertion sort, quick where a run is
-    short and mostly in order already. (Also `lines.compiled`'s: numba's disk cache of a caller in
-    another module does not notice a change here; clear that module's cache after one.)"""
-    a = 0
-    while a < n:
-        b = a + 1
-        while b < n and run[b] == run[a]:
-            b += 1
-        for i in range(a + 1, b):
-            k_i, x_i = key[i], item[i]
-            j = i
-            while j > a and key[j - 1] > k_i:
-                key[j], item[j] = key[j - 1], item[j - 1]
-                j -= 1
-            key[j], item[j] = k_i, x_i
-        a = b
-
-
 @njit(cache=True, error_model="numpy")
 def listed_hits(t, ray, prim, face_index, length, k, skip, reach):
     """The hits of list_intersections (t (K,) float32 along each ray's segment, ray (K,), prim
@@ -105,7 +82,20 @@ def listed_hits(t, ray, prim, face_index, length, k, skip, reach):
         last = r
         keep_t[m], keep_r[m], keep_p[m] = t[h], r, np.int64(prim[h])
         m += 1
-    sort_within_runs(keep_r, keep_t, keep_p, m)  # along each ray (Embree lists its few hits mostly in order)
+    # Along each ray (an insertion sort: Embree lists a ray's few hits mostly in order).
+    a = 0
+    while a < m:
+        b = a + 1
+        while b < m and keep_r[b] == keep_r[a]:
+            b += 1
+        for i in range(a + 1, b):
+            ti, pi = keep_t[i], keep_p[i]
+            j = i
+            while j > a and keep_t[j - 1] > ti:
+                keep_t[j], keep_p[j] = keep_t[j - 1], keep_p[j - 1]
+                j -= 1
+            keep_t[j], keep_p[j] = ti, pi
+        a = b
     out_t = np.empty(m)
     out_r = np.empty(m, np.int64)
     out_f = np.empty(m, np.int64)
