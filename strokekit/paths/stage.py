@@ -664,10 +664,9 @@ def held_back(paths: Strokes, first_fresh: int, o: PathOptions, p: np.ndarray, o
     o.hold_px and within HOLD_RADIUS_PX of the other paths all along (a strand beside a path, a
     piece left at a junction). They are not drawn; carried to the next frame, one that is still
     there takes its id back and is drawn from then on. A piece that shows for one frame then
-    changes no id (bunny, 120 frames: 760 paths of ~4 px lived one frame, each cost M1 its length
-    in both pairs of frames it was in).
+    changes no id (without this, each costs M1 its length in both pairs of frames it is in).
     The paths are seen through the line samples they draw: p (N, 2), owner (N,) the path drawing
-    each (-1: none), `tree` a k-d tree of p; a sample of a candidate is near another path when one
+    each (-1: none), `tree` a SampleGrid (or a k-d tree) of p; a sample of a candidate is near another path when one
     of its k nearest samples within reach is drawn by a path that stays (in a crowd of strands
     that may be missed: the path is then drawn)."""
     S = len(paths)
