@@ -13,7 +13,7 @@ from strokekit.scene.occluder import LEVEL_KERNELS
 
 #: About how long the first compile of the kernels takes (s) on a free 2-core machine (longer
 #: under load).
-COMPILE_SECONDS = 20
+COMPILE_SECONDS = 15
 
 _KERNELS = LazyKernels("strokekit.lines.compiled", "hidden-line", COMPILE_SECONDS, also=(LEVEL_KERNELS,))
 

@@ -9,9 +9,9 @@ from typing import Callable
 
 from strokekit.numba_cache import LazyKernels
 
-#: About how long the first compile of the kernels takes (s), on this project's 2-core machine
-#: (with another job running).
-COMPILE_SECONDS = 25
+#: About how long the first compile of the kernels takes (s) on a free 2-core machine (longer
+#: under load).
+COMPILE_SECONDS = 40
 
 _KERNELS = LazyKernels("strokekit.paths.compiled", "brush path", COMPILE_SECONDS)
 
