@@ -565,3 +565,26 @@ def test_a_ctrl_c_in_a_hidden_line_compiled_loop_stays_a_keyboard_interrupt():
 
     with pytest.raises(KeyboardInterrupt):
         LineRenderer.render(SimpleNamespace(_render=in_loop), None)
+
+
+def test_outline_crossings_kernel_finds_the_same_crossings_when_outlines_lie_far_apart():
+    """The outline grid's buckets grow coarser where the outlines spread far (an edge far off
+    screen): the crossings are the ones found without that edge, and none is lost or doubled."""
+    from strokekit.lines.kernels import kernels
+
+    rng = np.random.default_rng(11)
+    n, m = 300, 200
+    pa, pb = rng.random((n, 2)) * 200, rng.random((n, 2)) * 200
+    qa, qb = rng.random((m, 2)) * 200, rng.random((m, 2)) * 200
+    za, zb = rng.random(n) + 2.0, rng.random(n) + 2.0
+    wa, wb = rng.random(m) + 1.0, rng.random(m) + 1.0  # (outlines in front: every crossing counts)
+    va, vb = np.arange(n), np.arange(n, 2 * n)  # (no vertex shared between a segment and an outline)
+    e0, e1 = np.arange(2 * n, 2 * n + m + 1), np.arange(2 * n + m + 1, 2 * n + 2 * m + 2)
+    near = kernels().outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0[:m], e1[:m], False, 8.0)
+    far_a = np.vstack([qa, [[1e7, 1e7]]])
+    far_b = np.vstack([qb, [[1e7 + 5, 1e7 + 3]]])
+    spread = kernels().outline_crossings(pa, pb, za, zb, va, vb, far_a, far_b, np.append(wa, 1.0), np.append(wb, 1.0),
+                                         e0, e1, False, 8.0)
+    assert len(near[0]) > 100  # (random segments cross often)
+    for a, b in zip(near, spread):
+        assert np.array_equal(a, b)

@@ -75,7 +75,7 @@ def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, gri
     depth: 1/z linear on screen, z when `ortho`). u is the place's parameter along the outline
     edge, the gap (zf - zc) / zf the outline's relative depth in front of the segment there.
     Candidates: the pairs that share a cell of `_segment_cells` (the outline's bucketed in a grid
-    over their cells' box, coarser where that box would exceed 2^24 cells: the crossing point
+    over their cells' box, coarser where that box would exceed 16 buckets an outline cell: the crossing point
     lies in a cell of both), each pair once; each is first tested on depth (the outline's nearer
     end before the segment's far end) and bounding boxes, then as numpy did."""
     fx, fy, of = _segment_cells(pa, pb, grid)
@@ -90,8 +90,11 @@ def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, gri
     if oc.shape[0] == 0 or of.shape[0] == 0:
         return out_f[:0], out_s[:0], out_c[:0], out_u[:0], out_g[:0]
     x0, y0, x1, y1 = cx.min(), cy.min(), cx.max(), cy.max()
+    # Buckets of merge x merge cells: at most 16 an outline cell (at least 2^16), so that outlines
+    # spread far apart (a huge image, an edge far off screen) cost no more memory than their cells.
     merge = np.int64(1)  # grid cells a bucket holds along each axis
-    while ((x1 - x0) // merge + 1) * ((y1 - y0) // merge + 1) > (1 << 24):
+    most = max(np.int64(1 << 16), 16 * np.int64(oc.shape[0]))
+    while ((x1 - x0) // merge + 1) * ((y1 - y0) // merge + 1) > most:
         merge *= 2
     nx, ny = (x1 - x0) // merge + 1, (y1 - y0) // merge + 1
     start = np.zeros(nx * ny + 1, np.int64)
