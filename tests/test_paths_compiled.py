@@ -344,3 +344,42 @@ def test_a_ctrl_c_in_a_compiled_loop_stays_a_keyboard_interrupt():
     with pytest.raises(SystemError):
         with keyboard_interrupts():
             raise SystemError("not an interrupt")
+
+
+@pytest.mark.parametrize("points, cell", [([[0.0, 0.0], [1e12, 1e12], [5.0, 5.0]], 1e-9),
+                                          ([[0.0, 0.0], [1e12, -1e12], [5.0, 5.0]], 4.0),
+                                          ([[-1e308, 0.0], [1e308, 1.0], [0.5, 0.5]], 4.0)])
+def test_sample_grid_answers_as_the_tree_for_points_spread_beyond_what_cells_can_count(points, cell):
+    """Points spread so wide that their cells' count overflows int64 (or their spread is not
+    finite): the grid still answers as the k-d tree, with no crash and no write out of bounds."""
+    import warnings
+
+    from scipy.spatial import cKDTree
+
+    from strokekit.paths.grid import SampleGrid
+
+    p = np.array(points)
+    q = np.array([[1.0, 1.0], [4.0, 6.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (no overflow warning either)
+        d, i = SampleGrid(p, cell).query(q, k=2, distance_upper_bound=20.0)
+    dt, it = cKDTree(p).query(q, k=2, distance_upper_bound=20.0)
+    assert np.array_equal(i, it) and np.allclose(d, dt)
+
+
+def test_an_infinite_search_radius_is_refused():
+    """The lookback's grid needs a finite radius; TrackingOptions says so as a usage error."""
+    from strokekit.errors import UsageError
+    from strokekit.tracking.options import TrackingOptions
+
+    with pytest.raises(UsageError, match="search_radius_px must be a finite number"):
+        TrackingOptions(search_radius_px=np.inf)
+
+
+def test_brush_paths_refuse_lines_with_non_finite_points():
+    """A NaN line point is an error, not a frame silently drawn without paths."""
+    from strokekit.paths import PathOptions, PathTracker
+
+    lines = _strokes(np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 5.0], [np.nan, 5.0]]), [2, 2])
+    with pytest.raises(ValueError, match="non-finite"):
+        PathTracker(PathOptions()).step(lines)

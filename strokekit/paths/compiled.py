@@ -41,7 +41,7 @@ PAIR_SLACK = 1e-6
 
 @njit(cache=True)
 def grid_index(p, cell):
-    """Points p (N, 2) (finite) sorted into square cells of about `cell` px (larger where the
+    """Points p (N, 2) (finite, and so is their spread; cell > 0 finite) sorted into square cells of about `cell` px (larger where the
     points spread wide: at most max(8 N, 65536) cells). Returns (x0, y0, cell, nx, ny, start,
     order, ps): cell (cx, cy) = ((x - x0) // cell, (y - y0) // cell) holds points order[start[c] :
     start[c + 1]] (in index order), c = cy * nx + cx; ps (N, 2) the points in that order (read
@@ -63,12 +63,14 @@ def grid_index(p, cell):
         if y > y1:
             y1 = y
     limit = max(8 * n, 65536)
-    while True:
-        nx = int((x1 - x0) / cell) + 1
-        ny = int((y1 - y0) / cell) + 1
-        if nx * ny <= limit:
+    while True:  # (counted in float64: a wide spread would overflow int64's product)
+        fx = math.floor((x1 - x0) / cell) + 1.0
+        fy = math.floor((y1 - y0) / cell) + 1.0
+        if fx * fy <= limit:
             break
         cell *= 2.0
+    nx = int(fx)
+    ny = int(fy)
     start = np.zeros(nx * ny + 1, np.int64)
     key = np.empty(n, np.int64)
     for i in range(n):

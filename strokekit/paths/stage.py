@@ -191,8 +191,9 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     V = _resample(prev, to.vote_spacing_px, with_surface=False)  # (their surface points are not used)
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
-    cls_v = _kind_class(prev.kind[V.stroke])
-    cls_d = _kind_class(lines.kind[D.stroke])
+    # (int64 both: the kernel's one compiled signature, whatever the kind codes' dtype)
+    cls_v = _kind_class(prev.kind[V.stroke]).astype(np.int64, copy=False)
+    cls_d = _kind_class(lines.kind[D.stroke]).astype(np.int64, copy=False)
     step = max(1, int(round(o.reverse_px / o.sample_px)))
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
@@ -749,6 +750,8 @@ class PathTracker:
 
     def _step(self, lines: Strokes) -> BrushPaths:
         o = self.options
+        if not np.isfinite(lines.points).all():  # (the compiled loops assume finite samples)
+            raise ValueError("brush paths: the lines have non-finite points")
         if not o.history:
             out, _ = brush_step(None, lines, o, 0)
             return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from strokekit.errors import UsageError
@@ -64,8 +65,8 @@ class TrackingOptions:
         if self.method not in METHODS:
             raise UsageError(f"unknown coherence method {self.method!r} (known: {', '.join(METHODS)})")
         for name in ("search_radius_px", "vote_spacing_px", "seed_search_px", "dense_spacing_px"):
-            if not getattr(self, name) > 0:
-                raise UsageError(f"{name} must be > 0, got {getattr(self, name)}", option=name)
+            if not 0 < getattr(self, name) < math.inf:
+                raise UsageError(f"{name} must be a finite number > 0, got {getattr(self, name)}", option=name)
         for name in ("stretch_weight", "outlier_px", "min_id_px", "max_growth_px", "min_carry_px",
                      "seed_angle_penalty_px", "join_tol_px", "min_segment_px", "knot_spacing_px", "bend_weight"):
             if not getattr(self, name) >= 0:
