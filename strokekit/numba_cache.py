@@ -89,9 +89,12 @@ def keyboard_interrupts():
     try:
         yield
     except SystemError as e:
-        c = e
-        while c is not None and not isinstance(c, KeyboardInterrupt):
+        c, seen = e, set()
+        while c is not None and not isinstance(c, KeyboardInterrupt) and id(c) not in seen:
+            seen.add(id(c))  # (a chain may loop back on itself)
             c = c.__cause__ or c.__context__
+        if c is not None and not isinstance(c, KeyboardInterrupt):
+            c = None
         if c is not None:
             raise c from None
         raise

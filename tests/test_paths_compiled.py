@@ -344,6 +344,12 @@ def test_a_ctrl_c_in_a_compiled_loop_stays_a_keyboard_interrupt():
     with pytest.raises(SystemError):
         with keyboard_interrupts():
             raise SystemError("not an interrupt")
+    # A chain that loops back on itself is walked once: the SystemError comes out, no hang.
+    a, b = SystemError("a"), ValueError("b")
+    a.__cause__, b.__cause__ = b, a
+    with pytest.raises(SystemError, match="a"):
+        with keyboard_interrupts():
+            raise a
 
 
 @pytest.mark.parametrize("points, cell", [([[0.0, 0.0], [1e12, 1e12], [5.0, 5.0]], 1e-9),
