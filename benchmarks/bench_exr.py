@@ -12,7 +12,7 @@ temporary folder), for every frame of an orbit, in turns, `--repeats` times:
 Printed: process CPU ms a frame (all threads; steadier than wall time on a shared machine) and
 wall ms a frame, median over the repeats; what the EXR adds against each PNG variant (the bar:
 at most the time of the PNGs it replaces); the EXR's own parts (compositing passes, channels,
-encoding) with the encoding's CPU and size under each lossless codec Blender 3.4 reads.
+encoding) with the encoding's CPU and size under each lossless codec Blender 3.4 reads, and with none (the floor).
 
     python benchmarks/bench_exr.py [--models bunny,still-life] [--size 1024] [--frames 4] [--repeats 5]
 """
@@ -44,7 +44,7 @@ from strokekit.writers.exr import exr_bytes, exr_channels  # noqa: E402
 MODELS = {"bunny": ROOT.parent / "shared" / "models" / "stanford-bunny.obj",
           "still-life": ROOT / "samples" / "still_life.glb",
           "truck": ROOT.parent / "shared" / "models" / "CesiumMilkTruck.glb"}
-CODECS = ("RLE", "ZIPS", "ZIP", "PIZ")
+CODECS = ("NO", "RLE", "ZIPS", "ZIP", "PIZ")  # NO: the floor, copying the channels into scanlines
 
 
 def variants(out: Path) -> dict[str, OutputOptions]:
@@ -119,7 +119,7 @@ def bench_model(name: str, args) -> None:
             ts.append(time.process_time() - t)
             size = len(buf.getvalue())
         row.append(f"{codec} {1000 * statistics.median(ts):.0f} ms {size / 1e6:.1f} MB")
-    print("  encoding by codec, one thread, CPU: " + ", ".join(row))
+    print("  encoding by codec, one thread, CPU (NO: none, the floor): " + ", ".join(row))
 
 
 def main() -> None:
