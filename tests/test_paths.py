@@ -267,6 +267,41 @@ def test_brush_run_resumes_to_the_same_bytes(tmp_path, capsys):
     assert code == 2 and "other options" in err
 
 
+def test_a_brush_resume_computes_only_up_to_its_last_missing_frame(tmp_path, capsys, monkeypatch):
+    """A tracked resume needs the frames before the last one it writes, and none after it: with
+    frame 2 of 4 missing, frames 1-2 are computed (same bytes as the uninterrupted run); with
+    nothing missing, no frame is computed and the brush path kernels are not loaded."""
+    from helpers import SAMPLES
+
+    import strokekit.run.runner as runner
+
+    base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "-q", "--frames", "1-4",
+            "--workers", "1", "--out", tmp_path / "a"]
+    assert _cli(base, capsys)[0] == 0
+    ref = {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")}
+    for f in (tmp_path / "a").glob("frame_0002*"):
+        f.unlink()
+    seen, real = [], runner.frame_task
+
+    def counting(scene_path, scene_hash, lines, frame, *a, **k):
+        seen.append(frame)
+        return real(scene_path, scene_hash, lines, frame, *a, **k)
+
+    monkeypatch.setattr(runner, "frame_task", counting)
+    assert _cli([*base, "--skip-existing"], capsys)[0] == 0
+    assert sorted(seen) == [1, 2]
+    assert {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")} == ref
+
+    def no_kernels(*a, **k):
+        raise AssertionError("kernels loaded with nothing to render")
+
+    seen.clear()
+    monkeypatch.setattr(runner, "warm_path_kernels", no_kernels)
+    assert _cli([*base, "--skip-existing"], capsys)[0] == 0
+    assert seen == []
+    assert {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")} == ref
+
+
 def test_the_still_life_handle_contour_is_one_path():
     """Frame 1 of the sample: the inner contour of the box's handle comes out of the line pass as
     five strokes (chain ends where a chord meets it, a sub-pixel stub); it is drawn as one path."""

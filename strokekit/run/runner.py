@@ -105,7 +105,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
         except OSError as e:
             write_error = e
-        if write_error is None and spec.paths is not None:
+        work = bool(lines_needed(spec, resume))
+        if write_error is None and work and spec.paths is not None:
             # Brush path kernels (this process draws the paths): loaded, or compiled on a
             # machine's first run (said), before any frame.
             t = time.perf_counter()
@@ -115,7 +116,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             # Compiled here, once, before any frame: the workers then load them from numba's disk
             # cache instead of each compiling them.
             kernels.join()
-        if write_error is None and spec.lines.occlusion is not None and spec.scheduler is None:
+        if write_error is None and work and spec.lines.occlusion is not None and spec.scheduler is None:
             # Hidden lines' kernels: compiled here on a machine's first run, before any frame (the
             # workers then load them from numba's disk cache instead of each compiling them).
             t = time.perf_counter()
@@ -245,6 +246,22 @@ def plan_resume(spec: RunSpec, scene: Scene, tracking_on: bool) -> ResumePlan:
     return ResumePlan(manifest, before, done_before, entries, enter_later, tracking_on)
 
 
+def lines_needed(spec: RunSpec, resume: ResumePlan) -> list[int]:
+    """The frames whose lines this run computes, in frame order: those it writes, and before
+    the last of them the frames kept from an earlier run when tracking needs every earlier
+    frame; every frame when sequence.glb holds them all. Empty when nothing is left to do
+    (then no kernel is loaded or compiled either)."""
+    frames = [f for f, _ in spec.cameras]
+    done = resume.done_before
+    if spec.outputs.gltf and spec.outputs.gltf_sequence:
+        return frames
+    if not resume.tracking_on:
+        return [f for f in frames if f not in done]
+    todo = [i for i, f in enumerate(frames) if f not in done]
+    # (The tracker's state at a frame depends only on the frames before it.)
+    return frames[:todo[-1] + 1] if todo else []
+
+
 class FrameStream:
     """The frames of a run on their way through line work (in any process), tracking (here, in
     frame order) and writing. `pending` is the queue of tasks the workers take from; `handle`
@@ -261,10 +278,7 @@ class FrameStream:
         cams = dict(spec.cameras)
         done_before = resume.done_before
         tracking_on = resume.tracking_on
-        # The lines of frames kept from an earlier run are computed again (not written) when the
-        # tracker needs every frame, or when sequence.glb holds every frame of the run.
-        self.need_lines = [f for f in self.frames
-                           if f not in done_before or tracking_on or (out.gltf and out.gltf_sequence)]
+        self.need_lines = lines_needed(spec, resume)
         self.to_write = [f for f in self.need_lines if f not in done_before]
         if spec.paths is not None:
             # (Keys that say what the strokes are: only brush frames have them, a lines frame's
