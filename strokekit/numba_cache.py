@@ -23,6 +23,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
+try:
+    import fcntl
+except ImportError:  # not POSIX: no lock among processes
+    fcntl = None
+
 
 def _writable(path: Path) -> bool:
     try:
@@ -100,6 +105,27 @@ def keyboard_interrupts():
         raise
 
 
+@contextmanager
+def machine_lock(name: str):
+    """An exclusive lock among this machine's processes, by `name` (a file lock in the temporary
+    folder; none where fcntl is missing or the file cannot be opened)."""
+    if fcntl is None:
+        yield
+        return
+    path = Path(tempfile.gettempdir()) / f"strokekit-{name}-{os.getuid()}.lock"
+    try:
+        fh = open(path, "a")
+    except OSError:
+        yield
+        return
+    with fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
 class LazyKernels:
     """A module of numba kernels (`module`, by name), imported on first use (`kernels()`) after
     `choose_cache_dir`, so runs that never call it never import numba. For `warm`: `label` names
@@ -109,16 +135,32 @@ class LazyKernels:
     def __init__(self, module: str, label: str = "", compile_seconds: float = 0,
                  also: tuple["LazyKernels", ...] = ()):
         self.module, self.label, self.compile_seconds, self.also = module, label, compile_seconds, also
-        self._module = None
-        self._lock = threading.Lock()
+        self._module = self._raw = None
+        self._lock = threading.RLock()
+
+    def _imported(self):
+        """The module, imported (after `choose_cache_dir`), its kernels not yet loaded."""
+        if self._raw is None:
+            with self._lock:
+                if self._raw is None:
+                    choose_cache_dir(Path(importlib.util.find_spec(self.module).origin).resolve().parent)
+                    self._raw = importlib.import_module(self.module)
+        return self._raw
 
     def kernels(self):
-        """The module, imported (its kernels loaded from numba's disk cache, or compiled) on first use."""
+        """The module, imported on first use. When its kernels are not in numba's disk cache, they
+        are compiled then, by one process of the machine at a time: a dask cluster's workers or
+        concurrent runs on one machine wait for the first, then load what it cached."""
         if self._module is None:
-            with self._lock:  # (two threads asking at once import it once)
+            mod = self._imported()
+            with self._lock:  # (two threads asking at once compile once)
                 if self._module is None:
-                    choose_cache_dir(Path(importlib.util.find_spec(self.module).origin).resolve().parent)
-                    self._module = importlib.import_module(self.module)
+                    if compile_needed([mod]) is not False:
+                        with machine_lock(self.module):
+                            if compile_needed([mod]) is not False:
+                                with keyboard_interrupts():
+                                    mod.warmup()
+                    self._module = mod
         return self._module
 
     def warm(self, notify: Callable[[str], None] | None = None) -> tuple[float, bool]:
@@ -126,10 +168,11 @@ class LazyKernels:
         machine), before any frame: (seconds, compiled). `notify(line)` is told once, before the
         wait, when they compile."""
         t = time.perf_counter()
-        mods = [self.kernels(), *(k.kernels() for k in self.also)]
-        compiles = compile_needed(mods)
+        lazy = (self, *self.also)
+        compiles = compile_needed([k._imported() for k in lazy])
         if compiles and notify is not None:
             notify(f"compiling the {self.label} kernels (first run on this machine, about {self.compile_seconds} s)")
+        mods = [k.kernels() for k in lazy]
         with keyboard_interrupts():
             for mod in mods:
                 mod.warmup()

@@ -17,11 +17,8 @@ a raster pass runs: lines-only runs never load it.
 
 from __future__ import annotations
 
-import os
-import tempfile
 import threading
 import time
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
@@ -29,15 +26,10 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.numba_cache import choose_cache_dir as _choose_cache_dir
-from strokekit.numba_cache import compile_needed
+from strokekit.numba_cache import compile_needed, machine_lock
 from strokekit.raster.rays import cast_pixels, cast_samples
 from strokekit.scene.load import Scene
 from strokekit.scene.tables import scene_cache
-
-try:
-    import fcntl
-except ImportError:  # not POSIX: no lock among processes
-    fcntl = None
 
 #: The modules of the compiled kernels, imported on first use (numba's import costs about 0.3 s):
 #: the z-buffer, and the raster pass's own loops.
@@ -110,7 +102,7 @@ def warm_kernels(notify: Callable[[str], None] | None = None, *, compiles=_ASK) 
         else:
             # One process of the machine compiles; the others wait, then load what it cached (a
             # dask cluster's workers, concurrent runs).
-            with _machine_lock():
+            with machine_lock("raster-kernels"):
                 if _compile_needed(mods) is False:
                     compiles = False
                 _warm(mods)
@@ -123,27 +115,6 @@ def warm_kernels(notify: Callable[[str], None] | None = None, *, compiles=_ASK) 
 def _warm(mods) -> None:
     mods[0].warmup(parallel=False)
     mods[1].warmup()
-
-
-@contextmanager
-def _machine_lock():
-    """An exclusive lock among this machine's processes (a file lock in the temporary folder; none
-    where fcntl is missing)."""
-    if fcntl is None:
-        yield
-        return
-    path = Path(tempfile.gettempdir()) / f"strokekit-raster-kernels-{os.getuid()}.lock"
-    try:
-        fh = open(path, "a")
-    except OSError:
-        yield
-        return
-    with fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
 
 
 def ensure_kernels() -> float:
