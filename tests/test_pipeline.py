@@ -813,3 +813,32 @@ def test_an_interrupted_rewrite_leaves_no_frame_of_two_runs(tmp_path, monkeypatc
     names = {p.name for p in out.iterdir()}
     assert not {"frame_0003.svg", "frame_0003.json"} & names
     assert {n: (out / n).read_bytes() for n in earlier} == earlier
+
+
+def test_an_output_over_an_input_or_the_report_is_a_usage_error(tmp_path, capsys):
+    """A run whose outputs would overwrite its scene, its camera file, the run manifest or the
+    --report file stops before any work (exit 2, one line naming the file); nothing is changed."""
+    import shutil
+
+    scene = tmp_path / "clob" / "frame_0001.glb"
+    scene.parent.mkdir()
+    shutil.copy(SAMPLES / "still_life.glb", scene)
+    before = scene.read_bytes()
+    code, _, err = run_cli(["render", scene, "--orbit", "2", "--size", "64x64", "--gltf", "--out", scene.parent],
+                           capsys)
+    assert code == 2 and str(scene) in err and "scene" in err and scene.read_bytes() == before
+    assert sorted(p.name for p in scene.parent.iterdir()) == ["frame_0001.glb"]
+    cam = tmp_path / "c" / "frame_0001.json"
+    cam.parent.mkdir()
+    shutil.copy(SAMPLES / "orbit.json", cam)
+    code, _, err = run_cli(["render", SAMPLES / "still_life.glb", "--camera", cam, "--frames", "1", "--out",
+                            cam.parent], capsys)
+    assert code == 2 and "camera file" in err and cam.read_bytes() == (SAMPLES / "orbit.json").read_bytes()
+    for name in ("frame_0001.svg", ".strokekit-run.json"):
+        out = tmp_path / f"r{name}"
+        code, _, err = run_cli(["render", SAMPLES / "still_life.glb", "--orbit", "2", "--size", "64x64", "--out", out,
+                                "--report", out / name], capsys)
+        assert code == 2 and "--report" in err and not out.exists()
+    # A report beside the frames is fine.
+    assert run_cli(["render", SAMPLES / "still_life.glb", "--orbit", "2", "--size", "64x64", "-q", "--out",
+                    tmp_path / "ok", "--report", tmp_path / "ok" / "report.json"], capsys)[0] == 0

@@ -27,7 +27,7 @@ from strokekit.options import (
 )
 from strokekit.raster.hits import KernelWarmup
 from strokekit.run.report import run_report
-from strokekit.run.runner import run
+from strokekit.run.runner import check_files_apart, run
 from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
 from strokekit.run.workers import MAX_WORKERS, make_executor
 from strokekit.scene.load import load_scene
@@ -190,6 +190,7 @@ def command(scene, **o):
             path = orbit_path(s.center, s.radius, o["orbit"] or 48, elevation=o["elevation"], fov_y=o["fov"],
                               width=width, height=height, up_axis=o["up"])
         spec = _run_spec(scene, o, lines, path, frames, workers)
+        check_files_apart(spec, also_written=[("--report", o["report_path"])])
         try:
             res = _run_with_progress(spec, o["quiet"], dict(workers=pool, scene=s, load_seconds=load_seconds,
                                                             started_at=t_start, notice=notice, kernels=kernels))

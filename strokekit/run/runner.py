@@ -24,7 +24,13 @@ from strokekit.paths.kernels import warm_kernels as warm_path_kernels
 from strokekit.paths.stage import PathTracker
 from strokekit.raster.hits import KernelWarmup
 from strokekit.raster.rays import check_raster_fits
-from strokekit.run.manifest import _not_a_resume, read_run_manifest, run_manifest, write_run_manifest
+from strokekit.run.manifest import (
+    RUN_MANIFEST,
+    _not_a_resume,
+    read_run_manifest,
+    run_manifest,
+    write_run_manifest,
+)
 from strokekit.run.report import _add_timings
 from strokekit.run.spec import (
     RASTER_STAGES,
@@ -178,11 +184,35 @@ def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, res
     return stream.write_error
 
 
+def run_files(spec: RunSpec) -> list[Path]:
+    """Every file the run may write: each frame's files, sequence.glb, the run manifest."""
+    out = spec.outputs
+    files = [p for f, _ in spec.cameras for p in out.frame_files(f)] + [out.out_dir / RUN_MANIFEST]
+    if out.gltf and out.gltf_sequence:
+        files.append(out.out_dir / "sequence.glb")
+    return files
+
+
+def check_files_apart(spec: RunSpec, inputs=(), also_written=()) -> None:
+    """UsageError when one of the run's outputs would overwrite one of its inputs (the scene,
+    the camera file, `inputs`) or a file also written (`also_written`, e.g. the run report)."""
+    written = {os.path.abspath(p) for p in run_files(spec)}
+    files = [("scene", spec.scene_path), ("camera file", spec.camera_source), *inputs]
+    for what, name in files:
+        if name and os.path.abspath(name) in written and Path(name).is_file():
+            raise UsageError(f"{name}: the {what} is also one of the run's outputs (it would be overwritten); "
+                             "choose another --out or --pattern")
+    for what, name in also_written:
+        if name and os.path.abspath(name) in written:
+            raise UsageError(f"{what} {name} is also one of the run's outputs: name another file")
+
+
 def check_run(spec: RunSpec) -> None:
-    """UsageError before any work: a file pattern that names two frames alike, a raster pass
-    larger than the machine's memory."""
+    """UsageError before any work: a file pattern that names two frames alike, an output over
+    an input, a raster pass larger than the machine's memory."""
     check_pattern(spec.outputs.pattern)
     spec.outputs.check_names(f for f, _ in spec.cameras)
+    check_files_apart(spec)
     if spec.outputs.raster_options is not None:
         for w, h in sorted({(c.width, c.height) for _, c in spec.cameras}):
             check_raster_fits(w, h, spec.outputs.raster_options.supersample, spec.outputs.raster_options.fill)
@@ -528,7 +558,7 @@ def remove_temp_files(spec: RunSpec) -> list[Path]:
     """Remove the temporary files (.<name>.<random>.part) that writes of this run's outputs left
     in its output folder (a worker stopped mid-write); returns them. Others' files are not touched."""
     out = spec.outputs
-    names = {str(p) for f, _ in spec.cameras for p in out.frame_files(f)} | {str(out.out_dir / "sequence.glb")}
+    names = {str(p) for p in run_files(spec)} | {str(out.out_dir / "sequence.glb")}
     removed = []
     try:
         temps = [t for folder in [out.out_dir, *(out.out_dir / p for p in out.pass_folders())]
