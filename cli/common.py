@@ -17,7 +17,7 @@ FLAGS = {"sample_spacing_px": "--sample-spacing", "bisection_tol_px": "--bisecti
          "doubled_px": "--doubled", "whole_edge_px": "--whole-edge", "max_growth_px": "--max-growth",
          "min_carry_px": "--min-carry", "suggestive_derivative_threshold": "--suggestive-threshold",
          "suggestive_kr_threshold": "--suggestive-kr-threshold", "crease_angle_deg": "--crease-angle",
-         "split_angle_deg": "--split-angle", "codec": "--exr-codec"}
+         "split_angle_deg": "--split-angle", "codec": "--exr-codec", "merge_px": "--path-merge"}
 #: Fields that only the library sets: no flag of their own.
 _LIBRARY_ONLY = {"search_radius_px", "vote_spacing_px", "seed_search_px", "dense_spacing_px", "bend_weight",
                  "knot_spacing_px", "min_segment_px", "stretch_weight", "outlier_px", "min_id_px", "join_tol_px",

@@ -209,6 +209,9 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
     (["--stroke-width", "1e9"], "--stroke-width"),
     (["--gltf", "--ribbon-width", "1e9"], "ribbon width"),
     (["--bands", "2", "--light", "1e300,0,0"], "beyond float range"),
+    # messages name the flag the user typed
+    (["--orbit", "3", "--path-merge", "-1"], "--path-merge (merge_px) must be"),
+    (["--gltf", "--taper", "-1"], "--taper must be"),
 ])
 def test_impossible_options_exit_2(cube, tmp_path, capsys, args, needle):
     code, _, err = run_cli(["render", cube, "--out", tmp_path / "o", *args], capsys)
@@ -661,6 +664,12 @@ def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube,
     (["--max-growth", "5"], "--max-growth needs --coherence seed"),
     (["--camera", SAMPLES / "orbit.json", "--elevation", "30", "--fov", "20"], "--elevation, --fov need --orbit"),
     (["--brush", "dry"], "--brush needs --gltf"),
+    (["--gooch", "--light", "1,0,0"], "--light, --gooch need a raster output"),
+    (["--supersample", "2"], "--supersample needs a raster output"),
+    (["--suggestive-threshold", "10"], "--suggestive-threshold needs suggestive in --kinds"),
+    (["--decimals", "3", "--no-svg"], "--decimals needs the SVG"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers needs no --scheduler"),
+    (["--frames", "1", "--path-merge", "3"], "--path-merge needs brush paths"),
 ])
 def test_an_option_the_run_would_ignore_is_a_usage_error(tmp_path, capsys, args, said):
     """An option given on the command line that does nothing beside the others (or contradicts

@@ -59,6 +59,13 @@ _NEEDS = (
     (("band_polygons",), "the SVG (they are a layer of it; not --no-svg)", lambda cam, svg, x: svg),
     (("ribbon_width", "taper", "brush", "alpha_mode", "ribbon_space"), "--gltf or --gltf-sequence",
      lambda cam, svg, x: x.get("gltf") or x.get("gltf_sequence")),
+    (("shading", "light", "light_space", "gooch", "no_shade", "supersample", "edge_supersample"),
+     "a raster output (--bands, --masks, --fill, --objectid, --depth, --band-polygons or --exr)",
+     lambda cam, svg, x: wants_raster(x) or x.get("exr")),
+    (("suggestive_threshold", "suggestive_kr_threshold"), "suggestive in --kinds",
+     lambda cam, svg, x: "suggestive" in (k.strip() for k in (x.get("kinds") or "").split(","))),
+    (("decimals",), "the SVG (its coordinates; not --no-svg)", lambda cam, svg, x: svg),
+    (("workers",), "no --scheduler (a dask cluster's workers draw the frames)", lambda cam, svg, x: not x.get("scheduler")),
 )
 
 
@@ -116,8 +123,11 @@ def _check_option_pairs(camera_file, svg: bool, extra: dict) -> None:
 @click.option("--bisection-tol", type=FINITE, default=None,
               help=f"Visibility change located to N px, at least {MIN_BISECTION_TOL_PX:g} (overrides --quality).")
 @click.option("--split-angle", type=FINITE, default=None, help="Split strokes at turns sharper than N degrees [90].")
-@click.option("--max-length", type=FINITE, default=None, help="Split strokes longer than N px [no limit].")
-@click.option("--min-length", type=FINITE, default=None, help="Drop strokes shorter than N px [0].")
+@click.option("--max-length", type=FINITE, default=None,
+              help="Split lines longer than N px, at their points (a piece may pass N by one segment) [no limit]; "
+                   "brush paths are drawn over the lines, whole.")
+@click.option("--min-length", type=FINITE, default=None,
+              help="Drop lines shorter than N px [0]; brush paths are drawn over the lines left.")
 @click.option("--simplify", "simplify_tol", type=FINITE, default=None, help="Simplify strokes within N px (Douglas-Peucker) [0: off].")
 @click.option("--doubled", type=FINITE, default=None,
               help="Drop parts of contour lines running beside a longer one within N px (mesh-contour "
@@ -289,8 +299,12 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
                             raster_options=raster_options_from(o, o["quality"]),
                             hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"],
                             exr=exr_options_from(o, o["stroke_width"]), lines_png=o["lines_png"])
-    given = click.get_current_context().get_parameter_source("coherence_method") == click.core.ParameterSource.COMMANDLINE
+    ctx = click.get_current_context()
+    given = ctx.get_parameter_source("coherence_method") == click.core.ParameterSource.COMMANDLINE
     mode = strokes_mode(o, len(frames), given)
+    if mode != "brush" and ctx.get_parameter_source("path_merge") == click.core.ParameterSource.COMMANDLINE:
+        raise UsageError("--path-merge needs brush paths (--strokes brush; one frame, --no-coherence or a --coherence "
+                         "method draw the lines by default)")
     return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
                    tracking=tracking_options_from(o, len(frames), mode), paths=path_options_from(o, mode),
                    workers=workers,

@@ -68,11 +68,11 @@ class GltfOptions:
 
     def __post_init__(self):
         if self.alpha_mode not in ("BLEND", "MASK"):
-            raise UsageError(f"alpha mode must be BLEND or MASK, got {self.alpha_mode!r}")
+            raise UsageError(f"alpha_mode must be BLEND or MASK, got {self.alpha_mode!r}", option="alpha_mode")
         if not 0 <= self.alpha_cutoff <= 1:
             raise UsageError(f"alpha cutoff must be in [0, 1], got {self.alpha_cutoff}")
         if not (math.isfinite(self.taper) and self.taper >= 0):
-            raise UsageError(f"taper must be >= 0, got {self.taper}")
+            raise UsageError(f"taper must be a finite number >= 0, got {self.taper}", option="taper")
         if not self.fps > 0:
             raise UsageError(f"fps must be > 0, got {self.fps}")
         if self.color is not None:
