@@ -149,6 +149,17 @@ def test_coherence_of_frames_rendered_without_json_says_how_to_get_them(cube, tm
     assert code == 1 and "render without --no-json" in err and len(err.strip().splitlines()) == 1
 
 
+def test_coherence_with_no_strokes_to_compare_is_an_error_not_a_perfect_score(cube, tmp_path, capsys):
+    """Frames without hidden lines measured at hidden levels (or frames with no strokes at all) have
+    nothing to match: one line, exit 1. It printed M1 1.000, M2 0, exit 0."""
+    code, _, err = run_cli(["render", cube, "--orbit", "3", "--out", tmp_path / "o", "-q"], capsys)
+    assert code == 0, err
+    code, _, err = run_cli(["coherence", tmp_path / "o", "--occlusion", "1-"], capsys)
+    assert code == 1 and "hold no strokes at occlusion levels 1-" in err and len(err.strip().splitlines()) == 1
+    code, out, _ = run_cli(["coherence", tmp_path / "o", "--json"], capsys)
+    assert code == 0 and 0 <= json.loads(out)["overall"]["M1"] <= 1
+
+
 def test_shared_empty_obj_is_a_clear_error(capsys):
     code, _, err = run_cli(["info", model_path("empty.obj")], capsys)
     assert code == 1 and "empty.obj" in err and "no triangle faces" in err

@@ -7,6 +7,7 @@ import orjson
 from rich.console import Console
 from rich.table import Table
 
+from strokekit.errors import InputError
 from strokekit.metrics.coherence import folder_metrics
 
 from ..common import FiniteFloatRange
@@ -39,6 +40,9 @@ def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern:
         if p.frame - p.prev_frame != 1:
             click.echo(f"strokekit: warning: frame {p.frame} is compared with frame {p.prev_frame} "
                        f"(frames in between are missing)", err=True)
+    if pairs and total["total_px"] == 0:
+        where = f" at occlusion levels {occlusion_range}" if occlusion_range is not None else ""
+        raise InputError(f"its {len(pairs) + 1} frames hold no strokes{where}: nothing to measure", out_dir)
     rows = [p.summary() for p in pairs]
     if as_json:
         click.echo(orjson.dumps({"pairs": rows, "overall": total}, option=orjson.OPT_INDENT_2).decode())

@@ -169,7 +169,9 @@ def overall(pairs: list[PairMetrics]) -> dict:
     m2 = np.array([p.m2 for p in pairs])
     fl = np.array([p.flatness for p in pairs])
     flr = np.array([p.flatness_raw for p in pairs])
-    return {"pairs": len(pairs), "M1": same / matched if matched > 0 else 1.0,
+    # (Nothing matched, e.g. no strokes at all: M1 is undefined, not perfect.)
+    return {"pairs": len(pairs), "M1": same / matched if matched > 0 else float("nan"),
+            "matched_px": float(matched), "total_px": float(sum(p.total_px for p in pairs)),
             "M2_median": float(np.median(m2)), "M2_mean": float(np.mean(m2)), "M2_max": float(np.max(m2)),
             **_stats("M4", np.concatenate([p.sliding_px for p in pairs])),
             "M5": float(np.mean(fl)), "M5_max": float(np.max(fl)),
