@@ -360,14 +360,14 @@ def _run_with_progress(spec: RunSpec, quiet: bool, run_args: dict):
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[fps]:.1f} frames/s"), TimeRemainingColumn(), transient=True) as prog:
         tasks = {}
-        t0 = {}
+        # Rates from the run's start: a phase's first report comes when its first frame is done,
+        # so timing from there missed that frame's time (0 frames/s, then a burst).
+        t0 = time.perf_counter()
 
         def cb(phase, done, total):
             if phase not in tasks:
                 tasks[phase] = prog.add_task(phase, total=total, fps=0.0)
-                t0[phase] = time.perf_counter()
-            dt = time.perf_counter() - t0[phase]
-            # A rate needs a measured interval: none until a quarter second has passed.
-            prog.update(tasks[phase], completed=done, total=total, fps=done / dt if dt >= 0.25 else 0.0)
+            dt = time.perf_counter() - t0
+            prog.update(tasks[phase], completed=done, total=total, fps=done / dt if dt > 0 else 0.0)
 
         return run(spec, progress=cb, **run_args)
