@@ -16,6 +16,9 @@ from strokekit.scene.load import Scene
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.gltf import GltfOptions
 
+#: The longest file name (bytes) of Linux, macOS and Windows file systems.
+NAME_MAX = 255
+
 
 @dataclass(frozen=True)
 class OutputOptions:
@@ -45,12 +48,17 @@ class OutputOptions:
         """UsageError when the pattern gives two of `frames` the same name (a pattern such as
         f_{frame:.0e} writes frames 10, 11 and 12 to one file: each would overwrite the last)."""
         seen: dict[str, int] = {}
+        longest = max((len(p.name) - len(self.stem(0)) for p in self.frame_files(0)), default=0)
         for f in frames:
             name = self.stem(f)
             if name in seen:
                 raise UsageError(f"--pattern {self.pattern!r} names frames {seen[name]} and {f} alike ({name!r}): "
                                  "one would overwrite the other")
             seen[name] = f
+            # (Files are written as .<name>.<8 random>.part first: 15 more characters.)
+            if len(name.encode()) + longest + 15 > NAME_MAX:
+                raise UsageError(f"--pattern {self.pattern!r} makes frame {f}'s file names longer than the "
+                                 f"{NAME_MAX} bytes a file name may have")
 
     def frame_file(self, frame: int, suffix: str) -> Path:
         """OUT/<pattern>.<suffix>: the suffix is appended, never replaces a dotted part of the
