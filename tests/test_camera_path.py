@@ -387,3 +387,29 @@ def test_cli_says_a_huge_eye_in_exactly_one_line(tmp_path, capsys):
     assert e.value.code == 1 and len(err.strip().splitlines()) == 1, err
     assert "cam.json: frame 1: camera eye (1e+160, 0, 5) is out of range" in err and "parallel" not in err, err
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def _gltf_camera(tmp_path: Path, nodes: list) -> Path:
+    p = tmp_path / "cam.gltf"
+    p.write_text(json.dumps({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": nodes,
+                             "cameras": [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.01}}]}))
+    return p
+
+
+def test_gltf_camera_nodes_out_of_range_say_so_without_a_numpy_warning(tmp_path):
+    """A glTF camera node scaled by 1e300 overflowed in the norm of its axes (a numpy warning, then
+    'camera target equals eye'); nested, the scales overflowed the world matrix. A camera node's
+    scale does not change the view; a translation or world matrix out of range is one line."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for scale in (1e300, 1e-300):
+            cam = load_camera_path(_gltf_camera(tmp_path, [{"camera": 0, "scale": [scale] * 3,
+                                                            "translation": [0, 0, 5]}])).cameras[0]
+            assert cam.eye == (0.0, 0.0, 5.0) and np.allclose(cam.basis[2], [0, 0, -1]), scale
+        with pytest.raises(InputError, match=r"cam\.gltf: the world transform of camera node 1 is out of range"):
+            load_camera_path(_gltf_camera(tmp_path, [{"children": [1], "scale": [1e300] * 3},
+                                                     {"camera": 0, "scale": [1e300] * 3}]))
+        with pytest.raises(InputError, match=r"cam\.gltf: camera at node 0: camera eye \(1e\+160, 0, 5\) is out"):
+            load_camera_path(_gltf_camera(tmp_path, [{"camera": 0, "translation": [1e160, 0, 5]}]))
