@@ -265,3 +265,151 @@ def test_orbit_straight_above_or_below_still_turns(elevation):
         assert np.allclose(a.basis[0], b.basis[0], atol=1e-4) and np.allclose(a.basis[1], b.basis[1], atol=1e-4)
     rights = np.array([c.basis[0] for c in top.cameras])
     assert len({tuple(np.round(r, 6)) for r in rights}) == 8
+
+
+# --- a key of the other lens, a frame count the list contradicts, booleans as numbers -------------
+
+@pytest.mark.parametrize("data,needles", [
+    ({"frames": [dict(FRAME0, ortho_height=2)]}, ["frame 1", "'ortho_height' belongs to a parallel camera"]),
+    ({"frames": [dict(FRAME0, projection="perspective", ortho_height=2)]}, ["frame 1", "'ortho_height'"]),
+    ({"frames": [dict(FRAME0, projection="orthographic", ortho_height=2, fov_y=30)]},
+     ["frame 1", "an orthographic camera has no 'fov_y'"]),
+    (keyed([dict(KEY0, ortho_height=2), KEY2]), ["keyframe 1", "'ortho_height' belongs to a parallel camera"]),
+    (keyed([dict(KEY0, projection="orthographic", ortho_height=2),
+            dict(KEY2, projection="orthographic", ortho_height=2, fov_y=30)]), ["keyframe 2", "no 'fov_y'"]),
+])
+def test_a_key_of_the_other_lens_is_refused_by_name(tmp_path, data, needles):
+    """'ortho_height' on a perspective frame and 'fov_y' on an orthographic one were accepted and
+    ignored (as 'azimuth' on a perspective frame and 'distance' on an orthographic one are not)."""
+    msg = load_error(tmp_path, data)
+    for n in needles:
+        assert n in msg, msg
+
+
+def test_a_frame_count_the_frames_list_contradicts_is_refused(tmp_path):
+    """"frame_count": 3 beside one entry of 'frames' was accepted and rendered 1 frame. A count
+    that agrees is harmless; 'interpolation' has nothing to act on in the frames form."""
+    msg = load_error(tmp_path, {"frame_count": 3, "frames": [FRAME0]})
+    assert "frame_count 3 disagrees with 'frames', which lists 1 frame " in msg, msg
+    assert "frame_count" in load_error(tmp_path, {"frame_count": 1.5, "frames": [FRAME0]})
+    assert "'interpolation' belongs to the keyframe form" in load_error(
+        tmp_path, {"interpolation": "smooth", "frames": [FRAME0, FRAME0]})
+    assert len(load_camera_path(write(tmp_path, {"frame_count": 2, "frames": [FRAME0, FRAME0]}))) == 2
+
+
+@pytest.mark.parametrize("data,needles", [
+    ({"frames": [dict(FRAME0, fov_y=True)]}, ["frame 1", "'fov_y' must be a number, got true"]),
+    ({"frames": [dict(FRAME0, fov_y="30")]}, ["frame 1", "'fov_y' must be a number", '"30"']),
+    ({"frames": [dict(FRAME0, up=[True, False, False])]}, ["frame 1", "'up' must be a list of 3 numbers",
+                                                           "[true, false, false]"]),
+    ({"frames": [dict(FRAME0, eye=[0, True, 5])]}, ["frame 1", "'eye' must be a list of 3 numbers"]),
+    ({"frames": [dict(FRAME0, target=[False, 0, 0])]}, ["frame 1", "'target' must be a list of 3 numbers"]),
+    ({"frames": [dict(FRAME0, near=True)]}, ["frame 1", "'near' must be a number, got true"]),
+    ({"frames": [dict(FRAME0, projection="orthographic", ortho_height=True)]}, ["'ortho_height' must be a number"]),
+    ({"fps": True, "frames": [FRAME0]}, ["fps must be a number > 0, got true"]),
+    (keyed([dict(KEY0, fov_y=False), KEY2]), ["keyframe 1", "'fov_y' must be a number, got false"]),
+    ({"frames": [{"projection": "cabinet", "target": [0, 0, 0], "ortho_height": 1, "distance": True}]},
+     ["frame 1", "'distance' must be a number, got true"]),
+    ({"frames": [{"projection": "cabinet", "target": [0, 0, 0], "ortho_height": True, "distance": 3}]},
+     ["frame 1", "'ortho_height' must be a number, got true"]),
+    ({"frames": [{"projection": "cabinet", "target": [0, 0, 0], "ortho_height": 1, "distance": 3,
+                  "up": [0, True, 0]}]}, ["frame 1", "'up' must be a list of 3 numbers"]),
+    ({"frames": [{"projection": "cabinet", "target": [0, 0, 0], "ortho_height": 1, "distance": 3,
+                  "oblique_angle": True}]}, ["frame 1", "'oblique_angle' must be a number, got true"]),
+])
+def test_booleans_are_not_numbers_anywhere_in_a_camera_file(tmp_path, data, needles):
+    """"fov_y": true became a 1 degree lens and "up": [true, false, false] the x axis (float(True)
+    is 1.0), as "width": true already was not: a boolean where a number belongs is refused."""
+    msg = load_error(tmp_path, data)
+    for n in needles:
+        assert n in msg, msg
+
+
+def test_the_camera_files_strokekit_writes_read_back():
+    """`strokekit camera parallel --projection orthographic` wrote the frame's unused fov_y, which
+    the reader now refuses: the writer leaves it out of parallel frames."""
+    from strokekit.camera.paths import parallel_path
+
+    for projection in ("orthographic", "cabinet"):
+        path = parallel_path(np.zeros(3), 1.0, projection, frames=2)
+        data = json.loads(json.dumps(path.to_json()))
+        assert all("fov_y" not in f for f in data["frames"]), data
+        back = camera_path_from_json(data, "p.json")
+        assert back.cameras[0].eye == pytest.approx(path.cameras[0].eye)
+
+
+# --- coordinates out of range: one line, no numpy warning -----------------------------------------
+
+@pytest.mark.parametrize("data,needles", [
+    ({"frames": [dict(FRAME0, eye=[1e160, 0, 5])]}, ["frame 1", "camera eye (1e+160, 0, 5) is out of range",
+                                                     "1e+15"]),
+    ({"frames": [dict(FRAME0, eye=[1e308, 0, 5])]}, ["frame 1", "camera eye", "out of range"]),
+    ({"frames": [dict(FRAME0, eye=[0, 0, -1.7e308], target=[0, 0, 1.7e308])]}, ["frame 1", "camera eye",
+                                                                                 "out of range"]),
+    ({"frames": [dict(FRAME0, target=[0, -1e200, 0])]}, ["frame 1", "camera target", "out of range"]),
+    ({"frames": [dict(FRAME0, up=[0, 1e200, 0])]}, ["frame 1", "camera up", "out of range"]),
+    ({"frames": [dict(FRAME0, near=1e300)]}, ["frame 1", "camera near", "out of range"]),
+    ({"frames": [dict(FRAME0, projection="orthographic", ortho_height=1e300)]}, ["camera ortho_height",
+                                                                                 "out of range"]),
+    ({"frames": [{"projection": "cabinet", "target": [0, 0, 0], "ortho_height": 1, "distance": 1e300}]},
+     ["frame 1", "camera distance", "out of range"]),
+    ({"frames": [{"projection": "cabinet", "target": [1e300, 0, 0], "ortho_height": 1, "distance": 3}]},
+     ["frame 1", "camera target", "out of range"]),
+    ({"frames": [{"projection": "cabinet", "target": [0, 0, 0], "ortho_height": 1, "distance": 3,
+                  "up": [0, 1e300, 0]}]}, ["frame 1", "camera up", "out of range"]),
+    (keyed([KEY0, dict(KEY2, eye=[1e200, 0, 6])]), ["keyframe 2", "camera eye", "out of range"]),
+])
+def test_a_coordinate_out_of_range_is_said_without_a_numpy_warning(tmp_path, data, needles):
+    """An eye at 1e160 overflowed in a dot product (a numpy RuntimeWarning on stderr) and was then
+    reported as an 'up' parallel to the view direction. Coordinates and lengths are limited to
+    1e15 world units (view.MAX_COORD), checked before any arithmetic."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        msg = load_error(tmp_path, data)
+    for n in needles:
+        assert n in msg, msg
+
+
+def test_coordinates_at_the_limit_are_accepted():
+    path = camera_path_from_json({"frames": [dict(FRAME0, eye=[1e15, 0, 5]), dict(FRAME0, eye=[-1e15, 1e15, 1e15])]})
+    assert path.cameras[1].eye == (-1e15, 1e15, 1e15)
+
+
+def test_cli_says_a_huge_eye_in_exactly_one_line(tmp_path, capsys):
+    cam = write(tmp_path, {"frames": [dict(FRAME0, eye=[1e160, 0, 5])]})
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(SystemExit) as e:
+        main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert e.value.code == 1 and len(err.strip().splitlines()) == 1, err
+    assert "cam.json: frame 1: camera eye (1e+160, 0, 5) is out of range" in err and "parallel" not in err, err
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
+
+
+def _gltf_camera(tmp_path: Path, nodes: list) -> Path:
+    p = tmp_path / "cam.gltf"
+    p.write_text(json.dumps({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": nodes,
+                             "cameras": [{"type": "perspective", "perspective": {"yfov": 0.7, "znear": 0.01}}]}))
+    return p
+
+
+def test_gltf_camera_nodes_out_of_range_say_so_without_a_numpy_warning(tmp_path):
+    """A glTF camera node scaled by 1e300 overflowed in the norm of its axes (a numpy warning, then
+    'camera target equals eye'); nested, the scales overflowed the world matrix. A camera node's
+    scale does not change the view; a translation or world matrix out of range is one line."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for scale in (1e300, 1e-300):
+            cam = load_camera_path(_gltf_camera(tmp_path, [{"camera": 0, "scale": [scale] * 3,
+                                                            "translation": [0, 0, 5]}])).cameras[0]
+            assert cam.eye == (0.0, 0.0, 5.0) and np.allclose(cam.basis[2], [0, 0, -1]), scale
+        with pytest.raises(InputError, match=r"cam\.gltf: the world transform of camera node 1 is out of range"):
+            load_camera_path(_gltf_camera(tmp_path, [{"children": [1], "scale": [1e300] * 3},
+                                                     {"camera": 0, "scale": [1e300] * 3}]))
+        with pytest.raises(InputError, match=r"cam\.gltf: camera at node 0: camera eye \(1e\+160, 0, 5\) is out"):
+            load_camera_path(_gltf_camera(tmp_path, [{"camera": 0, "translation": [1e160, 0, 5]}]))

@@ -719,8 +719,8 @@ def test_svg_silhouettes_lie_on_the_edge_of_the_background_mask(tmp_path, capsys
         cam = {"projection": "cavalier", "target": list(target), "distance": 8.0, "ortho_height": 4.4,
                "azimuth": 15.0, "elevation": 10.0}
     else:
-        cam = {"eye": [2.2, 1.6, 7.0], "target": list(target), "fov_y": 40.0, "projection": projection,
-               "ortho_height": 4.4}
+        cam = {"eye": [2.2, 1.6, 7.0], "target": list(target), "projection": projection,
+               **({"fov_y": 40.0} if projection == "perspective" else {"ortho_height": 4.4})}
     path = tmp_path / "cam.json"
     path.write_text(json.dumps({"width": 240, "height": 180, "frames": [cam]}))
     with pytest.raises(SystemExit) as e:

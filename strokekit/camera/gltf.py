@@ -274,7 +274,12 @@ def _gltf_width(height: int, aspect: float, what: str) -> int:
 def _camera_at(m: np.ndarray, cam, width: int | None, height: int | None) -> Camera:
     """The Camera of glTF camera object `cam` placed by world matrix m (local -Z forward, +Y up)."""
     rot = m[:3, :3]
-    scale = np.linalg.norm(rot, axis=0)
+    with np.errstate(over="ignore", under="ignore"):
+        scale = np.linalg.norm(rot, axis=0)
+    if not np.all(np.isfinite(scale) & (scale > 0)):  # a scale of 1e300 (or 1e-300) squared: the
+        peak = np.max(np.abs(rot), axis=0)  # columns brought near 1 first, then normalized
+        rot = rot / np.where(peak > 0, peak, 1)
+        scale = np.linalg.norm(rot, axis=0)
     rot = rot / np.where(scale > 0, scale, 1)
     eye = m[:3, 3]
     fwd, up = -rot[:, 2], rot[:, 1]
@@ -396,7 +401,11 @@ def gltf_camera_path(path: Path, width: int | None = None, height: int | None = 
                 else:
                     trs[p] = np.broadcast_to(_rest_trs(n, p, what, data), (frames, _GLTF_TRS[p]))
             local = _trs_matrices(trs["translation"], trs["rotation"], trs["scale"])
-        world = world @ local
+        with np.errstate(over="ignore", invalid="ignore"):  # (said below, in one line)
+            world = world @ local
+    if not np.all(np.isfinite(world)):
+        raise InputError(f"the world transform of camera node {cam_i} is out of range (its nodes' scales and "
+                         "translations multiply beyond float64)", path)
 
     cams = []
     for k, m in enumerate(world):

@@ -140,6 +140,40 @@ def _whole_number(value, what: str) -> int:
     return int(value)
 
 
+def _number(value, what: str) -> float:
+    """A finite number from a JSON value. true and false are not numbers (float(True) is 1.0: a
+    "fov_y": true would silently be 1 degree), nor are strings ("30"), null or 1e400; the caller
+    adds the file."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"'{what}' must be a number, got {_json_short(value)}")
+    try:
+        x = float(value)
+    except OverflowError:  # an integer beyond float range
+        raise InputError(f"bad value: '{what}' {_json_short(value)} is out of range") from None
+    if not math.isfinite(x):
+        raise InputError(f"'{what}' must be a finite number, got {x!r}")
+    return x
+
+
+def _vector(value, what: str) -> tuple[float, float, float]:
+    """Three finite numbers (a JSON list) from a JSON value; no booleans among them."""
+    if not (isinstance(value, list) and len(value) == 3) or any(
+            isinstance(x, bool) or not isinstance(x, (int, float)) for x in value):
+        raise InputError(f"'{what}' must be a list of 3 numbers, got {_json_short(value)}")
+    try:
+        v = tuple(float(x) for x in value)
+    except OverflowError:
+        raise InputError(f"bad value: '{what}' {_json_short(value)} is out of range") from None
+    if not all(math.isfinite(x) for x in v):
+        raise InputError(f"'{what}' must be 3 finite numbers, got {_show_vec(v)}")
+    return v
+
+
+def _json_short(value) -> str:
+    text = json.dumps(value, allow_nan=True, default=str)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _image_side(value, what: str) -> int:
     n = _whole_number(value, what)
     if not 0 < n <= MAX_IMAGE_PX:
@@ -152,6 +186,10 @@ def _image_side(value, what: str) -> int:
 _PATH_KEYS = ("width", "height", "fps", "frames", "keyframes", "frame_count", "interpolation")
 _CAMERA_KEYS = ("eye", "target", "up", "fov_y", "projection", "ortho_height", "near", "width", "height",
                 "distance", "azimuth", "elevation", "oblique_angle")
+#: Keys of a camera frame that belong to one kind of lens only: a perspective frame's size is its
+#: 'fov_y', a parallel one's its 'ortho_height'; given to the other kind they would be ignored.
+_PERSPECTIVE_ONLY = ("fov_y",)
+_PARALLEL_ONLY = ("ortho_height",)
 
 
 def _check_keys(d: dict, known: tuple[str, ...], where: str, source: str) -> None:
@@ -176,6 +214,11 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str,
     if angled_keys:
         raise InputError(f"{where}: '{angled_keys[0]}' belongs to the projections {', '.join(ANGLED)}, not to a "
                          f"{d.get('projection', 'perspective')} camera", source)
+    if d.get("projection", "perspective") == "perspective" and "ortho_height" in d:
+        raise InputError(f"{where}: 'ortho_height' belongs to a parallel camera (\"projection\": \"orthographic\"), "
+                         "not to a perspective one, whose size is 'fov_y'", source)
+    if d.get("projection") == "orthographic" and "fov_y" in d:
+        raise InputError(f"{where}: an orthographic camera has no 'fov_y' (its size is 'ortho_height')", source)
     for key in ("eye", "target"):
         if key not in d:
             raise InputError(f"{where} has no '{key}'", source)
@@ -184,12 +227,17 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str,
         raise InputError(f"{where}: an orthographic camera needs 'ortho_height' (world units across the image height)",
                          source)
     try:
-        cam = Camera(eye=tuple(d["eye"]), target=tuple(d["target"]), up=tuple(d.get("up", (0.0, 1.0, 0.0))),
-                     fov_y=float(d.get("fov_y", 40.0)), width=_image_side(d.get("width", width), "width"),
-                     height=_image_side(d.get("height", height), "height"),
-                     projection=d.get("projection", "perspective"),
-                     ortho_height=float(d.get("ortho_height", 1.0)),
-                     near=(float(d["near"]) if d.get("near") is not None else None))
+        eye, target = _vector(d["eye"], "eye"), _vector(d["target"], "target")
+        up = _vector(d["up"], "up") if "up" in d else (0.0, 1.0, 0.0)
+        fov_y = _number(d["fov_y"], "fov_y") if "fov_y" in d else 40.0
+        ortho_height = _number(d["ortho_height"], "ortho_height") if "ortho_height" in d else 1.0
+        near = _number(d["near"], "near") if d.get("near") is not None else None
+        projection = d.get("projection", "perspective")
+        if not isinstance(projection, str):
+            raise InputError(f"'projection' must be a name, got {_json_short(projection)}")
+        cam = Camera(eye=eye, target=target, up=up, fov_y=fov_y, width=_image_side(d.get("width", width), "width"),
+                     height=_image_side(d.get("height", height), "height"), projection=projection,
+                     ortho_height=ortho_height, near=near)
     except InputError as e:
         raise InputError(f"{where}: {e}", source) from None
     except (TypeError, ValueError, OverflowError) as e:  # OverflowError: an integer beyond float range
@@ -223,13 +271,13 @@ def _angled_camera_from_dict(d: dict, width: int, height: int, where: str, sourc
         if key not in d:
             raise InputError(f"{where}: {_a(p)} camera needs '{key}'", source)
     try:
-        return Camera.parallel(p, tuple(d["target"]), d["distance"], up=tuple(d.get("up", (0.0, 1.0, 0.0))),
-                               ortho_height=float(d["ortho_height"]),
+        angles = {k: _number(d[k], k) for k in ("azimuth", "elevation", "oblique_angle") if d.get(k) is not None}
+        return Camera.parallel(p, _vector(d["target"], "target"), _number(d["distance"], "distance"),
+                               up=_vector(d["up"], "up") if "up" in d else (0.0, 1.0, 0.0),
+                               ortho_height=_number(d["ortho_height"], "ortho_height"),
                                width=_image_side(d.get("width", width), "width"),
-                               height=_image_side(d.get("height", height), "height"),
-                               azimuth=d.get("azimuth"), elevation=d.get("elevation"),
-                               oblique_angle=d.get("oblique_angle"),
-                               near=(float(d["near"]) if d.get("near") is not None else None))
+                               height=_image_side(d.get("height", height), "height"), **angles,
+                               near=(_number(d["near"], "near") if d.get("near") is not None else None))
     except InputError as e:
         raise InputError(f"{where}: {e}", source) from None
     except (TypeError, ValueError, OverflowError) as e:
@@ -250,11 +298,15 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
     try:
         width = _image_side(data.get("width", 1024), "width")
         height = _image_side(data.get("height", 1024), "height")
-        fps = float(data.get("fps", 24))
     except InputError as e:
         raise InputError(str(e), source) from None
-    except (TypeError, ValueError, OverflowError) as e:
-        raise InputError(f"bad fps ({e})", source) from None
+    fps = data.get("fps", 24)
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)):  # (float(true) is 1.0)
+        raise InputError(f"fps must be a number > 0, got {_json_short(fps)}", source)
+    try:
+        fps = float(fps)
+    except OverflowError:
+        raise InputError(f"bad fps: {_json_short(fps)} is out of range", source) from None
     if not (math.isfinite(fps) and fps > 0):
         raise InputError(f"fps must be a number > 0, got {fps:g}", source)
     # Entries are named as output frames are, from 1 (BRIEF 1.2: entry k is output frame k+1).
@@ -262,6 +314,21 @@ def camera_path_from_json(data: dict, source: str = "") -> CameraPath:
         frames = data["frames"]
         if not isinstance(frames, list) or not frames:
             raise InputError("'frames' must be a non-empty list", source)
+        if "interpolation" in data:  # (nothing lies between listed frames: it would be ignored)
+            raise InputError("'interpolation' belongs to the keyframe form ('keyframes'): a 'frames' list gives "
+                             "every frame", source)
+        if "frame_count" in data:
+            # The frames form has as many frames as it lists; a count that says otherwise was
+            # silently ignored (3 asked, 1 rendered). One that agrees is harmless.
+            try:
+                count = _whole_number(data["frame_count"], "frame_count")
+            except InputError as e:
+                raise InputError(str(e), source) from None
+            if count != len(frames):
+                n = len(frames)
+                raise InputError(f"frame_count {count} disagrees with 'frames', which lists {n} frame{'s' * (n != 1)} "
+                                 "(a 'frames' list has one entry per frame; frame_count belongs to the keyframe "
+                                 "form)", source)
         cams = [_camera_from_dict(f, width, height, f"frame {i + 1}", source) for i, f in enumerate(frames)]
     elif "keyframes" in data:
         keys = data["keyframes"]

@@ -31,6 +31,11 @@ _FALLBACK_UPS = (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array(
 # Limits of what a camera file (JSON or glTF) may ask for: beyond them a run would fail late (a
 # width of 1e30 px overflows the writers) or never end (a frame_count of 1e12).
 MAX_IMAGE_PX = 100_000  # per side
+#: The largest size of a camera coordinate (eye, target, up) or length (ortho_height, near, an
+#: angled projection's distance), world units. Far beyond any scene strokekit can draw (float64
+#: spacing there is 0.125), far below what overflows float64 once squared, multiplied or
+#: projected (1e154): a camera beyond it is refused instead of turning into inf and NaN.
+MAX_COORD = 1e15
 #: `up` counts as parallel to the view direction when |fwd x up| <= this x |up| (fwd a unit
 #: vector): Camera.basis then picks a fallback up, and a camera file refuses it.
 UP_PARALLEL_TOL = 1e-6
@@ -71,6 +76,9 @@ class Camera:
             v = np.asarray(getattr(self, name), dtype=float)
             if v.shape != (3,) or not np.all(np.isfinite(v)):
                 raise InputError(f"camera {name} must be 3 finite numbers, got {_show(getattr(self, name))}")
+            if np.any(np.abs(v) > MAX_COORD):
+                raise InputError(f"camera {name} {_show(v)} is out of range: coordinates must be within "
+                                 f"+-{MAX_COORD:g} world units")
             object.__setattr__(self, name, tuple(float(x) for x in v))
         if self.projection not in PROJECTIONS:
             raise InputError(f"camera projection must be one of {', '.join(PROJECTIONS)}, got {self.projection!r}")
@@ -78,8 +86,13 @@ class Camera:
             raise InputError(f"camera fov_y must be in (0, 180) degrees, got {self.fov_y!r}")
         if self.projection != "perspective" and not (math.isfinite(self.ortho_height) and self.ortho_height > 0):
             raise InputError(f"camera ortho_height must be > 0, got {self.ortho_height!r}")
+        if self.projection != "perspective" and self.ortho_height > MAX_COORD:
+            raise InputError(f"camera ortho_height {self.ortho_height:g} is out of range: at most {MAX_COORD:g} "
+                             "world units")
         if self.near is not None and not (math.isfinite(self.near) and self.near > 0):
             raise InputError(f"camera near must be a distance > 0, got {self.near!r}")
+        if self.near is not None and self.near > MAX_COORD:
+            raise InputError(f"camera near {self.near:g} is out of range: at most {MAX_COORD:g} world units")
         if int(self.width) <= 0 or int(self.height) <= 0:
             raise InputError(f"image size must be positive, got {self.width} x {self.height}")
         if np.linalg.norm(np.subtract(self.target, self.eye)) == 0.0:
@@ -118,12 +131,18 @@ class Camera:
         if isinstance(distance, bool) or not (isinstance(distance, (int, float)) and math.isfinite(distance)
                                               and distance > 0):
             raise InputError(f"camera distance must be a number > 0, got {distance!r}")
+        if distance > MAX_COORD:
+            raise InputError(f"camera distance {distance:g} is out of range: at most {MAX_COORD:g} world units")
         t = np.asarray(target, float)
         if t.shape != (3,) or not np.all(np.isfinite(t)):
             raise InputError(f"camera target must be 3 finite numbers, got {_show(target)}")
         u = np.asarray(up, float)
         if u.shape != (3,) or not np.all(np.isfinite(u)) or not np.any(u):
             raise InputError(f"camera up must be 3 finite numbers, not all 0, got {_show(up)}")
+        for name, v in (("target", t), ("up", u)):  # (before any product: 1e200 squared overflows)
+            if np.any(np.abs(v) > MAX_COORD):
+                raise InputError(f"camera {name} {_show(v)} is out of range: coordinates must be within "
+                                 f"+-{MAX_COORD:g} world units")
         az, el, ob = _complete_angles(projection, azimuth, elevation, oblique_angle)
         _, _, fwd = angled_basis(u, az, el)
         return Camera(eye=tuple(t - float(distance) * fwd), target=tuple(t), up=tuple(u), projection=projection,
@@ -305,6 +324,8 @@ class CameraPath:
         for c in self.cameras:
             d = c.to_json()
             d.pop("width"), d.pop("height")
+            if c.is_ortho:  # (Camera.to_json keeps it; a camera file's parallel frame refuses it)
+                d.pop("fov_y", None)
             frames.append(d)
         return {"width": int(first.width), "height": int(first.height), "fps": self.fps, "frames": frames}
 
