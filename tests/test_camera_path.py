@@ -272,18 +272,25 @@ def test_orbit_straight_above_or_below_still_turns(elevation):
 @pytest.mark.parametrize("data,needles", [
     ({"frames": [dict(FRAME0, ortho_height=2)]}, ["frame 1", "'ortho_height' belongs to a parallel camera"]),
     ({"frames": [dict(FRAME0, projection="perspective", ortho_height=2)]}, ["frame 1", "'ortho_height'"]),
-    ({"frames": [dict(FRAME0, projection="orthographic", ortho_height=2, fov_y=30)]},
-     ["frame 1", "an orthographic camera has no 'fov_y'"]),
     (keyed([dict(KEY0, ortho_height=2), KEY2]), ["keyframe 1", "'ortho_height' belongs to a parallel camera"]),
-    (keyed([dict(KEY0, projection="orthographic", ortho_height=2),
-            dict(KEY2, projection="orthographic", ortho_height=2, fov_y=30)]), ["keyframe 2", "no 'fov_y'"]),
 ])
 def test_a_key_of_the_other_lens_is_refused_by_name(tmp_path, data, needles):
-    """'ortho_height' on a perspective frame and 'fov_y' on an orthographic one were accepted and
-    ignored (as 'azimuth' on a perspective frame and 'distance' on an orthographic one are not)."""
+    """'ortho_height' on a perspective frame was accepted and ignored (as 'azimuth' on a
+    perspective frame and 'distance' on an orthographic one are not)."""
     msg = load_error(tmp_path, data)
     for n in needles:
         assert n in msg, msg
+
+
+def test_an_orthographic_frame_with_the_fov_y_earlier_versions_wrote_still_reads(tmp_path):
+    """`camera parallel --projection orthographic` wrote an unused fov_y into each frame until now:
+    the camera files users keep read as before, the fov_y ignored."""
+    ortho = dict(FRAME0, projection="orthographic", ortho_height=2)
+    a = load_camera_path(write(tmp_path, {"frames": [dict(ortho, fov_y=30)]})).cameras[0]
+    b = load_camera_path(write(tmp_path, {"frames": [ortho]})).cameras[0]
+    pts = np.array([[0.3, -0.2, 0.1], [1.0, 0.5, -0.4]])
+    assert a.is_ortho and a.ortho_height == b.ortho_height == 2
+    assert np.array_equal(a.project(pts)[0], b.project(pts)[0])
 
 
 def test_a_frame_count_the_frames_list_contradicts_is_refused(tmp_path):
@@ -326,8 +333,8 @@ def test_booleans_are_not_numbers_anywhere_in_a_camera_file(tmp_path, data, need
 
 
 def test_the_camera_files_strokekit_writes_read_back():
-    """`strokekit camera parallel --projection orthographic` wrote the frame's unused fov_y, which
-    the reader now refuses: the writer leaves it out of parallel frames."""
+    """`strokekit camera parallel --projection orthographic` wrote the frame's unused fov_y: the
+    writer now leaves it out of parallel frames, and what it writes reads back."""
     from strokekit.camera.paths import parallel_path
 
     for projection in ("orthographic", "cabinet"):

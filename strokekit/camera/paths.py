@@ -217,8 +217,8 @@ def _camera_from_dict(d: dict, width: int, height: int, where: str, source: str,
     if d.get("projection", "perspective") == "perspective" and "ortho_height" in d:
         raise InputError(f"{where}: 'ortho_height' belongs to a parallel camera (\"projection\": \"orthographic\"), "
                          "not to a perspective one, whose size is 'fov_y'", source)
-    if d.get("projection") == "orthographic" and "fov_y" in d:
-        raise InputError(f"{where}: an orthographic camera has no 'fov_y' (its size is 'ortho_height')", source)
+    # ('fov_y' on an orthographic frame is read and ignored: `camera parallel` wrote it there until
+    # 2026-11, and users keep their camera files.)
     for key in ("eye", "target"):
         if key not in d:
             raise InputError(f"{where} has no '{key}'", source)
