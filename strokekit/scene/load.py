@@ -451,7 +451,7 @@ class _ObjStatements:
 def _statements(text: str, key: str) -> list[str]:
     """The arguments of the lines of an OBJ's `text` that start with statement `key`, stripped (as
     trimesh reads them: the key at the start of the line). A search for the key, not a regular
-    expression over every line: the four keys of the bunny's 2.4 MB in 16 ms instead of 50."""
+    expression over every line (about 3 times faster on a large OBJ)."""
     out: list[str] = []
     at = 0 if text.startswith(key) else text.find("\n" + key) + 1  # where a line with the key starts
     if at == 0 and not text.startswith(key):
