@@ -285,6 +285,55 @@ def test_u_fit_is_the_numpy_one():
                 assert np.array_equal(x, y)
 
 
+def test_compiled_u_fit_is_fit_u():
+    """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
+    what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one
+    stroke too (vote_groups then sorts all of them at once)."""
+    from strokekit.paths.options import path_tracking
+    from strokekit.paths.stage import _fit_u
+    from strokekit.tracking.kalnins import fit_u
+
+    rng = np.random.default_rng(23)
+    for trial in range(60):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(2, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 8.0 if trial % 3 else 40.0, (N, 2)), axis=0)
+        cur = _strokes(pts, counts, surface=rng.random((N, 3)))
+        V = int(rng.integers(1, 300))
+        st = rng.integers(0, S, V)
+        s = rng.random(V) * cur.lengths[st]
+        n_ids = 80 if trial % 4 == 0 else S + 2
+        u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, n_ids, V), rng.random(V)
+        for o in (path_tracking(), path_tracking().__class__(knot_spacing_px=0.0)):
+            ref = fit_u(cur, cur, st, s, u, vid, w, o)
+            got = _fit_u(cur, cur, st, s, u, vid, w, o)
+            assert np.array_equal(ref[0].points, got[0].points) and np.array_equal(ref[0].offsets, got[0].offsets)
+            assert np.array_equal(ref[1], got[1]) and np.array_equal(ref[2], got[2])
+
+
+def test_vote_groups_are_the_numpy_ones():
+    """The compiled vote groups (bucketed by stroke, or one sort beyond _FEW_IDS ids a stroke)
+    are np.unique's groups, their bincount weights and _first_max_per_group's primaries."""
+    from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
+
+    rng = np.random.default_rng(29)
+    for trial in range(100):
+        V = int(rng.integers(1, 400))
+        S = int(rng.integers(1, 20))
+        st = rng.integers(0, S, V)
+        vid = rng.integers(0, [3, 40, 1000][trial % 3], V)
+        w = np.where(rng.random(V) < 0.3, 1.0, rng.random(V))  # (ties of group weights)
+        M = int(vid.max()) + 1
+        ukey, ginv = _unique_inverse(st * M + vid)
+        gw = np.bincount(ginv, weights=w)
+        primary = np.zeros(len(gw), bool)
+        primary[_first_max_per_group(ukey // M, gw)] = True
+        gk, gi, gw2, p2 = kernels().vote_groups(st, vid, w)
+        assert np.array_equal(gk, np.c_[ukey // M, ukey % M]) and np.array_equal(gi, ginv)
+        assert np.array_equal(gw2, gw) and np.array_equal(p2, primary)
+
+
 def test_inserted_points_are_insert_points():
     from strokekit.tracking.joins import insert_points
 

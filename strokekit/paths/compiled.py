@@ -13,7 +13,7 @@ tree's choice then depends on its traversal) or a pair lies within rounding of t
 the caller asks the tree there. Matrix products (surface points, projections) stay numpy's: their
 rounding depends on the BLAS kernel.
 
-* Neighbours on a grid of the samples: `grid_index`; `knn` (the k nearest); `match_pieces` (the
+* Neighbours on a grid of the samples: `grid_ok`, `grid_index`; `knn` (the k nearest); `match_pieces` (the
   lookback, sampling.match_samples with piece distances); `cover` (paths.stage.covering_samples);
   `bridges` (paths.stage.on_drawing).
 * Samples and votes: `resample_at`, `resample_points` (sampling.resample_strokes less its surface
@@ -23,7 +23,10 @@ rounding depends on the BLAS kernel.
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
-  fit), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made points).
+  fit), `vote_groups`, `to_primary` (fit_u's vote groups and their shift by whole periods),
+  `knot_intervals`, `piecewise_system`, `piecewise_inliers`, `piecewise_at` (PiecewiseU's fit
+  and evaluation), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made
+  points).
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
 """
 
@@ -37,6 +40,34 @@ from numba import njit
 #: Squared distances within this of the bound are ambiguous for the tree's pair search (it takes
 #: whole node pairs whose box distance, tracked incrementally, is below the bound) (px^2).
 PAIR_SLACK = 1e-6
+
+
+@njit(cache=True)
+def grid_ok(p):
+    """Whether the points p (N, 2) can be put on a grid: N > 0, every coordinate finite and so
+    is the spread (max - min) along each axis (what np.isfinite(p).all() and a finite np.ptp(p,
+    axis=0) say; numpy's reduction along the short axis costs ~0.15 ms on a frame's samples)."""
+    n = p.shape[0]
+    if n == 0:
+        return False
+    x0 = p[0, 0]
+    y0 = p[0, 1]
+    x1 = x0
+    y1 = y0
+    for i in range(n):
+        x = p[i, 0]
+        y = p[i, 1]
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return False
+        if x < x0:
+            x0 = x
+        if x > x1:
+            x1 = x
+        if y < y0:
+            y0 = y
+        if y > y1:
+            y1 = y
+    return math.isfinite(x1 - x0) and math.isfinite(y1 - y0)
 
 
 @njit(cache=True)
@@ -1085,6 +1116,257 @@ def line_fit(st, s, u, w, mask, lam, b0):
     return a, b, ok
 
 
+#: vote_groups sorts the ids of a stroke's votes among at most this many distinct ones (else
+#: all votes at once).
+_FEW_IDS = 32
+
+
+@njit(cache=True)
+def vote_groups(st, vid, w):
+    """tracking.kalnins.fit_u's vote groups: the distinct (stroke st, id vid) pairs of the votes
+    (V,) (st, vid >= 0) in (stroke, id) order, gkeys (G, 2); each vote's group ginv (V,); each
+    group's weight gw (G,) (w summed in vote order, as np.bincount takes it); primary (G,) the
+    first group of each stroke holding the stroke's most weight
+    (tracking.votes._first_max_per_group). The votes bucketed by stroke, then the few ids of
+    each stroke kept sorted (a sort of (stroke, id) keys is ~5x dearer)."""
+    V = st.shape[0]
+    S = 0
+    for i in range(V):
+        if st[i] + 1 > S:
+            S = st[i] + 1
+    start = np.zeros(S + 1, np.int64)
+    for i in range(V):
+        start[st[i] + 1] += 1
+    for j in range(S):
+        start[j + 1] += start[j]
+    fill = start[:-1].copy()
+    perm = np.empty(V, np.int64)
+    for i in range(V):
+        perm[fill[st[i]]] = i
+        fill[st[i]] += 1
+    ginv = np.empty(V, np.int64)
+    gst = np.empty(V, np.int64)
+    gid = np.empty(V, np.int64)
+    ids = np.empty(_FEW_IDS, np.int64)
+    G = 0
+    for j in range(S):
+        d = 0
+        for r in range(start[j], start[j + 1]):
+            v = vid[perm[r]]
+            x = 0
+            while x < d and ids[x] < v:
+                x += 1
+            if x < d and ids[x] == v:
+                continue
+            if d == _FEW_IDS:
+                return _vote_groups_sorted(st, vid, w)
+            for y in range(d, x, -1):
+                ids[y] = ids[y - 1]
+            ids[x] = v
+            d += 1
+        for r in range(start[j], start[j + 1]):
+            v = vid[perm[r]]
+            x = 0
+            while ids[x] != v:
+                x += 1
+            ginv[perm[r]] = G + x
+        for x in range(d):
+            gst[G + x] = j
+            gid[G + x] = ids[x]
+        G += d
+    return _group_weights(gst[:G], gid[:G], ginv, w)
+
+
+@njit(cache=True)
+def _vote_groups_sorted(st, vid, w):
+    """vote_groups by one sort of the (stroke, id) keys."""
+    V = st.shape[0]
+    M = 0
+    for i in range(V):
+        if vid[i] > M:
+            M = vid[i]
+    M += 1
+    key = np.empty(V, np.int64)
+    for i in range(V):
+        key[i] = st[i] * M + vid[i]
+    o = np.argsort(key, kind="mergesort")
+    ginv = np.empty(V, np.int64)
+    gst = np.empty(V, np.int64)
+    gid = np.empty(V, np.int64)
+    G = 0
+    for r in range(V):
+        i = o[r]
+        if G == 0 or st[i] != gst[G - 1] or vid[i] != gid[G - 1]:
+            gst[G] = st[i]
+            gid[G] = vid[i]
+            G += 1
+        ginv[i] = G - 1
+    return _group_weights(gst[:G], gid[:G], ginv, w)
+
+
+@njit(cache=True)
+def _group_weights(gst, gid, ginv, w):
+    """vote_groups' result from its groups (stroke gst, id gid, in order) and the votes' groups."""
+    G = gst.shape[0]
+    gkeys = np.empty((G, 2), np.int64)
+    for g in range(G):
+        gkeys[g, 0] = gst[g]
+        gkeys[g, 1] = gid[g]
+    gw = np.zeros(G)
+    for i in range(ginv.shape[0]):
+        gw[ginv[i]] += w[i]
+    primary = np.zeros(G, np.bool_)
+    g = 0
+    while g < G:
+        best = g
+        h = g + 1
+        while h < G and gst[h] == gst[g]:
+            if gw[h] > gw[best]:
+                best = h
+            h += 1
+        primary[best] = True
+        g = h
+    return gkeys, ginv, gw, primary
+
+
+@njit(cache=True)
+def to_primary(st, s, u, w, ginv, gw, primary, a, b):
+    """tracking.kalnins.fit_u's shift of the votes u (V,) of other groups than their stroke's
+    primary one by whole periods, towards the line a + b s of their stroke: the group's weighted
+    mean residual (w * res summed in vote order, over max(gw, 1e-12)), rounded."""
+    G = gw.shape[0]
+    acc = np.zeros(G)
+    for i in range(st.shape[0]):
+        res = u[i] - (a[st[i]] + b[st[i]] * s[i])
+        acc[ginv[i]] += w[i] * res
+    shift = np.empty(G)
+    for g in range(G):
+        shift[g] = 0.0 if primary[g] else np.rint(acc[g] / max(gw[g], 1e-12))
+    out = np.empty(st.shape[0])
+    for i in range(st.shape[0]):
+        out[i] = u[i] - shift[ginv[i]]
+    return out
+
+
+@njit(cache=True)
+def knot_intervals(n, h, base, st, s):
+    """tracking.ufit.PiecewiseU's interval of arc length s (V,) on stroke st (V,) (n (S,)
+    intervals of h (S,) px, first knot base (S + 1,)): its first knot k and the fraction a
+    within it."""
+    V = st.shape[0]
+    k = np.empty(V, np.int64)
+    a = np.empty(V)
+    for i in range(V):
+        j_ = st[i]
+        hi = h[j_]
+        x = s[i] / hi if hi > 0 else 0.0
+        f = math.floor(x)
+        hi_j = n[j_] - 1
+        if f < 0:
+            f = 0.0
+        if f > hi_j:
+            f = float(hi_j)
+        j = int(f)
+        k[i] = base[j_] + j
+        r = x - j
+        if r < 0.0:
+            r = 0.0
+        if r > 1.0:
+            r = 1.0
+        a[i] = r
+    return k, a
+
+
+@njit(cache=True)
+def piecewise_system(k, a, w, inlier, u, n, h, base, L, prior_a, prior_b, b0, stretch_weight, bend_weight):
+    """tracking.ufit.PiecewiseU.fit's banded system (band (3, nk), rhs (nk,)) for the votes at
+    knots k, fraction a (knot_intervals), weight w * inlier, value u: its fixed terms
+    (PiecewiseU._fixed_terms: stretch per interval, bend per inner knot, anchor to the line
+    prior_a + prior_b s per knot) made as it makes them, summed with the votes' by band_terms,
+    the rows past the last knot zeroed."""
+    S = n.shape[0]
+    nk = base[S]
+    f0 = np.zeros((6, nk))
+    f1 = np.zeros((3, nk))
+    f2 = np.zeros((1, nk))
+    f3 = np.zeros((3, nk))
+    for j_ in range(S):
+        hs = h[j_]
+        hh = max(hs, 1.0)
+        ws = math.sqrt(stretch_weight / hh)
+        va = -ws
+        vb = ws
+        y = ws * hs * b0
+        wb = math.sqrt(bend_weight * max(L[j_], 1.0))
+        for i in range(n[j_]):
+            kk = base[j_] + i
+            f0[0, kk] = va * va
+            f3[0, kk] = va * y
+            f1[0, kk] = va * vb
+            f0[1, kk + 1] = vb * vb
+            f3[1, kk + 1] = vb * y
+            if i < n[j_] - 1:  # bend, at the inner knot after interval i
+                ba = wb
+                bb = -2 * wb
+                bc = wb
+                f0[2, kk] = ba * ba
+                f1[1, kk] = ba * bb
+                f2[0, kk] = ba * bc
+                f0[3, kk + 1] = bb * bb
+                f1[2, kk + 1] = bb * bc
+                f0[4, kk + 2] = bc * bc
+        for c in range(base[j_], base[j_ + 1]):
+            sk = (c - base[j_]) * h[j_]
+            f0[5, c] = 1e-3 * 1e-3
+            f3[2, c] = 1e-3 * (1e-3 * (prior_a[j_] + prior_b[j_] * sk))
+    wi = np.empty(w.shape[0])
+    for i in range(w.shape[0]):
+        wi[i] = w[i] * inlier[i]
+    band, rhs = band_terms(k, a, wi, u, f0, f1, f2, f3)
+    if nk >= 1:
+        band[1, nk - 1] = 0.0
+    for c in range(max(nk - 2, 0), nk):
+        band[2, c] = 0.0
+    return band, rhs
+
+
+@njit(cache=True)
+def piecewise_inliers(knots, k, a, u, P, outlier_px):
+    """(V,) 1.0 where the vote u lies within outlier_px (px, u in periods of P px) of the
+    piecewise-linear u (knots, at knot k and fraction a: PiecewiseU.eval), else 0.0."""
+    out = np.empty(k.shape[0])
+    for i in range(k.shape[0]):
+        e = knots[k[i]] * (1 - a[i]) + knots[k[i] + 1] * a[i]
+        out[i] = 1.0 if abs(u[i] - e) * P <= outlier_px else 0.0
+    return out
+
+
+@njit(cache=True)
+def piecewise_at(knots, n, h, base, offsets, arc):
+    """PiecewiseU.eval(knots, stroke_of_point, arc) of strokes with point offsets (S + 1,) and
+    the points' arc lengths arc (N,)."""
+    out = np.empty(arc.shape[0])
+    for j_ in range(offsets.shape[0] - 1):
+        hi = h[j_]
+        top = n[j_] - 1
+        for q in range(offsets[j_], offsets[j_ + 1]):
+            x = arc[q] / hi if hi > 0 else 0.0
+            f = math.floor(x)
+            if f < 0:
+                f = 0.0
+            if f > top:
+                f = float(top)
+            j = int(f)
+            r = x - j
+            if r < 0.0:
+                r = 0.0
+            if r > 1.0:
+                r = 1.0
+            kq = base[j_] + j
+            out[q] = knots[kq] * (1 - r) + knots[kq + 1] * r
+    return out
+
+
 @njit(cache=True)
 def insert_at(base, G, offsets, stroke, s):
     """tracking.joins.insert_points' new points: at arc length s (px) of strokes `stroke`, the
@@ -1278,6 +1560,7 @@ def cut_assemble(P, X, F, lo, n_in, i, j, a, Xe):
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
+    grid_ok(p)
     g = grid_index(p, 2.0)
     out_d2 = np.zeros((2, 2))
     out_i = np.zeros((2, 2), np.int64)
@@ -1298,6 +1581,15 @@ def warmup() -> None:
     i1, j1, a1, g1, s1 = insert_at(np.zeros(1), G3, np.array([0, 3]), np.array([0]), np.array([0.5]))
     insert_merge(p, np.zeros((3, 3)), i3, np.zeros(3), G3, np.array([0, 3]), i1, j1, a1, g1, s1, np.zeros((1, 3)))
     line_fit(two, np.ones(2), np.ones(2), np.ones(2), np.ones(2), np.ones(2), 0.1)
+    gk, gi, gw, gp = vote_groups(two, two, np.ones(2))
+    _vote_groups_sorted(two, two, np.ones(2))
+    to_primary(two, np.ones(2), np.ones(2), np.ones(2), gi, gw, gp, np.ones(2), np.ones(2))
+    one, n1, h1, base1 = np.array([0]), np.array([2]), np.array([1.0]), np.array([0, 3])
+    k1, a1_ = knot_intervals(n1, h1, base1, one, np.array([0.5]))
+    piecewise_system(k1, a1_, np.ones(1), np.ones(1), np.ones(1), n1, h1, base1, np.array([2.0]), np.zeros(1),
+                     np.ones(1), 0.1, 1e-3, 1e-2)
+    piecewise_inliers(np.zeros(3), k1, a1_, np.ones(1), 10.0, 3.0)
+    piecewise_at(np.zeros(3), n1, h1, base1, np.array([0, 3]), np.arange(3.0))
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)

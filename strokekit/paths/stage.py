@@ -35,6 +35,7 @@ The steps, all vectorized over the frame's samples:
 from __future__ import annotations
 
 import numpy as np
+from numpy.linalg import LinAlgError
 
 from strokekit.lines.strokeops import (
     CONTOUR_KINDS,
@@ -51,8 +52,8 @@ from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
 from strokekit.tracking.joins import _touching_paths, gather_paths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
-from strokekit.tracking.ufit import levels_from_slope
-from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
+from strokekit.tracking.ufit import PiecewiseU, levels_from_slope
+from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, _unwrap_loop_votes
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -134,6 +135,53 @@ class _FitKernels:
         self.line_fit, self.band_terms, self.insert_points = K.line_fit, K.band_terms, _insert_points
 
 
+def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray,
+           w: np.ndarray, o) -> tuple[Strokes, np.ndarray, np.ndarray]:
+    """fit_u(prev, cur, st, s, u, vid, w, o) less its vote groups (the same strokes, u and
+    slopes), its steps compiled: the vote groups and their shift to the primary one, the
+    piecewise fit's system (PiecewiseU.fit: its fixed terms too; the banded solve stays LAPACK's
+    pbsv) and its evaluation."""
+    if len(st) == 0 or o.knot_spacing_px <= 0:
+        return fit_u(prev, cur, st, s, u, vid, w, o, compiled=_FitKernels(kernels()))[:3]
+    K = kernels()
+    P = cur.period_px
+    L = cur.lengths
+    gkeys, ginv, gw, primary = K.vote_groups(st, vid, w)
+    u = _unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
+    b0 = 1.0 / P
+    lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
+    a, b, ok = K.line_fit(st, s, u, w, primary[ginv].astype(float), lam, b0)
+    # Other groups join the primary one shifted by whole periods (periodic texture).
+    u = K.to_primary(st, s, u, w, ginv, gw, primary, a, b)
+    a, b, ok = K.line_fit(st, s, u, w, np.ones(len(st)), lam, b0)
+    pw = PiecewiseU(L, o.knot_spacing_px)
+    k, f = K.knot_intervals(pw.n, pw.h, pw.base, st, s)
+    inlier = np.ones(len(st))
+    for _ in range(2):
+        band, rhs = K.piecewise_system(k, f, w, inlier, u, pw.n, pw.h, pw.base, L, a, b, b0,
+                                       o.stretch_weight * P * P, o.bend_weight)
+        knots = _solve_banded(band, rhs)
+        inlier = K.piecewise_inliers(knots, k, f, u, P, o.outlier_px)
+    b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
+    # u is interpolated linearly between points downstream: give it the knots as points.
+    cur = _insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
+    u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, cur.arc_length)
+    b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
+    return cur, u_new, b
+
+
+def _solve_banded(band: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """PiecewiseU.fit's solve of its banded system (LAPACK pbsv, as it calls it)."""
+    from scipy.linalg.lapack import dpbsv
+
+    _, x, info = dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
+    if info > 0:
+        raise LinAlgError(f"{info}th leading minor not positive definite")
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
+    return x
+
+
 def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> Strokes:
     """cut_pieces(strokes, stroke, s0, s1) (the same pieces), its loops compiled."""
     K = len(stroke)
@@ -192,8 +240,9 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
     # (int64 both: the kernel's one compiled signature, whatever the kind codes' dtype)
-    cls_v = _kind_class(prev.kind[V.stroke]).astype(np.int64, copy=False)
-    cls_d = _kind_class(lines.kind[D.stroke]).astype(np.int64, copy=False)
+    # (Per stroke, then per sample: the same classes.)
+    cls_v = _kind_class(prev.kind).astype(np.int64, copy=False).take(V.stroke)
+    cls_d = _kind_class(lines.kind).astype(np.int64, copy=False).take(D.stroke)
     step = max(1, int(round(o.reverse_px / o.sample_px)))
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
@@ -296,7 +345,7 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     if radius_px <= 0 or len(D) < 2:
         return out
     sk = kind[D.stroke]
-    contour = _CONTOUR[sk % N_KINDS]
+    contour = _CONTOUR[kind % N_KINDS].take(D.stroke)  # (per stroke, then per sample)
     if contour.sum() < 2:
         return out
     if isinstance(tree, SampleGrid) and tree.ok:
@@ -646,7 +695,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             shift = np.zeros(S)
             shift[which] = seam
             vs = np.mod(vs - shift[vst], np.where(L > 0, L, 1.0)[vst])
-    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to, compiled=_FitKernels(kernels()))
+    paths, u_new, b = _fit_u(prev, paths, vst, vs, vu, vid, vw, to)
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
