@@ -19,6 +19,7 @@ from strokekit.paths.stage import (
     _FitKernels,
     _insert_points,
     _labels,
+    _link_pieces,
     _lookback,
     _resample,
     _trend,
@@ -167,6 +168,15 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
         for lab in (None, label):
             ref = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5)
             got = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5, link=K.link_paths)
+            assert all(np.array_equal(x, y) for x, y in zip(ref, got))
+        # the brush paths' linking, its candidates compiled (bridges refused by a rule of their own)
+        kinded = st.replace(kind=rng.integers(0, 2, S).astype(np.int8)) if trial % 3 == 0 else st
+        for tol, other, free in ((2.0, 1.5, 0.5), (1.5, 2.5, 1.0)):
+            def bridge_ok(pa, pb):
+                return np.floor(pa[:, 0] * 3 + pb[:, 1] * 7) % 3 != 0
+            ref = _touching_paths(kinded, tol, 120.0, label=label, other_tol_px=other, bridge_ok=bridge_ok,
+                                  free_px=free, link=K.link_paths)
+            got = _link_pieces(kinded, tol, 120.0, label, other, bridge_ok, free_px=free)
             assert all(np.array_equal(x, y) for x, y in zip(ref, got))
         at = rng.integers(0, N, int(rng.integers(0, N + 1)))
         ref, kept = drop_hairpins(st, 90.0, 1.0, at=at, return_kept=True)

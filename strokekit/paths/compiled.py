@@ -19,7 +19,8 @@ rounding depends on the BLAS kernel.
 * Samples and votes: `resample_at`, `resample_points` (sampling.resample_strokes less its surface
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
-* Paths: `link_paths` (tracking.joins._touching_paths' links and walk); `hairpins`
+* Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
+  links and walk); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
@@ -707,6 +708,105 @@ def link_paths(a, b, e_run, n, S):
             rev[r] = ((walk[i] & 1) == 1) != flip
             pos[r] = ln - 1 - k if flip else k
     return group, rev, pos
+
+
+@njit(cache=True)
+def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
+    """tracking.joins._touching_paths' candidate links of labelled strokes (label (S,), -1: none),
+    up to its bridge test: the open strokes' ends (e_run (2n,): starts, then ends), their points
+    pt (2n, 2); the pairs a < b (in _close_pair_arrays' order: by the stable x order of pt, then
+    by partner) within max(tol, other) px; per pair whether it may link (ok: two strokes of one
+    kind, turning by at most acos(cos_min), of one label within tol or one unlabelled within
+    other), its cosine of the turn `straight`, its gap, its tier (2 one label, 1 one of them
+    unlabelled, 0 none), and `far` where ok and the gap exceeds free_px (the bridge decides)."""
+    S = offsets.shape[0] - 1
+    n = 0
+    op = np.empty(S, np.int64)
+    for q in range(S):
+        f = offsets[q]
+        la = offsets[q + 1] - 1
+        dx = P[f, 0] - P[la, 0]
+        dy = P[f, 1] - P[la, 1]
+        if not math.sqrt(dx * dx + dy * dy) < 1e-6:
+            op[n] = q
+            n += 1
+    e_run = np.empty(2 * n, np.int64)
+    pt = np.empty((2 * n, 2))
+    d = np.empty((2 * n, 2))
+    for e in range(2 * n):
+        q = op[e % n] if n else 0
+        f = offsets[q]
+        la = offsets[q + 1] - 1
+        if e < n:
+            at = f
+            nb = min(f + 1, la)
+        else:
+            at = la
+            nb = max(la - 1, f)
+        e_run[e] = q
+        pt[e, 0] = P[at, 0]
+        pt[e, 1] = P[at, 1]
+        dx = P[nb, 0] - P[at, 0]
+        dy = P[nb, 1] - P[at, 1]
+        nn = max(math.sqrt(dx * dx + dy * dy), 1e-12)
+        d[e, 0] = dx / nn
+        d[e, 1] = dy / nn
+    r = max(tol, other)
+    m = 2 * n
+    xs = np.empty(m)
+    for e in range(m):
+        xs[e] = pt[e, 0]
+    o = np.argsort(xs, kind="mergesort")
+    cap = 16
+    pa = np.empty(cap, np.int64)
+    pb = np.empty(cap, np.int64)
+    K = 0
+    for i in range(m):
+        lim = xs[o[i]] + (r + 1e-6)
+        for j in range(i + 1, m):
+            if not xs[o[j]] <= lim:
+                break
+            x = o[i]
+            y = o[j]
+            ddx = pt[x, 0] - pt[y, 0]
+            ddy = pt[x, 1] - pt[y, 1]
+            if ddx * ddx + ddy * ddy <= r * r:
+                if K == cap:
+                    cap *= 2
+                    pa2 = np.empty(cap, np.int64)
+                    pb2 = np.empty(cap, np.int64)
+                    pa2[:K] = pa[:K]
+                    pb2[:K] = pb[:K]
+                    pa = pa2
+                    pb = pb2
+                pa[K] = min(x, y)
+                pb[K] = max(x, y)
+                K += 1
+    a = pa[:K].copy()
+    b = pb[:K].copy()
+    ok = np.zeros(K, np.bool_)
+    far = np.zeros(K, np.bool_)
+    straight = np.empty(K)
+    gap = np.empty(K)
+    tier = np.empty(K, np.int64)
+    for k in range(K):
+        x = a[k]
+        y = b[k]
+        ra = e_run[x]
+        rb = e_run[y]
+        straight[k] = -(d[x, 0] * d[y, 0] + d[x, 1] * d[y, 1])
+        ddx = pt[x, 0] - pt[y, 0]
+        ddy = pt[x, 1] - pt[y, 1]
+        gap[k] = math.sqrt(ddx * ddx + ddy * ddy)
+        la = label[ra]
+        lb = label[rb]
+        same = la == lb and la >= 0
+        tier[k] = 2 * same + ((la < 0) != (lb < 0))
+        good = ra != rb and kind[ra] == kind[rb] and straight[k] >= cos_min
+        good = good and ((same and gap[k] <= tol) or ((la < 0 or lb < 0) and gap[k] <= other))
+        ok[k] = good
+        far[k] = good and gap[k] > free_px
+    return n, e_run, pt, a, b, ok, straight, gap, tier, far
 
 
 @njit(cache=True)
@@ -1572,6 +1672,7 @@ def warmup() -> None:
     segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
     bridges(p[:2], p[1:], 0.5, p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_), np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
+    link_candidates(p, np.array([0, 1, 3]), np.zeros(2, np.int64), np.array([0, -1]), 2.0, 1.5, 0.0, 2.0)
     two = np.array([0, 1])
     lo, n_in, ci, cj, ca = cut_ends(np.array([0.0, 1.0, 2.0, 4.0]), np.array([0.0, 4.0]), np.array([0, 3, 4]), two,
                                     np.array([0.5, 0.0]), np.array([1.5, 0.0]))

@@ -50,7 +50,7 @@ from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
-from strokekit.tracking.joins import _touching_paths, gather_paths, insert_points, rotate_closed
+from strokekit.tracking.joins import gather_paths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import PiecewiseU, levels_from_slope
 from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, _unwrap_loop_votes
@@ -385,6 +385,31 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     return out
 
 
+def _link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.ndarray, other_tol_px: float,
+                 bridge_ok, free_px: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """_touching_paths(pieces, tol_px, angle_deg, label=label, other_tol_px=other_tol_px,
+    bridge_ok=bridge_ok, free_px=free_px, link=kernels().link_paths) (the same group, rev, pos),
+    its candidate links compiled (link_candidates)."""
+    S = len(pieces)
+    K = kernels()
+    n, e_run, pt, a, b, ok, straight, gap, tier, far = K.link_candidates(
+        pieces.points, pieces.offsets, np.asarray(pieces.kind, np.int64), np.asarray(label, np.int64),
+        float(tol_px), float(other_tol_px), float(np.cos(np.radians(angle_deg))), float(free_px))
+    if len(a) == 0:
+        return np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
+    far = np.flatnonzero(far)
+    if len(far):
+        ok[far] = bridge_ok(pt.take(a[far], axis=0), pt.take(b[far], axis=0))
+    if not ok.any():
+        return np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
+    a, b, straight = a[ok], b[ok], straight[ok]
+    heavy = np.maximum(pieces.lengths[e_run[a]], pieces.lengths[e_run[b]])
+    # The cost of a link: its gap plus 10 px per radian of turn (seed 000's rule).
+    cost = gap[ok] + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))
+    o = np.lexsort((e_run[b], e_run[a], -np.round(heavy, 6), np.round(cost, 6), -tier[ok]))
+    return K.link_paths(a[o], b[o], e_run, n, S)
+
+
 def _one_label_per_path(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> np.ndarray:
     """Groups (paths of pieces, in the order `pos`) cut where the label of their pieces changes, so
     that no path holds two labels: unlabelled pieces (-1) go with the labelled piece before them
@@ -648,9 +673,8 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     ok, vk, s_in = kernels().votes_landing(votes.m, cover, smp_piece, D.s, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
-    group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
-                                      bridge_ok=lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0,
-                                      link=kernels().link_paths)
+    group, rev, pos = _link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
+                                   lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_grid, D)
