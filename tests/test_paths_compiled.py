@@ -93,8 +93,10 @@ def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
         rank = rng.permutation(run.max() + 1)
         tree, grid = query_tree(D.p), SampleGrid(D.p, 3.0)
         for radius in (2.0, 1.0):  # (lattice points: many pairs exactly at the radius)
-            assert np.array_equal(covering_samples(D, kind, run, rank, radius, tree),
-                                  covering_samples(D, kind, run, rank, radius, grid))
+            ref = covering_samples(D, kind, run, rank, radius, tree)
+            assert np.array_equal(ref, covering_samples(D, kind, run, rank, radius, grid))
+            # (cells narrower than the radius: searched sample by sample)
+            assert np.array_equal(ref, covering_samples(D, kind, run, rank, radius, SampleGrid(D.p, 1.5)))
         pa, pb = _points(rng, 30, lattice), _points(rng, 30, lattice)
         assert np.array_equal(on_drawing(tree, pa, pb, D=D), on_drawing(grid, pa, pb, D=D))
         pa, pb = D.p[rng.integers(0, n, 30)], D.p[rng.integers(0, n, 30)]  # (bridges between samples)
@@ -293,6 +295,30 @@ def test_u_fit_is_the_numpy_one():
             assert np.array_equal(ref[0].points, got[0].points)
             for x, y in zip((ref[1], ref[2], *ref[3]), (got[1], got[2], *got[3])):
                 assert np.array_equal(x, y)
+
+
+def test_cover_pair_by_pair_is_sample_by_sample():
+    """The cover found pair by pair over neighbouring cells is what the search of every sample's
+    window finds (dense samples, many runs, ranks and distances that tie)."""
+    rng = np.random.default_rng(31)
+    K = kernels()
+    sure = 0
+    for trial in range(60):
+        n = int(rng.integers(2, 600))
+        D = _samples(rng, n, trial % 2 == 1)
+        sk = rng.integers(0, 2, n)
+        contour = rng.random(n) < 0.9
+        run = np.cumsum(rng.random(n) < 0.1)
+        rank = rng.permutation(run.max() + 1)
+        grid = SampleGrid(D.p, float(rng.choice([2.5, 3.0, 6.0])))
+        for radius in (2.0, 1.0):
+            args = (D.p, D.t, D.w, sk, contour, run, rank, *grid.index, radius, 0.9)
+            a, b = np.full(n, -1, np.int64), np.full(n, -1, np.int64)
+            ok = K.cover(*args, a)
+            assert ok == K._cover_each(*args, b)
+            assert not ok or np.array_equal(a, b)  # (not ok: the caller asks the tree)
+            sure += ok
+    assert sure > 30
 
 
 def test_compiled_u_fit_is_fit_u():

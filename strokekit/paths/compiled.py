@@ -176,7 +176,110 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     several the one of the highest-ranked run, then the nearest, then the lowest index. out (N,)
     is set where one is found (left as it is elsewhere). Returns False where a pair of contour
     samples of two runs lies within PAIR_SLACK of the radius (the tree may count it either
-    way: the caller asks the tree), else True."""
+    way: the caller asks the tree), else True.
+    Each pair is looked at once, cell by cell (a pair's squared distance and its two tests are
+    the same bits either way round: negated differences): cells wider than the radius, so that
+    a pair lies in one cell or two neighbouring ones (else _cover_each)."""
+    if not radius * 1.001 + 1e-6 < cell:
+        return _cover_each(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius,
+                           min_dot, out)
+    r2 = radius * radius
+    n = p.shape[0]
+    # Per grid slot, read one after the other below: run (-1: not a contour), kind, run rank,
+    # tangent and length.
+    run_s = np.empty(n, np.int64)
+    sk_s = np.empty(n, np.int64)
+    rk_s = np.empty(n, np.int64)
+    ts = np.empty((n, 2))
+    w_s = np.empty(n)
+    for q in range(n):
+        j = order[q]
+        run_s[q] = run[j] if contour[j] else -1
+        sk_s[q] = sk[j]
+        rk_s[q] = rank_of_run[run[j]]
+        ts[q, 0] = t[j, 0]
+        ts[q, 1] = t[j, 1]
+        w_s[q] = w[j]
+    best = np.full(n, -1, np.int64)
+    best_rank = np.zeros(n, np.int64)
+    best_d2 = np.zeros(n)
+    for cy in range(ny):
+        for cx in range(nx):
+            c = cy * nx + cx
+            a0 = start[c]
+            a1 = start[c + 1]
+            if a0 == a1:
+                continue
+            # This cell with itself, the next one in its row and the three of the next row.
+            for nb in range(5):
+                if nb == 0:
+                    c2 = c
+                elif nb == 1:
+                    if cx + 1 >= nx:
+                        continue
+                    c2 = c + 1
+                else:
+                    if cy + 1 >= ny:
+                        continue
+                    ex = cx + nb - 3
+                    if ex < 0 or ex >= nx:
+                        continue
+                    c2 = c + nx + nb - 3
+                b1 = start[c2 + 1]
+                for q in range(a0, a1):
+                    rq = run_s[q]
+                    if rq < 0:
+                        continue
+                    qx = ps[q, 0]
+                    qy = ps[q, 1]
+                    for q2 in range(q + 1 if nb == 0 else start[c2], b1):
+                        if run_s[q2] < 0 or run_s[q2] == rq or sk_s[q2] != sk_s[q]:
+                            continue
+                        ddx = ps[q2, 0] - qx
+                        ddy = ps[q2, 1] - qy
+                        d2 = ddx * ddx + ddy * ddy
+                        if d2 > r2 + PAIR_SLACK:
+                            continue
+                        if abs(d2 - r2) <= PAIR_SLACK:
+                            return False
+                        if d2 > r2:
+                            continue
+                        # The sample of the lower-ranked run is the one covered (x), by y.
+                        if rk_s[q2] == rk_s[q]:
+                            continue
+                        if rk_s[q2] < rk_s[q]:
+                            xs = q
+                            ys = q2
+                        else:
+                            xs = q2
+                            ys = q
+                            ddx = -ddx
+                            ddy = -ddy
+                        tx0 = ts[xs, 0]
+                        tx1 = ts[xs, 1]
+                        along = abs(ddx * tx0 + ddy * tx1)
+                        if not along <= 0.5 * (w_s[xs] + w_s[ys]) - 0.25:
+                            continue
+                        if not abs(ts[ys, 0] * tx0 + ts[ys, 1] * tx1) >= min_dot:
+                            continue
+                        x = order[xs]
+                        y = order[ys]
+                        ry = rk_s[ys]
+                        b = best[x]
+                        if b < 0 or ry < best_rank[x] or (ry == best_rank[x] and (d2 < best_d2[x] or (
+                                d2 == best_d2[x] and y < b))):
+                            best[x] = y
+                            best_rank[x] = ry
+                            best_d2[x] = d2
+    for x in range(n):
+        if best[x] >= 0:
+            out[x] = best[x]
+    return True
+
+
+@njit(cache=True)
+def _cover_each(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot, out):
+    """cover, sample by sample (the window of each sample searched: any cell size)."""
     r2 = radius * radius
     # The run (-1: not a contour) and kind of every grid slot, read one after the other below.
     n = p.shape[0]
