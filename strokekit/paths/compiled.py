@@ -1070,11 +1070,17 @@ def resample_at(L, step, base, G, offsets):
         wk = L[k] / n[k]
         first = offsets[k]
         last = offsets[k + 1] - 1
+        # G.searchsorted(g, "right") by a walk along the stroke (g increases along it; where
+        # the walk starts, G <= g: G[first] is the stroke's base): the same index.
+        r = max(first, 0)
         for q in range(n[k]):
             sm = (q + 0.5) * wk
             g = sm + base[k]
+            if r > 0 and G[r - 1] > g:  # (not past g: search from the start)
+                r = np.searchsorted(G, g, side="right")
+            while r <= last_g and G[r] <= g:
+                r += 1
             # bracket(G, G.searchsorted(g, "right"), first, last)
-            r = np.searchsorted(G, g, side="right")
             jj = min(max(r, first + 1), max(last, first + 1))
             jj = min(jj, last_g)
             ii = max(jj - 1, first)

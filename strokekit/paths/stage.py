@@ -633,7 +633,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     glen = r_len.copy()
     lab = r_label >= 0
     if lab.any():
-        _, inv = np.unique(r_label[lab], return_inverse=True)
+        _, inv = _unique_inverse(r_label[lab])
         glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
     rank = np.empty(R, np.int64)
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
@@ -654,7 +654,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     link_label = p_label
     lk = np.flatnonzero(p_label >= 0)
     if len(lk) and o.merge_px > 0:
-        ul, inv = np.unique(p_label[lk], return_inverse=True)
+        ul, inv = _unique_inverse(p_label[lk])
         tot = np.bincount(inv, weights=p_s1[lk] - p_s0[lk])
         small = tot < o.merge_px
         if history:
@@ -687,7 +687,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     lk = np.flatnonzero(p_label >= 0)
     if len(lk):
         M = int(p_label.max()) + 1
-        uk, kinv = np.unique(path_of[lk] * M + p_label[lk], return_inverse=True)
+        uk, kinv = _unique_inverse(path_of[lk] * M + p_label[lk])
         ids, next_id = _assign_ids(S, uk // M, uk % M, np.bincount(kinv, weights=plen[lk]), next_id)
     else:
         ids, next_id = np.arange(next_id, next_id + S, dtype=np.int64), next_id + S
