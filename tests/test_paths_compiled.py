@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from strokekit.camera.view import Camera
 from strokekit.lines.strokeops import drop_hairpins, query_tree
 from strokekit.model import Strokes
 from strokekit.paths.grid import SampleGrid
@@ -182,9 +183,12 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
             assert all(np.array_equal(x, y) for x, y in zip(ref, got))
         at = rng.integers(0, N, int(rng.integers(0, N + 1)))
         ref, kept = drop_hairpins(st, 90.0, 1.0, at=at, return_kept=True)
-        got, kept2 = _drop_hairpins(st, 90.0, 1.0, at)
-        assert np.array_equal(kept, kept2) and np.array_equal(ref.points, got.points)
-        assert np.array_equal(ref.offsets, got.offsets)
+        full = st.replace(surface=rng.random((N, 3)), face=rng.integers(0, 99, N), u=rng.random(N))
+        ref, kept = drop_hairpins(full, 90.0, 1.0, at=at, return_kept=True)
+        got, kept2 = _drop_hairpins(full, 90.0, 1.0, at)
+        assert np.array_equal(kept, kept2)
+        for f in ("points", "surface", "face", "u", "offsets"):
+            assert np.array_equal(getattr(ref, f), getattr(got, f)), f
 
 
 def test_resampling_is_resample_strokes():
@@ -196,10 +200,16 @@ def test_resampling_is_resample_strokes():
         pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
         pts[rng.random(N) < 0.2] = 0.0  # (repeated points: zero-length segments)
         st = _strokes(pts, counts, surface=rng.random((N, 3)), ids=np.arange(S) + 7, u=rng.random(N))
+        # (surface points seen by a perspective camera: some behind it, some on its plane)
+        cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+        X = rng.normal(0, 6.0, (N, 3))
+        X[rng.random(N) < 0.1, 2] = 10.0
+        seen = st.replace(surface=X, camera=cam)
         for step in (1.0, 4.0, 0.3):
-            a, b = resample_strokes(st, step), _resample(st, step)
-            for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
-                assert np.array_equal(getattr(a, f), getattr(b, f)), f
+            for strokes in (st, seen):
+                a, b = resample_strokes(strokes, step), _resample(strokes, step)
+                for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
+                    assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
 
 def test_id_assignment_is_assign_ids():

@@ -29,6 +29,8 @@ rounding depends on the BLAS kernel.
   and evaluation), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made
   points).
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
+* Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
+  (lines.strokeops.keep_points).
 """
 
 from __future__ import annotations
@@ -1766,10 +1768,64 @@ def cut_assemble(P, X, F, lo, n_in, i, j, a, Xe):
     return p, x, fc, off
 
 
+@njit(cache=True)
+def surface_mix(Xi, Xj, zi, zj, a):
+    """sampling.surface_between's perspective-correct mix of the surface points Xi, Xj (K, 3) at
+    screen fraction a (K,), their depths zi, zj (K,) given (numpy's matrix products: their
+    rounding is the BLAS kernel's): where both depths are positive and so is (1 - a) zj + a zi,
+    a becomes a zi / that; the point Xi (1 - a) + Xj a."""
+    K = a.shape[0]
+    out = np.empty((K, 3))
+    for k in range(K):
+        f = a[k]
+        if zi[k] > 0 and zj[k] > 0:
+            den = (1 - f) * zj[k] + f * zi[k]
+            if den > 0:
+                f = f * zi[k] / den
+        g = 1 - f
+        for c in range(3):
+            out[k, c] = Xi[k, c] * g + Xj[k, c] * f
+    return out
+
+
+@njit(cache=True)
+def keep_rows(P, X, F, U, offsets, alive):
+    """lines.strokeops.keep_points: the points (P (N, 2), surface X (N, 3), face F, u U) where
+    alive (N,) is true, and the strokes' new offsets."""
+    S = offsets.shape[0] - 1
+    off = np.empty(S + 1, np.int64)
+    off[0] = 0
+    for k in range(S):
+        c = 0
+        for q in range(offsets[k], offsets[k + 1]):
+            c += alive[q]
+        off[k + 1] = off[k] + c
+    M = off[S]
+    p = np.empty((M, 2))
+    x = np.empty((M, 3))
+    f = np.empty(M, F.dtype)
+    u = np.empty(M, U.dtype)
+    m = 0
+    for q in range(P.shape[0]):
+        if alive[q]:
+            p[m, 0] = P[q, 0]
+            p[m, 1] = P[q, 1]
+            x[m, 0] = X[q, 0]
+            x[m, 1] = X[q, 1]
+            x[m, 2] = X[q, 2]
+            f[m] = F[q]
+            u[m] = U[q]
+            m += 1
+    return p, x, f, u, off
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
     grid_ok(p)
+    X3 = np.zeros((3, 3))
+    surface_mix(X3, X3, np.ones(3), np.ones(3), np.zeros(3))
+    keep_rows(p, X3, np.zeros(3, np.int64), np.zeros(3), np.array([0, 3]), np.ones(3, np.bool_))
     g = grid_index(p, 2.0)
     out_d2 = np.zeros((2, 2))
     out_i = np.zeros((2, 2), np.int64)

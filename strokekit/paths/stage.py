@@ -110,6 +110,17 @@ def _assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, ca
     return ids, int(next_id)
 
 
+def _surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """surface_between(strokes, i, j, a) (the same points), its steps after the depths compiled."""
+    cam = strokes.camera
+    if cam is None or cam.is_ortho or len(i) == 0:
+        return surface_between(strokes, i, j, a)
+    X = strokes.surface
+    Xi, Xj = X.take(i, axis=0), X.take(j, axis=0)
+    fwd, eye = cam.basis[2], cam.eye_array
+    return kernels().surface_mix(Xi, Xj, (Xi - eye) @ fwd, (Xj - eye) @ fwd, np.asarray(a, float))
+
+
 def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
     """insert_points(strokes, stroke, s) (the same strokes), its loops compiled."""
     if len(stroke) == 0:
@@ -119,7 +130,7 @@ def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strok
     i, j, a, g, st = K.insert_at(base, G, strokes.offsets, np.asarray(stroke, np.int64), np.asarray(s, float))
     if len(i) == 0:
         return strokes
-    Xn = surface_between(strokes, i, j, a)
+    Xn = _surface_between(strokes, i, j, a)
     ok, P, X, F, U, off = K.insert_merge(strokes.points, strokes.surface, strokes.face, strokes.u, G,
                                          strokes.offsets, i, j, a, g, st, Xn)
     if not ok:
@@ -191,7 +202,7 @@ def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.nda
     stroke = np.asarray(stroke, np.int64)
     lo, n_in, i, j, a = kernels().cut_ends(G, base, strokes.offsets, stroke, np.asarray(s0, float),
                                            np.asarray(s1, float))
-    Xe = surface_between(strokes, i, j, a)  # (both ends in one batch, as cut_pieces takes them)
+    Xe = _surface_between(strokes, i, j, a)  # (both ends in one batch, as cut_pieces takes them)
     p, x, f, off = kernels().cut_assemble(strokes.points, strokes.surface, strokes.face, lo, n_in, i, j, a, Xe)
     out = Strokes(points=p, surface=x, face=f, offsets=off, kind=strokes.kind[stroke], ids=np.arange(K, dtype=np.int64),
                   u=None, level=strokes.level[stroke], level_weight=strokes.level_weight[stroke],
@@ -205,7 +216,7 @@ def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Sa
         return resample_strokes(strokes, step_px, with_surface)
     base, G = strokes.global_arc
     stroke, s, w, i, j, a = kernels().resample_at(strokes.lengths, float(step_px), base, G, strokes.offsets)
-    X = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
+    X = _surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
     p, t, u = kernels().resample_points(strokes.points, strokes.u, i, j, a)
     return Samples(p=p, X=X, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
 
@@ -456,7 +467,13 @@ def _drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.nda
         return strokes, np.ones(n, bool)
     kept = kernels().hairpin_points(strokes.points, strokes.offsets, np.asarray(at, np.int64),
                                     np.cos(np.radians(angle_deg)), float(max_px))
-    return (strokes if kept.all() else keep_points(strokes, kept)), kept
+    if kept.all():
+        return strokes, kept
+    if strokes.u is None:
+        return keep_points(strokes, kept), kept
+    P, X, F, U, off = kernels().keep_rows(strokes.points, strokes.surface, strokes.face, strokes.u, strokes.offsets,
+                                          kept)
+    return strokes.replace(points=P, surface=X, face=F, u=U, offsets=off), kept
 
 
 def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray, angle_deg: float, tol_px: float):
