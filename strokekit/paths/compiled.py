@@ -641,41 +641,84 @@ def segment_runs(label, stroke, s, w, lengths, min_segment_px):
 
 
 @njit(cache=True)
+def _sort_by_key(o, lo, hi, key, buf, bounds):
+    """o[lo:hi] sorted by key[o[.]] (float, not NaN), stably (equal keys keep their order): a
+    natural merge sort (the votes of a path come in a few runs, one per piece, each in order or
+    against it). buf, bounds: scratch of at least hi - lo and hi - lo + 1 entries."""
+    if hi - lo < 2:
+        return
+    nr = 0
+    i = lo
+    while i < hi:
+        j = i + 1
+        if j < hi and key[o[j]] < key[o[i]]:
+            while j < hi and key[o[j]] < key[o[j - 1]]:
+                j += 1
+            # (strictly decreasing: no ties whose order a reversal would break)
+            a = i
+            b = j - 1
+            while a < b:
+                t = o[a]
+                o[a] = o[b]
+                o[b] = t
+                a += 1
+                b -= 1
+        else:
+            while j < hi and not key[o[j]] < key[o[j - 1]]:
+                j += 1
+        bounds[nr] = i
+        nr += 1
+        i = j
+    bounds[nr] = hi
+    while nr > 1:
+        m = 0
+        k = 0
+        while k < nr:
+            if k + 1 < nr:
+                a0 = bounds[k]
+                a1 = bounds[k + 1]
+                b1 = bounds[k + 2]
+                for q in range(a0, a1):
+                    buf[q - lo] = o[q]
+                x = a0
+                y = a1
+                d = a0
+                while x < a1 and y < b1:
+                    if key[o[y]] < key[buf[x - lo]]:
+                        o[d] = o[y]
+                        y += 1
+                    else:
+                        o[d] = buf[x - lo]
+                        x += 1
+                    d += 1
+                while x < a1:
+                    o[d] = buf[x - lo]
+                    x += 1
+                    d += 1
+                bounds[m] = a0
+                k += 2
+            else:
+                bounds[m] = bounds[k]
+                k += 1
+            m += 1
+        bounds[m] = hi
+        nr = m
+
+
+@njit(cache=True)
 def sort_within(o, key, s):
     """o (n,) an order by the integer `key` that keeps index order among equal keys (a stable
     argsort), made the order by key, then s (float, not NaN), then index: each run of one key
     sorted by s, stably (np.lexsort((s, key)))."""
     n = o.shape[0]
+    buf = np.empty(n, np.int64)
+    bounds = np.empty(n + 1, np.int64)
     g0 = 0
     while g0 < n:
         g1 = g0 + 1
         while g1 < n and key[o[g1]] == key[o[g0]]:
             g1 += 1
-        up = True
-        down = True
-        for i in range(g0 + 1, g1):
-            if s[o[i]] < s[o[i - 1]]:
-                up = False
-            if not s[o[i]] < s[o[i - 1]]:
-                down = False
-        if down:
-            # (strictly decreasing: no ties whose index order a reversal would break)
-            o[g0:g1] = o[g0:g1][::-1].copy()
-        elif not up:
-            if g1 - g0 > 32:
-                sub = o[g0:g1].copy()
-                oo = np.argsort(s[sub], kind="mergesort")
-                for i in range(g1 - g0):
-                    o[g0 + i] = sub[oo[i]]
-            else:
-                for i in range(g0 + 1, g1):
-                    v = o[i]
-                    sv = s[v]
-                    j = i
-                    while j > g0 and s[o[j - 1]] > sv:
-                        o[j] = o[j - 1]
-                        j -= 1
-                    o[j] = v
+        _sort_by_key(o, g0, g1, s, buf, bounds)
         g0 = g1
     return o
 
@@ -708,7 +751,25 @@ def u_trend(rk, pk, u, R):
     key = np.empty(K)
     for i in range(K):
         key[i] = rk[i] * top + pk[i]
-    o = np.argsort(key, kind="mergesort")
+    if R * top < 2.0 ** 40:
+        # np.argsort(key, kind="mergesort") as the runs' keys lie apart (a run's span is less
+        # than top, whole px apart at this scale): bucketed by run, each bucket sorted by key.
+        start = np.zeros(R + 1, np.int64)
+        for i in range(K):
+            start[rk[i] + 1] += 1
+        for r in range(R):
+            start[r + 1] += start[r]
+        fill = start[:-1].copy()
+        o = np.empty(K, np.int64)
+        for i in range(K):
+            o[fill[rk[i]]] = i
+            fill[rk[i]] += 1
+        buf = np.empty(K, np.int64)
+        bounds = np.empty(K + 1, np.int64)
+        for r in range(R):
+            _sort_by_key(o, start[r], start[r + 1], key, buf, bounds)
+    else:
+        o = np.argsort(key, kind="mergesort")
     for i in range(1, K):
         a = o[i - 1]
         b = o[i]
