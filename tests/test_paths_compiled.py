@@ -112,6 +112,20 @@ def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
         assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
 
 
+def test_lookback_in_crowded_windows_is_the_trees():
+    """The lookback where a window holds more samples than match_pieces keeps (it then reads the
+    cells again for every query): the tree's matches."""
+    rng = np.random.default_rng(37)
+    for lattice in (False, True):
+        D = _samples(rng, 3000, lattice)
+        src = _samples(rng, 300, lattice)
+        cam = _Flat()
+        m0, q0 = match_samples(src, cam, D, query_tree(D.p), radius_px=6.0, min_tangent_dot=0.65, k=2,
+                               return_projected=True, piece_distance=True)
+        m1, q1 = _lookback(src, cam, D, 6.0, 0.65)
+        assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
+
+
 class _Flat:
     """A camera that draws a surface point (x, y, z) at pixel (x, y)."""
 

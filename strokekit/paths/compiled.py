@@ -455,6 +455,24 @@ def bridges(pa, pb, step, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bo
 
 
 @njit(cache=True)
+def _window_inv(v, v0, inv, reach, n):
+    """_window with the division by the cell made a product by its inverse `inv` (the margin
+    covers the rounding either way: a window that holds every cell a point within `reach` can
+    lie in, which is all a search needs)."""
+    a = math.floor((v - reach - v0) * inv - 1e-6)
+    b = math.floor((v + reach - v0) * inv + 1e-6)
+    if a < 0:
+        a = 0
+    if b > n - 1:
+        b = n - 1
+    return int(a), int(b)
+
+
+#: match_pieces keeps the candidates of up to this many samples of its last window.
+_WINDOW_CANDIDATES = 256
+
+
+@njit(cache=True)
 def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
     """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
     tangents t (N, 2) and half lengths hw (N,): for every query point q (M, 2) (finite) with
@@ -462,49 +480,68 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
     (|t . st| >= min_dot), the first of least squared distance to its piece of line (across:
     the tree's distance squared less the part along t; beyond its ends along t): out (M,) its
     index, or -1. unsure (M,) set where two of the k + 1 nearest lie at the same distance (the
-    tree's order decides)."""
+    tree's order decides). The samples of a window are gathered once for the queries that
+    follow in the same window (line samples 1 px apart: most of them)."""
     b2 = bound * bound
+    inv = 1.0 / cell
     bd = np.empty(k + 1)
     bi = np.empty(k + 1, np.int64)
+    cpx = np.empty(_WINDOW_CANDIDATES)
+    cpy = np.empty(_WINDOW_CANDIDATES)
+    cj = np.empty(_WINDOW_CANDIDATES, np.int64)
+    nc = -1  # (candidates held: -1 none, or too many to hold)
+    wax = wbx = way = wby = -1
     for m in range(q.shape[0]):
         qx = q[m, 0]
         qy = q[m, 1]
         s0 = st[m, 0]
         s1 = st[m, 1]
+        ax, bx = _window_inv(qx, x0, inv, bound, nx)
+        ay, by = _window_inv(qy, y0, inv, bound, ny)
+        if nc < 0 or ax != wax or bx != wbx or ay != way or by != wby:
+            wax, wbx, way, wby = ax, bx, ay, by
+            nc = 0
+            for cy in range(ay, by + 1):
+                row = cy * nx
+                for cx in range(ax, bx + 1):
+                    c = row + cx
+                    for s in range(start[c], start[c + 1]):
+                        if nc < _WINDOW_CANDIDATES:
+                            cpx[nc] = ps[s, 0]
+                            cpy[nc] = ps[s, 1]
+                            cj[nc] = order[s]
+                        nc += 1
+            if nc > _WINDOW_CANDIDATES:
+                nc = -1
         cnt = 0
         e0 = e1 = e2 = np.inf
         j0 = j1 = j2 = -1
-        ax, bx = _window(qx, x0, cell, bound, nx)
-        ay, by = _window(qy, y0, cell, bound, ny)
-        for cy in range(ay, by + 1):
-            row = cy * nx
-            for cx in range(ax, bx + 1):
-                c = row + cx
-                for s in range(start[c], start[c + 1]):
-                    dx = ps[s, 0] - qx
-                    dy = ps[s, 1] - qy
-                    d2 = dx * dx + dy * dy
-                    if not d2 < b2:
-                        continue
-                    if k != 2:
-                        cnt = _insert(bd, bi, cnt, d2, order[s])
-                        continue
-                    # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
-                    j = order[s]
-                    if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
-                        continue
-                    cnt = min(cnt + 1, 3)
-                    if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
-                        e2, j2 = e1, j1
-                        if d2 < e0 or (d2 == e0 and j < j0):
-                            e1, j1 = e0, j0
-                            e0, j0 = d2, j
+        if nc >= 0:
+            for e in range(nc):
+                dx = cpx[e] - qx
+                dy = cpy[e] - qy
+                d2 = dx * dx + dy * dy
+                if not d2 < b2:
+                    continue
+                if k != 2:
+                    cnt = _insert(bd, bi, cnt, d2, cj[e])
+                else:
+                    cnt, e0, j0, e1, j1, e2, j2 = _three(cnt, d2, cj[e], e0, j0, e1, j1, e2, j2)
+        else:
+            for cy in range(ay, by + 1):
+                row = cy * nx
+                for cx in range(ax, bx + 1):
+                    c = row + cx
+                    for s in range(start[c], start[c + 1]):
+                        dx = ps[s, 0] - qx
+                        dy = ps[s, 1] - qy
+                        d2 = dx * dx + dy * dy
+                        if not d2 < b2:
+                            continue
+                        if k != 2:
+                            cnt = _insert(bd, bi, cnt, d2, order[s])
                         else:
-                            e1, j1 = d2, j
-                    elif cnt >= 2:
-                        e2, j2 = d2, j
-                    elif cnt == 1:
-                        e0, j0 = d2, j
+                            cnt, e0, j0, e1, j1, e2, j2 = _three(cnt, d2, order[s], e0, j0, e1, j1, e2, j2)
         if k == 2:
             bd[0], bi[0], bd[1], bi[1], bd[2], bi[2] = e0, j0, e1, j1, e2, j2
         for s in range(cnt - 1):
@@ -531,6 +568,27 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
                 found = j
                 best = cost
         out[m] = found
+
+
+@njit(cache=True)
+def _three(cnt, d2, j, e0, j0, e1, j1, e2, j2):
+    """(k = 2, the lookback's: the three nearest in scalars, as _insert keeps them) (d2, j) added
+    to the sorted (e0, j0), (e1, j1), (e2, j2) holding cnt of them."""
+    if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
+        return cnt, e0, j0, e1, j1, e2, j2
+    cnt = min(cnt + 1, 3)
+    if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
+        e2, j2 = e1, j1
+        if d2 < e0 or (d2 == e0 and j < j0):
+            e1, j1 = e0, j0
+            e0, j0 = d2, j
+        else:
+            e1, j1 = d2, j
+    elif cnt >= 2:
+        e2, j2 = d2, j
+    elif cnt == 1:
+        e0, j0 = d2, j
+    return cnt, e0, j0, e1, j1, e2, j2
 
 
 @njit(cache=True)
