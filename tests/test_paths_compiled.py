@@ -345,6 +345,52 @@ def test_cover_pair_by_pair_is_sample_by_sample():
     assert sure > 30
 
 
+def _cover_runs_numpy(cover, smp_piece, path_of, stroke, s, w):
+    """paths.stage._finish's covered runs as numpy steps (the code cover_runs replaced)."""
+    cs = np.flatnonzero(cover >= 0)
+    ck = smp_piece[cover[cs]]
+    cs, ck = cs[ck >= 0], ck[ck >= 0]
+    c_path = path_of[ck]
+    brk = np.r_[True, (np.diff(cs) != 1) | (stroke[cs][1:] != stroke[cs][:-1]) | (c_path[1:] != c_path[:-1])] \
+        if len(cs) else np.zeros(0, bool)
+    f = np.flatnonzero(brk)
+    g = np.r_[f[1:] - 1, len(cs) - 1] if len(f) else f
+    cl = stroke[cs[f]] if len(f) else np.zeros(0, np.int64)
+    c0 = s[cs[f]] - 0.5 * w[cs[f]] if len(f) else np.zeros(0)
+    c1 = s[cs[g]] + 0.5 * w[cs[g]] if len(f) else np.zeros(0)
+    cp = c_path[f] if len(f) else np.zeros(0, np.int64)
+    return cl, c0, c1, cp
+
+
+def test_covered_runs_and_selections_are_the_numpy_ones():
+    from strokekit.paths.stage import _select
+
+    rng = np.random.default_rng(41)
+    K = kernels()
+    for _ in range(100):
+        N = int(rng.integers(1, 300))
+        stroke = np.sort(rng.integers(0, 6, N))
+        w = np.where(rng.random(N) < 0.7, 1.0, rng.random(N))
+        s = np.cumsum(w) - 0.5 * w
+        cover = np.where(rng.random(N) < 0.5, rng.integers(0, N, N), -1)
+        n_pieces = int(rng.integers(1, 10))
+        smp_piece = np.where(rng.random(N) < 0.8, rng.integers(0, n_pieces, N), -1)
+        path_of = rng.integers(0, 4, n_pieces)
+        ref = _cover_runs_numpy(cover, smp_piece, path_of, stroke, s, w)
+        got = K.cover_runs(cover, smp_piece, path_of, stroke, s, w)
+        for x, y in zip(ref, got):
+            assert np.array_equal(x, y) and x.dtype == y.dtype
+        S = int(rng.integers(1, 8))
+        counts = rng.integers(1, 6, S)
+        M = int(counts.sum())
+        st = _strokes(rng.random((M, 2)), counts, surface=rng.random((M, 3)), face=rng.integers(0, 9, M),
+                      u=rng.random(M))
+        mask = rng.random(S) < 0.5
+        a, b = st.select(mask), _select(st, mask)
+        for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
 def test_compiled_u_fit_is_fit_u():
     """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
     what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one

@@ -30,7 +30,8 @@ rounding depends on the BLAS kernel.
   points).
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
-  (lines.strokeops.keep_points).
+  (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers).
+* Covers: `cover_runs` (paths.stage._finish's covered runs).
 """
 
 from __future__ import annotations
@@ -1938,10 +1939,74 @@ def keep_rows(P, X, F, U, offsets, alive):
     return p, x, f, u, off
 
 
+@njit(cache=True)
+def take_strokes(P, X, F, U, offsets, which):
+    """The points (P (N, 2), surface X (N, 3), face F, u U) of the strokes `which` (K,), in that
+    order, and their offsets (K + 1,) (Strokes.select's gathers, `which` its mask's indices)."""
+    K = which.shape[0]
+    off = np.empty(K + 1, np.int64)
+    off[0] = 0
+    for k in range(K):
+        off[k + 1] = off[k] + offsets[which[k] + 1] - offsets[which[k]]
+    M = off[K]
+    p = np.empty((M, 2))
+    x = np.empty((M, 3))
+    f = np.empty(M, F.dtype)
+    u = np.empty(M, U.dtype)
+    m = 0
+    for k in range(K):
+        for q in range(offsets[which[k]], offsets[which[k] + 1]):
+            p[m, 0] = P[q, 0]
+            p[m, 1] = P[q, 1]
+            x[m, 0] = X[q, 0]
+            x[m, 1] = X[q, 1]
+            x[m, 2] = X[q, 2]
+            f[m] = F[q]
+            u[m] = U[q]
+            m += 1
+    return p, x, f, u, off
+
+
+@njit(cache=True)
+def cover_runs(cover, smp_piece, path_of, stroke, s, w):
+    """paths.stage._finish's covered runs: the samples covered (cover >= 0) by a sample of a
+    drawn piece (smp_piece of the covering sample >= 0), in runs of consecutive samples of one
+    line covered by one path (path_of the piece's path). Per run: its line, its start and end
+    (px: first sample's s - w / 2, last sample's s + w / 2) and its path."""
+    N = cover.shape[0]
+    cl = np.empty(N, np.int64)
+    c0 = np.empty(N)
+    c1 = np.empty(N)
+    cp = np.empty(N, np.int64)
+    R = 0
+    last = -2
+    for i in range(N):
+        if cover[i] < 0:
+            continue
+        k = smp_piece[cover[i]]
+        if k < 0:
+            continue
+        pth = path_of[k]
+        if R == 0 or i - last != 1 or stroke[i] != stroke[last] or pth != cp[R - 1]:
+            if R > 0:
+                c1[R - 1] = s[last] + 0.5 * w[last]
+            cl[R] = stroke[i]
+            c0[R] = s[i] - 0.5 * w[i]
+            cp[R] = pth
+            R += 1
+        last = i
+    if R > 0:
+        c1[R - 1] = s[last] + 0.5 * w[last]
+    return cl[:R].copy(), c0[:R].copy(), c1[:R].copy(), cp[:R].copy()
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
     grid_ok(p)
+    take_strokes(p, np.zeros((3, 3)), np.zeros(3, np.int64), np.zeros(3), np.array([0, 1, 3]), np.array([1, 0]))
+    cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),
+               np.ones(3))
     X3 = np.zeros((3, 3))
     surface_mix(X3, X3, np.ones(3), np.ones(3), np.zeros(3))
     keep_rows(p, X3, np.zeros(3, np.int64), np.zeros(3), np.array([0, 3]), np.ones(3, np.bool_))

@@ -788,8 +788,8 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
     beside it. Paths where `hold` is true are left out (BrushPaths.held)."""
     held = None
     if hold is not None and hold.any():
-        held = paths.select(hold)
-        paths = paths.select(~hold)
+        held = _select(paths, hold)
+        paths = _select(paths, ~hold)
         new = np.cumsum(~hold) - 1
         keep = ~hold[path_of]
         # (Samples covered by a piece of a held path are left to no path: their piece goes.)
@@ -797,19 +797,8 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
         pmap[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
         smp_piece = pmap[smp_piece]
         p_line, p_s0, p_s1, path_of = p_line[keep], p_s0[keep], p_s1[keep], new[path_of[keep]]
-    cs = np.flatnonzero(cover >= 0)
-    ck = smp_piece[cover[cs]]
-    cs, ck = cs[ck >= 0], ck[ck >= 0]
-    c_path = path_of[ck]
     # Covered samples in runs: same line, same covering path, consecutive samples.
-    brk = join_arrays(True, (np.diff(cs) != 1) | (D.stroke[cs][1:] != D.stroke[cs][:-1]) | (c_path[1:] != c_path[:-1])) \
-        if len(cs) else np.zeros(0, bool)
-    f = np.flatnonzero(brk)
-    g = join_arrays(f[1:] - 1, len(cs) - 1) if len(f) else f
-    cl = D.stroke[cs[f]] if len(f) else np.zeros(0, np.int64)
-    c0 = D.s[cs[f]] - 0.5 * D.w[cs[f]] if len(f) else np.zeros(0)
-    c1 = D.s[cs[g]] + 0.5 * D.w[cs[g]] if len(f) else np.zeros(0)
-    cp = c_path[f] if len(f) else np.zeros(0, np.int64)
+    cl, c0, c1, cp = kernels().cover_runs(cover, smp_piece, path_of, D.stroke, D.s, D.w)
     allp = join_arrays(path_of, cp)
     alll = join_arrays(p_line, cl)
     all0 = join_arrays(p_s0, c0)
@@ -820,6 +809,14 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
     return BrushPaths(strokes=paths, lines=lines, cover_offsets=join_arrays(0, counts.cumsum()).astype(np.int64),
                       cover_line=alll[o].astype(np.int64), cover_s0=all0[o], cover_s1=all1[o], cover_drawn=drawn[o],
                       held=held)
+
+
+def _select(strokes: Strokes, mask: np.ndarray) -> Strokes:
+    """strokes.select(mask) (the same strokes), its gathers compiled."""
+    P, X, F, U, off = kernels().take_strokes(strokes.points, strokes.surface, strokes.face, strokes.u,
+                                             strokes.offsets, np.flatnonzero(mask))
+    return strokes.replace(points=P, surface=X, face=F, u=U, offsets=off, kind=strokes.kind[mask],
+                           ids=strokes.ids[mask], level=strokes.level[mask], level_weight=strokes.level_weight[mask])
 
 
 class PathTracker:
