@@ -391,6 +391,41 @@ def test_covered_runs_and_selections_are_the_numpy_ones():
             assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
 
+def _one_label_numpy(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """paths.stage._one_label_per_path as numpy steps (the code one_label replaced)."""
+    K = len(group)
+    order = np.lexsort((pos, group))
+    g, lab = group[order], label[order]
+    start = np.r_[True, g[1:] != g[:-1]]
+    idx = np.arange(K)
+    # Forward fill within the group, then backward fill the leading unlabelled pieces.
+    known = lab >= 0
+    seg = np.cumsum(start) - 1
+    f = np.maximum.accumulate(np.where(known, idx, -1))
+    fl = np.where((f >= 0) & (seg[np.maximum(f, 0)] == seg), lab[np.maximum(f, 0)], -1)
+    b = np.minimum.accumulate(np.where(known, idx, K)[::-1])[::-1]
+    bl = np.where((b < K) & (seg[np.minimum(b, K - 1)] == seg), lab[np.minimum(b, K - 1)], -1)
+    fill = np.where(fl >= 0, fl, bl)
+    cut = start | np.r_[False, (fill[1:] != fill[:-1]) & ~start[1:]]
+    if not cut[~start].any():
+        return group
+    out = np.empty(K, np.int64)
+    out[order] = np.cumsum(cut) - 1
+    return out
+
+
+def test_one_label_per_path_is_the_numpy_one():
+    from strokekit.paths.stage import _one_label_per_path
+
+    rng = np.random.default_rng(43)
+    for _ in range(200):
+        K = int(rng.integers(1, 60))
+        group = rng.integers(0, int(rng.integers(1, 12)), K)
+        pos = rng.permutation(K)
+        label = np.where(rng.random(K) < 0.5, -1, rng.integers(0, 4, K))
+        assert np.array_equal(_one_label_numpy(group, pos, label), _one_label_per_path(group, pos, label))
+
+
 def test_compiled_u_fit_is_fit_u():
     """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
     what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one

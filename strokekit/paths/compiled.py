@@ -31,7 +31,8 @@ rounding depends on the BLAS kernel.
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
   (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers).
-* Covers: `cover_runs` (paths.stage._finish's covered runs).
+* Covers: `cover_runs` (paths.stage._finish's covered runs); `one_label`
+  (paths.stage._one_label_per_path after its sort).
 """
 
 from __future__ import annotations
@@ -2000,10 +2001,53 @@ def cover_runs(cover, smp_piece, path_of, stroke, s, w):
     return cl[:R].copy(), c0[:R].copy(), c1[:R].copy(), cp[:R].copy()
 
 
+@njit(cache=True)
+def one_label(order, group, label):
+    """paths.stage._one_label_per_path after its sort (order: the pieces by group, then position):
+    each group's pieces' labels filled forward over the unlabelled ones (-1), then backward
+    before the first labelled one; the group cut where that label changes. Returns the new
+    groups (numbered in order) and whether any cut was made."""
+    K = order.shape[0]
+    fill = np.empty(K, np.int64)
+    start = np.empty(K, np.bool_)
+    g0 = 0
+    while g0 < K:
+        g1 = g0 + 1
+        while g1 < K and group[order[g1]] == group[order[g0]]:
+            g1 += 1
+        cur = -1
+        for i in range(g0, g1):
+            lab = label[order[i]]
+            if lab >= 0:
+                cur = lab
+            fill[i] = cur
+            start[i] = i == g0
+        cur = -1
+        for i in range(g1 - 1, g0 - 1, -1):
+            lab = label[order[i]]
+            if lab >= 0:
+                cur = lab
+            if fill[i] < 0:
+                fill[i] = cur
+        g0 = g1
+    out = np.empty(K, np.int64)
+    cuts = False
+    c = -1
+    for i in range(K):
+        if start[i]:
+            c += 1
+        elif fill[i] != fill[i - 1]:
+            c += 1
+            cuts = True
+        out[order[i]] = c
+    return out, cuts
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
     grid_ok(p)
+    one_label(np.array([0, 1]), np.array([0, 0]), np.array([-1, 1]))
     take_strokes(p, np.zeros((3, 3)), np.zeros(3, np.int64), np.zeros(3), np.array([0, 1, 3]), np.array([1, 0]))
     cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),
                np.ones(3))

@@ -425,26 +425,9 @@ def _one_label_per_path(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -
     """Groups (paths of pieces, in the order `pos`) cut where the label of their pieces changes, so
     that no path holds two labels: unlabelled pieces (-1) go with the labelled piece before them
     (before the first labelled piece: with the one after). Two paths never merge through a piece
-    that joined both."""
-    K = len(group)
-    order = np.lexsort((pos, group))
-    g, lab = group[order], label[order]
-    start = join_arrays(True, g[1:] != g[:-1])
-    idx = np.arange(K)
-    # Forward fill within the group, then backward fill the leading unlabelled pieces.
-    known = lab >= 0
-    seg = np.cumsum(start) - 1
-    f = np.maximum.accumulate(np.where(known, idx, -1))
-    fl = np.where((f >= 0) & (seg[np.maximum(f, 0)] == seg), lab[np.maximum(f, 0)], -1)
-    b = np.minimum.accumulate(np.where(known, idx, K)[::-1])[::-1]
-    bl = np.where((b < K) & (seg[np.minimum(b, K - 1)] == seg), lab[np.minimum(b, K - 1)], -1)
-    fill = np.where(fl >= 0, fl, bl)
-    cut = start | join_arrays(False, (fill[1:] != fill[:-1]) & ~start[1:])
-    if not cut[~start].any():
-        return group
-    out = np.empty(K, np.int64)
-    out[order] = np.cumsum(cut) - 1
-    return out
+    that joined both. (The fills and cuts compiled: one_label.)"""
+    out, cuts = kernels().one_label(np.lexsort((pos, group)), group, np.asarray(label, np.int64))
+    return out if cuts else group
 
 
 def _reverse(strokes: Strokes, which: np.ndarray) -> Strokes:
