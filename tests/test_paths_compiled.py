@@ -322,8 +322,9 @@ def test_u_fit_is_the_numpy_one():
 
 
 def test_cover_pair_by_pair_is_sample_by_sample():
-    """The cover found pair by pair over neighbouring cells is what the search of every sample's
-    window finds (dense samples, many runs, ranks and distances that tie)."""
+    """The cover found pair by pair over neighbouring cells is what a search of every sample's
+    window finds (dense samples, many runs, ranks and distances that tie); cells no wider than
+    the radius are refused (the caller makes wider ones)."""
     rng = np.random.default_rng(31)
     K = kernels()
     sure = 0
@@ -337,12 +338,40 @@ def test_cover_pair_by_pair_is_sample_by_sample():
         grid = SampleGrid(D.p, float(rng.choice([2.5, 3.0, 6.0])))
         for radius in (2.0, 1.0):
             args = (D.p, D.t, D.w, sk, contour, run, rank, *grid.index, radius, 0.9)
-            a, b = np.full(n, -1, np.int64), np.full(n, -1, np.int64)
+            a = np.full(n, -1, np.int64)
             ok = K.cover(*args, a)
-            assert ok == K._cover_each(*args, b)
-            assert not ok or np.array_equal(a, b)  # (not ok: the caller asks the tree)
+            assert not ok or np.array_equal(a, _cover_each(*args))  # (not ok: the caller asks the tree)
             sure += ok
+            assert not K.cover(D.p, D.t, D.w, sk, contour, run, rank, *SampleGrid(D.p, radius).index, radius, 0.9, a)
     assert sure > 30
+
+
+def _cover_each(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot):
+    """cover's answer sample by sample (every pair within the radius looked at from each side), in
+    plain Python: the rule of paths.stage.covering_samples."""
+    out = np.full(len(p), -1, np.int64)
+    r2 = radius * radius
+    for x in range(len(p)):
+        if not contour[x]:
+            continue
+        best = None
+        for y in range(len(p)):
+            if not contour[y] or run[y] == run[x] or sk[y] != sk[x]:
+                continue
+            ddx, ddy = p[y, 0] - p[x, 0], p[y, 1] - p[x, 1]
+            d2 = ddx * ddx + ddy * ddy
+            if d2 > r2 or not rank_of_run[run[y]] < rank_of_run[run[x]]:
+                continue
+            if not abs(ddx * t[x, 0] + ddy * t[x, 1]) <= 0.5 * (w[x] + w[y]) - 0.25:
+                continue
+            if not abs(t[y, 0] * t[x, 0] + t[y, 1] * t[x, 1]) >= min_dot:
+                continue
+            key = (rank_of_run[run[y]], d2, y)
+            if best is None or key < best:
+                best = key
+        if best is not None:
+            out[x] = best[2]
+    return out
 
 
 def _cover_runs_numpy(cover, smp_piece, path_of, stroke, s, w):
@@ -426,6 +455,29 @@ def test_one_label_per_path_is_the_numpy_one():
         assert np.array_equal(_one_label_numpy(group, pos, label), _one_label_per_path(group, pos, label))
 
 
+def test_stable_sorts_are_numpys():
+    """_argsort (a natural merge sort) is numpy's stable argsort, in runs, against them, with ties;
+    _sorted_unique is np.unique; u_trend at a scale where its keys' runs could touch sorts all
+    keys at once (the same trend as tracking.votes._u_trend)."""
+    rng = np.random.default_rng(47)
+    K = kernels()
+    for _ in range(200):
+        n = int(rng.integers(0, 300))
+        x = np.round(rng.random(n) * 20, int(rng.integers(0, 3)))
+        cut = np.sort(rng.integers(0, n + 1, int(rng.integers(0, 6))))
+        for a, b in zip(cut[:-1], cut[1:]):  # (runs in order and against it)
+            x[a:b] = np.sort(x[a:b])[:: 1 if rng.random() < 0.5 else -1]
+        assert np.array_equal(K._argsort(x), x.argsort(kind="stable"))
+        xi = rng.integers(-50, 50, n)
+        assert np.array_equal(K._sorted_unique(xi), np.unique(xi))
+    for _ in range(20):
+        n = int(rng.integers(2, 200))
+        a, b = rng.integers(0, 4, n), rng.integers(0, 3, n)
+        s = np.round(rng.random(n) * 10, 1) * 1e12  # (R * top beyond 2**40)
+        u, label = rng.random(n).round(1), rng.integers(0, 3, a.max() + 1)
+        assert np.array_equal(_u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+
+
 def test_compiled_u_fit_is_fit_u():
     """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
     what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one
@@ -454,8 +506,8 @@ def test_compiled_u_fit_is_fit_u():
 
 
 def test_vote_groups_are_the_numpy_ones():
-    """The compiled vote groups (bucketed by stroke, or one sort beyond _FEW_IDS ids a stroke)
-    are np.unique's groups, their bincount weights and _first_max_per_group's primaries."""
+    """The compiled vote groups (bucketed by stroke, each bucket sorted by id) are np.unique's
+    groups, their bincount weights and _first_max_per_group's primaries."""
     from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
 
     rng = np.random.default_rng(29)

@@ -42,6 +42,9 @@ import math
 import numpy as np
 from numba import njit
 
+#: cover's cells must be wider than this times its radius.
+COVER_CELL = 1.001
+
 #: Squared distances within this of the bound are ambiguous for the tree's pair search (it takes
 #: whole node pairs whose box distance, tracked incrementally, is below the bound) (px^2).
 PAIR_SLACK = 1e-6
@@ -182,11 +185,10 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     samples of two runs lies within PAIR_SLACK of the radius (the tree may count it either
     way: the caller asks the tree), else True.
     Each pair is looked at once, cell by cell (a pair's squared distance and its two tests are
-    the same bits either way round: negated differences): cells wider than the radius, so that
-    a pair lies in one cell or two neighbouring ones (else _cover_each)."""
-    if not radius * 1.001 + 1e-6 < cell:
-        return _cover_each(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius,
-                           min_dot, out)
+    the same bits either way round: negated differences): the cells must be wider than the
+    radius (COVER_CELL), so that a pair lies in one cell or two neighbouring ones (else False)."""
+    if not radius * COVER_CELL < cell:
+        return False
     r2 = radius * radius
     n = p.shape[0]
     # Per grid slot, read one after the other below: run (-1: not a contour), kind, run rank,
@@ -278,63 +280,6 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     for x in range(n):
         if best[x] >= 0:
             out[x] = best[x]
-    return True
-
-
-@njit(cache=True)
-def _cover_each(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot, out):
-    """cover, sample by sample (the window of each sample searched: any cell size)."""
-    r2 = radius * radius
-    # The run (-1: not a contour) and kind of every grid slot, read one after the other below.
-    n = p.shape[0]
-    run_s = np.empty(n, np.int64)
-    sk_s = np.empty(n, np.int64)
-    for s in range(n):
-        j = order[s]
-        run_s[s] = run[j] if contour[j] else -1
-        sk_s[s] = sk[j]
-    for x in range(n):
-        if not contour[x]:
-            continue
-        px = p[x, 0]
-        py = p[x, 1]
-        tx0 = t[x, 0]
-        tx1 = t[x, 1]
-        rx = rank_of_run[run[x]]
-        best = -1
-        best_rank = 0
-        best_d2 = 0.0
-        ax, bx = _window(px, x0, cell, radius, nx)
-        ay, by = _window(py, y0, cell, radius, ny)
-        for cy in range(ay, by + 1):
-            row = cy * nx
-            for cx in range(ax, bx + 1):
-                c = row + cx
-                for s in range(start[c], start[c + 1]):
-                    ddx = ps[s, 0] - px
-                    ddy = ps[s, 1] - py
-                    d2 = ddx * ddx + ddy * ddy
-                    if d2 > r2 + PAIR_SLACK or run_s[s] < 0 or run_s[s] == run[x] or sk_s[s] != sk[x]:
-                        continue
-                    y = order[s]  # (not x: x is of its own run)
-                    if abs(d2 - r2) <= PAIR_SLACK:
-                        return False
-                    if d2 > r2:
-                        continue
-                    ry = rank_of_run[run[y]]
-                    if not ry < rx:
-                        continue
-                    along = abs(ddx * tx0 + ddy * tx1)
-                    if not along <= 0.5 * (w[x] + w[y]) - 0.25:
-                        continue
-                    if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
-                        continue
-                    if best < 0 or ry < best_rank or (ry == best_rank and (d2 < best_d2 or (d2 == best_d2 and y < best))):
-                        best = y
-                        best_rank = ry
-                        best_d2 = d2
-        if best >= 0:
-            out[x] = best
     return True
 
 
@@ -470,7 +415,7 @@ def _window_inv(v, v0, inv, reach, n):
     return int(a), int(b)
 
 
-#: match_pieces keeps the candidates of up to this many samples of its last window.
+#: match_pieces' first room for the samples of its last window (more: it makes more).
 _WINDOW_CANDIDATES = 256
 
 
@@ -491,7 +436,7 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
     cpx = np.empty(_WINDOW_CANDIDATES)
     cpy = np.empty(_WINDOW_CANDIDATES)
     cj = np.empty(_WINDOW_CANDIDATES, np.int64)
-    nc = -1  # (candidates held: -1 none, or too many to hold)
+    nc = -1  # (candidates held: -1 none yet)
     wax = wbx = way = wby = -1
     for m in range(q.shape[0]):
         qx = q[m, 0]
@@ -504,46 +449,50 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
             wax, wbx, way, wby = ax, bx, ay, by
             nc = 0
             for cy in range(ay, by + 1):
-                row = cy * nx
                 for cx in range(ax, bx + 1):
-                    c = row + cx
-                    for s in range(start[c], start[c + 1]):
-                        if nc < _WINDOW_CANDIDATES:
-                            cpx[nc] = ps[s, 0]
-                            cpy[nc] = ps[s, 1]
-                            cj[nc] = order[s]
-                        nc += 1
-            if nc > _WINDOW_CANDIDATES:
-                nc = -1
-        cnt = 0
-        e0 = e1 = e2 = np.inf
-        j0 = j1 = j2 = -1
-        if nc >= 0:
-            for e in range(nc):
-                dx = cpx[e] - qx
-                dy = cpy[e] - qy
-                d2 = dx * dx + dy * dy
-                if not d2 < b2:
-                    continue
-                if k != 2:
-                    cnt = _insert(bd, bi, cnt, d2, cj[e])
-                else:
-                    cnt, e0, j0, e1, j1, e2, j2 = _three(cnt, d2, cj[e], e0, j0, e1, j1, e2, j2)
-        else:
+                    nc += start[cy * nx + cx + 1] - start[cy * nx + cx]
+            if nc > cpx.shape[0]:
+                cpx = np.empty(nc)
+                cpy = np.empty(nc)
+                cj = np.empty(nc, np.int64)
+            e = 0
             for cy in range(ay, by + 1):
                 row = cy * nx
                 for cx in range(ax, bx + 1):
                     c = row + cx
                     for s in range(start[c], start[c + 1]):
-                        dx = ps[s, 0] - qx
-                        dy = ps[s, 1] - qy
-                        d2 = dx * dx + dy * dy
-                        if not d2 < b2:
-                            continue
-                        if k != 2:
-                            cnt = _insert(bd, bi, cnt, d2, order[s])
-                        else:
-                            cnt, e0, j0, e1, j1, e2, j2 = _three(cnt, d2, order[s], e0, j0, e1, j1, e2, j2)
+                        cpx[e] = ps[s, 0]
+                        cpy[e] = ps[s, 1]
+                        cj[e] = order[s]
+                        e += 1
+        cnt = 0
+        e0 = e1 = e2 = np.inf
+        j0 = j1 = j2 = -1
+        for e in range(nc):
+            dx = cpx[e] - qx
+            dy = cpy[e] - qy
+            d2 = dx * dx + dy * dy
+            if not d2 < b2:
+                continue
+            if k != 2:
+                cnt = _insert(bd, bi, cnt, d2, cj[e])
+                continue
+            # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
+            j = cj[e]
+            if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
+                continue
+            cnt = min(cnt + 1, 3)
+            if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
+                e2, j2 = e1, j1
+                if d2 < e0 or (d2 == e0 and j < j0):
+                    e1, j1 = e0, j0
+                    e0, j0 = d2, j
+                else:
+                    e1, j1 = d2, j
+            elif cnt >= 2:
+                e2, j2 = d2, j
+            elif cnt == 1:
+                e0, j0 = d2, j
         if k == 2:
             bd[0], bi[0], bd[1], bi[1], bd[2], bi[2] = e0, j0, e1, j1, e2, j2
         for s in range(cnt - 1):
@@ -570,27 +519,6 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
                 found = j
                 best = cost
         out[m] = found
-
-
-@njit(cache=True)
-def _three(cnt, d2, j, e0, j0, e1, j1, e2, j2):
-    """(k = 2, the lookback's: the three nearest in scalars, as _insert keeps them) (d2, j) added
-    to the sorted (e0, j0), (e1, j1), (e2, j2) holding cnt of them."""
-    if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
-        return cnt, e0, j0, e1, j1, e2, j2
-    cnt = min(cnt + 1, 3)
-    if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
-        e2, j2 = e1, j1
-        if d2 < e0 or (d2 == e0 and j < j0):
-            e1, j1 = e0, j0
-            e0, j0 = d2, j
-        else:
-            e1, j1 = d2, j
-    elif cnt >= 2:
-        e2, j2 = d2, j
-    elif cnt == 1:
-        e0, j0 = d2, j
-    return cnt, e0, j0, e1, j1, e2, j2
 
 
 @njit(cache=True)
@@ -766,6 +694,16 @@ def _sort_by_key(o, lo, hi, key, buf, bounds):
 
 
 @njit(cache=True)
+def _argsort(key):
+    """np.argsort(key, kind="stable") of a float array (not NaN) by _sort_by_key (numba's own
+    merge sort costs seconds of compile)."""
+    n = key.shape[0]
+    o = np.arange(n)
+    _sort_by_key(o, 0, n, key, np.empty(n, np.int64), np.empty(n + 1, np.int64))
+    return o
+
+
+@njit(cache=True)
 def sort_within(o, key, s):
     """o (n,) an order by the integer `key` that keeps index order among equal keys (a stable
     argsort), made the order by key, then s (float, not NaN), then index: each run of one key
@@ -829,7 +767,7 @@ def u_trend(rk, pk, u, R):
         for r in range(R):
             _sort_by_key(o, start[r], start[r + 1], key, buf, bounds)
     else:
-        o = np.argsort(key, kind="mergesort")
+        o = _argsort(key)
     for i in range(1, K):
         a = o[i - 1]
         b = o[i]
@@ -982,10 +920,20 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
     xs = np.empty(m)
     for e in range(m):
         xs[e] = pt[e, 0]
-    o = np.argsort(xs, kind="mergesort")
-    cap = 16
-    pa = np.empty(cap, np.int64)
-    pb = np.empty(cap, np.int64)
+    o = _argsort(xs)
+    # The pairs: counted, then listed (two sweeps: no growing arrays, dear to compile).
+    K = 0
+    for i in range(m):
+        lim = xs[o[i]] + (r + 1e-6)
+        for j in range(i + 1, m):
+            if not xs[o[j]] <= lim:
+                break
+            ddx = pt[o[i], 0] - pt[o[j], 0]
+            ddy = pt[o[i], 1] - pt[o[j], 1]
+            if ddx * ddx + ddy * ddy <= r * r:
+                K += 1
+    a = np.empty(K, np.int64)
+    b = np.empty(K, np.int64)
     K = 0
     for i in range(m):
         lim = xs[o[i]] + (r + 1e-6)
@@ -997,19 +945,9 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
             ddx = pt[x, 0] - pt[y, 0]
             ddy = pt[x, 1] - pt[y, 1]
             if ddx * ddx + ddy * ddy <= r * r:
-                if K == cap:
-                    cap *= 2
-                    pa2 = np.empty(cap, np.int64)
-                    pb2 = np.empty(cap, np.int64)
-                    pa2[:K] = pa[:K]
-                    pb2[:K] = pb[:K]
-                    pa = pa2
-                    pb = pb2
-                pa[K] = min(x, y)
-                pb[K] = max(x, y)
+                a[K] = min(x, y)
+                b[K] = max(x, y)
                 K += 1
-    a = pa[:K].copy()
-    b = pb[:K].copy()
     ok = np.zeros(K, np.bool_)
     far = np.zeros(K, np.bool_)
     straight = np.empty(K)
@@ -1088,13 +1026,16 @@ def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt
 
 @njit(cache=True)
 def _sorted_unique(x):
-    x = np.sort(x)
+    """np.unique of integers (|x| < 2**53: exact as floats)."""
+    o = _argsort(x.astype(np.float64))
+    out = np.empty(x.shape[0], x.dtype)
     n = 0
     for j in range(x.shape[0]):
-        if j == 0 or x[j] != x[j - 1]:
-            x[n] = x[j]
+        v = x[o[j]]
+        if n == 0 or v != out[n - 1]:
+            out[n] = v
             n += 1
-    return x[:n].copy()
+    return out[:n].copy()
 
 
 @njit(cache=True)
@@ -1448,19 +1389,14 @@ def line_fit(st, s, u, w, mask, lam, b0):
     return a, b, ok
 
 
-#: vote_groups sorts the ids of a stroke's votes among at most this many distinct ones (else
-#: all votes at once).
-_FEW_IDS = 32
-
-
 @njit(cache=True)
 def vote_groups(st, vid, w):
     """tracking.kalnins.fit_u's vote groups: the distinct (stroke st, id vid) pairs of the votes
-    (V,) (st, vid >= 0) in (stroke, id) order, gkeys (G, 2); each vote's group ginv (V,); each
-    group's weight gw (G,) (w summed in vote order, as np.bincount takes it); primary (G,) the
-    first group of each stroke holding the stroke's most weight
-    (tracking.votes._first_max_per_group). The votes bucketed by stroke, then the few ids of
-    each stroke kept sorted (a sort of (stroke, id) keys is ~5x dearer)."""
+    (V,) (st, vid >= 0, vid < 2**53) in (stroke, id) order, gkeys (G, 2); each vote's group ginv
+    (V,); each group's weight gw (G,) (w summed in vote order, as np.bincount takes it); primary
+    (G,) the first group of each stroke holding the stroke's most weight
+    (tracking.votes._first_max_per_group). The votes bucketed by stroke, each bucket sorted by
+    id (a path's votes come in runs of one id)."""
     V = st.shape[0]
     S = 0
     for i in range(V):
@@ -1476,63 +1412,22 @@ def vote_groups(st, vid, w):
     for i in range(V):
         perm[fill[st[i]]] = i
         fill[st[i]] += 1
+    vf = vid.astype(np.float64)
+    buf = np.empty(V, np.int64)
+    bounds = np.empty(V + 1, np.int64)
     ginv = np.empty(V, np.int64)
     gst = np.empty(V, np.int64)
     gid = np.empty(V, np.int64)
-    ids = np.empty(_FEW_IDS, np.int64)
     G = 0
     for j in range(S):
-        d = 0
+        _sort_by_key(perm, start[j], start[j + 1], vf, buf, bounds)
         for r in range(start[j], start[j + 1]):
-            v = vid[perm[r]]
-            x = 0
-            while x < d and ids[x] < v:
-                x += 1
-            if x < d and ids[x] == v:
-                continue
-            if d == _FEW_IDS:
-                return _vote_groups_sorted(st, vid, w)
-            for y in range(d, x, -1):
-                ids[y] = ids[y - 1]
-            ids[x] = v
-            d += 1
-        for r in range(start[j], start[j + 1]):
-            v = vid[perm[r]]
-            x = 0
-            while ids[x] != v:
-                x += 1
-            ginv[perm[r]] = G + x
-        for x in range(d):
-            gst[G + x] = j
-            gid[G + x] = ids[x]
-        G += d
-    return _group_weights(gst[:G], gid[:G], ginv, w)
-
-
-@njit(cache=True)
-def _vote_groups_sorted(st, vid, w):
-    """vote_groups by one sort of the (stroke, id) keys."""
-    V = st.shape[0]
-    M = 0
-    for i in range(V):
-        if vid[i] > M:
-            M = vid[i]
-    M += 1
-    key = np.empty(V, np.int64)
-    for i in range(V):
-        key[i] = st[i] * M + vid[i]
-    o = np.argsort(key, kind="mergesort")
-    ginv = np.empty(V, np.int64)
-    gst = np.empty(V, np.int64)
-    gid = np.empty(V, np.int64)
-    G = 0
-    for r in range(V):
-        i = o[r]
-        if G == 0 or st[i] != gst[G - 1] or vid[i] != gid[G - 1]:
-            gst[G] = st[i]
-            gid[G] = vid[i]
-            G += 1
-        ginv[i] = G - 1
+            i = perm[r]
+            if r == start[j] or vid[i] != gid[G - 1]:
+                gst[G] = j
+                gid[G] = vid[i]
+                G += 1
+            ginv[i] = G - 1
     return _group_weights(gst[:G], gid[:G], ginv, w)
 
 
@@ -2076,7 +1971,6 @@ def warmup() -> None:
     insert_merge(p, np.zeros((3, 3)), i3, np.zeros(3), G3, np.array([0, 3]), i1, j1, a1, g1, s1, np.zeros((1, 3)))
     line_fit(two, np.ones(2), np.ones(2), np.ones(2), np.ones(2), np.ones(2), 0.1)
     gk, gi, gw, gp = vote_groups(two, two, np.ones(2))
-    _vote_groups_sorted(two, two, np.ones(2))
     to_primary(two, np.ones(2), np.ones(2), np.ones(2), gi, gw, gp, np.ones(2), np.ones(2))
     one, n1, h1, base1 = np.array([0]), np.array([2]), np.array([1.0]), np.array([0, 3])
     k1, a1_ = knot_intervals(n1, h1, base1, one, np.array([0.5]))

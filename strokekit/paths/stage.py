@@ -359,6 +359,8 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     contour = _CONTOUR[kind % N_KINDS].take(D.stroke)  # (per stroke, then per sample)
     if contour.sum() < 2:
         return out
+    if isinstance(tree, SampleGrid) and tree.ok and not tree.index[2] > kernels().COVER_CELL * radius_px:
+        tree = SampleGrid(tree.data, 2.0 * radius_px)  # (the cover's cells must be wider than its radius)
     if isinstance(tree, SampleGrid) and tree.ok:
         if kernels().cover(tree.data, np.ascontiguousarray(D.t), np.ascontiguousarray(D.w, dtype=np.float64),
                            np.ascontiguousarray(sk, dtype=np.int64), contour, np.ascontiguousarray(run, dtype=np.int64),
