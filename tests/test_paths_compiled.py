@@ -478,6 +478,26 @@ def test_stable_sorts_are_numpys():
         assert np.array_equal(_u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
 
 
+def test_gathered_paths_are_gather_paths():
+    from strokekit.paths.stage import _gather_paths
+    from strokekit.tracking.joins import gather_paths
+
+    rng = np.random.default_rng(53)
+    for _ in range(200):
+        S = int(rng.integers(1, 12))
+        counts = rng.integers(1, 6, S)
+        N = int(counts.sum())
+        pts = np.round(rng.random((N, 2)) * 3)  # (coarse: joint points that repeat)
+        st = _strokes(pts, counts)
+        group = rng.integers(0, int(rng.integers(1, S + 1)), S)
+        pos = rng.permutation(S)
+        rev = rng.random(S) < 0.4
+        ref, got = gather_paths(st, group, rev, pos), _gather_paths(st, group, rev, pos)
+        for f in ("order", "c0", "src", "new_g", "joint", "drop", "path_sorted", "first", "n_path"):
+            x, y = getattr(ref, f), getattr(got, f)
+            assert np.array_equal(x, y) and x.dtype == y.dtype, f
+
+
 def test_compiled_u_fit_is_fit_u():
     """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
     what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one

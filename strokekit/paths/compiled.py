@@ -20,7 +20,7 @@ rounding depends on the BLAS kernel.
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
-  links and walk); `hairpins`
+  links and walk); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
@@ -1938,10 +1938,85 @@ def one_label(order, group, label):
     return out, cuts
 
 
+@njit(cache=True)
+def gather(offsets, order, rev, group, P):
+    """tracking.joins.gather_paths after its order (the strokes by path, then position): where
+    each stroke starts in the gathered points c0 (S,), the source point of each gathered point
+    src (repeated joint points left out), the joints and the joints dropped as repeats (gathered
+    indices, before the drop), the path of each stroke in order, each path's first stroke and
+    its points."""
+    S = order.shape[0]
+    c0 = np.empty(S, np.int64)
+    N = 0
+    for k in range(S):
+        c0[k] = N
+        N += offsets[order[k] + 1] - offsets[order[k]]
+    src = np.empty(N, np.int64)
+    path = np.empty(S, np.int64)
+    new_g = np.empty(S, np.bool_)
+    nj = 0
+    npth = 0
+    for k in range(S):
+        q = order[k]
+        a = offsets[q]
+        n = offsets[q + 1] - a
+        for t in range(n):
+            src[c0[k] + t] = a + n - 1 - t if rev[q] else a + t
+        new_g[k] = k == 0 or group[q] != group[order[k - 1]]
+        if new_g[k]:
+            npth += 1
+        else:
+            nj += 1
+        path[k] = npth - 1
+    joint = np.empty(nj, np.int64)
+    first = np.empty(npth, np.int64)
+    n_path = np.zeros(npth, np.int64)
+    nd = 0
+    j = 0
+    for k in range(S):
+        n_path[path[k]] += offsets[order[k] + 1] - offsets[order[k]]
+        if new_g[k]:
+            first[path[k]] = order[k]
+        else:
+            joint[j] = c0[k]
+            j += 1
+            x = src[c0[k]]
+            y = src[c0[k] - 1]
+            dx = P[x, 0] - P[y, 0]
+            dy = P[x, 1] - P[y, 1]
+            if math.sqrt(dx * dx + dy * dy) < 1e-9:
+                nd += 1
+    drop = np.empty(nd, np.int64)
+    d = 0
+    for k in range(S):
+        if not new_g[k]:
+            x = src[c0[k]]
+            y = src[c0[k] - 1]
+            dx = P[x, 0] - P[y, 0]
+            dy = P[x, 1] - P[y, 1]
+            if math.sqrt(dx * dx + dy * dy) < 1e-9:
+                drop[d] = c0[k]
+                d += 1
+                n_path[path[k]] -= 1
+    if nd > 0:
+        kept = np.empty(N - nd, np.int64)
+        d = 0
+        m = 0
+        for t in range(N):
+            if d < nd and drop[d] == t:
+                d += 1
+            else:
+                kept[m] = src[t]
+                m += 1
+        src = kept
+    return c0, src, new_g, joint, drop, path, first, n_path
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
     grid_ok(p)
+    gather(np.array([0, 1, 3]), np.array([1, 0]), np.zeros(2, np.bool_), np.array([0, 0]), p)
     one_label(np.array([0, 1]), np.array([0, 0]), np.array([-1, 1]))
     take_strokes(p, np.zeros((3, 3)), np.zeros(3, np.int64), np.zeros(3), np.array([0, 1, 3]), np.array([1, 0]))
     cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),

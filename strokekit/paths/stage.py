@@ -50,7 +50,7 @@ from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
-from strokekit.tracking.joins import gather_paths, insert_points, rotate_closed
+from strokekit.tracking.joins import GatheredPaths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import PiecewiseU, levels_from_slope
 from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, _unwrap_loop_votes
@@ -461,6 +461,17 @@ def _drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.nda
     return strokes.replace(points=P, surface=X, face=F, u=U, offsets=off), kept
 
 
+def _gather_paths(strokes: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray) -> GatheredPaths:
+    """tracking.joins.gather_paths(strokes, group, rev, pos) (the same), its steps after the sort
+    compiled."""
+    S = len(strokes)
+    # (group, pos) pairs are distinct: one stable sort of group * S + pos is lexsort((pos, group)).
+    order = (group * S + pos).argsort(kind="stable")
+    c0, src, new_g, joint, drop, path, first, n_path = kernels().gather(strokes.offsets, order, np.asarray(rev, bool),
+                                                                        np.asarray(group, np.int64), strokes.points)
+    return GatheredPaths(order, c0, src, new_g, joint, drop, path, first, n_path)
+
+
 def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray, angle_deg: float, tol_px: float):
     """The pieces joined into paths (group, rev, pos of tracking.joins._touching_paths): the points of
     each path in order (reversed pieces backwards; a joint point that repeats the previous one is
@@ -468,7 +479,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     (paths, path (K,) the path of each piece, offset (K,) the arc length (px) of each piece's
     first point along its path (in the order the piece is drawn))."""
     K = len(pieces)
-    g = gather_paths(pieces, group, rev, pos)
+    g = _gather_paths(pieces, group, rev, pos)
     order, c0, src, joint, drop = g.order, g.c0, g.src, g.joint, g.drop
     path_sorted, first, n_path = g.path_sorted, g.first, g.n_path
     P = pieces.points
