@@ -498,6 +498,22 @@ def test_gathered_paths_are_gather_paths():
             assert np.array_equal(x, y) and x.dtype == y.dtype, f
 
 
+def test_jump_order_is_lexsort():
+    rng = np.random.default_rng(59)
+    K = kernels()
+    for trial in range(200):
+        n = int(rng.integers(1, 300))
+        st, vid = rng.integers(0, int(rng.integers(1, 6)), n), rng.integers(0, [2, 30, 10**6][trial % 3], n)
+        s = np.round(rng.random(n) * 10, int(rng.integers(0, 3)))
+        u = s / 3.0 + rng.integers(0, 2, n) * (3 if trial % 2 else 0)
+        o, jumps = K.jump_order(st, vid, s, u, 3.0, 2.0)
+        ref = np.lexsort((s, vid, st))
+        assert np.array_equal(o, ref)
+        same = (st[ref][1:] == st[ref][:-1]) & (vid[ref][1:] == vid[ref][:-1])
+        step = np.diff(u[ref]) - np.diff(s[ref]) / 3.0
+        assert jumps == bool((same & (np.abs(step) >= 2.0) & (np.round(step) != 0)).any())
+
+
 def test_compiled_u_fit_is_fit_u():
     """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
     what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one

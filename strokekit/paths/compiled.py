@@ -722,11 +722,38 @@ def sort_within(o, key, s):
 
 
 @njit(cache=True)
-def jump_order(o, key, st, vid, s, u, P, min_jump):
-    """heal_jumps' order of the votes, np.lexsort((s, vid, st)), from o, key as sort_within takes
-    them (key: st and vid as one integer), and whether a step between two votes of one path and
-    id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to heal)."""
-    o = sort_within(o, key, s)
+def jump_order(st, vid, s, u, P, min_jump):
+    """heal_jumps' order of the votes, np.lexsort((s, vid, st)) (st, vid >= 0, vid < 2**53): by
+    path (bucketed), then id, then s, each sort stable; and whether a step between two votes of
+    one path and id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to
+    heal)."""
+    V = st.shape[0]
+    S = 0
+    for i in range(V):
+        if st[i] + 1 > S:
+            S = st[i] + 1
+    start = np.zeros(S + 1, np.int64)
+    for i in range(V):
+        start[st[i] + 1] += 1
+    for j in range(S):
+        start[j + 1] += start[j]
+    fill = start[:-1].copy()
+    o = np.empty(V, np.int64)
+    for i in range(V):
+        o[fill[st[i]]] = i
+        fill[st[i]] += 1
+    vf = vid.astype(np.float64)
+    buf = np.empty(V, np.int64)
+    bounds = np.empty(V + 1, np.int64)
+    for j in range(S):
+        _sort_by_key(o, start[j], start[j + 1], vf, buf, bounds)
+        g0 = start[j]
+        while g0 < start[j + 1]:
+            g1 = g0 + 1
+            while g1 < start[j + 1] and vid[o[g1]] == vid[o[g0]]:
+                g1 += 1
+            _sort_by_key(o, g0, g1, s, buf, bounds)
+            g0 = g1
     for i in range(1, o.shape[0]):
         a = o[i - 1]
         b = o[i]
@@ -2065,7 +2092,6 @@ def warmup() -> None:
     hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
              0.0, 1.0)
     carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)
-    jump_order(two, np.array([1, 1]), np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]),
-               10.0, 2.0)
+    jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
     cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))

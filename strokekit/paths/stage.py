@@ -589,10 +589,7 @@ def heal_jumps(st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray, w:
     of most of its weight `w`."""
     if len(u) < 2:
         return u
-    # np.lexsort((s, vid, st)): a stable sort by (st, vid) as one integer (cheap: partly in
-    # order), then by s within each (compiled).
-    key = st * (int(vid.max()) + 1) + vid
-    o, jumps = kernels().jump_order(key.argsort(kind="stable"), key, st, vid, s, u, float(P), float(min_jump))
+    o, jumps = kernels().jump_order(st, vid, s, u, float(P), float(min_jump))  # (np.lexsort((s, vid, st)))
     if not jumps:
         return u
     sq, uq, stq, idq = s[o], u[o], st[o], vid[o]
