@@ -392,7 +392,7 @@ def _cover_runs_numpy(cover, smp_piece, path_of, stroke, s, w):
 
 
 def test_covered_runs_and_selections_are_the_numpy_ones():
-    from strokekit.paths.stage import _select
+    from strokekit.paths.stage import _concat_two, _select
 
     rng = np.random.default_rng(41)
     K = kernels()
@@ -418,6 +418,10 @@ def test_covered_runs_and_selections_are_the_numpy_ones():
         a, b = st.select(mask), _select(st, mask)
         for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
             assert np.array_equal(getattr(a, f), getattr(b, f)), f
+        a, b = Strokes.concat([st.select(mask), st.select(~mask)]), _concat_two(st.select(mask), st.select(~mask))
+        for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
+            x, y = getattr(a, f), getattr(b, f)
+            assert np.array_equal(x, y) and x.dtype == y.dtype, f
 
 
 def _one_label_numpy(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> np.ndarray:

@@ -676,7 +676,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             small &= was < o.merge_px
         link_label = p_label.copy()
         link_label[lk[small[inv]]] = -1
-    pieces = _cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
+    pieces = _cut_pieces(_with_kind(lines, drawn_kind), p_line, p_s0, p_s1)
     plen = p_s1 - p_s0
     # Where every vote lands: its piece and arc length within it (on a covered sample, where the
     # covering sample lies).
@@ -812,6 +812,26 @@ def _select(strokes: Strokes, mask: np.ndarray) -> Strokes:
                            ids=strokes.ids[mask], level=strokes.level[mask], level_weight=strokes.level_weight[mask])
 
 
+def _with_kind(strokes: Strokes, kind: np.ndarray) -> Strokes:
+    """strokes.replace(kind=kind), its global arc kept (it depends on the points and offsets
+    alone, which Strokes.replace keeps the other geometry for)."""
+    out = strokes.replace(kind=kind)
+    if "global_arc" in strokes.__dict__:
+        out.__dict__["global_arc"] = strokes.__dict__["global_arc"]
+    return out
+
+
+def _concat_two(a: Strokes, b: Strokes) -> Strokes:
+    """Strokes.concat([a, b]) (the same strokes), its arrays joined directly."""
+    if len(a) == 0 or len(b) == 0:
+        return Strokes.concat([a, b])
+    cat = np.concatenate
+    return a.replace(points=cat((a.points, b.points)), surface=cat((a.surface, b.surface)), face=cat((a.face, b.face)),
+                     u=cat((a.u, b.u)), offsets=cat((a.offsets, b.offsets[1:] + a.offsets[-1])).astype(np.int64),
+                     kind=cat((a.kind, b.kind)), ids=cat((a.ids, b.ids)), level=cat((a.level, b.level)),
+                     level_weight=cat((a.level_weight, b.level_weight)))
+
+
 class PathTracker:
     """Brush paths carried from frame to frame. Call `step` on the frames' lines in order."""
 
@@ -837,7 +857,7 @@ class PathTracker:
             return out
         out, self.next_id = brush_step(self.prev, lines, o, self.next_id)
         # The held paths vote with the drawn ones: one still there next frame takes its id back.
-        self.prev = out.strokes if out.held is None else Strokes.concat([out.strokes, out.held])
+        self.prev = out.strokes if out.held is None else _concat_two(out.strokes, out.held)
         return out
 
 
