@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from strokekit.camera.view import Camera
 from strokekit.lines.strokeops import drop_hairpins, query_tree
 from strokekit.model import Strokes
 from strokekit.paths.grid import SampleGrid
@@ -19,6 +20,7 @@ from strokekit.paths.stage import (
     _FitKernels,
     _insert_points,
     _labels,
+    _link_pieces,
     _lookback,
     _resample,
     _trend,
@@ -92,8 +94,10 @@ def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
         rank = rng.permutation(run.max() + 1)
         tree, grid = query_tree(D.p), SampleGrid(D.p, 3.0)
         for radius in (2.0, 1.0):  # (lattice points: many pairs exactly at the radius)
-            assert np.array_equal(covering_samples(D, kind, run, rank, radius, tree),
-                                  covering_samples(D, kind, run, rank, radius, grid))
+            ref = covering_samples(D, kind, run, rank, radius, tree)
+            assert np.array_equal(ref, covering_samples(D, kind, run, rank, radius, grid))
+            # (cells narrower than the radius: searched sample by sample)
+            assert np.array_equal(ref, covering_samples(D, kind, run, rank, radius, SampleGrid(D.p, 1.5)))
         pa, pb = _points(rng, 30, lattice), _points(rng, 30, lattice)
         assert np.array_equal(on_drawing(tree, pa, pb, D=D), on_drawing(grid, pa, pb, D=D))
         pa, pb = D.p[rng.integers(0, n, 30)], D.p[rng.integers(0, n, 30)]  # (bridges between samples)
@@ -104,6 +108,20 @@ def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
         cam = _Flat()
         m0, q0 = match_samples(src, cam, D, tree, radius_px=6.0, min_tangent_dot=0.65, k=2, return_projected=True,
                                piece_distance=True)
+        m1, q1 = _lookback(src, cam, D, 6.0, 0.65)
+        assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
+
+
+def test_lookback_in_crowded_windows_is_the_trees():
+    """The lookback where a window holds more samples than match_pieces keeps (it then reads the
+    cells again for every query): the tree's matches."""
+    rng = np.random.default_rng(37)
+    for lattice in (False, True):
+        D = _samples(rng, 3000, lattice)
+        src = _samples(rng, 300, lattice)
+        cam = _Flat()
+        m0, q0 = match_samples(src, cam, D, query_tree(D.p), radius_px=6.0, min_tangent_dot=0.65, k=2,
+                               return_projected=True, piece_distance=True)
         m1, q1 = _lookback(src, cam, D, 6.0, 0.65)
         assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
 
@@ -168,11 +186,23 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
             ref = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5)
             got = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5, link=K.link_paths)
             assert all(np.array_equal(x, y) for x, y in zip(ref, got))
+        # the brush paths' linking, its candidates compiled (bridges refused by a rule of their own)
+        kinded = st.replace(kind=rng.integers(0, 2, S).astype(np.int8)) if trial % 3 == 0 else st
+        for tol, other, free in ((2.0, 1.5, 0.5), (1.5, 2.5, 1.0)):
+            def bridge_ok(pa, pb):
+                return np.floor(pa[:, 0] * 3 + pb[:, 1] * 7) % 3 != 0
+            ref = _touching_paths(kinded, tol, 120.0, label=label, other_tol_px=other, bridge_ok=bridge_ok,
+                                  free_px=free, link=K.link_paths)
+            got = _link_pieces(kinded, tol, 120.0, label, other, bridge_ok, free_px=free)
+            assert all(np.array_equal(x, y) for x, y in zip(ref, got))
         at = rng.integers(0, N, int(rng.integers(0, N + 1)))
         ref, kept = drop_hairpins(st, 90.0, 1.0, at=at, return_kept=True)
-        got, kept2 = _drop_hairpins(st, 90.0, 1.0, at)
-        assert np.array_equal(kept, kept2) and np.array_equal(ref.points, got.points)
-        assert np.array_equal(ref.offsets, got.offsets)
+        full = st.replace(surface=rng.random((N, 3)), face=rng.integers(0, 99, N), u=rng.random(N))
+        ref, kept = drop_hairpins(full, 90.0, 1.0, at=at, return_kept=True)
+        got, kept2 = _drop_hairpins(full, 90.0, 1.0, at)
+        assert np.array_equal(kept, kept2)
+        for f in ("points", "surface", "face", "u", "offsets"):
+            assert np.array_equal(getattr(ref, f), getattr(got, f)), f
 
 
 def test_resampling_is_resample_strokes():
@@ -184,10 +214,16 @@ def test_resampling_is_resample_strokes():
         pts = np.cumsum(rng.normal(0, 3.0, (N, 2)), axis=0)
         pts[rng.random(N) < 0.2] = 0.0  # (repeated points: zero-length segments)
         st = _strokes(pts, counts, surface=rng.random((N, 3)), ids=np.arange(S) + 7, u=rng.random(N))
+        # (surface points seen by a perspective camera: some behind it, some on its plane)
+        cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+        X = rng.normal(0, 6.0, (N, 3))
+        X[rng.random(N) < 0.1, 2] = 10.0
+        seen = st.replace(surface=X, camera=cam)
         for step in (1.0, 4.0, 0.3):
-            a, b = resample_strokes(st, step), _resample(st, step)
-            for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
-                assert np.array_equal(getattr(a, f), getattr(b, f)), f
+            for strokes in (st, seen):
+                a, b = resample_strokes(strokes, step), _resample(strokes, step)
+                for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
+                    assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
 
 def test_id_assignment_is_assign_ids():
@@ -283,6 +319,252 @@ def test_u_fit_is_the_numpy_one():
             assert np.array_equal(ref[0].points, got[0].points)
             for x, y in zip((ref[1], ref[2], *ref[3]), (got[1], got[2], *got[3])):
                 assert np.array_equal(x, y)
+
+
+def test_cover_pair_by_pair_is_sample_by_sample():
+    """The cover found pair by pair over neighbouring cells is what a search of every sample's
+    window finds (dense samples, many runs, ranks and distances that tie); cells no wider than
+    the radius are refused (the caller makes wider ones)."""
+    rng = np.random.default_rng(31)
+    K = kernels()
+    sure = 0
+    for trial in range(60):
+        n = int(rng.integers(2, 600))
+        D = _samples(rng, n, trial % 2 == 1)
+        sk = rng.integers(0, 2, n)
+        contour = rng.random(n) < 0.9
+        run = np.cumsum(rng.random(n) < 0.1)
+        rank = rng.permutation(run.max() + 1)
+        grid = SampleGrid(D.p, float(rng.choice([2.5, 3.0, 6.0])))
+        for radius in (2.0, 1.0):
+            args = (D.p, D.t, D.w, sk, contour, run, rank, *grid.index, radius, 0.9)
+            a = np.full(n, -1, np.int64)
+            ok = K.cover(*args, a)
+            assert not ok or np.array_equal(a, _cover_each(*args))  # (not ok: the caller asks the tree)
+            sure += ok
+            assert not K.cover(D.p, D.t, D.w, sk, contour, run, rank, *SampleGrid(D.p, radius).index, radius, 0.9, a)
+    assert sure > 30
+
+
+def _cover_each(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot):
+    """cover's answer sample by sample (every pair within the radius looked at from each side), in
+    plain Python: the rule of paths.stage.covering_samples."""
+    out = np.full(len(p), -1, np.int64)
+    r2 = radius * radius
+    for x in range(len(p)):
+        if not contour[x]:
+            continue
+        best = None
+        for y in range(len(p)):
+            if not contour[y] or run[y] == run[x] or sk[y] != sk[x]:
+                continue
+            ddx, ddy = p[y, 0] - p[x, 0], p[y, 1] - p[x, 1]
+            d2 = ddx * ddx + ddy * ddy
+            if d2 > r2 or not rank_of_run[run[y]] < rank_of_run[run[x]]:
+                continue
+            if not abs(ddx * t[x, 0] + ddy * t[x, 1]) <= 0.5 * (w[x] + w[y]) - 0.25:
+                continue
+            if not abs(t[y, 0] * t[x, 0] + t[y, 1] * t[x, 1]) >= min_dot:
+                continue
+            key = (rank_of_run[run[y]], d2, y)
+            if best is None or key < best:
+                best = key
+        if best is not None:
+            out[x] = best[2]
+    return out
+
+
+def _cover_runs_numpy(cover, smp_piece, path_of, stroke, s, w):
+    """paths.stage._finish's covered runs as numpy steps (the code cover_runs replaced)."""
+    cs = np.flatnonzero(cover >= 0)
+    ck = smp_piece[cover[cs]]
+    cs, ck = cs[ck >= 0], ck[ck >= 0]
+    c_path = path_of[ck]
+    brk = np.r_[True, (np.diff(cs) != 1) | (stroke[cs][1:] != stroke[cs][:-1]) | (c_path[1:] != c_path[:-1])] \
+        if len(cs) else np.zeros(0, bool)
+    f = np.flatnonzero(brk)
+    g = np.r_[f[1:] - 1, len(cs) - 1] if len(f) else f
+    cl = stroke[cs[f]] if len(f) else np.zeros(0, np.int64)
+    c0 = s[cs[f]] - 0.5 * w[cs[f]] if len(f) else np.zeros(0)
+    c1 = s[cs[g]] + 0.5 * w[cs[g]] if len(f) else np.zeros(0)
+    cp = c_path[f] if len(f) else np.zeros(0, np.int64)
+    return cl, c0, c1, cp
+
+
+def test_covered_runs_and_selections_are_the_numpy_ones():
+    from strokekit.paths.stage import _concat_two, _select
+
+    rng = np.random.default_rng(41)
+    K = kernels()
+    for _ in range(100):
+        N = int(rng.integers(1, 300))
+        stroke = np.sort(rng.integers(0, 6, N))
+        w = np.where(rng.random(N) < 0.7, 1.0, rng.random(N))
+        s = np.cumsum(w) - 0.5 * w
+        cover = np.where(rng.random(N) < 0.5, rng.integers(0, N, N), -1)
+        n_pieces = int(rng.integers(1, 10))
+        smp_piece = np.where(rng.random(N) < 0.8, rng.integers(0, n_pieces, N), -1)
+        path_of = rng.integers(0, 4, n_pieces)
+        ref = _cover_runs_numpy(cover, smp_piece, path_of, stroke, s, w)
+        got = K.cover_runs(cover, smp_piece, path_of, stroke, s, w)
+        for x, y in zip(ref, got):
+            assert np.array_equal(x, y) and x.dtype == y.dtype
+        S = int(rng.integers(1, 8))
+        counts = rng.integers(1, 6, S)
+        M = int(counts.sum())
+        st = _strokes(rng.random((M, 2)), counts, surface=rng.random((M, 3)), face=rng.integers(0, 9, M),
+                      u=rng.random(M))
+        mask = rng.random(S) < 0.5
+        a, b = st.select(mask), _select(st, mask)
+        for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+        a, b = Strokes.concat([st.select(mask), st.select(~mask)]), _concat_two(st.select(mask), st.select(~mask))
+        for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
+            x, y = getattr(a, f), getattr(b, f)
+            assert np.array_equal(x, y) and x.dtype == y.dtype, f
+
+
+def _one_label_numpy(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """paths.stage._one_label_per_path as numpy steps (the code one_label replaced)."""
+    K = len(group)
+    order = np.lexsort((pos, group))
+    g, lab = group[order], label[order]
+    start = np.r_[True, g[1:] != g[:-1]]
+    idx = np.arange(K)
+    # Forward fill within the group, then backward fill the leading unlabelled pieces.
+    known = lab >= 0
+    seg = np.cumsum(start) - 1
+    f = np.maximum.accumulate(np.where(known, idx, -1))
+    fl = np.where((f >= 0) & (seg[np.maximum(f, 0)] == seg), lab[np.maximum(f, 0)], -1)
+    b = np.minimum.accumulate(np.where(known, idx, K)[::-1])[::-1]
+    bl = np.where((b < K) & (seg[np.minimum(b, K - 1)] == seg), lab[np.minimum(b, K - 1)], -1)
+    fill = np.where(fl >= 0, fl, bl)
+    cut = start | np.r_[False, (fill[1:] != fill[:-1]) & ~start[1:]]
+    if not cut[~start].any():
+        return group
+    out = np.empty(K, np.int64)
+    out[order] = np.cumsum(cut) - 1
+    return out
+
+
+def test_one_label_per_path_is_the_numpy_one():
+    from strokekit.paths.stage import _one_label_per_path
+
+    rng = np.random.default_rng(43)
+    for _ in range(200):
+        K = int(rng.integers(1, 60))
+        group = rng.integers(0, int(rng.integers(1, 12)), K)
+        pos = rng.permutation(K)
+        label = np.where(rng.random(K) < 0.5, -1, rng.integers(0, 4, K))
+        assert np.array_equal(_one_label_numpy(group, pos, label), _one_label_per_path(group, pos, label))
+
+
+def test_stable_sorts_are_numpys():
+    """_argsort (a natural merge sort) is numpy's stable argsort, in runs, against them, with ties;
+    _sorted_unique is np.unique; u_trend at a scale where its keys' runs could touch sorts all
+    keys at once (the same trend as tracking.votes._u_trend)."""
+    rng = np.random.default_rng(47)
+    K = kernels()
+    for _ in range(200):
+        n = int(rng.integers(0, 300))
+        x = np.round(rng.random(n) * 20, int(rng.integers(0, 3)))
+        cut = np.sort(rng.integers(0, n + 1, int(rng.integers(0, 6))))
+        for a, b in zip(cut[:-1], cut[1:]):  # (runs in order and against it)
+            x[a:b] = np.sort(x[a:b])[:: 1 if rng.random() < 0.5 else -1]
+        assert np.array_equal(K._argsort(x), x.argsort(kind="stable"))
+        xi = rng.integers(-50, 50, n)
+        assert np.array_equal(K._sorted_unique(xi), np.unique(xi))
+    for _ in range(20):
+        n = int(rng.integers(2, 200))
+        a, b = rng.integers(0, 4, n), rng.integers(0, 3, n)
+        s = np.round(rng.random(n) * 10, 1) * 1e12  # (R * top beyond 2**40)
+        u, label = rng.random(n).round(1), rng.integers(0, 3, a.max() + 1)
+        assert np.array_equal(_u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+
+
+def test_gathered_paths_are_gather_paths():
+    from strokekit.paths.stage import _gather_paths
+    from strokekit.tracking.joins import gather_paths
+
+    rng = np.random.default_rng(53)
+    for _ in range(200):
+        S = int(rng.integers(1, 12))
+        counts = rng.integers(1, 6, S)
+        N = int(counts.sum())
+        pts = np.round(rng.random((N, 2)) * 3)  # (coarse: joint points that repeat)
+        st = _strokes(pts, counts)
+        group = rng.integers(0, int(rng.integers(1, S + 1)), S)
+        pos = rng.permutation(S)
+        rev = rng.random(S) < 0.4
+        ref, got = gather_paths(st, group, rev, pos), _gather_paths(st, group, rev, pos)
+        for f in ("order", "c0", "src", "new_g", "joint", "drop", "path_sorted", "first", "n_path"):
+            x, y = getattr(ref, f), getattr(got, f)
+            assert np.array_equal(x, y) and x.dtype == y.dtype, f
+
+
+def test_jump_order_is_lexsort():
+    rng = np.random.default_rng(59)
+    K = kernels()
+    for trial in range(200):
+        n = int(rng.integers(1, 300))
+        st, vid = rng.integers(0, int(rng.integers(1, 6)), n), rng.integers(0, [2, 30, 10**6][trial % 3], n)
+        s = np.round(rng.random(n) * 10, int(rng.integers(0, 3)))
+        u = s / 3.0 + rng.integers(0, 2, n) * (3 if trial % 2 else 0)
+        o, jumps = K.jump_order(st, vid, s, u, 3.0, 2.0)
+        ref = np.lexsort((s, vid, st))
+        assert np.array_equal(o, ref)
+        same = (st[ref][1:] == st[ref][:-1]) & (vid[ref][1:] == vid[ref][:-1])
+        step = np.diff(u[ref]) - np.diff(s[ref]) / 3.0
+        assert jumps == bool((same & (np.abs(step) >= 2.0) & (np.round(step) != 0)).any())
+
+
+def test_compiled_u_fit_is_fit_u():
+    """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
+    what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one
+    stroke too (vote_groups then sorts all of them at once)."""
+    from strokekit.paths.options import path_tracking
+    from strokekit.paths.stage import _fit_u
+    from strokekit.tracking.kalnins import fit_u
+
+    rng = np.random.default_rng(23)
+    for trial in range(60):
+        S = int(rng.integers(1, 6))
+        counts = rng.integers(2, 8, S)
+        N = int(counts.sum())
+        pts = np.cumsum(rng.normal(0, 8.0 if trial % 3 else 40.0, (N, 2)), axis=0)
+        cur = _strokes(pts, counts, surface=rng.random((N, 3)))
+        V = int(rng.integers(1, 300))
+        st = rng.integers(0, S, V)
+        s = rng.random(V) * cur.lengths[st]
+        n_ids = 80 if trial % 4 == 0 else S + 2
+        u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, n_ids, V), rng.random(V)
+        for o in (path_tracking(), path_tracking().__class__(knot_spacing_px=0.0)):
+            ref = fit_u(cur, cur, st, s, u, vid, w, o)
+            got = _fit_u(cur, cur, st, s, u, vid, w, o)
+            assert np.array_equal(ref[0].points, got[0].points) and np.array_equal(ref[0].offsets, got[0].offsets)
+            assert np.array_equal(ref[1], got[1]) and np.array_equal(ref[2], got[2])
+
+
+def test_vote_groups_are_the_numpy_ones():
+    """The compiled vote groups (bucketed by stroke, each bucket sorted by id) are np.unique's
+    groups, their bincount weights and _first_max_per_group's primaries."""
+    from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
+
+    rng = np.random.default_rng(29)
+    for trial in range(100):
+        V = int(rng.integers(1, 400))
+        S = int(rng.integers(1, 20))
+        st = rng.integers(0, S, V)
+        vid = rng.integers(0, [3, 40, 1000][trial % 3], V)
+        w = np.where(rng.random(V) < 0.3, 1.0, rng.random(V))  # (ties of group weights)
+        M = int(vid.max()) + 1
+        ukey, ginv = _unique_inverse(st * M + vid)
+        gw = np.bincount(ginv, weights=w)
+        primary = np.zeros(len(gw), bool)
+        primary[_first_max_per_group(ukey // M, gw)] = True
+        gk, gi, gw2, p2 = kernels().vote_groups(st, vid, w)
+        assert np.array_equal(gk, np.c_[ukey // M, ukey % M]) and np.array_equal(gi, ginv)
+        assert np.array_equal(gw2, gw) and np.array_equal(p2, primary)
 
 
 def test_inserted_points_are_insert_points():

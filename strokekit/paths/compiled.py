@@ -13,18 +13,26 @@ tree's choice then depends on its traversal) or a pair lies within rounding of t
 the caller asks the tree there. Matrix products (surface points, projections) stay numpy's: their
 rounding depends on the BLAS kernel.
 
-* Neighbours on a grid of the samples: `grid_index`; `knn` (the k nearest); `match_pieces` (the
+* Neighbours on a grid of the samples: `grid_ok`, `grid_index`; `knn` (the k nearest); `match_pieces` (the
   lookback, sampling.match_samples with piece distances); `cover` (paths.stage.covering_samples);
   `bridges` (paths.stage.on_drawing).
 * Samples and votes: `resample_at`, `resample_points` (sampling.resample_strokes less its surface
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
-* Paths: `link_paths` (tracking.joins._touching_paths' links and walk); `hairpins`
+* Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
+  links and walk); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
-  fit), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made points).
+  fit), `vote_groups`, `to_primary` (fit_u's vote groups and their shift by whole periods),
+  `knot_intervals`, `piecewise_system`, `piecewise_inliers`, `piecewise_at` (PiecewiseU's fit
+  and evaluation), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made
+  points).
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
+* Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
+  (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers).
+* Covers: `cover_runs` (paths.stage._finish's covered runs); `one_label`
+  (paths.stage._one_label_per_path after its sort).
 """
 
 from __future__ import annotations
@@ -34,9 +42,40 @@ import math
 import numpy as np
 from numba import njit
 
+#: cover's cells must be wider than this times its radius.
+COVER_CELL = 1.001
+
 #: Squared distances within this of the bound are ambiguous for the tree's pair search (it takes
 #: whole node pairs whose box distance, tracked incrementally, is below the bound) (px^2).
 PAIR_SLACK = 1e-6
+
+
+@njit(cache=True)
+def grid_ok(p):
+    """Whether the points p (N, 2) can be put on a grid: N > 0, every coordinate finite and so
+    is the spread (max - min) along each axis (what np.isfinite(p).all() and a finite np.ptp(p,
+    axis=0) say; numpy's reduction along the short axis costs ~0.15 ms on a frame's samples)."""
+    n = p.shape[0]
+    if n == 0:
+        return False
+    x0 = p[0, 0]
+    y0 = p[0, 1]
+    x1 = x0
+    y1 = y0
+    for i in range(n):
+        x = p[i, 0]
+        y = p[i, 1]
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return False
+        if x < x0:
+            x0 = x
+        if x > x1:
+            x1 = x
+        if y < y0:
+            y0 = y
+        if y > y1:
+            y1 = y
+    return math.isfinite(x1 - x0) and math.isfinite(y1 - y0)
 
 
 @njit(cache=True)
@@ -144,58 +183,103 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     several the one of the highest-ranked run, then the nearest, then the lowest index. out (N,)
     is set where one is found (left as it is elsewhere). Returns False where a pair of contour
     samples of two runs lies within PAIR_SLACK of the radius (the tree may count it either
-    way: the caller asks the tree), else True."""
+    way: the caller asks the tree), else True.
+    Each pair is looked at once, cell by cell (a pair's squared distance and its two tests are
+    the same bits either way round: negated differences): the cells must be wider than the
+    radius (COVER_CELL), so that a pair lies in one cell or two neighbouring ones (else False)."""
+    if not radius * COVER_CELL < cell:
+        return False
     r2 = radius * radius
-    # The run (-1: not a contour) and kind of every grid slot, read one after the other below.
     n = p.shape[0]
+    # Per grid slot, read one after the other below: run (-1: not a contour), kind, run rank,
+    # tangent and length.
     run_s = np.empty(n, np.int64)
     sk_s = np.empty(n, np.int64)
-    for s in range(n):
-        j = order[s]
-        run_s[s] = run[j] if contour[j] else -1
-        sk_s[s] = sk[j]
+    rk_s = np.empty(n, np.int64)
+    ts = np.empty((n, 2))
+    w_s = np.empty(n)
+    for q in range(n):
+        j = order[q]
+        run_s[q] = run[j] if contour[j] else -1
+        sk_s[q] = sk[j]
+        rk_s[q] = rank_of_run[run[j]]
+        ts[q, 0] = t[j, 0]
+        ts[q, 1] = t[j, 1]
+        w_s[q] = w[j]
+    best = np.full(n, -1, np.int64)
+    best_rank = np.zeros(n, np.int64)
+    best_d2 = np.zeros(n)
+    for cy in range(ny):
+        for cx in range(nx):
+            c = cy * nx + cx
+            a0 = start[c]
+            a1 = start[c + 1]
+            if a0 == a1:
+                continue
+            # This cell with itself, the next one in its row and the three of the next row.
+            for nb in range(5):
+                if nb == 0:
+                    c2 = c
+                elif nb == 1:
+                    if cx + 1 >= nx:
+                        continue
+                    c2 = c + 1
+                else:
+                    if cy + 1 >= ny:
+                        continue
+                    ex = cx + nb - 3
+                    if ex < 0 or ex >= nx:
+                        continue
+                    c2 = c + nx + nb - 3
+                b1 = start[c2 + 1]
+                for q in range(a0, a1):
+                    rq = run_s[q]
+                    if rq < 0:
+                        continue
+                    qx = ps[q, 0]
+                    qy = ps[q, 1]
+                    for q2 in range(q + 1 if nb == 0 else start[c2], b1):
+                        if run_s[q2] < 0 or run_s[q2] == rq or sk_s[q2] != sk_s[q]:
+                            continue
+                        ddx = ps[q2, 0] - qx
+                        ddy = ps[q2, 1] - qy
+                        d2 = ddx * ddx + ddy * ddy
+                        if d2 > r2 + PAIR_SLACK:
+                            continue
+                        if abs(d2 - r2) <= PAIR_SLACK:
+                            return False
+                        if d2 > r2:
+                            continue
+                        # The sample of the lower-ranked run is the one covered (x), by y.
+                        if rk_s[q2] == rk_s[q]:
+                            continue
+                        if rk_s[q2] < rk_s[q]:
+                            xs = q
+                            ys = q2
+                        else:
+                            xs = q2
+                            ys = q
+                            ddx = -ddx
+                            ddy = -ddy
+                        tx0 = ts[xs, 0]
+                        tx1 = ts[xs, 1]
+                        along = abs(ddx * tx0 + ddy * tx1)
+                        if not along <= 0.5 * (w_s[xs] + w_s[ys]) - 0.25:
+                            continue
+                        if not abs(ts[ys, 0] * tx0 + ts[ys, 1] * tx1) >= min_dot:
+                            continue
+                        x = order[xs]
+                        y = order[ys]
+                        ry = rk_s[ys]
+                        b = best[x]
+                        if b < 0 or ry < best_rank[x] or (ry == best_rank[x] and (d2 < best_d2[x] or (
+                                d2 == best_d2[x] and y < b))):
+                            best[x] = y
+                            best_rank[x] = ry
+                            best_d2[x] = d2
     for x in range(n):
-        if not contour[x]:
-            continue
-        px = p[x, 0]
-        py = p[x, 1]
-        tx0 = t[x, 0]
-        tx1 = t[x, 1]
-        rx = rank_of_run[run[x]]
-        best = -1
-        best_rank = 0
-        best_d2 = 0.0
-        ax, bx = _window(px, x0, cell, radius, nx)
-        ay, by = _window(py, y0, cell, radius, ny)
-        for cy in range(ay, by + 1):
-            row = cy * nx
-            for cx in range(ax, bx + 1):
-                c = row + cx
-                for s in range(start[c], start[c + 1]):
-                    ddx = ps[s, 0] - px
-                    ddy = ps[s, 1] - py
-                    d2 = ddx * ddx + ddy * ddy
-                    if d2 > r2 + PAIR_SLACK or run_s[s] < 0 or run_s[s] == run[x] or sk_s[s] != sk[x]:
-                        continue
-                    y = order[s]  # (not x: x is of its own run)
-                    if abs(d2 - r2) <= PAIR_SLACK:
-                        return False
-                    if d2 > r2:
-                        continue
-                    ry = rank_of_run[run[y]]
-                    if not ry < rx:
-                        continue
-                    along = abs(ddx * tx0 + ddy * tx1)
-                    if not along <= 0.5 * (w[x] + w[y]) - 0.25:
-                        continue
-                    if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
-                        continue
-                    if best < 0 or ry < best_rank or (ry == best_rank and (d2 < best_d2 or (d2 == best_d2 and y < best))):
-                        best = y
-                        best_rank = ry
-                        best_d2 = d2
-        if best >= 0:
-            out[x] = best
+        if best[x] >= 0:
+            out[x] = best[x]
     return True
 
 
@@ -318,6 +402,24 @@ def bridges(pa, pb, step, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bo
 
 
 @njit(cache=True)
+def _window_inv(v, v0, inv, reach, n):
+    """_window with the division by the cell made a product by its inverse `inv` (the margin
+    covers the rounding either way: a window that holds every cell a point within `reach` can
+    lie in, which is all a search needs)."""
+    a = math.floor((v - reach - v0) * inv - 1e-6)
+    b = math.floor((v + reach - v0) * inv + 1e-6)
+    if a < 0:
+        a = 0
+    if b > n - 1:
+        b = n - 1
+    return int(a), int(b)
+
+
+#: match_pieces' first room for the samples of its last window (more: it makes more).
+_WINDOW_CANDIDATES = 256
+
+
+@njit(cache=True)
 def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
     """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
     tangents t (N, 2) and half lengths hw (N,): for every query point q (M, 2) (finite) with
@@ -325,49 +427,72 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
     (|t . st| >= min_dot), the first of least squared distance to its piece of line (across:
     the tree's distance squared less the part along t; beyond its ends along t): out (M,) its
     index, or -1. unsure (M,) set where two of the k + 1 nearest lie at the same distance (the
-    tree's order decides)."""
+    tree's order decides). The samples of a window are gathered once for the queries that
+    follow in the same window (line samples 1 px apart: most of them)."""
     b2 = bound * bound
+    inv = 1.0 / cell
     bd = np.empty(k + 1)
     bi = np.empty(k + 1, np.int64)
+    cpx = np.empty(_WINDOW_CANDIDATES)
+    cpy = np.empty(_WINDOW_CANDIDATES)
+    cj = np.empty(_WINDOW_CANDIDATES, np.int64)
+    nc = -1  # (candidates held: -1 none yet)
+    wax = wbx = way = wby = -1
     for m in range(q.shape[0]):
         qx = q[m, 0]
         qy = q[m, 1]
         s0 = st[m, 0]
         s1 = st[m, 1]
+        ax, bx = _window_inv(qx, x0, inv, bound, nx)
+        ay, by = _window_inv(qy, y0, inv, bound, ny)
+        if nc < 0 or ax != wax or bx != wbx or ay != way or by != wby:
+            wax, wbx, way, wby = ax, bx, ay, by
+            nc = 0
+            for cy in range(ay, by + 1):
+                for cx in range(ax, bx + 1):
+                    nc += start[cy * nx + cx + 1] - start[cy * nx + cx]
+            if nc > cpx.shape[0]:
+                cpx = np.empty(nc)
+                cpy = np.empty(nc)
+                cj = np.empty(nc, np.int64)
+            e = 0
+            for cy in range(ay, by + 1):
+                row = cy * nx
+                for cx in range(ax, bx + 1):
+                    c = row + cx
+                    for s in range(start[c], start[c + 1]):
+                        cpx[e] = ps[s, 0]
+                        cpy[e] = ps[s, 1]
+                        cj[e] = order[s]
+                        e += 1
         cnt = 0
         e0 = e1 = e2 = np.inf
         j0 = j1 = j2 = -1
-        ax, bx = _window(qx, x0, cell, bound, nx)
-        ay, by = _window(qy, y0, cell, bound, ny)
-        for cy in range(ay, by + 1):
-            row = cy * nx
-            for cx in range(ax, bx + 1):
-                c = row + cx
-                for s in range(start[c], start[c + 1]):
-                    dx = ps[s, 0] - qx
-                    dy = ps[s, 1] - qy
-                    d2 = dx * dx + dy * dy
-                    if not d2 < b2:
-                        continue
-                    if k != 2:
-                        cnt = _insert(bd, bi, cnt, d2, order[s])
-                        continue
-                    # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
-                    j = order[s]
-                    if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
-                        continue
-                    cnt = min(cnt + 1, 3)
-                    if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
-                        e2, j2 = e1, j1
-                        if d2 < e0 or (d2 == e0 and j < j0):
-                            e1, j1 = e0, j0
-                            e0, j0 = d2, j
-                        else:
-                            e1, j1 = d2, j
-                    elif cnt >= 2:
-                        e2, j2 = d2, j
-                    elif cnt == 1:
-                        e0, j0 = d2, j
+        for e in range(nc):
+            dx = cpx[e] - qx
+            dy = cpy[e] - qy
+            d2 = dx * dx + dy * dy
+            if not d2 < b2:
+                continue
+            if k != 2:
+                cnt = _insert(bd, bi, cnt, d2, cj[e])
+                continue
+            # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
+            j = cj[e]
+            if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
+                continue
+            cnt = min(cnt + 1, 3)
+            if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
+                e2, j2 = e1, j1
+                if d2 < e0 or (d2 == e0 and j < j0):
+                    e1, j1 = e0, j0
+                    e0, j0 = d2, j
+                else:
+                    e1, j1 = d2, j
+            elif cnt >= 2:
+                e2, j2 = d2, j
+            elif cnt == 1:
+                e0, j0 = d2, j
         if k == 2:
             bd[0], bi[0], bd[1], bi[1], bd[2], bi[2] = e0, j0, e1, j1, e2, j2
         for s in range(cnt - 1):
@@ -504,51 +629,131 @@ def segment_runs(label, stroke, s, w, lengths, min_segment_px):
 
 
 @njit(cache=True)
+def _sort_by_key(o, lo, hi, key, buf, bounds):
+    """o[lo:hi] sorted by key[o[.]] (float, not NaN), stably (equal keys keep their order): a
+    natural merge sort (the votes of a path come in a few runs, one per piece, each in order or
+    against it). buf, bounds: scratch of at least hi - lo and hi - lo + 1 entries."""
+    if hi - lo < 2:
+        return
+    nr = 0
+    i = lo
+    while i < hi:
+        j = i + 1
+        if j < hi and key[o[j]] < key[o[i]]:
+            while j < hi and key[o[j]] < key[o[j - 1]]:
+                j += 1
+            # (strictly decreasing: no ties whose order a reversal would break)
+            a = i
+            b = j - 1
+            while a < b:
+                t = o[a]
+                o[a] = o[b]
+                o[b] = t
+                a += 1
+                b -= 1
+        else:
+            while j < hi and not key[o[j]] < key[o[j - 1]]:
+                j += 1
+        bounds[nr] = i
+        nr += 1
+        i = j
+    bounds[nr] = hi
+    while nr > 1:
+        m = 0
+        k = 0
+        while k < nr:
+            if k + 1 < nr:
+                a0 = bounds[k]
+                a1 = bounds[k + 1]
+                b1 = bounds[k + 2]
+                for q in range(a0, a1):
+                    buf[q - lo] = o[q]
+                x = a0
+                y = a1
+                d = a0
+                while x < a1 and y < b1:
+                    if key[o[y]] < key[buf[x - lo]]:
+                        o[d] = o[y]
+                        y += 1
+                    else:
+                        o[d] = buf[x - lo]
+                        x += 1
+                    d += 1
+                while x < a1:
+                    o[d] = buf[x - lo]
+                    x += 1
+                    d += 1
+                bounds[m] = a0
+                k += 2
+            else:
+                bounds[m] = bounds[k]
+                k += 1
+            m += 1
+        bounds[m] = hi
+        nr = m
+
+
+@njit(cache=True)
+def _argsort(key):
+    """np.argsort(key, kind="stable") of a float array (not NaN) by _sort_by_key (numba's own
+    merge sort costs seconds of compile)."""
+    n = key.shape[0]
+    o = np.arange(n)
+    _sort_by_key(o, 0, n, key, np.empty(n, np.int64), np.empty(n + 1, np.int64))
+    return o
+
+
+@njit(cache=True)
 def sort_within(o, key, s):
     """o (n,) an order by the integer `key` that keeps index order among equal keys (a stable
     argsort), made the order by key, then s (float, not NaN), then index: each run of one key
     sorted by s, stably (np.lexsort((s, key)))."""
     n = o.shape[0]
+    buf = np.empty(n, np.int64)
+    bounds = np.empty(n + 1, np.int64)
     g0 = 0
     while g0 < n:
         g1 = g0 + 1
         while g1 < n and key[o[g1]] == key[o[g0]]:
             g1 += 1
-        up = True
-        down = True
-        for i in range(g0 + 1, g1):
-            if s[o[i]] < s[o[i - 1]]:
-                up = False
-            if not s[o[i]] < s[o[i - 1]]:
-                down = False
-        if down:
-            # (strictly decreasing: no ties whose index order a reversal would break)
-            o[g0:g1] = o[g0:g1][::-1].copy()
-        elif not up:
-            if g1 - g0 > 32:
-                sub = o[g0:g1].copy()
-                oo = np.argsort(s[sub], kind="mergesort")
-                for i in range(g1 - g0):
-                    o[g0 + i] = sub[oo[i]]
-            else:
-                for i in range(g0 + 1, g1):
-                    v = o[i]
-                    sv = s[v]
-                    j = i
-                    while j > g0 and s[o[j - 1]] > sv:
-                        o[j] = o[j - 1]
-                        j -= 1
-                    o[j] = v
+        _sort_by_key(o, g0, g1, s, buf, bounds)
         g0 = g1
     return o
 
 
 @njit(cache=True)
-def jump_order(o, key, st, vid, s, u, P, min_jump):
-    """heal_jumps' order of the votes, np.lexsort((s, vid, st)), from o, key as sort_within takes
-    them (key: st and vid as one integer), and whether a step between two votes of one path and
-    id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to heal)."""
-    o = sort_within(o, key, s)
+def jump_order(st, vid, s, u, P, min_jump):
+    """heal_jumps' order of the votes, np.lexsort((s, vid, st)) (st, vid >= 0, vid < 2**53): by
+    path (bucketed), then id, then s, each sort stable; and whether a step between two votes of
+    one path and id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to
+    heal)."""
+    V = st.shape[0]
+    S = 0
+    for i in range(V):
+        if st[i] + 1 > S:
+            S = st[i] + 1
+    start = np.zeros(S + 1, np.int64)
+    for i in range(V):
+        start[st[i] + 1] += 1
+    for j in range(S):
+        start[j + 1] += start[j]
+    fill = start[:-1].copy()
+    o = np.empty(V, np.int64)
+    for i in range(V):
+        o[fill[st[i]]] = i
+        fill[st[i]] += 1
+    vf = vid.astype(np.float64)
+    buf = np.empty(V, np.int64)
+    bounds = np.empty(V + 1, np.int64)
+    for j in range(S):
+        _sort_by_key(o, start[j], start[j + 1], vf, buf, bounds)
+        g0 = start[j]
+        while g0 < start[j + 1]:
+            g1 = g0 + 1
+            while g1 < start[j + 1] and vid[o[g1]] == vid[o[g0]]:
+                g1 += 1
+            _sort_by_key(o, g0, g1, s, buf, bounds)
+            g0 = g1
     for i in range(1, o.shape[0]):
         a = o[i - 1]
         b = o[i]
@@ -571,7 +776,25 @@ def u_trend(rk, pk, u, R):
     key = np.empty(K)
     for i in range(K):
         key[i] = rk[i] * top + pk[i]
-    o = np.argsort(key, kind="mergesort")
+    if R * top < 2.0 ** 40:
+        # np.argsort(key, kind="mergesort") as the runs' keys lie apart (a run's span is less
+        # than top, whole px apart at this scale): bucketed by run, each bucket sorted by key.
+        start = np.zeros(R + 1, np.int64)
+        for i in range(K):
+            start[rk[i] + 1] += 1
+        for r in range(R):
+            start[r + 1] += start[r]
+        fill = start[:-1].copy()
+        o = np.empty(K, np.int64)
+        for i in range(K):
+            o[fill[rk[i]]] = i
+            fill[rk[i]] += 1
+        buf = np.empty(K, np.int64)
+        bounds = np.empty(K + 1, np.int64)
+        for r in range(R):
+            _sort_by_key(o, start[r], start[r + 1], key, buf, bounds)
+    else:
+        o = _argsort(key)
     for i in range(1, K):
         a = o[i - 1]
         b = o[i]
@@ -679,6 +902,105 @@ def link_paths(a, b, e_run, n, S):
 
 
 @njit(cache=True)
+def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
+    """tracking.joins._touching_paths' candidate links of labelled strokes (label (S,), -1: none),
+    up to its bridge test: the open strokes' ends (e_run (2n,): starts, then ends), their points
+    pt (2n, 2); the pairs a < b (in _close_pair_arrays' order: by the stable x order of pt, then
+    by partner) within max(tol, other) px; per pair whether it may link (ok: two strokes of one
+    kind, turning by at most acos(cos_min), of one label within tol or one unlabelled within
+    other), its cosine of the turn `straight`, its gap, its tier (2 one label, 1 one of them
+    unlabelled, 0 none), and `far` where ok and the gap exceeds free_px (the bridge decides)."""
+    S = offsets.shape[0] - 1
+    n = 0
+    op = np.empty(S, np.int64)
+    for q in range(S):
+        f = offsets[q]
+        la = offsets[q + 1] - 1
+        dx = P[f, 0] - P[la, 0]
+        dy = P[f, 1] - P[la, 1]
+        if not math.sqrt(dx * dx + dy * dy) < 1e-6:
+            op[n] = q
+            n += 1
+    e_run = np.empty(2 * n, np.int64)
+    pt = np.empty((2 * n, 2))
+    d = np.empty((2 * n, 2))
+    for e in range(2 * n):
+        q = op[e % n] if n else 0
+        f = offsets[q]
+        la = offsets[q + 1] - 1
+        if e < n:
+            at = f
+            nb = min(f + 1, la)
+        else:
+            at = la
+            nb = max(la - 1, f)
+        e_run[e] = q
+        pt[e, 0] = P[at, 0]
+        pt[e, 1] = P[at, 1]
+        dx = P[nb, 0] - P[at, 0]
+        dy = P[nb, 1] - P[at, 1]
+        nn = max(math.sqrt(dx * dx + dy * dy), 1e-12)
+        d[e, 0] = dx / nn
+        d[e, 1] = dy / nn
+    r = max(tol, other)
+    m = 2 * n
+    xs = np.empty(m)
+    for e in range(m):
+        xs[e] = pt[e, 0]
+    o = _argsort(xs)
+    # The pairs: counted, then listed (two sweeps: no growing arrays, dear to compile).
+    K = 0
+    for i in range(m):
+        lim = xs[o[i]] + (r + 1e-6)
+        for j in range(i + 1, m):
+            if not xs[o[j]] <= lim:
+                break
+            ddx = pt[o[i], 0] - pt[o[j], 0]
+            ddy = pt[o[i], 1] - pt[o[j], 1]
+            if ddx * ddx + ddy * ddy <= r * r:
+                K += 1
+    a = np.empty(K, np.int64)
+    b = np.empty(K, np.int64)
+    K = 0
+    for i in range(m):
+        lim = xs[o[i]] + (r + 1e-6)
+        for j in range(i + 1, m):
+            if not xs[o[j]] <= lim:
+                break
+            x = o[i]
+            y = o[j]
+            ddx = pt[x, 0] - pt[y, 0]
+            ddy = pt[x, 1] - pt[y, 1]
+            if ddx * ddx + ddy * ddy <= r * r:
+                a[K] = min(x, y)
+                b[K] = max(x, y)
+                K += 1
+    ok = np.zeros(K, np.bool_)
+    far = np.zeros(K, np.bool_)
+    straight = np.empty(K)
+    gap = np.empty(K)
+    tier = np.empty(K, np.int64)
+    for k in range(K):
+        x = a[k]
+        y = b[k]
+        ra = e_run[x]
+        rb = e_run[y]
+        straight[k] = -(d[x, 0] * d[y, 0] + d[x, 1] * d[y, 1])
+        ddx = pt[x, 0] - pt[y, 0]
+        ddy = pt[x, 1] - pt[y, 1]
+        gap[k] = math.sqrt(ddx * ddx + ddy * ddy)
+        la = label[ra]
+        lb = label[rb]
+        same = la == lb and la >= 0
+        tier[k] = 2 * same + ((la < 0) != (lb < 0))
+        good = ra != rb and kind[ra] == kind[rb] and straight[k] >= cos_min
+        good = good and ((same and gap[k] <= tol) or ((la < 0 or lb < 0) and gap[k] <= other))
+        ok[k] = good
+        far[k] = good and gap[k] > free_px
+    return n, e_run, pt, a, b, ok, straight, gap, tier, far
+
+
+@njit(cache=True)
 def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
     """paths.stage.carried_votes from the lookback's matches: rm (M,) the previous path sample
     each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
@@ -731,13 +1053,16 @@ def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt
 
 @njit(cache=True)
 def _sorted_unique(x):
-    x = np.sort(x)
+    """np.unique of integers (|x| < 2**53: exact as floats)."""
+    o = _argsort(x.astype(np.float64))
+    out = np.empty(x.shape[0], x.dtype)
     n = 0
     for j in range(x.shape[0]):
-        if j == 0 or x[j] != x[j - 1]:
-            x[n] = x[j]
+        v = x[o[j]]
+        if n == 0 or v != out[n - 1]:
+            out[n] = v
             n += 1
-    return x[:n].copy()
+    return out[:n].copy()
 
 
 @njit(cache=True)
@@ -836,11 +1161,17 @@ def resample_at(L, step, base, G, offsets):
         wk = L[k] / n[k]
         first = offsets[k]
         last = offsets[k + 1] - 1
+        # G.searchsorted(g, "right") by a walk along the stroke (g increases along it; where
+        # the walk starts, G <= g: G[first] is the stroke's base): the same index.
+        r = max(first, 0)
         for q in range(n[k]):
             sm = (q + 0.5) * wk
             g = sm + base[k]
+            if r > 0 and G[r - 1] > g:  # (not past g: search from the start)
+                r = np.searchsorted(G, g, side="right")
+            while r <= last_g and G[r] <= g:
+                r += 1
             # bracket(G, G.searchsorted(g, "right"), first, last)
-            r = np.searchsorted(G, g, side="right")
             jj = min(max(r, first + 1), max(last, first + 1))
             jj = min(jj, last_g)
             ii = max(jj - 1, first)
@@ -1086,6 +1417,211 @@ def line_fit(st, s, u, w, mask, lam, b0):
 
 
 @njit(cache=True)
+def vote_groups(st, vid, w):
+    """tracking.kalnins.fit_u's vote groups: the distinct (stroke st, id vid) pairs of the votes
+    (V,) (st, vid >= 0, vid < 2**53) in (stroke, id) order, gkeys (G, 2); each vote's group ginv
+    (V,); each group's weight gw (G,) (w summed in vote order, as np.bincount takes it); primary
+    (G,) the first group of each stroke holding the stroke's most weight
+    (tracking.votes._first_max_per_group). The votes bucketed by stroke, each bucket sorted by
+    id (a path's votes come in runs of one id)."""
+    V = st.shape[0]
+    S = 0
+    for i in range(V):
+        if st[i] + 1 > S:
+            S = st[i] + 1
+    start = np.zeros(S + 1, np.int64)
+    for i in range(V):
+        start[st[i] + 1] += 1
+    for j in range(S):
+        start[j + 1] += start[j]
+    fill = start[:-1].copy()
+    perm = np.empty(V, np.int64)
+    for i in range(V):
+        perm[fill[st[i]]] = i
+        fill[st[i]] += 1
+    vf = vid.astype(np.float64)
+    buf = np.empty(V, np.int64)
+    bounds = np.empty(V + 1, np.int64)
+    ginv = np.empty(V, np.int64)
+    gst = np.empty(V, np.int64)
+    gid = np.empty(V, np.int64)
+    G = 0
+    for j in range(S):
+        _sort_by_key(perm, start[j], start[j + 1], vf, buf, bounds)
+        for r in range(start[j], start[j + 1]):
+            i = perm[r]
+            if r == start[j] or vid[i] != gid[G - 1]:
+                gst[G] = j
+                gid[G] = vid[i]
+                G += 1
+            ginv[i] = G - 1
+    return _group_weights(gst[:G], gid[:G], ginv, w)
+
+
+@njit(cache=True)
+def _group_weights(gst, gid, ginv, w):
+    """vote_groups' result from its groups (stroke gst, id gid, in order) and the votes' groups."""
+    G = gst.shape[0]
+    gkeys = np.empty((G, 2), np.int64)
+    for g in range(G):
+        gkeys[g, 0] = gst[g]
+        gkeys[g, 1] = gid[g]
+    gw = np.zeros(G)
+    for i in range(ginv.shape[0]):
+        gw[ginv[i]] += w[i]
+    primary = np.zeros(G, np.bool_)
+    g = 0
+    while g < G:
+        best = g
+        h = g + 1
+        while h < G and gst[h] == gst[g]:
+            if gw[h] > gw[best]:
+                best = h
+            h += 1
+        primary[best] = True
+        g = h
+    return gkeys, ginv, gw, primary
+
+
+@njit(cache=True)
+def to_primary(st, s, u, w, ginv, gw, primary, a, b):
+    """tracking.kalnins.fit_u's shift of the votes u (V,) of other groups than their stroke's
+    primary one by whole periods, towards the line a + b s of their stroke: the group's weighted
+    mean residual (w * res summed in vote order, over max(gw, 1e-12)), rounded."""
+    G = gw.shape[0]
+    acc = np.zeros(G)
+    for i in range(st.shape[0]):
+        res = u[i] - (a[st[i]] + b[st[i]] * s[i])
+        acc[ginv[i]] += w[i] * res
+    shift = np.empty(G)
+    for g in range(G):
+        shift[g] = 0.0 if primary[g] else np.rint(acc[g] / max(gw[g], 1e-12))
+    out = np.empty(st.shape[0])
+    for i in range(st.shape[0]):
+        out[i] = u[i] - shift[ginv[i]]
+    return out
+
+
+@njit(cache=True)
+def knot_intervals(n, h, base, st, s):
+    """tracking.ufit.PiecewiseU's interval of arc length s (V,) on stroke st (V,) (n (S,)
+    intervals of h (S,) px, first knot base (S + 1,)): its first knot k and the fraction a
+    within it."""
+    V = st.shape[0]
+    k = np.empty(V, np.int64)
+    a = np.empty(V)
+    for i in range(V):
+        j_ = st[i]
+        hi = h[j_]
+        x = s[i] / hi if hi > 0 else 0.0
+        f = math.floor(x)
+        hi_j = n[j_] - 1
+        if f < 0:
+            f = 0.0
+        if f > hi_j:
+            f = float(hi_j)
+        j = int(f)
+        k[i] = base[j_] + j
+        r = x - j
+        if r < 0.0:
+            r = 0.0
+        if r > 1.0:
+            r = 1.0
+        a[i] = r
+    return k, a
+
+
+@njit(cache=True)
+def piecewise_system(k, a, w, inlier, u, n, h, base, L, prior_a, prior_b, b0, stretch_weight, bend_weight):
+    """tracking.ufit.PiecewiseU.fit's banded system (band (3, nk), rhs (nk,)) for the votes at
+    knots k, fraction a (knot_intervals), weight w * inlier, value u: its fixed terms
+    (PiecewiseU._fixed_terms: stretch per interval, bend per inner knot, anchor to the line
+    prior_a + prior_b s per knot) made as it makes them, summed with the votes' by band_terms,
+    the rows past the last knot zeroed."""
+    S = n.shape[0]
+    nk = base[S]
+    f0 = np.zeros((6, nk))
+    f1 = np.zeros((3, nk))
+    f2 = np.zeros((1, nk))
+    f3 = np.zeros((3, nk))
+    for j_ in range(S):
+        hs = h[j_]
+        hh = max(hs, 1.0)
+        ws = math.sqrt(stretch_weight / hh)
+        va = -ws
+        vb = ws
+        y = ws * hs * b0
+        wb = math.sqrt(bend_weight * max(L[j_], 1.0))
+        for i in range(n[j_]):
+            kk = base[j_] + i
+            f0[0, kk] = va * va
+            f3[0, kk] = va * y
+            f1[0, kk] = va * vb
+            f0[1, kk + 1] = vb * vb
+            f3[1, kk + 1] = vb * y
+            if i < n[j_] - 1:  # bend, at the inner knot after interval i
+                ba = wb
+                bb = -2 * wb
+                bc = wb
+                f0[2, kk] = ba * ba
+                f1[1, kk] = ba * bb
+                f2[0, kk] = ba * bc
+                f0[3, kk + 1] = bb * bb
+                f1[2, kk + 1] = bb * bc
+                f0[4, kk + 2] = bc * bc
+        for c in range(base[j_], base[j_ + 1]):
+            sk = (c - base[j_]) * h[j_]
+            f0[5, c] = 1e-3 * 1e-3
+            f3[2, c] = 1e-3 * (1e-3 * (prior_a[j_] + prior_b[j_] * sk))
+    wi = np.empty(w.shape[0])
+    for i in range(w.shape[0]):
+        wi[i] = w[i] * inlier[i]
+    band, rhs = band_terms(k, a, wi, u, f0, f1, f2, f3)
+    if nk >= 1:
+        band[1, nk - 1] = 0.0
+    for c in range(max(nk - 2, 0), nk):
+        band[2, c] = 0.0
+    return band, rhs
+
+
+@njit(cache=True)
+def piecewise_inliers(knots, k, a, u, P, outlier_px):
+    """(V,) 1.0 where the vote u lies within outlier_px (px, u in periods of P px) of the
+    piecewise-linear u (knots, at knot k and fraction a: PiecewiseU.eval), else 0.0."""
+    out = np.empty(k.shape[0])
+    for i in range(k.shape[0]):
+        e = knots[k[i]] * (1 - a[i]) + knots[k[i] + 1] * a[i]
+        out[i] = 1.0 if abs(u[i] - e) * P <= outlier_px else 0.0
+    return out
+
+
+@njit(cache=True)
+def piecewise_at(knots, n, h, base, offsets, arc):
+    """PiecewiseU.eval(knots, stroke_of_point, arc) of strokes with point offsets (S + 1,) and
+    the points' arc lengths arc (N,)."""
+    out = np.empty(arc.shape[0])
+    for j_ in range(offsets.shape[0] - 1):
+        hi = h[j_]
+        top = n[j_] - 1
+        for q in range(offsets[j_], offsets[j_ + 1]):
+            x = arc[q] / hi if hi > 0 else 0.0
+            f = math.floor(x)
+            if f < 0:
+                f = 0.0
+            if f > top:
+                f = float(top)
+            j = int(f)
+            r = x - j
+            if r < 0.0:
+                r = 0.0
+            if r > 1.0:
+                r = 1.0
+            kq = base[j_] + j
+            out[q] = knots[kq] * (1 - r) + knots[kq + 1] * r
+    return out
+
+
+@njit(cache=True)
 def insert_at(base, G, offsets, stroke, s):
     """tracking.joins.insert_points' new points: at arc length s (px) of strokes `stroke`, the
     segment i -> j and fraction a holding it, its global arc g; points within 1e-6 px of an
@@ -1275,9 +1811,246 @@ def cut_assemble(P, X, F, lo, n_in, i, j, a, Xe):
     return p, x, fc, off
 
 
+@njit(cache=True)
+def surface_mix(Xi, Xj, zi, zj, a):
+    """sampling.surface_between's perspective-correct mix of the surface points Xi, Xj (K, 3) at
+    screen fraction a (K,), their depths zi, zj (K,) given (numpy's matrix products: their
+    rounding is the BLAS kernel's): where both depths are positive and so is (1 - a) zj + a zi,
+    a becomes a zi / that; the point Xi (1 - a) + Xj a."""
+    K = a.shape[0]
+    out = np.empty((K, 3))
+    for k in range(K):
+        f = a[k]
+        if zi[k] > 0 and zj[k] > 0:
+            den = (1 - f) * zj[k] + f * zi[k]
+            if den > 0:
+                f = f * zi[k] / den
+        g = 1 - f
+        for c in range(3):
+            out[k, c] = Xi[k, c] * g + Xj[k, c] * f
+    return out
+
+
+@njit(cache=True)
+def keep_rows(P, X, F, U, offsets, alive):
+    """lines.strokeops.keep_points: the points (P (N, 2), surface X (N, 3), face F, u U) where
+    alive (N,) is true, and the strokes' new offsets."""
+    S = offsets.shape[0] - 1
+    off = np.empty(S + 1, np.int64)
+    off[0] = 0
+    for k in range(S):
+        c = 0
+        for q in range(offsets[k], offsets[k + 1]):
+            c += alive[q]
+        off[k + 1] = off[k] + c
+    M = off[S]
+    p = np.empty((M, 2))
+    x = np.empty((M, 3))
+    f = np.empty(M, F.dtype)
+    u = np.empty(M, U.dtype)
+    m = 0
+    for q in range(P.shape[0]):
+        if alive[q]:
+            p[m, 0] = P[q, 0]
+            p[m, 1] = P[q, 1]
+            x[m, 0] = X[q, 0]
+            x[m, 1] = X[q, 1]
+            x[m, 2] = X[q, 2]
+            f[m] = F[q]
+            u[m] = U[q]
+            m += 1
+    return p, x, f, u, off
+
+
+@njit(cache=True)
+def take_strokes(P, X, F, U, offsets, which):
+    """The points (P (N, 2), surface X (N, 3), face F, u U) of the strokes `which` (K,), in that
+    order, and their offsets (K + 1,) (Strokes.select's gathers, `which` its mask's indices)."""
+    K = which.shape[0]
+    off = np.empty(K + 1, np.int64)
+    off[0] = 0
+    for k in range(K):
+        off[k + 1] = off[k] + offsets[which[k] + 1] - offsets[which[k]]
+    M = off[K]
+    p = np.empty((M, 2))
+    x = np.empty((M, 3))
+    f = np.empty(M, F.dtype)
+    u = np.empty(M, U.dtype)
+    m = 0
+    for k in range(K):
+        for q in range(offsets[which[k]], offsets[which[k] + 1]):
+            p[m, 0] = P[q, 0]
+            p[m, 1] = P[q, 1]
+            x[m, 0] = X[q, 0]
+            x[m, 1] = X[q, 1]
+            x[m, 2] = X[q, 2]
+            f[m] = F[q]
+            u[m] = U[q]
+            m += 1
+    return p, x, f, u, off
+
+
+@njit(cache=True)
+def cover_runs(cover, smp_piece, path_of, stroke, s, w):
+    """paths.stage._finish's covered runs: the samples covered (cover >= 0) by a sample of a
+    drawn piece (smp_piece of the covering sample >= 0), in runs of consecutive samples of one
+    line covered by one path (path_of the piece's path). Per run: its line, its start and end
+    (px: first sample's s - w / 2, last sample's s + w / 2) and its path."""
+    N = cover.shape[0]
+    cl = np.empty(N, np.int64)
+    c0 = np.empty(N)
+    c1 = np.empty(N)
+    cp = np.empty(N, np.int64)
+    R = 0
+    last = -2
+    for i in range(N):
+        if cover[i] < 0:
+            continue
+        k = smp_piece[cover[i]]
+        if k < 0:
+            continue
+        pth = path_of[k]
+        if R == 0 or i - last != 1 or stroke[i] != stroke[last] or pth != cp[R - 1]:
+            if R > 0:
+                c1[R - 1] = s[last] + 0.5 * w[last]
+            cl[R] = stroke[i]
+            c0[R] = s[i] - 0.5 * w[i]
+            cp[R] = pth
+            R += 1
+        last = i
+    if R > 0:
+        c1[R - 1] = s[last] + 0.5 * w[last]
+    return cl[:R].copy(), c0[:R].copy(), c1[:R].copy(), cp[:R].copy()
+
+
+@njit(cache=True)
+def one_label(order, group, label):
+    """paths.stage._one_label_per_path after its sort (order: the pieces by group, then position):
+    each group's pieces' labels filled forward over the unlabelled ones (-1), then backward
+    before the first labelled one; the group cut where that label changes. Returns the new
+    groups (numbered in order) and whether any cut was made."""
+    K = order.shape[0]
+    fill = np.empty(K, np.int64)
+    start = np.empty(K, np.bool_)
+    g0 = 0
+    while g0 < K:
+        g1 = g0 + 1
+        while g1 < K and group[order[g1]] == group[order[g0]]:
+            g1 += 1
+        cur = -1
+        for i in range(g0, g1):
+            lab = label[order[i]]
+            if lab >= 0:
+                cur = lab
+            fill[i] = cur
+            start[i] = i == g0
+        cur = -1
+        for i in range(g1 - 1, g0 - 1, -1):
+            lab = label[order[i]]
+            if lab >= 0:
+                cur = lab
+            if fill[i] < 0:
+                fill[i] = cur
+        g0 = g1
+    out = np.empty(K, np.int64)
+    cuts = False
+    c = -1
+    for i in range(K):
+        if start[i]:
+            c += 1
+        elif fill[i] != fill[i - 1]:
+            c += 1
+            cuts = True
+        out[order[i]] = c
+    return out, cuts
+
+
+@njit(cache=True)
+def gather(offsets, order, rev, group, P):
+    """tracking.joins.gather_paths after its order (the strokes by path, then position): where
+    each stroke starts in the gathered points c0 (S,), the source point of each gathered point
+    src (repeated joint points left out), the joints and the joints dropped as repeats (gathered
+    indices, before the drop), the path of each stroke in order, each path's first stroke and
+    its points."""
+    S = order.shape[0]
+    c0 = np.empty(S, np.int64)
+    N = 0
+    for k in range(S):
+        c0[k] = N
+        N += offsets[order[k] + 1] - offsets[order[k]]
+    src = np.empty(N, np.int64)
+    path = np.empty(S, np.int64)
+    new_g = np.empty(S, np.bool_)
+    nj = 0
+    npth = 0
+    for k in range(S):
+        q = order[k]
+        a = offsets[q]
+        n = offsets[q + 1] - a
+        for t in range(n):
+            src[c0[k] + t] = a + n - 1 - t if rev[q] else a + t
+        new_g[k] = k == 0 or group[q] != group[order[k - 1]]
+        if new_g[k]:
+            npth += 1
+        else:
+            nj += 1
+        path[k] = npth - 1
+    joint = np.empty(nj, np.int64)
+    first = np.empty(npth, np.int64)
+    n_path = np.zeros(npth, np.int64)
+    nd = 0
+    j = 0
+    for k in range(S):
+        n_path[path[k]] += offsets[order[k] + 1] - offsets[order[k]]
+        if new_g[k]:
+            first[path[k]] = order[k]
+        else:
+            joint[j] = c0[k]
+            j += 1
+            x = src[c0[k]]
+            y = src[c0[k] - 1]
+            dx = P[x, 0] - P[y, 0]
+            dy = P[x, 1] - P[y, 1]
+            if math.sqrt(dx * dx + dy * dy) < 1e-9:
+                nd += 1
+    drop = np.empty(nd, np.int64)
+    d = 0
+    for k in range(S):
+        if not new_g[k]:
+            x = src[c0[k]]
+            y = src[c0[k] - 1]
+            dx = P[x, 0] - P[y, 0]
+            dy = P[x, 1] - P[y, 1]
+            if math.sqrt(dx * dx + dy * dy) < 1e-9:
+                drop[d] = c0[k]
+                d += 1
+                n_path[path[k]] -= 1
+    if nd > 0:
+        kept = np.empty(N - nd, np.int64)
+        d = 0
+        m = 0
+        for t in range(N):
+            if d < nd and drop[d] == t:
+                d += 1
+            else:
+                kept[m] = src[t]
+                m += 1
+        src = kept
+    return c0, src, new_g, joint, drop, path, first, n_path
+
+
 def warmup() -> None:
     """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
     p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
+    grid_ok(p)
+    gather(np.array([0, 1, 3]), np.array([1, 0]), np.zeros(2, np.bool_), np.array([0, 0]), p)
+    one_label(np.array([0, 1]), np.array([0, 0]), np.array([-1, 1]))
+    take_strokes(p, np.zeros((3, 3)), np.zeros(3, np.int64), np.zeros(3), np.array([0, 1, 3]), np.array([1, 0]))
+    cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),
+               np.ones(3))
+    X3 = np.zeros((3, 3))
+    surface_mix(X3, X3, np.ones(3), np.ones(3), np.zeros(3))
+    keep_rows(p, X3, np.zeros(3, np.int64), np.zeros(3), np.array([0, 3]), np.ones(3, np.bool_))
     g = grid_index(p, 2.0)
     out_d2 = np.zeros((2, 2))
     out_i = np.zeros((2, 2), np.int64)
@@ -1289,6 +2062,7 @@ def warmup() -> None:
     segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
     bridges(p[:2], p[1:], 0.5, p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_), np.zeros(2, np.bool_))
     link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
+    link_candidates(p, np.array([0, 1, 3]), np.zeros(2, np.int64), np.array([0, -1]), 2.0, 1.5, 0.0, 2.0)
     two = np.array([0, 1])
     lo, n_in, ci, cj, ca = cut_ends(np.array([0.0, 1.0, 2.0, 4.0]), np.array([0.0, 4.0]), np.array([0, 3, 4]), two,
                                     np.array([0.5, 0.0]), np.array([1.5, 0.0]))
@@ -1298,6 +2072,14 @@ def warmup() -> None:
     i1, j1, a1, g1, s1 = insert_at(np.zeros(1), G3, np.array([0, 3]), np.array([0]), np.array([0.5]))
     insert_merge(p, np.zeros((3, 3)), i3, np.zeros(3), G3, np.array([0, 3]), i1, j1, a1, g1, s1, np.zeros((1, 3)))
     line_fit(two, np.ones(2), np.ones(2), np.ones(2), np.ones(2), np.ones(2), 0.1)
+    gk, gi, gw, gp = vote_groups(two, two, np.ones(2))
+    to_primary(two, np.ones(2), np.ones(2), np.ones(2), gi, gw, gp, np.ones(2), np.ones(2))
+    one, n1, h1, base1 = np.array([0]), np.array([2]), np.array([1.0]), np.array([0, 3])
+    k1, a1_ = knot_intervals(n1, h1, base1, one, np.array([0.5]))
+    piecewise_system(k1, a1_, np.ones(1), np.ones(1), np.ones(1), n1, h1, base1, np.array([2.0]), np.zeros(1),
+                     np.ones(1), 0.1, 1e-3, 1e-2)
+    piecewise_inliers(np.zeros(3), k1, a1_, np.ones(1), 10.0, 3.0)
+    piecewise_at(np.zeros(3), n1, h1, base1, np.array([0, 3]), np.arange(3.0))
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
@@ -1310,7 +2092,6 @@ def warmup() -> None:
     hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
              0.0, 1.0)
     carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)
-    jump_order(two, np.array([1, 1]), np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]),
-               10.0, 2.0)
+    jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
     cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))

@@ -19,10 +19,7 @@ class SampleGrid:
         self.data = np.ascontiguousarray(p, dtype=np.float64)
         self._tree = None
         # (Not finite, a spread or a cell the grid cannot count, or no points: the tree answers everything.)
-        with np.errstate(over="ignore"):
-            spread = np.ptp(self.data, axis=0) if len(self.data) else np.zeros(2)
-        self.ok = (len(self.data) > 0 and bool(np.isfinite(self.data).all()) and 0 < cell_px < np.inf
-                   and bool(np.isfinite(spread).all()))
+        self.ok = 0 < cell_px < np.inf and bool(kernels().grid_ok(self.data.reshape(-1, 2)))
         if self.ok:
             self.index = kernels().grid_index(self.data, float(cell_px))
 

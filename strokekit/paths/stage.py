@@ -35,6 +35,7 @@ The steps, all vectorized over the frame's samples:
 from __future__ import annotations
 
 import numpy as np
+from numpy.linalg import LinAlgError
 
 from strokekit.lines.strokeops import (
     CONTOUR_KINDS,
@@ -49,10 +50,10 @@ from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
-from strokekit.tracking.joins import _touching_paths, gather_paths, insert_points, rotate_closed
+from strokekit.tracking.joins import GatheredPaths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
-from strokekit.tracking.ufit import levels_from_slope
-from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
+from strokekit.tracking.ufit import PiecewiseU, levels_from_slope
+from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, _unwrap_loop_votes
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -109,6 +110,17 @@ def _assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, ca
     return ids, int(next_id)
 
 
+def _surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """surface_between(strokes, i, j, a) (the same points), its steps after the depths compiled."""
+    cam = strokes.camera
+    if cam is None or cam.is_ortho or len(i) == 0:
+        return surface_between(strokes, i, j, a)
+    X = strokes.surface
+    Xi, Xj = X.take(i, axis=0), X.take(j, axis=0)
+    fwd, eye = cam.basis[2], cam.eye_array
+    return kernels().surface_mix(Xi, Xj, (Xi - eye) @ fwd, (Xj - eye) @ fwd, np.asarray(a, float))
+
+
 def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
     """insert_points(strokes, stroke, s) (the same strokes), its loops compiled."""
     if len(stroke) == 0:
@@ -118,7 +130,7 @@ def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strok
     i, j, a, g, st = K.insert_at(base, G, strokes.offsets, np.asarray(stroke, np.int64), np.asarray(s, float))
     if len(i) == 0:
         return strokes
-    Xn = surface_between(strokes, i, j, a)
+    Xn = _surface_between(strokes, i, j, a)
     ok, P, X, F, U, off = K.insert_merge(strokes.points, strokes.surface, strokes.face, strokes.u, G,
                                          strokes.offsets, i, j, a, g, st, Xn)
     if not ok:
@@ -134,6 +146,53 @@ class _FitKernels:
         self.line_fit, self.band_terms, self.insert_points = K.line_fit, K.band_terms, _insert_points
 
 
+def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray,
+           w: np.ndarray, o) -> tuple[Strokes, np.ndarray, np.ndarray]:
+    """fit_u(prev, cur, st, s, u, vid, w, o) less its vote groups (the same strokes, u and
+    slopes), its steps compiled: the vote groups and their shift to the primary one, the
+    piecewise fit's system (PiecewiseU.fit: its fixed terms too; the banded solve stays LAPACK's
+    pbsv) and its evaluation."""
+    if len(st) == 0 or o.knot_spacing_px <= 0:
+        return fit_u(prev, cur, st, s, u, vid, w, o, compiled=_FitKernels(kernels()))[:3]
+    K = kernels()
+    P = cur.period_px
+    L = cur.lengths
+    gkeys, ginv, gw, primary = K.vote_groups(st, vid, w)
+    u = _unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
+    b0 = 1.0 / P
+    lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
+    a, b, ok = K.line_fit(st, s, u, w, primary[ginv].astype(float), lam, b0)
+    # Other groups join the primary one shifted by whole periods (periodic texture).
+    u = K.to_primary(st, s, u, w, ginv, gw, primary, a, b)
+    a, b, ok = K.line_fit(st, s, u, w, np.ones(len(st)), lam, b0)
+    pw = PiecewiseU(L, o.knot_spacing_px)
+    k, f = K.knot_intervals(pw.n, pw.h, pw.base, st, s)
+    inlier = np.ones(len(st))
+    for _ in range(2):
+        band, rhs = K.piecewise_system(k, f, w, inlier, u, pw.n, pw.h, pw.base, L, a, b, b0,
+                                       o.stretch_weight * P * P, o.bend_weight)
+        knots = _solve_banded(band, rhs)
+        inlier = K.piecewise_inliers(knots, k, f, u, P, o.outlier_px)
+    b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
+    # u is interpolated linearly between points downstream: give it the knots as points.
+    cur = _insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
+    u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, cur.arc_length)
+    b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
+    return cur, u_new, b
+
+
+def _solve_banded(band: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """PiecewiseU.fit's solve of its banded system (LAPACK pbsv, as it calls it)."""
+    from scipy.linalg.lapack import dpbsv
+
+    _, x, info = dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
+    if info > 0:
+        raise LinAlgError(f"{info}th leading minor not positive definite")
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
+    return x
+
+
 def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> Strokes:
     """cut_pieces(strokes, stroke, s0, s1) (the same pieces), its loops compiled."""
     K = len(stroke)
@@ -143,7 +202,7 @@ def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.nda
     stroke = np.asarray(stroke, np.int64)
     lo, n_in, i, j, a = kernels().cut_ends(G, base, strokes.offsets, stroke, np.asarray(s0, float),
                                            np.asarray(s1, float))
-    Xe = surface_between(strokes, i, j, a)  # (both ends in one batch, as cut_pieces takes them)
+    Xe = _surface_between(strokes, i, j, a)  # (both ends in one batch, as cut_pieces takes them)
     p, x, f, off = kernels().cut_assemble(strokes.points, strokes.surface, strokes.face, lo, n_in, i, j, a, Xe)
     out = Strokes(points=p, surface=x, face=f, offsets=off, kind=strokes.kind[stroke], ids=np.arange(K, dtype=np.int64),
                   u=None, level=strokes.level[stroke], level_weight=strokes.level_weight[stroke],
@@ -157,7 +216,7 @@ def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Sa
         return resample_strokes(strokes, step_px, with_surface)
     base, G = strokes.global_arc
     stroke, s, w, i, j, a = kernels().resample_at(strokes.lengths, float(step_px), base, G, strokes.offsets)
-    X = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
+    X = _surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
     p, t, u = kernels().resample_points(strokes.points, strokes.u, i, j, a)
     return Samples(p=p, X=X, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
 
@@ -192,8 +251,9 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
     # (int64 both: the kernel's one compiled signature, whatever the kind codes' dtype)
-    cls_v = _kind_class(prev.kind[V.stroke]).astype(np.int64, copy=False)
-    cls_d = _kind_class(lines.kind[D.stroke]).astype(np.int64, copy=False)
+    # (Per stroke, then per sample: the same classes.)
+    cls_v = _kind_class(prev.kind).astype(np.int64, copy=False).take(V.stroke)
+    cls_d = _kind_class(lines.kind).astype(np.int64, copy=False).take(D.stroke)
     step = max(1, int(round(o.reverse_px / o.sample_px)))
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
@@ -296,9 +356,11 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     if radius_px <= 0 or len(D) < 2:
         return out
     sk = kind[D.stroke]
-    contour = _CONTOUR[sk % N_KINDS]
+    contour = _CONTOUR[kind % N_KINDS].take(D.stroke)  # (per stroke, then per sample)
     if contour.sum() < 2:
         return out
+    if isinstance(tree, SampleGrid) and tree.ok and not tree.index[2] > kernels().COVER_CELL * radius_px:
+        tree = SampleGrid(tree.data, 2.0 * radius_px)  # (the cover's cells must be wider than its radius)
     if isinstance(tree, SampleGrid) and tree.ok:
         if kernels().cover(tree.data, np.ascontiguousarray(D.t), np.ascontiguousarray(D.w, dtype=np.float64),
                            np.ascontiguousarray(sk, dtype=np.int64), contour, np.ascontiguousarray(run, dtype=np.int64),
@@ -336,30 +398,38 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     return out
 
 
+def _link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.ndarray, other_tol_px: float,
+                 bridge_ok, free_px: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """_touching_paths(pieces, tol_px, angle_deg, label=label, other_tol_px=other_tol_px,
+    bridge_ok=bridge_ok, free_px=free_px, link=kernels().link_paths) (the same group, rev, pos),
+    its candidate links compiled (link_candidates)."""
+    S = len(pieces)
+    K = kernels()
+    n, e_run, pt, a, b, ok, straight, gap, tier, far = K.link_candidates(
+        pieces.points, pieces.offsets, np.asarray(pieces.kind, np.int64), np.asarray(label, np.int64),
+        float(tol_px), float(other_tol_px), float(np.cos(np.radians(angle_deg))), float(free_px))
+    if len(a) == 0:
+        return np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
+    far = np.flatnonzero(far)
+    if len(far):
+        ok[far] = bridge_ok(pt.take(a[far], axis=0), pt.take(b[far], axis=0))
+    if not ok.any():
+        return np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
+    a, b, straight = a[ok], b[ok], straight[ok]
+    heavy = np.maximum(pieces.lengths[e_run[a]], pieces.lengths[e_run[b]])
+    # The cost of a link: its gap plus 10 px per radian of turn (seed 000's rule).
+    cost = gap[ok] + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))
+    o = np.lexsort((e_run[b], e_run[a], -np.round(heavy, 6), np.round(cost, 6), -tier[ok]))
+    return K.link_paths(a[o], b[o], e_run, n, S)
+
+
 def _one_label_per_path(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> np.ndarray:
     """Groups (paths of pieces, in the order `pos`) cut where the label of their pieces changes, so
     that no path holds two labels: unlabelled pieces (-1) go with the labelled piece before them
     (before the first labelled piece: with the one after). Two paths never merge through a piece
-    that joined both."""
-    K = len(group)
-    order = np.lexsort((pos, group))
-    g, lab = group[order], label[order]
-    start = join_arrays(True, g[1:] != g[:-1])
-    idx = np.arange(K)
-    # Forward fill within the group, then backward fill the leading unlabelled pieces.
-    known = lab >= 0
-    seg = np.cumsum(start) - 1
-    f = np.maximum.accumulate(np.where(known, idx, -1))
-    fl = np.where((f >= 0) & (seg[np.maximum(f, 0)] == seg), lab[np.maximum(f, 0)], -1)
-    b = np.minimum.accumulate(np.where(known, idx, K)[::-1])[::-1]
-    bl = np.where((b < K) & (seg[np.minimum(b, K - 1)] == seg), lab[np.minimum(b, K - 1)], -1)
-    fill = np.where(fl >= 0, fl, bl)
-    cut = start | join_arrays(False, (fill[1:] != fill[:-1]) & ~start[1:])
-    if not cut[~start].any():
-        return group
-    out = np.empty(K, np.int64)
-    out[order] = np.cumsum(cut) - 1
-    return out
+    that joined both. (The fills and cuts compiled: one_label.)"""
+    out, cuts = kernels().one_label(np.lexsort((pos, group)), group, np.asarray(label, np.int64))
+    return out if cuts else group
 
 
 def _reverse(strokes: Strokes, which: np.ndarray) -> Strokes:
@@ -382,7 +452,24 @@ def _drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.nda
         return strokes, np.ones(n, bool)
     kept = kernels().hairpin_points(strokes.points, strokes.offsets, np.asarray(at, np.int64),
                                     np.cos(np.radians(angle_deg)), float(max_px))
-    return (strokes if kept.all() else keep_points(strokes, kept)), kept
+    if kept.all():
+        return strokes, kept
+    if strokes.u is None:
+        return keep_points(strokes, kept), kept
+    P, X, F, U, off = kernels().keep_rows(strokes.points, strokes.surface, strokes.face, strokes.u, strokes.offsets,
+                                          kept)
+    return strokes.replace(points=P, surface=X, face=F, u=U, offsets=off), kept
+
+
+def _gather_paths(strokes: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray) -> GatheredPaths:
+    """tracking.joins.gather_paths(strokes, group, rev, pos) (the same), its steps after the sort
+    compiled."""
+    S = len(strokes)
+    # (group, pos) pairs are distinct: one stable sort of group * S + pos is lexsort((pos, group)).
+    order = (group * S + pos).argsort(kind="stable")
+    c0, src, new_g, joint, drop, path, first, n_path = kernels().gather(strokes.offsets, order, np.asarray(rev, bool),
+                                                                        np.asarray(group, np.int64), strokes.points)
+    return GatheredPaths(order, c0, src, new_g, joint, drop, path, first, n_path)
 
 
 def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray, angle_deg: float, tol_px: float):
@@ -392,7 +479,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     (paths, path (K,) the path of each piece, offset (K,) the arc length (px) of each piece's
     first point along its path (in the order the piece is drawn))."""
     K = len(pieces)
-    g = gather_paths(pieces, group, rev, pos)
+    g = _gather_paths(pieces, group, rev, pos)
     order, c0, src, joint, drop = g.order, g.c0, g.src, g.joint, g.drop
     path_sorted, first, n_path = g.path_sorted, g.first, g.n_path
     P = pieces.points
@@ -502,10 +589,7 @@ def heal_jumps(st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray, w:
     of most of its weight `w`."""
     if len(u) < 2:
         return u
-    # np.lexsort((s, vid, st)): a stable sort by (st, vid) as one integer (cheap: partly in
-    # order), then by s within each (compiled).
-    key = st * (int(vid.max()) + 1) + vid
-    o, jumps = kernels().jump_order(key.argsort(kind="stable"), key, st, vid, s, u, float(P), float(min_jump))
+    o, jumps = kernels().jump_order(st, vid, s, u, float(P), float(min_jump))  # (np.lexsort((s, vid, st)))
     if not jumps:
         return u
     sq, uq, stq, idq = s[o], u[o], st[o], vid[o]
@@ -559,7 +643,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     glen = r_len.copy()
     lab = r_label >= 0
     if lab.any():
-        _, inv = np.unique(r_label[lab], return_inverse=True)
+        _, inv = _unique_inverse(r_label[lab])
         glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
     rank = np.empty(R, np.int64)
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
@@ -580,7 +664,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     link_label = p_label
     lk = np.flatnonzero(p_label >= 0)
     if len(lk) and o.merge_px > 0:
-        ul, inv = np.unique(p_label[lk], return_inverse=True)
+        ul, inv = _unique_inverse(p_label[lk])
         tot = np.bincount(inv, weights=p_s1[lk] - p_s0[lk])
         small = tot < o.merge_px
         if history:
@@ -592,16 +676,15 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             small &= was < o.merge_px
         link_label = p_label.copy()
         link_label[lk[small[inv]]] = -1
-    pieces = _cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
+    pieces = _cut_pieces(_with_kind(lines, drawn_kind), p_line, p_s0, p_s1)
     plen = p_s1 - p_s0
     # Where every vote lands: its piece and arc length within it (on a covered sample, where the
     # covering sample lies).
     ok, vk, s_in = kernels().votes_landing(votes.m, cover, smp_piece, D.s, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
-    group, rev, pos = _touching_paths(pieces, o.join_px, o.join_angle_deg, label=link_label, other_tol_px=o.new_join_px,
-                                      bridge_ok=lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0,
-                                      link=kernels().link_paths)
+    group, rev, pos = _link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
+                                   lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_grid, D)
@@ -614,7 +697,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     lk = np.flatnonzero(p_label >= 0)
     if len(lk):
         M = int(p_label.max()) + 1
-        uk, kinv = np.unique(path_of[lk] * M + p_label[lk], return_inverse=True)
+        uk, kinv = _unique_inverse(path_of[lk] * M + p_label[lk])
         ids, next_id = _assign_ids(S, uk // M, uk % M, np.bincount(kinv, weights=plen[lk]), next_id)
     else:
         ids, next_id = np.arange(next_id, next_id + S, dtype=np.int64), next_id + S
@@ -646,7 +729,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
             shift = np.zeros(S)
             shift[which] = seam
             vs = np.mod(vs - shift[vst], np.where(L > 0, L, 1.0)[vst])
-    paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, to, compiled=_FitKernels(kernels()))
+    paths, u_new, b = _fit_u(prev, paths, vst, vs, vu, vid, vw, to)
     level, weight = levels_from_slope(b, P)
     paths = paths.replace(u=u_new, level=level, level_weight=weight)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
@@ -698,8 +781,8 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
     beside it. Paths where `hold` is true are left out (BrushPaths.held)."""
     held = None
     if hold is not None and hold.any():
-        held = paths.select(hold)
-        paths = paths.select(~hold)
+        held = _select(paths, hold)
+        paths = _select(paths, ~hold)
         new = np.cumsum(~hold) - 1
         keep = ~hold[path_of]
         # (Samples covered by a piece of a held path are left to no path: their piece goes.)
@@ -707,19 +790,8 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
         pmap[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
         smp_piece = pmap[smp_piece]
         p_line, p_s0, p_s1, path_of = p_line[keep], p_s0[keep], p_s1[keep], new[path_of[keep]]
-    cs = np.flatnonzero(cover >= 0)
-    ck = smp_piece[cover[cs]]
-    cs, ck = cs[ck >= 0], ck[ck >= 0]
-    c_path = path_of[ck]
     # Covered samples in runs: same line, same covering path, consecutive samples.
-    brk = join_arrays(True, (np.diff(cs) != 1) | (D.stroke[cs][1:] != D.stroke[cs][:-1]) | (c_path[1:] != c_path[:-1])) \
-        if len(cs) else np.zeros(0, bool)
-    f = np.flatnonzero(brk)
-    g = join_arrays(f[1:] - 1, len(cs) - 1) if len(f) else f
-    cl = D.stroke[cs[f]] if len(f) else np.zeros(0, np.int64)
-    c0 = D.s[cs[f]] - 0.5 * D.w[cs[f]] if len(f) else np.zeros(0)
-    c1 = D.s[cs[g]] + 0.5 * D.w[cs[g]] if len(f) else np.zeros(0)
-    cp = c_path[f] if len(f) else np.zeros(0, np.int64)
+    cl, c0, c1, cp = kernels().cover_runs(cover, smp_piece, path_of, D.stroke, D.s, D.w)
     allp = join_arrays(path_of, cp)
     alll = join_arrays(p_line, cl)
     all0 = join_arrays(p_s0, c0)
@@ -730,6 +802,34 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
     return BrushPaths(strokes=paths, lines=lines, cover_offsets=join_arrays(0, counts.cumsum()).astype(np.int64),
                       cover_line=alll[o].astype(np.int64), cover_s0=all0[o], cover_s1=all1[o], cover_drawn=drawn[o],
                       held=held)
+
+
+def _select(strokes: Strokes, mask: np.ndarray) -> Strokes:
+    """strokes.select(mask) (the same strokes), its gathers compiled."""
+    P, X, F, U, off = kernels().take_strokes(strokes.points, strokes.surface, strokes.face, strokes.u,
+                                             strokes.offsets, np.flatnonzero(mask))
+    return strokes.replace(points=P, surface=X, face=F, u=U, offsets=off, kind=strokes.kind[mask],
+                           ids=strokes.ids[mask], level=strokes.level[mask], level_weight=strokes.level_weight[mask])
+
+
+def _with_kind(strokes: Strokes, kind: np.ndarray) -> Strokes:
+    """strokes.replace(kind=kind), its global arc kept (it depends on the points and offsets
+    alone, which Strokes.replace keeps the other geometry for)."""
+    out = strokes.replace(kind=kind)
+    if "global_arc" in strokes.__dict__:
+        out.__dict__["global_arc"] = strokes.__dict__["global_arc"]
+    return out
+
+
+def _concat_two(a: Strokes, b: Strokes) -> Strokes:
+    """Strokes.concat([a, b]) (the same strokes), its arrays joined directly."""
+    if len(a) == 0 or len(b) == 0:
+        return Strokes.concat([a, b])
+    cat = np.concatenate
+    return a.replace(points=cat((a.points, b.points)), surface=cat((a.surface, b.surface)), face=cat((a.face, b.face)),
+                     u=cat((a.u, b.u)), offsets=cat((a.offsets, b.offsets[1:] + a.offsets[-1])).astype(np.int64),
+                     kind=cat((a.kind, b.kind)), ids=cat((a.ids, b.ids)), level=cat((a.level, b.level)),
+                     level_weight=cat((a.level_weight, b.level_weight)))
 
 
 class PathTracker:
@@ -757,7 +857,7 @@ class PathTracker:
             return out
         out, self.next_id = brush_step(self.prev, lines, o, self.next_id)
         # The held paths vote with the drawn ones: one still there next frame takes its id back.
-        self.prev = out.strokes if out.held is None else Strokes.concat([out.strokes, out.held])
+        self.prev = out.strokes if out.held is None else _concat_two(out.strokes, out.held)
         return out
 
 
