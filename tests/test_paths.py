@@ -354,3 +354,69 @@ def test_a_held_strand_is_drawn_with_its_id_from_the_next_frame():
     for b in out[2:]:
         short = b.strokes.ids[np.argmin(b.strokes.lengths)]
         assert short == held_id[0]
+
+
+@pytest.mark.parametrize("kinds", [("crease", "silhouette"), ("silhouette", "crease")])
+def test_a_path_keeps_its_id_when_its_line_changes_kind(kinds):
+    """A sharp edge drawn as a crease until the outline runs along it, then as silhouette (or the
+    other way round): the same line, another kind class, so it carries no label of the previous
+    frame's path; its votes of the other class still claim that path's id, so the path keeps it.
+    A second line that stays a crease keeps its own id."""
+    from strokekit.camera.view import Camera
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+
+    def segment(y):
+        world = np.column_stack([np.linspace(-2.0, 2.0, 200), np.full(200, y), np.zeros(200)])
+        return cam.project(world)[0], world
+
+    def frame(k, kind):
+        parts = [segment(0.0), segment(1.0)]
+        offsets = np.cumsum([0] + [len(p) for p, _ in parts])
+        return Strokes.build(np.vstack([p for p, _ in parts]), np.vstack([w for _, w in parts]),
+                             np.zeros(offsets[-1]), offsets, [KIND_INDEX[kind], KIND_INDEX["crease"]], camera=cam,
+                             frame=k)
+
+    tracker = PathTracker()
+    out = [tracker.step(frame(k, kinds[k >= 2])) for k in (1, 2, 3)]
+    y0 = out[0].strokes.surface[out[0].strokes.offsets[:-1], 1]  # (world y of each path: which line it is)
+    changed, kept = int(out[0].strokes.ids[np.argmin(y0)]), int(out[0].strokes.ids[np.argmax(y0)])
+    for b in out[1:]:
+        s = b.strokes
+        assert len(s) == 2
+        y = s.surface[s.offsets[:-1], 1]
+        assert int(s.ids[np.argmin(y)]) == changed, "the line that changed kind keeps its path's id"
+        assert int(s.ids[np.argmax(y)]) == kept
+        assert s.kind[np.argmin(y)] == KIND_INDEX[kinds[1]]
+
+
+def test_a_silhouette_covers_a_crease_beside_it():
+    """A sharp edge 1 px beside the outline (the face between them edge on) is one line drawn
+    twice: a crease run of CREASE_COVER_MIN_PX or more beside a silhouette is covered by it (one
+    path, the crease listed among its covered pieces); two creases side by side stay two lines,
+    and a crease never covers a silhouette."""
+    from strokekit.camera.view import Camera
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+    px = cam.focal_px / 10.0
+
+    def frame(kinds, lengths_px):
+        parts = []
+        for k, L in enumerate(lengths_px):
+            world = np.column_stack([np.linspace(-L / (2 * px), L / (2 * px), 100), np.full(100, k / px),
+                                     np.zeros(100)])
+            parts.append((cam.project(world)[0], world))
+        offsets = np.cumsum([0] + [len(p) for p, _ in parts])
+        return Strokes.build(np.vstack([p for p, _ in parts]), np.vstack([w for _, w in parts]),
+                             np.zeros(offsets[-1]), offsets, [KIND_INDEX[k] for k in kinds], camera=cam, frame=1)
+
+    b = PathTracker().step(frame(["silhouette", "crease"], [100.0, 100.0]))
+    assert len(b.strokes) == 1 and b.strokes.kind[0] == KIND_INDEX["silhouette"]
+    assert {(line, drawn) for line, _, _, drawn in b.covers(0)} == {(0, True), (1, False)}
+    # The crease is the longer line: still covered where it runs beside the silhouette, and it
+    # covers nothing.
+    b = PathTracker().step(frame(["crease", "silhouette"], [100.0, 40.0]))
+    sil = np.flatnonzero(b.strokes.kind == KIND_INDEX["silhouette"])
+    assert len(sil) == 1 and b.strokes.lengths[sil[0]] == pytest.approx(40.0, abs=1.0)
+    assert sum(b.strokes.lengths) < 110.0
+    assert len(PathTracker().step(frame(["crease", "crease"], [100.0, 100.0])).strokes) == 2
