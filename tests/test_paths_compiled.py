@@ -65,6 +65,22 @@ def _strokes(pts, counts, surface=None, face=None, ids=None, u=None) -> Strokes:
                    level_weight=np.ones(S), camera=None, frame=0, period_px=10.0)
 
 
+@pytest.mark.parametrize("lattice", [True, False])
+def test_grid_cells_hold_their_points_in_index_order(lattice):
+    """grid_index: every cell's points in index order (a stable sort by cell), and their
+    coordinates in that order."""
+    rng = np.random.default_rng(7)
+    for cell in (0.5, 2.0, 3.0):
+        p = _points(rng, 500, lattice).astype(float)
+        x0, y0, c, nx, ny, start, order, ps = kernels().grid_index(p, cell)
+        cx = np.minimum(((p[:, 0] - x0) / c).astype(np.int64), nx - 1)
+        cy = np.minimum(((p[:, 1] - y0) / c).astype(np.int64), ny - 1)
+        key = cy * nx + cx
+        np.testing.assert_array_equal(order, np.argsort(key, kind="stable"))
+        np.testing.assert_array_equal(start, np.concatenate(([0], np.bincount(key, minlength=nx * ny).cumsum())))
+        np.testing.assert_array_equal(ps, p[order])
+
+
 @pytest.mark.parametrize("lattice", [False, True])
 def test_grid_queries_are_the_trees(lattice):
     rng = np.random.default_rng(1 + lattice)

@@ -112,23 +112,23 @@ def grid_index(p, cell):
     ny = int(fy)
     start = np.zeros(nx * ny + 1, np.int64)
     key = np.empty(n, np.int64)
+    rank = np.empty(n, np.int64)  # (each point's place among the earlier points of its cell)
     for i in range(n):
         cx = min(int((p[i, 0] - x0) / cell), nx - 1)
         cy = min(int((p[i, 1] - y0) / cell), ny - 1)
         c = cy * nx + cx
         key[i] = c
+        rank[i] = start[c + 1]
         start[c + 1] += 1
     for c in range(nx * ny):
         start[c + 1] += start[c]
-    fill = start[:-1].copy()
     order = np.empty(n, np.int64)
     ps = np.empty((n, 2))
     for i in range(n):
-        c = key[i]
-        order[fill[c]] = i
-        ps[fill[c], 0] = p[i, 0]
-        ps[fill[c], 1] = p[i, 1]
-        fill[c] += 1
+        at = start[key[i]] + rank[i]
+        order[at] = i
+        ps[at, 0] = p[i, 0]
+        ps[at, 1] = p[i, 1]
     return x0, y0, cell, nx, ny, start, order, ps
 
 
