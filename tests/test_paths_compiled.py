@@ -14,6 +14,7 @@ from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.stage import (
     Votes,
+    _arcs,
     _assign_ids,
     _cut_pieces,
     _drop_hairpins,
@@ -63,6 +64,39 @@ def _strokes(pts, counts, surface=None, face=None, ids=None, u=None) -> Strokes:
                    offsets=np.r_[0, np.cumsum(counts)].astype(np.int64), kind=np.zeros(S, np.int64),
                    ids=np.arange(S) if ids is None else ids, u=np.zeros(N) if u is None else u, level=np.zeros(S),
                    level_weight=np.ones(S), camera=None, frame=0, period_px=10.0)
+
+
+def test_arcs_are_the_strokes_own():
+    """_arcs (the kernel arcs): Strokes' segment_lengths, arc_length, lengths and global_arc, to
+    the bit; strokes with an empty one are left to the properties."""
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        counts = rng.integers(1, 9, int(rng.integers(1, 12)))
+        pts = rng.random((int(counts.sum()), 2)) * rng.choice([1.0, 1e3])
+        mine, ref = _arcs(_strokes(pts, counts)), _strokes(pts, counts)
+        assert "global_arc" in mine.__dict__
+        for k in ("segment_lengths", "arc_length", "lengths"):
+            np.testing.assert_array_equal(getattr(mine, k), getattr(ref, k))
+        for a, b in zip(mine.global_arc, ref.global_arc):
+            np.testing.assert_array_equal(a, b)
+    empty = _arcs(_strokes(np.zeros((2, 2)), np.array([2, 0])))
+    assert "segment_lengths" not in empty.__dict__
+
+
+@pytest.mark.parametrize("lattice", [True, False])
+def test_grid_cells_hold_their_points_in_index_order(lattice):
+    """grid_index: every cell's points in index order (a stable sort by cell), and their
+    coordinates in that order."""
+    rng = np.random.default_rng(7)
+    for cell in (0.5, 2.0, 3.0):
+        p = _points(rng, 500, lattice).astype(float)
+        x0, y0, c, nx, ny, start, order, ps = kernels().grid_index(p, cell)
+        cx = np.minimum(((p[:, 0] - x0) / c).astype(np.int64), nx - 1)
+        cy = np.minimum(((p[:, 1] - y0) / c).astype(np.int64), ny - 1)
+        key = cy * nx + cx
+        np.testing.assert_array_equal(order, np.argsort(key, kind="stable"))
+        np.testing.assert_array_equal(start, np.concatenate(([0], np.bincount(key, minlength=nx * ny).cumsum())))
+        np.testing.assert_array_equal(ps, p[order])
 
 
 @pytest.mark.parametrize("lattice", [False, True])

@@ -30,7 +30,8 @@ rounding depends on the BLAS kernel.
   points).
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
-  (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers).
+  (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers); `arcs` (Strokes'
+  arc lengths and global arc).
 * Covers: `cover_runs` (paths.stage._finish's covered runs); `one_label`
   (paths.stage._one_label_per_path after its sort).
 """
@@ -112,23 +113,23 @@ def grid_index(p, cell):
     ny = int(fy)
     start = np.zeros(nx * ny + 1, np.int64)
     key = np.empty(n, np.int64)
+    rank = np.empty(n, np.int64)  # (each point's place among the earlier points of its cell)
     for i in range(n):
         cx = min(int((p[i, 0] - x0) / cell), nx - 1)
         cy = min(int((p[i, 1] - y0) / cell), ny - 1)
         c = cy * nx + cx
         key[i] = c
+        rank[i] = start[c + 1]
         start[c + 1] += 1
     for c in range(nx * ny):
         start[c + 1] += start[c]
-    fill = start[:-1].copy()
     order = np.empty(n, np.int64)
     ps = np.empty((n, 2))
     for i in range(n):
-        c = key[i]
-        order[fill[c]] = i
-        ps[fill[c], 0] = p[i, 0]
-        ps[fill[c], 1] = p[i, 1]
-        fill[c] += 1
+        at = start[key[i]] + rank[i]
+        order[at] = i
+        ps[at, 0] = p[i, 0]
+        ps[at, 1] = p[i, 1]
     return x0, y0, cell, nx, ny, start, order, ps
 
 
@@ -1863,6 +1864,41 @@ def keep_rows(P, X, F, U, offsets, alive):
 
 
 @njit(cache=True)
+def arcs(P, offsets, seg, arc, L, base, G):
+    """Strokes' arc caches, the same bits (model.Strokes), into seg (N,) (zeros): segment_lengths
+    (row_norm of the differences, 0 at each stroke's first point), arc (N,): arc_length (their
+    running sum less its value at the stroke's first point), L (S,): lengths, base (S,), G (N,):
+    global_arc. Returns False (nothing computed) where a stroke has no point."""
+    N = P.shape[0]
+    S = offsets.shape[0] - 1
+    for k in range(S):
+        if offsets[k + 1] <= offsets[k]:
+            return False
+    for i in range(1, N):
+        dx = P[i, 0] - P[i - 1, 0]
+        dy = P[i, 1] - P[i - 1, 1]
+        seg[i] = math.sqrt(dx * dx + dy * dy)
+    for k in range(S):
+        seg[offsets[k]] = 0.0
+    c = 0.0
+    for i in range(N):  # (arc_length: the running sum over all strokes, as cumsum takes it)
+        c += seg[i]
+        arc[i] = c
+    b = 0.0
+    for k in range(S):
+        c0 = arc[offsets[k]]
+        for i in range(offsets[k], offsets[k + 1]):
+            arc[i] = arc[i] - c0
+        L[k] = arc[offsets[k + 1] - 1]
+        if k > 0:
+            b += L[k - 1] + 1.0
+        base[k] = b
+        for i in range(offsets[k], offsets[k + 1]):
+            G[i] = arc[i] + b
+    return True
+
+
+@njit(cache=True)
 def take_strokes(P, X, F, U, offsets, which):
     """The points (P (N, 2), surface X (N, 3), face F, u U) of the strokes `which` (K,), in that
     order, and their offsets (K + 1,) (Strokes.select's gathers, `which` its mask's indices)."""
@@ -2046,6 +2082,7 @@ def warmup() -> None:
     gather(np.array([0, 1, 3]), np.array([1, 0]), np.zeros(2, np.bool_), np.array([0, 0]), p)
     one_label(np.array([0, 1]), np.array([0, 0]), np.array([-1, 1]))
     take_strokes(p, np.zeros((3, 3)), np.zeros(3, np.int64), np.zeros(3), np.array([0, 1, 3]), np.array([1, 0]))
+    arcs(p, np.array([0, 1, 3]), np.zeros(3), np.zeros(3), np.zeros(2), np.zeros(2), np.zeros(3))
     cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),
                np.ones(3))
     X3 = np.zeros((3, 3))

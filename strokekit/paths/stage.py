@@ -123,6 +123,23 @@ def _assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, ca
     return ids, int(next_id)
 
 
+def _arcs(strokes: Strokes) -> Strokes:
+    """`strokes` with its arc caches (segment_lengths, arc_length, lengths, global_arc) filled in one
+    compiled pass (Strokes' own, the same bits) where none is yet; returns it."""
+    d = strokes.__dict__
+    if "segment_lengths" in d or len(strokes) == 0:
+        return strokes
+    P, off = strokes.points, strokes.offsets
+    if not (P.dtype == np.float64 and P.ndim == 2 and P.shape[1] == 2 and P.flags.c_contiguous
+            and off.dtype == np.int64 and off.flags.c_contiguous):
+        return strokes
+    N, S = len(P), len(off) - 1
+    seg, arc, L, base, G = np.zeros(N), np.empty(N), np.empty(S), np.empty(S), np.empty(N)
+    if kernels().arcs(P, off, seg, arc, L, base, G):
+        d["segment_lengths"], d["arc_length"], d["lengths"], d["global_arc"] = seg, arc, L, (base, G)
+    return strokes
+
+
 def _surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray) -> np.ndarray:
     """surface_between(strokes, i, j, a) (the same points), its steps after the depths compiled."""
     cam = strokes.camera
@@ -202,7 +219,7 @@ def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.nda
         return fit_u(prev, cur, st, s, u, vid, w, o, compiled=_FitKernels(kernels()))[:3]
     K = kernels()
     P = cur.period_px
-    L = cur.lengths
+    L = _arcs(cur).lengths
     gkeys, ginv, gw, primary = K.vote_groups(st, vid, w)
     u = _unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
     b0 = 1.0 / P
@@ -222,7 +239,7 @@ def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.nda
     b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
     # u is interpolated linearly between points downstream: give it the knots as points.
     cur = _insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
-    u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, cur.arc_length)
+    u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, _arcs(cur).arc_length)
     b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
     return cur, u_new, b
 
@@ -253,14 +270,14 @@ def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.nda
     out = Strokes(points=p, surface=x, face=f, offsets=off, kind=strokes.kind[stroke], ids=np.arange(K, dtype=np.int64),
                   u=None, level=strokes.level[stroke], level_weight=strokes.level_weight[stroke],
                   camera=strokes.camera, frame=strokes.frame, period_px=strokes.period_px)
-    return out.replace(u=out.arc_length / out.period_px)
+    return out.replace(u=_arcs(out).arc_length / out.period_px)
 
 
 def _resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
     """resample_strokes(strokes, step_px, with_surface) (the same samples), its loops compiled."""
     if len(strokes) == 0 or len(strokes.points) == 0:
         return resample_strokes(strokes, step_px, with_surface)
-    base, G = strokes.global_arc
+    base, G = _arcs(strokes).global_arc
     stroke, s, w, i, j, a = kernels().resample_at(strokes.lengths, float(step_px), base, G, strokes.offsets)
     X = _surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
     p, t, u = kernels().resample_points(strokes.points, strokes.u, i, j, a)
@@ -561,7 +578,7 @@ def _concat(pieces: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray
     at = c0 - np.searchsorted(drop, c0, side="right")
     at = np.maximum(np.cumsum(kept)[at] - 1, paths.offsets[:-1][path_sorted])
     offset = np.empty(K)
-    offset[order] = paths.arc_length[at]
+    offset[order] = _arcs(paths).arc_length[at]
     path = np.empty(K, np.int64)
     path[order] = path_sorted
     return paths, path, offset
