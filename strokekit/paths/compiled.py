@@ -22,7 +22,7 @@ rounding depends on the BLAS kernel.
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
   links and walk); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
-* u: `sort_within`, `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
+* u: `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
   fit), `vote_groups`, `to_primary` (fit_u's vote groups and their shift by whole periods),
   `knot_intervals`, `piecewise_system`, `piecewise_inliers`, `piecewise_at` (PiecewiseU's fit
@@ -705,29 +705,9 @@ def _argsort(key):
 
 
 @njit(cache=True)
-def sort_within(o, key, s):
-    """o (n,) an order by the integer `key` that keeps index order among equal keys (a stable
-    argsort), made the order by key, then s (float, not NaN), then index: each run of one key
-    sorted by s, stably (np.lexsort((s, key)))."""
-    n = o.shape[0]
-    buf = np.empty(n, np.int64)
-    bounds = np.empty(n + 1, np.int64)
-    g0 = 0
-    while g0 < n:
-        g1 = g0 + 1
-        while g1 < n and key[o[g1]] == key[o[g0]]:
-            g1 += 1
-        _sort_by_key(o, g0, g1, s, buf, bounds)
-        g0 = g1
-    return o
-
-
-@njit(cache=True)
-def jump_order(st, vid, s, u, P, min_jump):
-    """heal_jumps' order of the votes, np.lexsort((s, vid, st)) (st, vid >= 0, vid < 2**53): by
-    path (bucketed), then id, then s, each sort stable; and whether a step between two votes of
-    one path and id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to
-    heal)."""
+def _buckets(st):
+    """The indices of st (V,) (values >= 0) bucketed by value, stably: (S = max + 1, start (S + 1,)
+    where bucket j begins, order (V,))."""
     V = st.shape[0]
     S = 0
     for i in range(V):
@@ -739,10 +719,21 @@ def jump_order(st, vid, s, u, P, min_jump):
     for j in range(S):
         start[j + 1] += start[j]
     fill = start[:-1].copy()
-    o = np.empty(V, np.int64)
+    order = np.empty(V, np.int64)
     for i in range(V):
-        o[fill[st[i]]] = i
+        order[fill[st[i]]] = i
         fill[st[i]] += 1
+    return S, start, order
+
+
+@njit(cache=True)
+def jump_order(st, vid, s, u, P, min_jump):
+    """heal_jumps' order of the votes, np.lexsort((s, vid, st)) (st, vid >= 0, vid < 2**53): by
+    path (bucketed), then id, then s, each sort stable; and whether a step between two votes of
+    one path and id, next to each other in it, has |du - ds / P| >= min_jump (rounded: a jump to
+    heal)."""
+    V = st.shape[0]
+    S, start, o = _buckets(st)
     vf = vid.astype(np.float64)
     buf = np.empty(V, np.int64)
     bounds = np.empty(V + 1, np.int64)
@@ -1426,20 +1417,7 @@ def vote_groups(st, vid, w):
     (tracking.votes._first_max_per_group). The votes bucketed by stroke, each bucket sorted by
     id (a path's votes come in runs of one id)."""
     V = st.shape[0]
-    S = 0
-    for i in range(V):
-        if st[i] + 1 > S:
-            S = st[i] + 1
-    start = np.zeros(S + 1, np.int64)
-    for i in range(V):
-        start[st[i] + 1] += 1
-    for j in range(S):
-        start[j + 1] += start[j]
-    fill = start[:-1].copy()
-    perm = np.empty(V, np.int64)
-    for i in range(V):
-        perm[fill[st[i]]] = i
-        fill[st[i]] += 1
+    S, start, perm = _buckets(st)
     vf = vid.astype(np.float64)
     buf = np.empty(V, np.int64)
     bounds = np.empty(V + 1, np.int64)

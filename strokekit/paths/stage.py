@@ -39,7 +39,6 @@ The steps, all vectorized over the frame's samples:
 from __future__ import annotations
 
 import numpy as np
-from numpy.linalg import LinAlgError
 
 from strokekit.lines.strokeops import (
     CONTOUR_KINDS,
@@ -56,7 +55,7 @@ from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples, match_samples, resample_strokes, surface_between
 from strokekit.tracking.joins import GatheredPaths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
-from strokekit.tracking.ufit import PiecewiseU, levels_from_slope
+from strokekit.tracking.ufit import PiecewiseU, levels_from_slope, solve_banded
 from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, _unwrap_loop_votes
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
@@ -234,7 +233,7 @@ def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.nda
     for _ in range(2):
         band, rhs = K.piecewise_system(k, f, w, inlier, u, pw.n, pw.h, pw.base, L, a, b, b0,
                                        o.stretch_weight * P * P, o.bend_weight)
-        knots = _solve_banded(band, rhs)
+        knots = solve_banded(band, rhs)
         inlier = K.piecewise_inliers(knots, k, f, u, P, o.outlier_px)
     b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
     # u is interpolated linearly between points downstream: give it the knots as points.
@@ -242,18 +241,6 @@ def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.nda
     u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, _arcs(cur).arc_length)
     b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
     return cur, u_new, b
-
-
-def _solve_banded(band: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """PiecewiseU.fit's solve of its banded system (LAPACK pbsv, as it calls it)."""
-    from scipy.linalg.lapack import dpbsv
-
-    _, x, info = dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
-    if info > 0:
-        raise LinAlgError(f"{info}th leading minor not positive definite")
-    if info < 0:
-        raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
-    return x
 
 
 def _cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> Strokes:

@@ -153,15 +153,7 @@ class PiecewiseU:
             from scipy.linalg import solveh_banded
 
             return solveh_banded(band, rhs, lower=True, check_finite=False)
-        # scipy.linalg.solveh_banded without its checks and wrappers: the same LAPACK pbsv.
-        from scipy.linalg.lapack import dpbsv
-
-        _, x, info = dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
-        if info > 0:
-            raise LinAlgError(f"{info}th leading minor not positive definite")
-        if info < 0:
-            raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
-        return x
+        return solve_banded(band, rhs)
 
 
 def _fill_rows(buf: np.ndarray, rows: list) -> np.ndarray:
@@ -190,3 +182,17 @@ def levels_from_slope(slope_periods_per_px: np.ndarray, period_px: float) -> tup
     c = np.log2(np.maximum(np.abs(slope_periods_per_px) * period_px, 1e-6))
     level = np.floor(c)
     return level, 1.0 - (c - level)
+
+
+def solve_banded(band: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The symmetric positive definite banded system (lower form, `band` (3, n)) solved for `rhs`
+    (n,): scipy.linalg.solveh_banded without its checks and wrappers, the same LAPACK pbsv.
+    `band` and `rhs` are overwritten."""
+    from scipy.linalg.lapack import dpbsv
+
+    _, x, info = dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
+    if info > 0:
+        raise LinAlgError(f"{info}th leading minor not positive definite")
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
+    return x
