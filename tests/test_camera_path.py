@@ -71,6 +71,8 @@ def test_bad_numbers_are_one_input_error_naming_the_file_and_field(tmp_path, dat
     (keyed([dict(KEY0, frame="a")]), "'frame' must be a whole number"),
     (keyed(frame_count="x"), "frame_count must be a whole number"),
     ({"width": 1e400, "frames": [KEY0]}, "width must be a whole number"),
+    # (said as the eye out of range, with no numpy warning: it was "'up' ... is parallel to the view")
+    ({"frames": [dict(FRAME0, eye=[1e160, 0, 5])]}, "cam.json: frame 1: camera eye (1e+160, 0, 5) is out of range"),
 ])
 def test_cli_reports_bad_camera_numbers_in_one_line_exit_1(tmp_path, capsys, data, needle):
     cam = write(tmp_path, data)
@@ -382,18 +384,6 @@ def test_a_coordinate_out_of_range_is_said_without_a_numpy_warning(tmp_path, dat
 def test_coordinates_at_the_limit_are_accepted():
     path = camera_path_from_json({"frames": [dict(FRAME0, eye=[1e15, 0, 5]), dict(FRAME0, eye=[-1e15, 1e15, 1e15])]})
     assert path.cameras[1].eye == (-1e15, 1e15, 1e15)
-
-
-def test_cli_says_a_huge_eye_in_exactly_one_line(tmp_path, capsys):
-    cam = write(tmp_path, {"frames": [dict(FRAME0, eye=[1e160, 0, 5])]})
-    obj = tmp_path / "tri.obj"
-    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    with pytest.raises(SystemExit) as e:
-        main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / "o")])
-    err = capsys.readouterr().err
-    assert e.value.code == 1 and len(err.strip().splitlines()) == 1, err
-    assert "cam.json: frame 1: camera eye (1e+160, 0, 5) is out of range" in err and "parallel" not in err, err
-    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
 
 
 def _gltf_camera(tmp_path: Path, nodes: list) -> Path:
