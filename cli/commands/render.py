@@ -63,7 +63,7 @@ _NEEDS = (
      "a raster output (--bands, --masks, --fill, --objectid, --depth, --band-polygons or --exr)",
      lambda cam, svg, x: wants_raster(x) or x.get("exr")),
     (("suggestive_threshold", "suggestive_kr_threshold"), "suggestive in --kinds",
-     lambda cam, svg, x: "suggestive" in (k.strip() for k in (x.get("kinds") or "").split(","))),
+     lambda cam, svg, x: "suggestive" in (split_list(x.get("kinds"), "--kinds") or ())),
     (("decimals",), "the SVG (its coordinates; not --no-svg)", lambda cam, svg, x: svg),
     (("workers",), "no --scheduler (a dask cluster's workers draw the frames)", lambda cam, svg, x: not x.get("scheduler")),
 )

@@ -1811,6 +1811,26 @@ def surface_mix(Xi, Xj, zi, zj, a):
 
 
 @njit(cache=True)
+def _gather_points(P, X, F, U, rows):
+    """The points' rows `rows` (M,): screen points P (N, 2), surface X (N, 3), face F, u U."""
+    M = rows.shape[0]
+    p = np.empty((M, 2))
+    x = np.empty((M, 3))
+    f = np.empty(M, F.dtype)
+    u = np.empty(M, U.dtype)
+    for m in range(M):
+        q = rows[m]
+        p[m, 0] = P[q, 0]
+        p[m, 1] = P[q, 1]
+        x[m, 0] = X[q, 0]
+        x[m, 1] = X[q, 1]
+        x[m, 2] = X[q, 2]
+        f[m] = F[q]
+        u[m] = U[q]
+    return p, x, f, u
+
+
+@njit(cache=True)
 def keep_rows(P, X, F, U, offsets, alive):
     """lines.strokeops.keep_points: the points (P (N, 2), surface X (N, 3), face F, u U) where
     alive (N,) is true, and the strokes' new offsets."""
@@ -1822,22 +1842,13 @@ def keep_rows(P, X, F, U, offsets, alive):
         for q in range(offsets[k], offsets[k + 1]):
             c += alive[q]
         off[k + 1] = off[k] + c
-    M = off[S]
-    p = np.empty((M, 2))
-    x = np.empty((M, 3))
-    f = np.empty(M, F.dtype)
-    u = np.empty(M, U.dtype)
+    rows = np.empty(off[S], np.int64)
     m = 0
     for q in range(P.shape[0]):
         if alive[q]:
-            p[m, 0] = P[q, 0]
-            p[m, 1] = P[q, 1]
-            x[m, 0] = X[q, 0]
-            x[m, 1] = X[q, 1]
-            x[m, 2] = X[q, 2]
-            f[m] = F[q]
-            u[m] = U[q]
+            rows[m] = q
             m += 1
+    p, x, f, u = _gather_points(P, X, F, U, rows)
     return p, x, f, u, off
 
 
@@ -1885,22 +1896,13 @@ def take_strokes(P, X, F, U, offsets, which):
     off[0] = 0
     for k in range(K):
         off[k + 1] = off[k] + offsets[which[k] + 1] - offsets[which[k]]
-    M = off[K]
-    p = np.empty((M, 2))
-    x = np.empty((M, 3))
-    f = np.empty(M, F.dtype)
-    u = np.empty(M, U.dtype)
+    rows = np.empty(off[K], np.int64)
     m = 0
     for k in range(K):
         for q in range(offsets[which[k]], offsets[which[k] + 1]):
-            p[m, 0] = P[q, 0]
-            p[m, 1] = P[q, 1]
-            x[m, 0] = X[q, 0]
-            x[m, 1] = X[q, 1]
-            x[m, 2] = X[q, 2]
-            f[m] = F[q]
-            u[m] = U[q]
+            rows[m] = q
             m += 1
+    p, x, f, u = _gather_points(P, X, F, U, rows)
     return p, x, f, u, off
 
 

@@ -193,12 +193,11 @@ def run_files(spec: RunSpec) -> list[Path]:
     return files
 
 
-def check_files_apart(spec: RunSpec, inputs=(), also_written=()) -> None:
-    """UsageError when one of the run's outputs would overwrite one of its inputs (the scene,
-    the camera file, `inputs`) or a file also written (`also_written`, e.g. the run report)."""
+def check_files_apart(spec: RunSpec, also_written=()) -> None:
+    """UsageError when one of the run's outputs would overwrite one of its inputs (the scene, the
+    camera file) or a file also written ((what, name) pairs `also_written`, e.g. the run report)."""
     written = {os.path.abspath(p) for p in run_files(spec)}
-    files = [("scene", spec.scene_path), ("camera file", spec.camera_source), *inputs]
-    for what, name in files:
+    for what, name in (("scene", spec.scene_path), ("camera file", spec.camera_source)):
         if name and os.path.abspath(name) in written and Path(name).is_file():
             raise UsageError(f"{name}: the {what} is also one of the run's outputs (it would be overwritten); "
                              "choose another --out or --pattern")

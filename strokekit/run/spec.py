@@ -8,6 +8,7 @@ from pathlib import Path
 
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
+from strokekit.fileio import TEMP_SUFFIX
 from strokekit.options import LineOptions
 from strokekit.paths.options import PathOptions
 from strokekit.raster.bands import RasterOptions
@@ -55,8 +56,8 @@ class OutputOptions:
                 raise UsageError(f"--pattern {self.pattern!r} names frames {seen[name]} and {f} alike ({name!r}): "
                                  "one would overwrite the other")
             seen[name] = f
-            # (Files are written as .<name>.<8 random>.part first: 15 more characters.)
-            if len(name.encode()) + longest + 15 > NAME_MAX:
+            # (Files are written as .<name>.<8 random><TEMP_SUFFIX> first.)
+            if len(name.encode()) + longest + 10 + len(TEMP_SUFFIX) > NAME_MAX:
                 raise UsageError(f"--pattern {self.pattern!r} makes frame {f}'s file names longer than the "
                                  f"{NAME_MAX} bytes a file name may have")
 
