@@ -330,6 +330,28 @@ def test_pieces_and_vote_landing_are_the_numpy_steps():
             assert np.array_equal(x, y)
 
 
+def test_end_votes_are_the_first_and_last_of_a_stable_sort():
+    """end_votes: per piece the own vote of the least and of the greatest arc length, as a stable
+    lexsort by (piece, arc length) orders them (ties on a half-pixel lattice: the first, the last)."""
+    rng = np.random.default_rng(23)
+    K = kernels()
+    for _ in range(200):
+        P, V = int(rng.integers(1, 12)), int(rng.integers(0, 60))
+        vk = rng.integers(0, P, V)
+        s_in = rng.integers(0, 20, V) * 0.5
+        u = rng.random(V)
+        own = rng.random(V) < 0.7
+        got = K.end_votes(vk, s_in, u, own, P)
+        ref = [np.full(P, np.nan) for _ in range(4)]
+        sel = np.flatnonzero(own)
+        o = sel[np.lexsort((s_in[sel], vk[sel]))]
+        for k in np.unique(vk[o]):
+            mine = o[vk[o] == k]
+            ref[0][k], ref[1][k], ref[2][k], ref[3][k] = s_in[mine[0]], u[mine[0]], s_in[mine[-1]], u[mine[-1]]
+        for x, y in zip(ref, got):
+            assert np.array_equal(x, y, equal_nan=True)
+
+
 def test_u_fit_is_the_numpy_one():
     from strokekit.paths.options import path_tracking
     from strokekit.tracking.kalnins import fit_u

@@ -20,7 +20,7 @@ rounding depends on the BLAS kernel.
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
-  links and walk); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
+  links and walk); `end_votes` (the own votes nearest the pieces' ends, paths.stage._end_votes); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
@@ -990,6 +990,31 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
         ok[k] = good
         far[k] = good and gap[k] > free_px
     return n, e_run, pt, a, b, ok, straight, gap, tier, far
+
+
+@njit(cache=True)
+def end_votes(vk, s_in, u, own, K):
+    """The first and last own vote of each of K pieces: over the votes (V,) where `own`, landing on
+    piece vk at arc length s_in (px) with carried u, per piece the least and the greatest s_in and
+    the u of the vote there (of votes at equal s_in: the first for the least, the last for the
+    greatest, as a stable sort by (piece, s_in) orders them). Returns s_lo, u_lo, s_hi, u_hi (K,);
+    nan for a piece with no own vote."""
+    s_lo = np.full(K, np.nan)
+    u_lo = np.full(K, np.nan)
+    s_hi = np.full(K, np.nan)
+    u_hi = np.full(K, np.nan)
+    for v in range(vk.shape[0]):
+        if not own[v]:
+            continue
+        k = vk[v]
+        x = s_in[v]
+        if not x >= s_lo[k]:  # (nan: the piece's first own vote)
+            s_lo[k] = x
+            u_lo[k] = u[v]
+        if not x < s_hi[k]:
+            s_hi[k] = x
+            u_hi[k] = u[v]
+    return s_lo, u_lo, s_hi, u_hi
 
 
 @njit(cache=True)
@@ -2100,6 +2125,7 @@ def warmup() -> None:
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
+    end_votes(two, np.array([0.5, 1.5]), np.ones(2), np.ones(2, np.bool_), 2)
     f = np.ones((1, 3))
     band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)
