@@ -330,26 +330,55 @@ def test_pieces_and_vote_landing_are_the_numpy_steps():
             assert np.array_equal(x, y)
 
 
-def test_end_votes_are_the_first_and_last_of_a_stable_sort():
-    """end_votes: per piece the own vote of the least and of the greatest arc length, as a stable
-    lexsort by (piece, arc length) orders them (ties on a half-pixel lattice: the first, the last)."""
+def _end_votes_numpy(vk, s_in, u, vid, label, plen, P, reach):
+    """EndVotes.of in numpy: the own votes in a stable sort by (piece, s_in), their first and last
+    per piece."""
+    K = len(plen)
+    ue, d, slope = np.full((K, 2), np.nan), np.full((K, 2), np.inf), np.ones(K)
+    lab = label[vk]
+    sel = np.flatnonzero((lab >= 0) & (vid == lab))
+    o = sel[np.lexsort((s_in[sel], vk[sel]))]
+    for k in np.unique(vk[o]):
+        mine = o[vk[o] == k]
+        lo, hi = mine[0], mine[-1]
+        ue[k] = u[lo], u[hi]
+        d[k] = [x if x <= reach else np.inf for x in (s_in[lo], plen[k] - s_in[hi])]
+        span = s_in[hi] - s_in[lo]
+        if span >= 4.0:
+            b = np.abs(u[hi] - u[lo]) * P / span
+            slope[k] = b if 0.25 <= b <= 4.0 else 1.0
+    return ue, d, slope
+
+
+def test_end_votes_and_continuing_links_are_the_numpy_ones():
+    """end_votes: per piece the own votes nearest its ends, as a stable lexsort by (piece, arc
+    length) orders them (ties on a half-pixel lattice: the first, the last), and the slope between
+    them; continuing_links: the links of one label whose ends' u differ by what the gap explains."""
     rng = np.random.default_rng(23)
     K = kernels()
-    for _ in range(200):
-        P, V = int(rng.integers(1, 12)), int(rng.integers(0, 60))
-        vk = rng.integers(0, P, V)
-        s_in = rng.integers(0, 20, V) * 0.5
-        u = rng.random(V)
-        own = rng.random(V) < 0.7
-        got = K.end_votes(vk, s_in, u, own, P)
-        ref = [np.full(P, np.nan) for _ in range(4)]
-        sel = np.flatnonzero(own)
-        o = sel[np.lexsort((s_in[sel], vk[sel]))]
-        for k in np.unique(vk[o]):
-            mine = o[vk[o] == k]
-            ref[0][k], ref[1][k], ref[2][k], ref[3][k] = s_in[mine[0]], u[mine[0]], s_in[mine[-1]], u[mine[-1]]
+    for _ in range(300):
+        npc, V = int(rng.integers(1, 12)), int(rng.integers(0, 60))
+        plen = rng.integers(1, 24, npc) * 0.5
+        vk = rng.integers(0, npc, V)
+        s_in = np.minimum(rng.integers(0, 48, V) * 0.5, plen[vk])
+        u = np.where(rng.random(V) < 0.5, s_in / 10.0, rng.random(V) * 3.0)
+        label = rng.integers(-1, 3, npc)
+        vid = rng.integers(0, 3, V)
+        got = K.end_votes(vk, s_in, u, vid, label, plen, 10.0, 4.0)
+        ref = _end_votes_numpy(vk, s_in, u, vid, label, plen, 10.0, 4.0)
         for x, y in zip(ref, got):
             assert np.array_equal(x, y, equal_nan=True)
+        L = int(rng.integers(0, 20))
+        ra, rb = rng.integers(0, npc, L), rng.integers(0, npc, L)
+        ea, eb = rng.random(L) < 0.5, rng.random(L) < 0.5
+        gap, tier = rng.integers(0, 12, L) * 0.5, rng.integers(0, 3, L)
+        ue, d, slope = ref
+        ia, ib = ea.astype(np.int64), eb.astype(np.int64)
+        reach = gap + d[ra, ia] + d[rb, ib]
+        with np.errstate(invalid="ignore"):
+            want = (tier == 2) & (reach < np.inf) & (
+                np.abs(ue[ra, ia] - ue[rb, ib]) * 10.0 <= 0.5 * (slope[ra] + slope[rb]) * (reach + 3.0))
+        assert np.array_equal(K.continuing_links(ra, ea, rb, eb, gap, tier, ue, d, slope, 10.0, 3.0), want)
 
 
 def test_u_fit_is_the_numpy_one():

@@ -20,7 +20,8 @@ rounding depends on the BLAS kernel.
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
-  links and walk); `end_votes` (the own votes nearest the pieces' ends, paths.stage._end_votes); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
+  links and walk); `end_votes`, `continuing_links` (paths.stage.EndVotes: links that continue a
+  previous path); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
@@ -993,28 +994,63 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
 
 
 @njit(cache=True)
-def end_votes(vk, s_in, u, own, K):
-    """The first and last own vote of each of K pieces: over the votes (V,) where `own`, landing on
-    piece vk at arc length s_in (px) with carried u, per piece the least and the greatest s_in and
-    the u of the vote there (of votes at equal s_in: the first for the least, the last for the
-    greatest, as a stable sort by (piece, s_in) orders them). Returns s_lo, u_lo, s_hi, u_hi (K,);
-    nan for a piece with no own vote."""
+def end_votes(vk, s_in, u, vid, label, plen, P, reach):
+    """paths.stage.EndVotes.of: the votes (V,) landing on piece vk at arc length s_in (px) with
+    carried u and id vid; a piece's own votes are those of its label (label (K,), -1: none). Per
+    piece and end (0: start, 1: end) the u of the own vote nearest the end (K, 2; nan: none) and
+    its distance from the end (K, 2; px, inf: none within `reach`); of votes at equal s_in the
+    first nearest the start, the last nearest the end (a stable sort by (piece, s_in)). slope (K,):
+    |du/ds| x P between the first and the last own vote, 1 where they are under 4 px apart or it
+    lies outside 1/4..4."""
+    K = plen.shape[0]
     s_lo = np.full(K, np.nan)
-    u_lo = np.full(K, np.nan)
     s_hi = np.full(K, np.nan)
-    u_hi = np.full(K, np.nan)
+    ue = np.full((K, 2), np.nan)
     for v in range(vk.shape[0]):
-        if not own[v]:
-            continue
         k = vk[v]
+        if label[k] < 0 or vid[v] != label[k]:
+            continue
         x = s_in[v]
         if not x >= s_lo[k]:  # (nan: the piece's first own vote)
             s_lo[k] = x
-            u_lo[k] = u[v]
+            ue[k, 0] = u[v]
         if not x < s_hi[k]:
             s_hi[k] = x
-            u_hi[k] = u[v]
-    return s_lo, u_lo, s_hi, u_hi
+            ue[k, 1] = u[v]
+    d = np.full((K, 2), np.inf)
+    slope = np.ones(K)
+    for k in range(K):
+        if not s_lo[k] == s_lo[k]:
+            continue
+        if s_lo[k] <= reach:
+            d[k, 0] = s_lo[k]
+        if plen[k] - s_hi[k] <= reach:
+            d[k, 1] = plen[k] - s_hi[k]
+        span = s_hi[k] - s_lo[k]
+        if span >= 4.0:
+            b = abs(ue[k, 1] - ue[k, 0]) * P / span
+            if 0.25 <= b <= 4.0:
+                slope[k] = b
+    return ue, d, slope
+
+
+@njit(cache=True)
+def continuing_links(ra, end_a, rb, end_b, gap, tier, ue, d, slope, P, tol):
+    """paths.stage.EndVotes.continues for the links (L,) of one label (tier 2; the others: False)."""
+    L = ra.shape[0]
+    out = np.zeros(L, np.bool_)
+    for i in range(L):
+        if tier[i] != 2:
+            continue
+        ea = 1 if end_a[i] else 0
+        eb = 1 if end_b[i] else 0
+        reach = gap[i] + d[ra[i], ea] + d[rb[i], eb]
+        if not reach < np.inf:
+            continue
+        du = abs(ue[ra[i], ea] - ue[rb[i], eb]) * P
+        sl = 0.5 * (slope[ra[i]] + slope[rb[i]])
+        out[i] = du <= sl * (reach + tol)
+    return out
 
 
 @njit(cache=True)
@@ -2125,7 +2161,9 @@ def warmup() -> None:
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
-    end_votes(two, np.array([0.5, 1.5]), np.ones(2), np.ones(2, np.bool_), 2)
+    ue, de, sle = end_votes(two, np.array([0.5, 1.5]), np.ones(2), two, two, np.full(2, 2.0), 10.0, 4.0)
+    continuing_links(two, np.ones(2, np.bool_), two, np.zeros(2, np.bool_), np.ones(2), np.full(2, 2), ue, de, sle,
+                     10.0, 3.0)
     f = np.ones((1, 3))
     band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)

@@ -20,12 +20,11 @@ The steps, all vectorized over the frame's samples:
    `join_px`, a piece no path claims to a path or to another such piece within `new_join_px`,
    turning at most `join_angle_deg`; links within one label first, of those the links that continue
    the previous path first (the u its votes carry at the two ends differ by what the gap
-   explains), the cheapest first (gap + 10 px per radian of turn), then of the longest piece;
-   two paths never join (a path that would
-   hold two labels through an unclaimed piece is cut where the label changes). The bridges
-   between pieces are drawn, so a bridge longer than 2 px is only made where every point of it
-   lies within 1 px of a line (`on_drawing`: the paths invent nothing). A path whose ends meet is
-   closed into a loop.
+   explains), the cheapest first (gap + 10 px per radian of turn), then of the longest piece; two
+   paths never join (a path that would hold two labels through an unclaimed piece is cut where
+   the label changes). The bridges between pieces are drawn, so a bridge longer than 2 px is only
+   made where every point of it lies within 1 px of a line (`on_drawing`: the paths invent
+   nothing). A path whose ends meet is closed into a loop.
    Pieces of a path shorter than `merge_px` (this frame and the last) join like unclaimed
    pieces: a sliver merges into the path it touches instead of cutting it.
 6. Ids: each previous id goes to one path, the heaviest claims first: the votes of that id a
@@ -470,9 +469,46 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     return out
 
 
+#: A link continues the previous path where the u its two ends carry differ by at most the gap,
+#: plus the ends' distances to their votes, plus this many px (times u's slope).
+CONTINUE_TOL_PX = 3.0
+#: The u of a piece's end: its own vote nearest the end, if within this many px of it.
+END_VOTE_PX = 4.0
+
+
+class EndVotes:
+    """The u the previous paths carry at the pieces' ends: per piece (K,) and end (0: start, 1:
+    end), u (K, 2) the u of the piece's own vote (of its label's id) nearest the end, d (K, 2) its
+    distance from the end (px; inf: none within END_VOTE_PX), slope (K,) |du/ds| x P along the
+    piece between its first and last own vote (1 where they are under 4 px apart, or it lies
+    outside 1/4..4: a seam or a fold between them), P the period (px)."""
+
+    def __init__(self, u: np.ndarray, d: np.ndarray, slope: np.ndarray, P: float):
+        self.u, self.d, self.slope, self.P = u, d, slope, P
+
+    @staticmethod
+    def of(vk: np.ndarray, s_in: np.ndarray, vu: np.ndarray, vid: np.ndarray, label: np.ndarray, plen: np.ndarray,
+           P: float) -> "EndVotes":
+        """From the votes landing on piece vk (V,) at arc length s_in (px) with u vu and id vid; label
+        (K,) the pieces' labels (-1: none; a piece's own votes are those of its label), plen (K,)
+        their lengths (px)."""
+        u, d, slope = kernels().end_votes(vk, s_in, vu, vid, np.asarray(label, np.int64), plen, float(P),
+                                          END_VOTE_PX)
+        return EndVotes(u, d, slope, P)
+
+    def continues(self, ra: np.ndarray, end_a: np.ndarray, rb: np.ndarray, end_b: np.ndarray, gap: np.ndarray,
+                  tier: np.ndarray) -> np.ndarray:
+        """(L,) whether the links of one label (tier 2) between an end of piece ra and one of piece rb
+        (end_a, end_b (L,): the piece's end, else its start) `gap` px apart continue a previous path:
+        the u of the two ends' votes differ by at most slope x (gap + their distances from the ends
+        + CONTINUE_TOL_PX) / P."""
+        return kernels().continuing_links(ra, end_a, rb, end_b, gap, tier, self.u, self.d, self.slope, float(self.P),
+                                          CONTINUE_TOL_PX)
+
+
 def _link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.ndarray, other_tol_px: float,
-                 bridge_ok, free_px: float = 2.0, ends: "EndVotes | None" = None) -> tuple[np.ndarray, np.ndarray,
-                                                                                          np.ndarray]:
+                 bridge_ok, free_px: float = 2.0,
+                 ends: EndVotes | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """_touching_paths(pieces, tol_px, angle_deg, label=label, other_tol_px=other_tol_px,
     bridge_ok=bridge_ok, free_px=free_px, link=kernels().link_paths) (the same group, rev, pos),
     its candidate links compiled (link_candidates). With `ends` (the votes at the pieces' ends), the
@@ -498,54 +534,9 @@ def _link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.nda
     if ends is not None:
         # (Where a path meets two pieces of its own at a junction, the one it ran on into last frame:
         # bunny, 120-frame orbit, M1 0.9556 -> 0.9560, M2 0.0099 -> 0.0097.)
-        keys += (~((tier == 2) & ends.continues(e_run[a], a >= n, e_run[b], b >= n, gap)),)
+        keys += (~ends.continues(e_run[a], a >= n, e_run[b], b >= n, gap, tier),)
     o = np.lexsort(keys + (-tier,))
     return K.link_paths(a[o], b[o], e_run, n, S)
-
-
-#: A link continues the previous path where the u its two ends carry differ by at most the gap,
-#: plus the ends' distances to their votes, plus this many px (times u's slope).
-CONTINUE_TOL_PX = 3.0
-#: The u of a piece's end: its own vote nearest the end, if within this many px of it.
-END_VOTE_PX = 4.0
-
-
-class EndVotes:
-    """The u the previous paths carry at the pieces' ends: per piece (K,) and end (0: start, 1:
-    end), u (K, 2) the u of the piece's own vote (of its label's id) nearest the end, d (K, 2) its
-    distance from the end (px; inf: none within END_VOTE_PX), slope (K,) |du/ds| x P along the
-    piece between its first and last own vote (1 where they are under 4 px apart, or it lies
-    outside 1/4..4: a seam or a fold between them), P the period (px)."""
-
-    def __init__(self, u: np.ndarray, d: np.ndarray, slope: np.ndarray, P: float):
-        self.u, self.d, self.slope, self.P = u, d, slope, P
-
-    @staticmethod
-    def of(K: int, vk: np.ndarray, s_in: np.ndarray, vu: np.ndarray, own: np.ndarray, plen: np.ndarray,
-           P: float) -> "EndVotes":
-        """From the votes landing on piece vk (V,) at arc length s_in (px) with u vu, those where `own`;
-        plen (K,) the pieces' lengths (px)."""
-        s_lo, u_lo, s_hi, u_hi = kernels().end_votes(vk, s_in, vu, own, K)
-        d = np.stack([s_lo, plen - s_hi], axis=1)
-        d[~(d <= END_VOTE_PX)] = np.inf  # (nan: no own vote)
-        span = s_hi - s_lo
-        with np.errstate(invalid="ignore", divide="ignore"):
-            b = np.abs(u_hi - u_lo) * P / span
-            slope = np.where((span >= 4.0) & (b >= 0.25) & (b <= 4.0), b, 1.0)
-        return EndVotes(np.stack([u_lo, u_hi], axis=1), d, slope, P)
-
-    def continues(self, ra: np.ndarray, end_a: np.ndarray, rb: np.ndarray, end_b: np.ndarray,
-                  gap: np.ndarray) -> np.ndarray:
-        """(L,) whether the links between an end of piece ra and one of piece rb (end_a, end_b (L,):
-        the piece's end, else its start) `gap` px apart continue a previous path: the u of the two
-        ends' votes differ by at most slope x (gap + their distances from the ends +
-        CONTINUE_TOL_PX) / P."""
-        ea, eb = end_a.astype(np.int64), end_b.astype(np.int64)
-        reach = gap + self.d[ra, ea] + self.d[rb, eb]
-        du = np.abs(self.u[ra, ea] - self.u[rb, eb]) * self.P
-        sl = 0.5 * (self.slope[ra] + self.slope[rb])
-        with np.errstate(invalid="ignore"):
-            return (reach < np.inf) & (du <= sl * (reach + CONTINUE_TOL_PX))
 
 
 def _one_label_per_path(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> np.ndarray:
@@ -809,10 +800,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     ok, vk, s_in = kernels().votes_landing(votes.m, cover, smp_piece, D.s, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
-    ends = None
-    if len(votes):
-        lab_k = link_label[vk]
-        ends = EndVotes.of(len(p_line), vk, s_in, vu, (lab_k >= 0) & (vid == lab_k), plen, P)
+    ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, P) if len(votes) else None
     group, rev, pos = _link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
                                    lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends)
     group = _one_label_per_path(group, pos, link_label)
