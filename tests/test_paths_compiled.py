@@ -776,3 +776,57 @@ def test_the_warm_up_compiles_every_kernel():
     root = str(Path(__file__).resolve().parents[1])
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root, check=True).stdout
     assert [line.split(" ", 1)[1] for line in out.splitlines()] == ["[]"] * 3, out
+
+
+def _corner_cuts_numpy(strokes, p_line, p_s0, p_s1, smp, d_s, cos_min):
+    """paths.compiled.corner_cuts in numpy: the vertices turning past acos(cos_min), each piece cut
+    at those more than 0.5 px inside it, the samples following their part."""
+    P, st, arc = strokes.points, strokes.stroke_of_point, strokes.arc_length
+    d = P[1:] - P[:-1]
+    ln = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    i = np.arange(1, len(P) - 1)
+    i = i[(st[i - 1] == st[i]) & (st[i + 1] == st[i])]
+    i = i[(ln[i - 1] > 1e-6) & (ln[i] > 1e-6)]
+    i = i[(d[i - 1, 0] * d[i, 0] + d[i - 1, 1] * d[i, 1]) / (ln[i - 1] * ln[i]) < cos_min]
+    owner, s0, s1, first, cuts = [], [], [], [], []
+    for q in range(len(p_line)):
+        c = arc[i[(st[i] == p_line[q]) & (arc[i] > p_s0[q] + 0.5) & (arc[i] < p_s1[q] - 0.5)]]
+        first.append(len(owner))
+        cuts.append(c)
+        b = np.r_[p_s0[q], c, p_s1[q]]
+        owner += [q] * (len(c) + 1)
+        s0 += list(b[:-1])
+        s1 += list(b[1:])
+    out = smp.copy()
+    for k in np.flatnonzero(smp >= 0):
+        q = smp[k]
+        out[k] = first[q] + np.count_nonzero(cuts[q] < d_s[k])
+    return np.array(owner, np.int64), np.array(s0), np.array(s1), out
+
+
+def test_corner_cuts_are_the_numpy_ones():
+    rng = np.random.default_rng(23)
+    K = kernels()
+    cut = 0
+    for _ in range(200):
+        counts = rng.integers(1, 30, int(rng.integers(1, 6)))
+        # steps along the axes and diagonals (turns of 0, 45, 90, 135, 180 degrees; repeats)
+        step = rng.integers(-1, 2, (counts.sum(), 2)) * 1.0
+        pts = np.cumsum(step, axis=0)
+        S = _strokes(pts, counts)
+        L = S.lengths
+        Q = int(rng.integers(0, 8))
+        p_line = rng.integers(0, len(counts), Q)
+        a, b = rng.random(Q) * L[p_line], rng.random(Q) * L[p_line]
+        p_s0, p_s1 = np.minimum(a, b), np.maximum(a, b)
+        M = int(rng.integers(0, 40))
+        smp = rng.integers(-1, Q, M) if Q else np.full(M, -1, np.int64)
+        d_s = np.where(smp >= 0, p_s0[np.maximum(smp, 0)] + rng.random(M) * (p_s1 - p_s0)[np.maximum(smp, 0)], 0.0) \
+            if Q else np.zeros(M)
+        for cos_min in (-0.5, 0.0, np.cos(np.radians(70.0))):
+            got = K.corner_cuts(S.points, S.offsets, S.arc_length, cos_min, p_line, p_s0, p_s1, smp, d_s)
+            ref = _corner_cuts_numpy(S, p_line, p_s0, p_s1, smp, d_s, cos_min)
+            for x, y in zip(ref, got):
+                assert np.array_equal(x, y)
+            cut += len(got[0]) - Q
+    assert cut > 100  # (the inputs do cut pieces)

@@ -29,7 +29,8 @@ rounding depends on the BLAS kernel.
   `knot_intervals`, `piecewise_system`, `piecewise_inliers`, `piecewise_at` (PiecewiseU's fit
   and evaluation), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made
   points).
-* Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
+* Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points);
+  `corner_cuts` (pieces cut where their line turns past the join angle).
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
   (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers); `arcs` (Strokes'
   arc lengths and global arc).
@@ -1401,6 +1402,69 @@ def pieces_of_runs(cover, run, s, w, r_s0, r_s1, min_piece_px):
 
 
 @njit(cache=True)
+def corner_cuts(P, offsets, arc, cos_min, p_line, p_s0, p_s1, smp_piece, d_s):
+    """Pieces cut at the vertices of their line that turn by more than acos(cos_min): P (N, 2) the
+    lines' points, offsets (S+1,), arc (N,) each point's arc length along its line (px); pieces
+    p_line, p_s0, p_s1 (Q,); a vertex cuts a piece when it lies more than 0.5 px inside it. The
+    line samples' pieces smp_piece (M,) at arc lengths d_s (M,) follow their part. Returns
+    owner (Q',) (the piece each part comes from), s0, s1 (Q',) and the samples' parts (M,)."""
+    S = offsets.shape[0] - 1
+    c_start = np.zeros(S + 1, np.int64)
+    c_s = np.empty(P.shape[0])
+    n = 0
+    for r in range(S):
+        c_start[r] = n
+        for i in range(offsets[r] + 1, offsets[r + 1] - 1):
+            ax = P[i, 0] - P[i - 1, 0]
+            ay = P[i, 1] - P[i - 1, 1]
+            bx = P[i + 1, 0] - P[i, 0]
+            by = P[i + 1, 1] - P[i, 1]
+            la = math.sqrt(ax * ax + ay * ay)
+            lb = math.sqrt(bx * bx + by * by)
+            if la > 1e-6 and lb > 1e-6 and (ax * bx + ay * by) / (la * lb) < cos_min:
+                c_s[n] = arc[i]
+                n += 1
+    c_start[S] = n
+    Q = p_line.shape[0]
+    lo = np.empty(Q, np.int64)
+    cnt = np.zeros(Q, np.int64)
+    total = 0
+    for q in range(Q):
+        r = p_line[q]
+        a = c_start[r]
+        while a < c_start[r + 1] and not c_s[a] > p_s0[q] + 0.5:
+            a += 1
+        b = a
+        while b < c_start[r + 1] and c_s[b] < p_s1[q] - 0.5:
+            b += 1
+        lo[q] = a
+        cnt[q] = b - a
+        total += b - a + 1
+    owner = np.empty(total, np.int64)
+    s0 = np.empty(total)
+    s1 = np.empty(total)
+    first = np.empty(Q, np.int64)
+    k = 0
+    for q in range(Q):
+        first[q] = k
+        for j in range(cnt[q] + 1):
+            owner[k] = q
+            s0[k] = p_s0[q] if j == 0 else c_s[lo[q] + j - 1]
+            s1[k] = p_s1[q] if j == cnt[q] else c_s[lo[q] + j]
+            k += 1
+    out = smp_piece.copy()
+    for i in range(smp_piece.shape[0]):
+        q = smp_piece[i]
+        if q < 0:
+            continue
+        j = 0
+        while j < cnt[q] and c_s[lo[q] + j] < d_s[i]:
+            j += 1
+        out[i] = first[q] + j
+    return owner, s0, s1, out
+
+
+@njit(cache=True)
 def votes_landing(vm, cover, smp_piece, s, p_s0, p_s1):
     """Where every vote (on line sample vm (V,)) lands: on its sample, or where a covered sample's
     covering sample lies; ok (V,) where that sample draws a piece, and for those (in order) the
@@ -2161,6 +2225,8 @@ def warmup() -> None:
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
+    corner_cuts(p, np.array([0, 3]), np.array([0.0, 1.0, 2.1]), 0.0, np.zeros(len(p0), np.int64), p0, p1, sp,
+                np.array([0.5, 1.5]))
     ue, de, sle = end_votes(two, np.array([0.5, 1.5]), np.ones(2), two, two, np.full(2, 2.0), 10.0, 4.0)
     continuing_links(two, np.ones(2, np.bool_), two, np.zeros(2, np.bool_), np.ones(2), np.full(2, 2), ue, de, sle,
                      10.0, 3.0)

@@ -770,6 +770,13 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_grid, crease_run=crease_run)
     # 5. Pieces: the uncovered parts of the runs.
     p_run, p_s0, p_s1, smp_piece = kernels().pieces_of_runs(cover, run, D.s, D.w, r_s0, r_s1, _MIN_PIECE_PX)
+    # A brush stroke ends at a corner: a piece is cut where its line turns past the join angle, as
+    # two lines meeting there are not joined (a corner turning 89 degrees in one frame, one line,
+    # and 91 in the next, two lines, no longer splits the path that ran round it).
+    owner, p_s0, p_s1, smp_piece = kernels().corner_cuts(
+        lines.points, lines.offsets, lines.arc_length, float(np.cos(np.radians(o.join_angle_deg))),
+        r_line[p_run], p_s0, p_s1, smp_piece, D.s)
+    p_run = p_run[owner]
     if len(p_run) == 0:
         return _empty(lines), next_id
     p_line, p_label = r_line[p_run], r_label[p_run]
@@ -849,6 +856,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
     hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
     return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece, hold), next_id
+
 
 
 #: A new path is held back only where all of it lies within this many px of the paths drawn: the
