@@ -420,3 +420,75 @@ def test_a_silhouette_covers_a_crease_beside_it():
     assert len(sil) == 1 and b.strokes.lengths[sil[0]] == pytest.approx(40.0, abs=1.0)
     assert sum(b.strokes.lengths) < 110.0
     assert len(PathTracker().step(frame(["crease", "crease"], [100.0, 100.0])).strokes) == 2
+
+
+def test_a_path_runs_on_into_the_piece_it_continued_last_frame():
+    """Three crease pieces of one path meet at a junction J: the one the path ended with (A, along
+    +x), the one it ran on into from J last frame (B, turning 70 degrees up) and one turning 55
+    degrees down (C, where the path's tail ran last frame, towards J: its u far from A's). The
+    link A-C turns less and is the cheaper one; the path still runs on from A into B, as it did,
+    and C is a path of its own."""
+    from strokekit.camera.view import Camera
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+
+    def polyline(corners):
+        corners = np.asarray(corners, float)
+        pts = [np.linspace(corners[i], corners[i + 1], 60, endpoint=False) for i in range(len(corners) - 1)]
+        world = np.column_stack([np.vstack(pts + [corners[-1:]]), np.zeros(60 * (len(corners) - 1) + 1)])
+        return cam.project(world)[0], world
+
+    def frame(k, parts):
+        parts = [polyline(p) for p in parts]
+        offsets = np.cumsum([0] + [len(p) for p, _ in parts])
+        return Strokes.build(np.vstack([p for p, _ in parts]), np.vstack([w for _, w in parts]),
+                             np.zeros(offsets[-1]), offsets, [KIND_INDEX["crease"]] * len(parts), camera=cam, frame=k)
+
+    def towards(deg, r):
+        return (r * np.cos(np.radians(deg)), r * np.sin(np.radians(deg)))
+
+    J, b1, c1 = (0.0, 0.0), towards(70.0, 1.0), towards(-55.0, 2.0)
+    # (A path may turn 100 degrees here: frame 1's line rounds corners of 90.)
+    tracker = PathTracker(PathOptions(join_angle_deg=100.0))
+    first = tracker.step(frame(1, [[(-2.0, 0.0), J, b1, (2.2, b1[1]), (2.2, c1[1]), c1, towards(-55.0, 0.3)]]))
+    assert len(first.strokes) == 1
+    out = tracker.step(frame(2, [[(-2.0, 0.0), J], [J, b1, (2.2, b1[1]), (2.2, -1.0)], [J, c1]]))
+    S = out.strokes
+    assert len(S) == 2
+    on = [towards(0.0, -1.0), (1.0, b1[1]), towards(-55.0, 1.0)]  # (points of A, B and C)
+    which = [S.stroke_of_point[cKDTree(S.surface[:, :2]).query(p)[1]] for p in on]
+    assert which[0] == which[1] != which[2], "A runs on into B; C is a path of its own"
+    assert S.ids[which[0]] == first.strokes.ids[0]
+
+
+
+def _polyline_frame(cam, k, lines):
+    """A frame of silhouette lines, each a list of straight segments (a, b) in the z = 0 plane
+    (world units), 60 points a segment."""
+    pts = []
+    for segs in lines:
+        w = np.vstack([np.linspace(a, b, 60, endpoint=False) for a, b in segs] + [np.asarray(segs[-1][1])[None]])
+        pts.append(np.column_stack([w, np.zeros(len(w))]))
+    offsets = np.cumsum([0] + [len(w) for w in pts])
+    world = np.vstack(pts)
+    return Strokes.build(cam.project(world)[0], world, np.zeros(len(world)), offsets,
+                         [KIND_INDEX["silhouette"]] * len(pts), camera=cam, frame=k)
+
+
+def test_a_path_ends_at_a_corner_whether_one_line_or_two_meet_there():
+    """A line turning past join_angle_deg (70) at one vertex is cut there, as two lines meeting at
+    that angle are not joined: an outline that rounds an 80 degree corner as one line in frame 1
+    and comes as two lines meeting at the corner in frame 2 is two paths in both frames, and both
+    keep their ids. A corner of 60 degrees is one path either way."""
+    from strokekit.camera.view import Camera
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+    J = np.zeros(2)
+    for turn, n_paths in ((80.0, 2), (60.0, 1)):
+        a = (np.array([-1.5, 0.0]), J)
+        b = (J, 1.5 * np.array([np.cos(np.radians(turn)), np.sin(np.radians(turn))]))
+        tracker = PathTracker()
+        first = tracker.step(_polyline_frame(cam, 1, [[a, b]])).strokes
+        second = tracker.step(_polyline_frame(cam, 2, [[a], [b]])).strokes
+        assert len(first) == len(second) == n_paths, turn
+        assert sorted(first.ids) == sorted(second.ids), turn

@@ -330,6 +330,57 @@ def test_pieces_and_vote_landing_are_the_numpy_steps():
             assert np.array_equal(x, y)
 
 
+def _end_votes_numpy(vk, s_in, u, vid, label, plen, P, reach):
+    """EndVotes.of in numpy: the own votes in a stable sort by (piece, s_in), their first and last
+    per piece."""
+    K = len(plen)
+    ue, d, slope = np.full((K, 2), np.nan), np.full((K, 2), np.inf), np.ones(K)
+    lab = label[vk]
+    sel = np.flatnonzero((lab >= 0) & (vid == lab))
+    o = sel[np.lexsort((s_in[sel], vk[sel]))]
+    for k in np.unique(vk[o]):
+        mine = o[vk[o] == k]
+        lo, hi = mine[0], mine[-1]
+        ue[k] = u[lo], u[hi]
+        d[k] = [x if x <= reach else np.inf for x in (s_in[lo], plen[k] - s_in[hi])]
+        span = s_in[hi] - s_in[lo]
+        if span >= 4.0:
+            b = np.abs(u[hi] - u[lo]) * P / span
+            slope[k] = b if 0.25 <= b <= 4.0 else 1.0
+    return ue, d, slope
+
+
+def test_end_votes_and_continuing_links_are_the_numpy_ones():
+    """end_votes: per piece the own votes nearest its ends, as a stable lexsort by (piece, arc
+    length) orders them (ties on a half-pixel lattice: the first, the last), and the slope between
+    them; continuing_links: the links of one label whose ends' u differ by what the gap explains."""
+    rng = np.random.default_rng(23)
+    K = kernels()
+    for _ in range(300):
+        npc, V = int(rng.integers(1, 12)), int(rng.integers(0, 60))
+        plen = rng.integers(1, 24, npc) * 0.5
+        vk = rng.integers(0, npc, V)
+        s_in = np.minimum(rng.integers(0, 48, V) * 0.5, plen[vk])
+        u = np.where(rng.random(V) < 0.5, s_in / 10.0, rng.random(V) * 3.0)
+        label = rng.integers(-1, 3, npc)
+        vid = rng.integers(0, 3, V)
+        got = K.end_votes(vk, s_in, u, vid, label, plen, 10.0, 4.0)
+        ref = _end_votes_numpy(vk, s_in, u, vid, label, plen, 10.0, 4.0)
+        for x, y in zip(ref, got):
+            assert np.array_equal(x, y, equal_nan=True)
+        L = int(rng.integers(0, 20))
+        ra, rb = rng.integers(0, npc, L), rng.integers(0, npc, L)
+        ea, eb = rng.random(L) < 0.5, rng.random(L) < 0.5
+        gap, tier = rng.integers(0, 12, L) * 0.5, rng.integers(0, 3, L)
+        ue, d, slope = ref
+        ia, ib = ea.astype(np.int64), eb.astype(np.int64)
+        reach = gap + d[ra, ia] + d[rb, ib]
+        with np.errstate(invalid="ignore"):
+            want = (tier == 2) & (reach < np.inf) & (
+                np.abs(ue[ra, ia] - ue[rb, ib]) * 10.0 <= 0.5 * (slope[ra] + slope[rb]) * (reach + 3.0))
+        assert np.array_equal(K.continuing_links(ra, ea, rb, eb, gap, tier, ue, d, slope, 10.0, 3.0), want)
+
+
 def test_u_fit_is_the_numpy_one():
     from strokekit.paths.options import path_tracking
     from strokekit.tracking.kalnins import fit_u
@@ -725,3 +776,57 @@ def test_the_warm_up_compiles_every_kernel():
     root = str(Path(__file__).resolve().parents[1])
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root, check=True).stdout
     assert [line.split(" ", 1)[1] for line in out.splitlines()] == ["[]"] * 3, out
+
+
+def _corner_cuts_numpy(strokes, p_line, p_s0, p_s1, smp, d_s, cos_min):
+    """paths.compiled.corner_cuts in numpy: the vertices turning past acos(cos_min), each piece cut
+    at those more than 0.5 px inside it, the samples following their part."""
+    P, st, arc = strokes.points, strokes.stroke_of_point, strokes.arc_length
+    d = P[1:] - P[:-1]
+    ln = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    i = np.arange(1, len(P) - 1)
+    i = i[(st[i - 1] == st[i]) & (st[i + 1] == st[i])]
+    i = i[(ln[i - 1] > 1e-6) & (ln[i] > 1e-6)]
+    i = i[(d[i - 1, 0] * d[i, 0] + d[i - 1, 1] * d[i, 1]) / (ln[i - 1] * ln[i]) < cos_min]
+    owner, s0, s1, first, cuts = [], [], [], [], []
+    for q in range(len(p_line)):
+        c = arc[i[(st[i] == p_line[q]) & (arc[i] > p_s0[q] + 0.5) & (arc[i] < p_s1[q] - 0.5)]]
+        first.append(len(owner))
+        cuts.append(c)
+        b = np.r_[p_s0[q], c, p_s1[q]]
+        owner += [q] * (len(c) + 1)
+        s0 += list(b[:-1])
+        s1 += list(b[1:])
+    out = smp.copy()
+    for k in np.flatnonzero(smp >= 0):
+        q = smp[k]
+        out[k] = first[q] + np.count_nonzero(cuts[q] < d_s[k])
+    return np.array(owner, np.int64), np.array(s0), np.array(s1), out
+
+
+def test_corner_cuts_are_the_numpy_ones():
+    rng = np.random.default_rng(23)
+    K = kernels()
+    cut = 0
+    for _ in range(200):
+        counts = rng.integers(1, 30, int(rng.integers(1, 6)))
+        # steps along the axes and diagonals (turns of 0, 45, 90, 135, 180 degrees; repeats)
+        step = rng.integers(-1, 2, (counts.sum(), 2)) * 1.0
+        pts = np.cumsum(step, axis=0)
+        S = _strokes(pts, counts)
+        L = S.lengths
+        Q = int(rng.integers(0, 8))
+        p_line = rng.integers(0, len(counts), Q)
+        a, b = rng.random(Q) * L[p_line], rng.random(Q) * L[p_line]
+        p_s0, p_s1 = np.minimum(a, b), np.maximum(a, b)
+        M = int(rng.integers(0, 40))
+        smp = rng.integers(-1, Q, M) if Q else np.full(M, -1, np.int64)
+        d_s = np.where(smp >= 0, p_s0[np.maximum(smp, 0)] + rng.random(M) * (p_s1 - p_s0)[np.maximum(smp, 0)], 0.0) \
+            if Q else np.zeros(M)
+        for cos_min in (-0.5, 0.0, np.cos(np.radians(70.0))):
+            got = K.corner_cuts(S.points, S.offsets, S.arc_length, cos_min, p_line, p_s0, p_s1, smp, d_s)
+            ref = _corner_cuts_numpy(S, p_line, p_s0, p_s1, smp, d_s, cos_min)
+            for x, y in zip(ref, got):
+                assert np.array_equal(x, y)
+            cut += len(got[0]) - Q
+    assert cut > 100  # (the inputs do cut pieces)

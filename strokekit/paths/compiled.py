@@ -20,7 +20,8 @@ rounding depends on the BLAS kernel.
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
-  links and walk); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
+  links and walk); `end_votes`, `continuing_links` (paths.stage.EndVotes: links that continue a
+  previous path); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
 * u: `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
@@ -28,7 +29,8 @@ rounding depends on the BLAS kernel.
   `knot_intervals`, `piecewise_system`, `piecewise_inliers`, `piecewise_at` (PiecewiseU's fit
   and evaluation), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made
   points).
-* Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
+* Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points);
+  `corner_cuts` (pieces cut where their line turns past the join angle).
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
   (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers); `arcs` (Strokes'
   arc lengths and global arc).
@@ -993,6 +995,66 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
 
 
 @njit(cache=True)
+def end_votes(vk, s_in, u, vid, label, plen, P, reach):
+    """paths.stage.EndVotes.of: the votes (V,) landing on piece vk at arc length s_in (px) with
+    carried u and id vid; a piece's own votes are those of its label (label (K,), -1: none). Per
+    piece and end (0: start, 1: end) the u of the own vote nearest the end (K, 2; nan: none) and
+    its distance from the end (K, 2; px, inf: none within `reach`); of votes at equal s_in the
+    first nearest the start, the last nearest the end (a stable sort by (piece, s_in)). slope (K,):
+    |du/ds| x P between the first and the last own vote, 1 where they are under 4 px apart or it
+    lies outside 1/4..4."""
+    K = plen.shape[0]
+    s_lo = np.full(K, np.nan)
+    s_hi = np.full(K, np.nan)
+    ue = np.full((K, 2), np.nan)
+    for v in range(vk.shape[0]):
+        k = vk[v]
+        if label[k] < 0 or vid[v] != label[k]:
+            continue
+        x = s_in[v]
+        if not x >= s_lo[k]:  # (nan: the piece's first own vote)
+            s_lo[k] = x
+            ue[k, 0] = u[v]
+        if not x < s_hi[k]:
+            s_hi[k] = x
+            ue[k, 1] = u[v]
+    d = np.full((K, 2), np.inf)
+    slope = np.ones(K)
+    for k in range(K):
+        if not s_lo[k] == s_lo[k]:
+            continue
+        if s_lo[k] <= reach:
+            d[k, 0] = s_lo[k]
+        if plen[k] - s_hi[k] <= reach:
+            d[k, 1] = plen[k] - s_hi[k]
+        span = s_hi[k] - s_lo[k]
+        if span >= 4.0:
+            b = abs(ue[k, 1] - ue[k, 0]) * P / span
+            if 0.25 <= b <= 4.0:
+                slope[k] = b
+    return ue, d, slope
+
+
+@njit(cache=True)
+def continuing_links(ra, end_a, rb, end_b, gap, tier, ue, d, slope, P, tol):
+    """paths.stage.EndVotes.continues for the links (L,) of one label (tier 2; the others: False)."""
+    L = ra.shape[0]
+    out = np.zeros(L, np.bool_)
+    for i in range(L):
+        if tier[i] != 2:
+            continue
+        ea = 1 if end_a[i] else 0
+        eb = 1 if end_b[i] else 0
+        reach = gap[i] + d[ra[i], ea] + d[rb[i], eb]
+        if not reach < np.inf:
+            continue
+        du = abs(ue[ra[i], ea] - ue[rb[i], eb]) * P
+        sl = 0.5 * (slope[ra[i]] + slope[rb[i]])
+        out[i] = du <= sl * (reach + tol)
+    return out
+
+
+@njit(cache=True)
 def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
     """paths.stage.carried_votes from the lookback's matches: rm (M,) the previous path sample
     each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
@@ -1337,6 +1399,69 @@ def pieces_of_runs(cover, run, s, w, r_s0, r_s1, min_piece_px):
             P += 1
         a = b + 1
     return p_run[:P].copy(), p_s0[:P].copy(), p_s1[:P].copy(), smp_piece
+
+
+@njit(cache=True)
+def corner_cuts(P, offsets, arc, cos_min, p_line, p_s0, p_s1, smp_piece, d_s):
+    """Pieces cut at the vertices of their line that turn by more than acos(cos_min): P (N, 2) the
+    lines' points, offsets (S+1,), arc (N,) each point's arc length along its line (px); pieces
+    p_line, p_s0, p_s1 (Q,); a vertex cuts a piece when it lies more than 0.5 px inside it. The
+    line samples' pieces smp_piece (M,) at arc lengths d_s (M,) follow their part. Returns
+    owner (Q',) (the piece each part comes from), s0, s1 (Q',) and the samples' parts (M,)."""
+    S = offsets.shape[0] - 1
+    c_start = np.zeros(S + 1, np.int64)
+    c_s = np.empty(P.shape[0])
+    n = 0
+    for r in range(S):
+        c_start[r] = n
+        for i in range(offsets[r] + 1, offsets[r + 1] - 1):
+            ax = P[i, 0] - P[i - 1, 0]
+            ay = P[i, 1] - P[i - 1, 1]
+            bx = P[i + 1, 0] - P[i, 0]
+            by = P[i + 1, 1] - P[i, 1]
+            la = math.sqrt(ax * ax + ay * ay)
+            lb = math.sqrt(bx * bx + by * by)
+            if la > 1e-6 and lb > 1e-6 and (ax * bx + ay * by) / (la * lb) < cos_min:
+                c_s[n] = arc[i]
+                n += 1
+    c_start[S] = n
+    Q = p_line.shape[0]
+    lo = np.empty(Q, np.int64)
+    cnt = np.zeros(Q, np.int64)
+    total = 0
+    for q in range(Q):
+        r = p_line[q]
+        a = c_start[r]
+        while a < c_start[r + 1] and not c_s[a] > p_s0[q] + 0.5:
+            a += 1
+        b = a
+        while b < c_start[r + 1] and c_s[b] < p_s1[q] - 0.5:
+            b += 1
+        lo[q] = a
+        cnt[q] = b - a
+        total += b - a + 1
+    owner = np.empty(total, np.int64)
+    s0 = np.empty(total)
+    s1 = np.empty(total)
+    first = np.empty(Q, np.int64)
+    k = 0
+    for q in range(Q):
+        first[q] = k
+        for j in range(cnt[q] + 1):
+            owner[k] = q
+            s0[k] = p_s0[q] if j == 0 else c_s[lo[q] + j - 1]
+            s1[k] = p_s1[q] if j == cnt[q] else c_s[lo[q] + j]
+            k += 1
+    out = smp_piece.copy()
+    for i in range(smp_piece.shape[0]):
+        q = smp_piece[i]
+        if q < 0:
+            continue
+        j = 0
+        while j < cnt[q] and c_s[lo[q] + j] < d_s[i]:
+            j += 1
+        out[i] = first[q] + j
+    return owner, s0, s1, out
 
 
 @njit(cache=True)
@@ -2100,6 +2225,11 @@ def warmup() -> None:
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
+    corner_cuts(p, np.array([0, 3]), np.array([0.0, 1.0, 2.1]), 0.0, np.zeros(len(p0), np.int64), p0, p1, sp,
+                np.array([0.5, 1.5]))
+    ue, de, sle = end_votes(two, np.array([0.5, 1.5]), np.ones(2), two, two, np.full(2, 2.0), 10.0, 4.0)
+    continuing_links(two, np.ones(2, np.bool_), two, np.zeros(2, np.bool_), np.ones(2), np.full(2, 2), ue, de, sle,
+                     10.0, 3.0)
     f = np.ones((1, 3))
     band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)

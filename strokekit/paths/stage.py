@@ -18,12 +18,13 @@ The steps, all vectorized over the frame's samples:
    by it too (a sharp edge along the outline).
 5. Pieces (the uncovered runs) are joined end to end into paths: pieces of one label within
    `join_px`, a piece no path claims to a path or to another such piece within `new_join_px`,
-   turning at most `join_angle_deg`; links within one label first, the cheapest first (gap + 10 px
-   per radian of turn), then of the longest piece; two paths never join (a path that would
-   hold two labels through an unclaimed piece is cut where the label changes). The bridges
-   between pieces are drawn, so a bridge longer than 2 px is only made where every point of it
-   lies within 1 px of a line (`on_drawing`: the paths invent nothing). A path whose ends meet is
-   closed into a loop.
+   turning at most `join_angle_deg`; links within one label first, of those the links that continue
+   the previous path first (the u its votes carry at the two ends differ by what the gap
+   explains), the cheapest first (gap + 10 px per radian of turn), then of the longest piece; two
+   paths never join (a path that would hold two labels through an unclaimed piece is cut where
+   the label changes). The bridges between pieces are drawn, so a bridge longer than 2 px is only
+   made where every point of it lies within 1 px of a line (`on_drawing`: the paths invent
+   nothing). A path whose ends meet is closed into a loop.
    Pieces of a path shorter than `merge_px` (this frame and the last) join like unclaimed
    pieces: a sliver merges into the path it touches instead of cutting it.
 6. Ids: each previous id goes to one path, the heaviest claims first: the votes of that id a
@@ -468,11 +469,51 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     return out
 
 
+#: A link continues the previous path where the u its two ends carry differ by at most the gap,
+#: plus the ends' distances to their votes, plus this many px (times u's slope).
+CONTINUE_TOL_PX = 3.0
+#: The u of a piece's end: its own vote nearest the end, if within this many px of it.
+END_VOTE_PX = 4.0
+
+
+class EndVotes:
+    """The u the previous paths carry at the pieces' ends: per piece (K,) and end (0: start, 1:
+    end), u (K, 2) the u of the piece's own vote (of its label's id) nearest the end, d (K, 2) its
+    distance from the end (px; inf: none within END_VOTE_PX), slope (K,) |du/ds| x P along the
+    piece between its first and last own vote (1 where they are under 4 px apart, or it lies
+    outside 1/4..4: a seam or a fold between them), P the period (px)."""
+
+    def __init__(self, u: np.ndarray, d: np.ndarray, slope: np.ndarray, P: float):
+        self.u, self.d, self.slope, self.P = u, d, slope, P
+
+    @staticmethod
+    def of(vk: np.ndarray, s_in: np.ndarray, vu: np.ndarray, vid: np.ndarray, label: np.ndarray, plen: np.ndarray,
+           P: float) -> "EndVotes":
+        """From the votes landing on piece vk (V,) at arc length s_in (px) with u vu and id vid; label
+        (K,) the pieces' labels (-1: none; a piece's own votes are those of its label), plen (K,)
+        their lengths (px)."""
+        u, d, slope = kernels().end_votes(vk, s_in, vu, vid, np.asarray(label, np.int64), plen, float(P),
+                                          END_VOTE_PX)
+        return EndVotes(u, d, slope, P)
+
+    def continues(self, ra: np.ndarray, end_a: np.ndarray, rb: np.ndarray, end_b: np.ndarray, gap: np.ndarray,
+                  tier: np.ndarray) -> np.ndarray:
+        """(L,) whether the links of one label (tier 2) between an end of piece ra and one of piece rb
+        (end_a, end_b (L,): the piece's end, else its start) `gap` px apart continue a previous path:
+        the u of the two ends' votes differ by at most slope x (gap + their distances from the ends
+        + CONTINUE_TOL_PX) / P."""
+        return kernels().continuing_links(ra, end_a, rb, end_b, gap, tier, self.u, self.d, self.slope, float(self.P),
+                                          CONTINUE_TOL_PX)
+
+
 def _link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.ndarray, other_tol_px: float,
-                 bridge_ok, free_px: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 bridge_ok, free_px: float = 2.0,
+                 ends: EndVotes | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """_touching_paths(pieces, tol_px, angle_deg, label=label, other_tol_px=other_tol_px,
     bridge_ok=bridge_ok, free_px=free_px, link=kernels().link_paths) (the same group, rev, pos),
-    its candidate links compiled (link_candidates)."""
+    its candidate links compiled (link_candidates). With `ends` (the votes at the pieces' ends), the
+    links within one label that continue the previous path (EndVotes.continues) come first among
+    those of their tier."""
     S = len(pieces)
     K = kernels()
     n, e_run, pt, a, b, ok, straight, gap, tier, far = K.link_candidates(
@@ -485,11 +526,16 @@ def _link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.nda
         ok[far] = bridge_ok(pt.take(a[far], axis=0), pt.take(b[far], axis=0))
     if not ok.any():
         return np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
-    a, b, straight = a[ok], b[ok], straight[ok]
+    a, b, straight, gap, tier = a[ok], b[ok], straight[ok], gap[ok], tier[ok]
     heavy = np.maximum(pieces.lengths[e_run[a]], pieces.lengths[e_run[b]])
     # The cost of a link: its gap plus 10 px per radian of turn (seed 000's rule).
-    cost = gap[ok] + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))
-    o = np.lexsort((e_run[b], e_run[a], -np.round(heavy, 6), np.round(cost, 6), -tier[ok]))
+    cost = gap + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))
+    keys = (e_run[b], e_run[a], -np.round(heavy, 6), np.round(cost, 6))
+    if ends is not None:
+        # (Where a path meets two pieces of its own at a junction, the one it ran on into last frame:
+        # bunny, 120-frame orbit, M1 0.9556 -> 0.9560, M2 0.0099 -> 0.0097.)
+        keys += (~ends.continues(e_run[a], a >= n, e_run[b], b >= n, gap, tier),)
+    o = np.lexsort(keys + (-tier,))
     return K.link_paths(a[o], b[o], e_run, n, S)
 
 
@@ -724,6 +770,13 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     cover = covering_samples(D, drawn_kind, run, rank, o.cover_px, line_grid, crease_run=crease_run)
     # 5. Pieces: the uncovered parts of the runs.
     p_run, p_s0, p_s1, smp_piece = kernels().pieces_of_runs(cover, run, D.s, D.w, r_s0, r_s1, _MIN_PIECE_PX)
+    # A brush stroke ends at a corner: a piece is cut where its line turns past the join angle, as
+    # two lines meeting there are not joined (a corner turning 89 degrees in one frame, one line,
+    # and 91 in the next, two lines, no longer splits the path that ran round it).
+    owner, p_s0, p_s1, smp_piece = kernels().corner_cuts(
+        lines.points, lines.offsets, lines.arc_length, float(np.cos(np.radians(o.join_angle_deg))),
+        r_line[p_run], p_s0, p_s1, smp_piece, D.s)
+    p_run = p_run[owner]
     if len(p_run) == 0:
         return _empty(lines), next_id
     p_line, p_label = r_line[p_run], r_label[p_run]
@@ -754,8 +807,9 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     ok, vk, s_in = kernels().votes_landing(votes.m, cover, smp_piece, D.s, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     # 5b. Join the pieces into paths.
+    ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, P) if len(votes) else None
     group, rev, pos = _link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
-                                   lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0)
+                                   lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends)
     group = _one_label_per_path(group, pos, link_label)
     paths, path_of, offset = _concat(pieces, group, rev, pos, o.join_angle_deg, _HAIRPIN_PX)
     paths = _close_loops(paths, o.join_px, o.join_angle_deg, line_grid, D)
@@ -802,6 +856,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
     hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
     return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece, hold), next_id
+
 
 
 #: A new path is held back only where all of it lies within this many px of the paths drawn: the
