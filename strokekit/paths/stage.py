@@ -16,7 +16,9 @@ The steps, all vectorized over the frame's samples:
    length of the run's label (a persisting path keeps its place against a newcomer), then the
    run's own length. A crease run of CREASE_COVER_MIN_PX or more beside a silhouette is covered
    by it too (a sharp edge along the outline).
-5. Pieces (the uncovered runs) are joined end to end into paths: pieces of one label within
+5. Pieces (the uncovered runs, cut where their line turns past `join_angle_deg` at a vertex:
+   a stroke ends at a corner, whether one line rounds it or two meet there) are joined end to
+   end into paths: pieces of one label within
    `join_px`, a piece no path claims to a path or to another such piece within `new_join_px`,
    turning at most `join_angle_deg`; links within one label first, of those the links that continue
    the previous path first (the u its votes carry at the two ends differ by what the gap
@@ -856,7 +858,6 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
     hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
     return _finish(paths, lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece, hold), next_id
-
 
 
 #: A new path is held back only where all of it lies within this many px of the paths drawn: the
