@@ -147,8 +147,7 @@ def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
 
 
 def test_lookback_in_crowded_windows_is_the_trees():
-    """The lookback where a window holds more samples than match_pieces keeps (it then reads the
-    cells again for every query): the tree's matches."""
+    """The lookback where a window holds many samples (a dense crowd): the tree's matches."""
     rng = np.random.default_rng(37)
     for lattice in (False, True):
         D = _samples(rng, 3000, lattice)

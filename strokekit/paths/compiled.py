@@ -192,21 +192,14 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
         return False
     r2 = radius * radius
     n = p.shape[0]
-    # Per grid slot, read one after the other below: run (-1: not a contour), kind, run rank,
-    # tangent and length.
+    # Per grid slot, read one after the other below: run (-1: not a contour) and kind (the rest
+    # is looked up for the few pairs within the radius).
     run_s = np.empty(n, np.int64)
     sk_s = np.empty(n, np.int64)
-    rk_s = np.empty(n, np.int64)
-    ts = np.empty((n, 2))
-    w_s = np.empty(n)
     for q in range(n):
         j = order[q]
         run_s[q] = run[j] if contour[j] else -1
         sk_s[q] = sk[j]
-        rk_s[q] = rank_of_run[run[j]]
-        ts[q, 0] = t[j, 0]
-        ts[q, 1] = t[j, 1]
-        w_s[q] = w[j]
     best = np.full(n, -1, np.int64)
     best_rank = np.zeros(n, np.int64)
     best_d2 = np.zeros(n)
@@ -217,29 +210,21 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
             a1 = start[c + 1]
             if a0 == a1:
                 continue
-            # This cell with itself, the next one in its row and the three of the next row.
-            for nb in range(5):
-                if nb == 0:
-                    c2 = c
-                elif nb == 1:
-                    if cx + 1 >= nx:
-                        continue
-                    c2 = c + 1
-                else:
-                    if cy + 1 >= ny:
-                        continue
-                    ex = cx + nb - 3
-                    if ex < 0 or ex >= nx:
-                        continue
-                    c2 = c + nx + nb - 3
-                b1 = start[c2 + 1]
-                for q in range(a0, a1):
-                    rq = run_s[q]
-                    if rq < 0:
-                        continue
-                    qx = ps[q, 0]
-                    qy = ps[q, 1]
-                    for q2 in range(q + 1 if nb == 0 else start[c2], b1):
+            # The pairs of this cell with itself and the next one in its row, then with the three
+            # of the next row: two ranges of consecutive slots.
+            e1 = start[c + 2] if cx + 1 < nx else a1
+            f0 = f1 = 0
+            if cy + 1 < ny:
+                f0 = start[c + nx - 1] if cx > 0 else start[c + nx]
+                f1 = start[c + nx + 2] if cx + 1 < nx else start[c + nx + 1]
+            for q in range(a0, a1):
+                rq = run_s[q]
+                if rq < 0:
+                    continue
+                qx = ps[q, 0]
+                qy = ps[q, 1]
+                for part in range(2):
+                    for q2 in range(q + 1 if part == 0 else f0, e1 if part == 0 else f1):
                         if run_s[q2] < 0 or run_s[q2] == rq or sk_s[q2] != sk_s[q]:
                             continue
                         ddx = ps[q2, 0] - qx
@@ -252,26 +237,27 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
                         if d2 > r2:
                             continue
                         # The sample of the lower-ranked run is the one covered (x), by y.
-                        if rk_s[q2] == rk_s[q]:
+                        rk1 = rank_of_run[rq]
+                        rk2 = rank_of_run[run_s[q2]]
+                        if rk2 == rk1:
                             continue
-                        if rk_s[q2] < rk_s[q]:
-                            xs = q
-                            ys = q2
+                        if rk2 < rk1:
+                            x = order[q]
+                            y = order[q2]
+                            ry = rk2
                         else:
-                            xs = q2
-                            ys = q
+                            x = order[q2]
+                            y = order[q]
+                            ry = rk1
                             ddx = -ddx
                             ddy = -ddy
-                        tx0 = ts[xs, 0]
-                        tx1 = ts[xs, 1]
+                        tx0 = t[x, 0]
+                        tx1 = t[x, 1]
                         along = abs(ddx * tx0 + ddy * tx1)
-                        if not along <= 0.5 * (w_s[xs] + w_s[ys]) - 0.25:
+                        if not along <= 0.5 * (w[x] + w[y]) - 0.25:
                             continue
-                        if not abs(ts[ys, 0] * tx0 + ts[ys, 1] * tx1) >= min_dot:
+                        if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
                             continue
-                        x = order[xs]
-                        y = order[ys]
-                        ry = rk_s[ys]
                         b = best[x]
                         if b < 0 or ry < best_rank[x] or (ry == best_rank[x] and (d2 < best_d2[x] or (
                                 d2 == best_d2[x] and y < b))):
@@ -416,10 +402,6 @@ def _window_inv(v, v0, inv, reach, n):
     return int(a), int(b)
 
 
-#: match_pieces' first room for the samples of its last window (more: it makes more).
-_WINDOW_CANDIDATES = 256
-
-
 @njit(cache=True)
 def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
     """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
@@ -428,16 +410,16 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
     (|t . st| >= min_dot), the first of least squared distance to its piece of line (across:
     the tree's distance squared less the part along t; beyond its ends along t): out (M,) its
     index, or -1. unsure (M,) set where two of the k + 1 nearest lie at the same distance (the
-    tree's order decides). The samples of a window are gathered once for the queries that
-    follow in the same window (line samples 1 px apart: most of them)."""
+    tree's order decides). The cells of a window's row hold consecutive grid slots: a window is
+    one slot range per row, found once for the queries that follow in the same window (line
+    samples 1 px apart: most of them)."""
     b2 = bound * bound
     inv = 1.0 / cell
     bd = np.empty(k + 1)
     bi = np.empty(k + 1, np.int64)
-    cpx = np.empty(_WINDOW_CANDIDATES)
-    cpy = np.empty(_WINDOW_CANDIDATES)
-    cj = np.empty(_WINDOW_CANDIDATES, np.int64)
-    nc = -1  # (candidates held: -1 none yet)
+    lo = np.empty(ny, np.int64)
+    hi = np.empty(ny, np.int64)
+    nr = 0  # (rows of the window holding samples)
     wax = wbx = way = wby = -1
     for m in range(q.shape[0]):
         qx = q[m, 0]
@@ -446,54 +428,45 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
         s1 = st[m, 1]
         ax, bx = _window_inv(qx, x0, inv, bound, nx)
         ay, by = _window_inv(qy, y0, inv, bound, ny)
-        if nc < 0 or ax != wax or bx != wbx or ay != way or by != wby:
+        if ax != wax or bx != wbx or ay != way or by != wby:
             wax, wbx, way, wby = ax, bx, ay, by
-            nc = 0
+            nr = 0
             for cy in range(ay, by + 1):
-                for cx in range(ax, bx + 1):
-                    nc += start[cy * nx + cx + 1] - start[cy * nx + cx]
-            if nc > cpx.shape[0]:
-                cpx = np.empty(nc)
-                cpy = np.empty(nc)
-                cj = np.empty(nc, np.int64)
-            e = 0
-            for cy in range(ay, by + 1):
-                row = cy * nx
-                for cx in range(ax, bx + 1):
-                    c = row + cx
-                    for s in range(start[c], start[c + 1]):
-                        cpx[e] = ps[s, 0]
-                        cpy[e] = ps[s, 1]
-                        cj[e] = order[s]
-                        e += 1
+                a = start[cy * nx + ax]
+                b = start[cy * nx + bx + 1]
+                if a < b:
+                    lo[nr] = a
+                    hi[nr] = b
+                    nr += 1
         cnt = 0
         e0 = e1 = e2 = np.inf
         j0 = j1 = j2 = -1
-        for e in range(nc):
-            dx = cpx[e] - qx
-            dy = cpy[e] - qy
-            d2 = dx * dx + dy * dy
-            if not d2 < b2:
-                continue
-            if k != 2:
-                cnt = _insert(bd, bi, cnt, d2, cj[e])
-                continue
-            # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
-            j = cj[e]
-            if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
-                continue
-            cnt = min(cnt + 1, 3)
-            if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
-                e2, j2 = e1, j1
-                if d2 < e0 or (d2 == e0 and j < j0):
-                    e1, j1 = e0, j0
+        for r in range(nr):
+            for e in range(lo[r], hi[r]):
+                dx = ps[e, 0] - qx
+                dy = ps[e, 1] - qy
+                d2 = dx * dx + dy * dy
+                if not d2 < b2:
+                    continue
+                if k != 2:
+                    cnt = _insert(bd, bi, cnt, d2, order[e])
+                    continue
+                # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
+                j = order[e]
+                if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
+                    continue
+                cnt = min(cnt + 1, 3)
+                if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
+                    e2, j2 = e1, j1
+                    if d2 < e0 or (d2 == e0 and j < j0):
+                        e1, j1 = e0, j0
+                        e0, j0 = d2, j
+                    else:
+                        e1, j1 = d2, j
+                elif cnt >= 2:
+                    e2, j2 = d2, j
+                elif cnt == 1:
                     e0, j0 = d2, j
-                else:
-                    e1, j1 = d2, j
-            elif cnt >= 2:
-                e2, j2 = d2, j
-            elif cnt == 1:
-                e0, j0 = d2, j
         if k == 2:
             bd[0], bi[0], bd[1], bi[1], bd[2], bi[2] = e0, j0, e1, j1, e2, j2
         for s in range(cnt - 1):
