@@ -269,6 +269,46 @@ def test_id_assignment_is_assign_ids():
         assert np.array_equal(a[0], b[0]) and a[1] == b[1]
 
 
+def _id_claims_numpy(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known, S):
+    """paths.stage._path_ids' claims as numpy steps (the code id_claims replaced)."""
+    lk = np.flatnonzero(p_label >= 0)
+    cs = np.concatenate([path_of[lk], path_of[vk], path_of[ok_k]]).astype(np.int64)
+    ci = np.concatenate([p_label[lk], vid, oid[ok]]).astype(np.int64)
+    cw = np.concatenate([label_weight * plen[lk], vw, ow[ok]])
+    if len(cs) == 0:  # (no claims: _path_ids gives fresh ids before the sums)
+        return cs, ci, cw
+    K = len(known)
+    w = np.bincount(cs * K + np.searchsorted(known, ci), weights=cw, minlength=S * K)
+    nz = np.flatnonzero(w)
+    return nz // K, known[nz % K], w[nz]
+
+
+def test_id_claims_are_the_numpy_sums():
+    rng = np.random.default_rng(43)
+    K = kernels()
+    for trial in range(300):
+        S = int(rng.integers(1, 15))
+        known = np.unique(rng.integers(0, 60, int(rng.integers(1, 20))))
+        P = int(rng.integers(0, 30))
+        path_of = rng.integers(0, S, P)
+        p_label = np.where(rng.random(P) < 0.3, -1, known[rng.integers(0, len(known), P)])
+        # (weights that tie, cancel to zero and do not: sums whose order shows)
+        plen = np.where(rng.random(P) < 0.5, rng.integers(0, 4, P) * 0.5, rng.random(P) * 7.0)
+        V = int(rng.integers(0, 80)) if P else 0
+        vk, vid = rng.integers(0, max(P, 1), V), known[rng.integers(0, len(known), V)]
+        vw = np.where(rng.random(V) < 0.5, rng.integers(-2, 3, V) * 0.25, rng.random(V) * 0.1)
+        O = int(rng.integers(0, 40))
+        ok = rng.random(O) < 0.6 if P else np.zeros(O, bool)
+        ok_k = rng.integers(0, max(P, 1), int(ok.sum()))
+        oid, ow = known[rng.integers(0, len(known), O)], np.where(rng.random(O) < 0.5, 0.1, rng.random(O))
+        if trial % 5 == 0:  # (ids beyond `known`: the sums' cells as the dense ones alias them)
+            vid = rng.integers(0, 70, V)
+        a = _id_claims_numpy(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known, S)
+        b = K.id_claims(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known, S)
+        for x, y in zip(a, b):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
 def test_band_terms_are_piecewise_fits():
     rng = np.random.default_rng(13)
     for _ in range(50):

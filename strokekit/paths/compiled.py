@@ -21,7 +21,8 @@ rounding depends on the BLAS kernel.
   `segment_runs` (tracking.votes.segment_by_votes after the labels).
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
   links and walk); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
-  (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
+  (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass);
+  `id_claims` (paths.stage._path_ids' sums of the claims on the ids).
 * u: `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
   fit), `vote_groups`, `to_primary` (fit_u's vote groups and their shift by whole periods),
@@ -1215,6 +1216,109 @@ def vote_labels(D, o, key, M, w):
 
 
 @njit(cache=True)
+def _left(a, v):
+    """np.searchsorted(a, v) (side left) in a sorted array a, without branches on the data (the
+    halving steps are selects)."""
+    n = a.shape[0]
+    if n == 0:
+        return 0
+    base = 0
+    while n > 1:
+        half = n >> 1
+        base = base + half if a[base + half] < v else base
+        n -= half
+    return base + 1 if a[base] < v else base
+
+
+@njit(cache=True)
+def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known, S):
+    """paths.stage._path_ids' claims of the paths on the previous ids, summed per (path, id): the
+    pieces' labels (piece i of path path_of[i], labelled p_label[i] >= 0, weighs label_weight *
+    plen[i]), the votes (on piece vk, id vid, weight vw) and those of the other kind class (where
+    ok: on piece ok_k (in order), id oid, weight ow). Returns (cs, ci, cw), the pairs of a
+    nonzero sum by path, then by the place of the id in `known` (sorted; K = its length): what
+    np.bincount(cs * K + np.searchsorted(known, ci), weights=cw, minlength=S * K) and its
+    np.flatnonzero give (sums in the same order: the labels, the votes, the other votes)."""
+    K = known.shape[0]
+    n = vk.shape[0] + ok_k.shape[0]
+    for i in range(p_label.shape[0]):
+        if p_label[i] >= 0:
+            n += 1
+    key = np.empty(n, np.int64)
+    wt = np.empty(n)
+    e = 0
+    for i in range(p_label.shape[0]):
+        if p_label[i] >= 0:
+            key[e] = path_of[i] * K + _left(known, p_label[i])
+            wt[e] = label_weight * plen[i]
+            e += 1
+    last = -1
+    at = 0
+    for i in range(vk.shape[0]):
+        if i == 0 or vid[i] != last:  # (the votes of a line come in runs of one id)
+            last = vid[i]
+            at = _left(known, last)
+        key[e] = path_of[vk[i]] * K + at
+        wt[e] = vw[i]
+        e += 1
+    k = 0
+    for i in range(ok.shape[0]):
+        if ok[i]:
+            key[e] = path_of[ok_k[k]] * K + _left(known, oid[i])
+            wt[e] = ow[i]
+            e += 1
+            k += 1
+    # By path (bucketed, in order), then summed per id on a scratch row of K: the sums of a
+    # dense S x K bincount without its pages.
+    top = S
+    for i in range(n):
+        if key[i] // K + 1 > top:
+            top = key[i] // K + 1
+    start = np.zeros(top + 1, np.int64)
+    for i in range(n):
+        start[key[i] // K + 1] += 1
+    for r in range(top):
+        start[r + 1] += start[r]
+    fill = start[:-1].copy()
+    o = np.empty(n, np.int64)
+    for i in range(n):
+        r = key[i] // K
+        o[fill[r]] = i
+        fill[r] += 1
+    row = np.zeros(K)
+    seen = np.zeros(K, np.bool_)
+    touched = np.empty(K, np.int64)
+    cs = np.empty(n, np.int64)
+    ci = np.empty(n, known.dtype)
+    cw = np.empty(n)
+    m = 0
+    for r in range(top):
+        nt = 0
+        for q in range(start[r], start[r + 1]):
+            c = key[o[q]] % K
+            row[c] += wt[o[q]]
+            if not seen[c]:
+                seen[c] = True
+                # (kept sorted: a path claims a few ids)
+                at = nt
+                while at > 0 and touched[at - 1] > c:
+                    touched[at] = touched[at - 1]
+                    at -= 1
+                touched[at] = c
+                nt += 1
+        for a in range(nt):
+            c = touched[a]
+            if row[c] != 0.0:
+                cs[m] = r
+                ci[m] = known[c]
+                cw[m] = row[c]
+                m += 1
+            row[c] = 0.0
+            seen[c] = False
+    return cs[:m].copy(), ci[:m].copy(), cw[:m].copy()
+
+
+@njit(cache=True)
 def greedy_ids(order, cs, ci, n_strokes, next_id):
     """tracking.votes.assign_ids' pass: the (stroke cs, id ci) pairs in `order` (heaviest first),
     each stroke and each id used once; strokes left without an id get fresh ids from next_id in
@@ -2076,6 +2180,8 @@ def warmup() -> None:
     f = np.ones((1, 3))
     band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)
+    id_claims(two, np.array([1, -1]), np.ones(2), 0.25, two, two, np.ones(2), np.ones(2, np.bool_), two, two,
+              np.ones(2), np.array([0, 1]), 2)
     vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
     st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
     resample_points(p, np.zeros(3), i, j, a)

@@ -167,20 +167,17 @@ def _path_ids(S: int, path_of: np.ndarray, p_label: np.ndarray, plen: np.ndarray
     120-frame orbit, M1 0.9717 -> 0.9742; the per-pair best assignment of ids to these paths
     gives 0.9744. `known`: the ids of the previous paths, sorted. Paths without a claim get fresh
     ids from next_id."""
-    lk = np.flatnonzero(p_label >= 0)
     om, oid, ow = votes.other
     ok, ok_k, _ = kernels().votes_landing(om, cover, smp_piece, D.s, p_s0, p_s1) if len(om) else (
         np.zeros(0, bool), np.zeros(0, np.int64), None)
-    cs = np.concatenate([path_of[lk], path_of[vk], path_of[ok_k]]).astype(np.int64)
-    ci = np.concatenate([p_label[lk], vid, oid[ok]]).astype(np.int64)
-    cw = np.concatenate([LABEL_ID_WEIGHT * plen[lk], vw, ow[ok]])
+    # (Every claimed id is one of the previous paths' `known` (sorted): sums over S x K cells.)
+    i64 = np.int64
+    cs, ci, cw = kernels().id_claims(np.asarray(path_of, i64), np.asarray(p_label, i64), plen, LABEL_ID_WEIGHT,
+                                     np.asarray(vk, i64), np.asarray(vid, i64), vw, ok, np.asarray(ok_k, i64),
+                                     np.asarray(oid, i64), np.asarray(ow, float), np.asarray(known, i64), S)
     if len(cs) == 0:
         return np.arange(next_id, next_id + S, dtype=np.int64), next_id + S
-    # (Every claimed id is one of the previous paths' `known` (sorted): sums over S x K cells.)
-    K = len(known)
-    w = np.bincount(cs * K + np.searchsorted(known, ci), weights=cw, minlength=S * K)
-    nz = np.flatnonzero(w)
-    return _assign_ids(S, nz // K, known[nz % K], w[nz], next_id)
+    return _assign_ids(S, cs, ci, cw, next_id)
 
 
 def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
