@@ -9,10 +9,11 @@ import pytest
 
 from strokekit.camera.view import Camera
 from strokekit.lines.strokeops import drop_hairpins, query_tree
-from strokekit.model import Strokes
+from strokekit.model import N_KINDS, Strokes
 from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.stage import (
+    _CONTOUR,
     Votes,
     _arcs,
     _assign_ids,
@@ -20,6 +21,7 @@ from strokekit.paths.stage import (
     _drop_hairpins,
     _FitKernels,
     _insert_points,
+    _kind_class,
     _labels,
     _link_pieces,
     _lookback,
@@ -305,6 +307,54 @@ def test_id_claims_are_the_numpy_sums():
             vid = rng.integers(0, 70, V)
         a = _id_claims_numpy(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known, S)
         b = K.id_claims(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known, S)
+        for x, y in zip(a, b):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+def _carried_numpy(rm, rq, sub, kind_d, Dstroke, kind_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
+    """carried's votes and other matches as numpy steps: the kind classes per stroke then per
+    sample (_kind_class), the other matches as carried_votes took them (the code carried's own
+    classes and other matches replaced), the votes one by one in the kernel's arithmetic."""
+    cls_v = _kind_class(kind_v).astype(np.int64).take(Vstroke)
+    cls_d = _kind_class(kind_d).astype(np.int64).take(Dstroke)
+    votes = []
+    for i in np.flatnonzero(rm >= 0):
+        j, h = rm[i], sub[i]
+        if cls_d[h] != cls_v[j]:
+            continue
+        off = (rq[i, 0] - Vp[j, 0]) * Vt[j, 0] + (rq[i, 1] - Vp[j, 1]) * Vt[j, 1]
+        off = min(max(off, -0.5 * Vw[j]), 0.5 * Vw[j])
+        nx = j + 1 if j + 1 < len(Vp) and Vstroke[j + 1] == Vstroke[j] else j
+        pv = j - 1 if j >= 1 and Vstroke[j - 1] == Vstroke[j] else j
+        ds = Vs[nx] - Vs[pv]
+        slope = (Vu[nx] - Vu[pv]) / ds if ds > 0 else 0.0
+        votes.append((h, Vids[j], Vu[j] + off * slope, step * Dw[h], np.sign(Vt[j, 0] * Dt[h, 0] + Vt[j, 1] * Dt[h, 1])))
+    cols = list(zip(*votes)) if votes else [[]] * 5
+    x = np.flatnonzero(rm >= 0)
+    x = x[cls_d[sub[x]] != cls_v[rm[x]]]
+    hx = sub[x]
+    return (np.array(cols[0], np.int64), np.array(cols[1], np.int64), np.array(cols[2], float), np.array(cols[3], float),
+            np.array(cols[4], float), hx, Vids[rm[x]], step * Dw[hx])
+
+
+def test_carried_votes_are_the_numpy_ones():
+    rng = np.random.default_rng(47)
+    K = kernels()
+    for trial in range(100):
+        V = _samples(rng, int(rng.integers(1, 80)), trial % 2 == 1)
+        D = _samples(rng, int(rng.integers(1, 80)), trial % 2 == 0)
+        # (kind codes of every kind and occlusion level: classes that agree and that do not)
+        kind_v = rng.integers(0, 3 * N_KINDS, V.stroke.max() + 1)
+        kind_d = rng.integers(0, 3 * N_KINDS, D.stroke.max() + 1)
+        step = int(rng.integers(1, 3))
+        sub = np.arange(0, len(D), step)
+        rm = np.where(rng.random(len(sub)) < 0.2, -1, rng.integers(0, len(V), len(sub)))
+        rq = D.p[sub] + rng.normal(0, 1.0, (len(sub), 2))
+        Vs = np.where(rng.random(len(V)) < 0.2, 0.0, V.s)  # (repeated arc lengths: no slope)
+        args = (rm, rq, sub, kind_d, D.stroke, kind_v)
+        rest = (V.p, V.t, V.w, V.u, Vs, V.stroke, V.ids, D.w, D.t, step)
+        a = _carried_numpy(*args, *rest)
+        b = K.carried(*args, _CONTOUR, N_KINDS, *rest)
         for x, y in zip(a, b):
             assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
 

@@ -967,32 +967,60 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
 
 
 @njit(cache=True)
-def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
+def _classes(codes, contour, n_kinds):
+    """paths.stage._kind_class of kind codes (kind + n_kinds x occlusion level): their hidden
+    levels as one, then the contour kinds (contour (n_kinds,)) in one class per level, -1 -
+    level; every other code its own class."""
+    out = np.empty(codes.shape[0], np.int64)
+    for i in range(codes.shape[0]):
+        c = codes[i] % n_kinds + n_kinds * min(codes[i] // n_kinds, 1)
+        out[i] = -1 - c // n_kinds if contour[c % n_kinds] else c
+    return out
+
+
+@njit(cache=True)
+def carried(rm, rq, sub, kind_d, Dstroke, kind_v, contour, n_kinds, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
     """paths.stage.carried_votes from the lookback's matches: rm (M,) the previous path sample
     each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
-    projected. Returns the votes where the kind classes (cls_d of the line samples, cls_v of the
-    path samples) agree: line sample m, id, u (refined along the old tangent by the local slope
-    of u, the offset clipped to the sample's piece), weight (step times the line sample's
-    length) and the sign of the tangents' agreement."""
+    projected. The kind classes (_classes) of the line samples come from their lines' kind codes
+    kind_d (by Dstroke), those of the path samples from their paths' kind_v (by Vstroke).
+    Returns the votes where the classes agree: line sample m, id, u (refined along the old
+    tangent by the local slope of u, the offset clipped to the sample's piece), weight (step
+    times the line sample's length) and the sign of the tangents' agreement; then the matches
+    where they differ (Votes.other): line sample, id, weight."""
     M = rm.shape[0]
+    cls_d = _classes(kind_d, contour, n_kinds)
+    cls_v = _classes(kind_v, contour, n_kinds)
     K = 0
+    n_other = 0
     for i in range(M):
         j = rm[i]
-        if j >= 0 and cls_d[sub[i]] == cls_v[j]:
-            K += 1
+        if j >= 0:
+            if cls_d[Dstroke[sub[i]]] == cls_v[Vstroke[j]]:
+                K += 1
+            else:
+                n_other += 1
     m = np.empty(K, np.int64)
     vid = np.empty(K, np.int64)
     u = np.empty(K)
     w = np.empty(K)
     sign = np.empty(K)
+    om = np.empty(n_other, np.int64)
+    oid = np.empty(n_other, Vids.dtype)
+    ow = np.empty(n_other)
     nv = Vp.shape[0]
     k = 0
+    o = 0
     for i in range(M):
         j = rm[i]
         if j < 0:
             continue
         h = sub[i]
-        if cls_d[h] != cls_v[j]:
+        if cls_d[Dstroke[h]] != cls_v[Vstroke[j]]:
+            om[o] = h
+            oid[o] = Vids[j]
+            ow[o] = step * Dw[h]
+            o += 1
             continue
         t0 = Vt[j, 0]
         t1 = Vt[j, 1]
@@ -1014,7 +1042,7 @@ def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt
         w[k] = step * Dw[h]
         sign[k] = np.sign(t0 * Dt[h, 0] + t1 * Dt[h, 1])
         k += 1
-    return m, vid, u, w, sign
+    return m, vid, u, w, sign, om, oid, ow
 
 
 @njit(cache=True)
@@ -2187,7 +2215,8 @@ def warmup() -> None:
     resample_points(p, np.zeros(3), i, j, a)
     hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
              0.0, 1.0)
-    carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)
+    carried(two, p[:2], two, two, two, two, np.ones(2, np.bool_), 2, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3,
+            np.ones(3), t, 1)
     jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
     cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))

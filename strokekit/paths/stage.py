@@ -303,22 +303,18 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     V = _resample(prev, to.vote_spacing_px, with_surface=False)  # (their surface points are not used)
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
-    # (int64 both: the kernel's one compiled signature, whatever the kind codes' dtype)
-    # (Per stroke, then per sample: the same classes.)
-    cls_v = _kind_class(prev.kind).astype(np.int64, copy=False).take(V.stroke)
-    cls_d = _kind_class(lines.kind).astype(np.int64, copy=False).take(D.stroke)
     step = max(1, int(round(o.reverse_px / o.sample_px)))
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
                    stroke=None, s=None, w=None) if step > 1 else D
     rm, rq = _lookback(back, prev.camera, V, to.search_radius_px, to.min_tangent_dot)
-    m, vid, u, w, sign = kernels().carried(rm, rq, sub, cls_d, cls_v, V.p, V.t, V.w, V.u, V.s, V.stroke, V.ids, D.w, D.t,
-                                           step)
-    # The matches of another kind class: a claim on the id only (Votes.other).
-    x = np.flatnonzero(rm >= 0)
-    x = x[cls_d[sub[x]] != cls_v[rm[x]]]
-    hx = sub[x]
-    return Votes(m=m, vid=vid, u=u, w=w, sign=sign, other=(hx, V.ids[rm[x]], step * D.w[hx]))
+    # (Kind classes (_kind_class) per stroke, then per sample, in the kernel; int64 codes: its one
+    # compiled signature, whatever the codes' dtype.) The matches of another kind class: a claim
+    # on the id only (Votes.other).
+    m, vid, u, w, sign, om, oid, ow = kernels().carried(
+        rm, rq, sub, np.asarray(lines.kind, np.int64), D.stroke, np.asarray(prev.kind, np.int64), _CONTOUR, N_KINDS,
+        V.p, V.t, V.w, V.u, V.s, V.stroke, V.ids, D.w, D.t, step)
+    return Votes(m=m, vid=vid, u=u, w=w, sign=sign, other=(om, oid, ow))
 
 
 def _lookback(src: Samples, camera, V: Samples, radius_px: float, min_tangent_dot: float,
