@@ -359,6 +359,22 @@ def test_carried_votes_are_the_numpy_ones():
             assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
 
 
+def test_inner_knots_are_piecewise_us():
+    rng = np.random.default_rng(53)
+    K = kernels()
+    for _ in range(100):
+        S = int(rng.integers(0, 12))
+        # (lengths of whole knot spacings, shorter than one, zero: every count of inner knots)
+        L = np.where(rng.random(S) < 0.3, rng.integers(0, 5, S) * 16.0, rng.random(S) * 90.0)
+        pw = PiecewiseU(L, 16.0)
+        if S == 0:  # (PiecewiseU.inner_knot_s needs a stroke; the kernel gives none)
+            assert all(len(x) == 0 for x in K.inner_knots(pw.n, pw.h))
+            continue
+        a = (pw.inner_knot_stroke(), pw.inner_knot_s())
+        for x, y in zip(a, K.inner_knots(pw.n, pw.h)):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
 def test_band_terms_are_piecewise_fits():
     rng = np.random.default_rng(13)
     for _ in range(50):

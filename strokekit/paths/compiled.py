@@ -27,8 +27,8 @@ rounding depends on the BLAS kernel.
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
   fit), `vote_groups`, `to_primary` (fit_u's vote groups and their shift by whole periods),
   `knot_intervals`, `piecewise_system`, `piecewise_inliers`, `piecewise_at` (PiecewiseU's fit
-  and evaluation), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made
-  points).
+  and evaluation), `inner_knots` (its inner knots), `insert_at`, `insert_merge`
+  (tracking.joins.insert_points, the knots made points).
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points).
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
   (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers); `arcs` (Strokes'
@@ -1706,6 +1706,24 @@ def piecewise_at(knots, n, h, base, offsets, arc):
 
 
 @njit(cache=True)
+def inner_knots(n, h):
+    """PiecewiseU's inner knots (inner_knot_stroke, inner_knot_s): knots 1 .. n_r - 1 of every
+    stroke r (n (S,) intervals of h (S,) px each), their stroke and arc length j * h_r (px)."""
+    total = 0
+    for r in range(n.shape[0]):
+        total += n[r] - 1
+    st = np.empty(total, np.int64)
+    s = np.empty(total)
+    e = 0
+    for r in range(n.shape[0]):
+        for j in range(1, n[r]):
+            st[e] = r
+            s[e] = j * h[r]
+            e += 1
+    return st, s
+
+
+@njit(cache=True)
 def insert_at(base, G, offsets, stroke, s):
     """tracking.joins.insert_points' new points: at arc length s (px) of strokes `stroke`, the
     segment i -> j and fraction a holding it, its global arc g; points within 1e-6 px of an
@@ -2202,6 +2220,7 @@ def warmup() -> None:
                      np.ones(1), 0.1, 1e-3, 1e-2)
     piecewise_inliers(np.zeros(3), k1, a1_, np.ones(1), 10.0, 3.0)
     piecewise_at(np.zeros(3), n1, h1, base1, np.array([0, 3]), np.arange(3.0))
+    inner_knots(n1, h1)
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)

@@ -234,7 +234,7 @@ def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.nda
         inlier = K.piecewise_inliers(knots, k, f, u, P, o.outlier_px)
     b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
     # u is interpolated linearly between points downstream: give it the knots as points.
-    cur = _insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
+    cur = _insert_points(cur, *K.inner_knots(pw.n, pw.h))
     u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, _arcs(cur).arc_length)
     b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
     return cur, u_new, b
