@@ -42,6 +42,7 @@ import numpy as np
 
 from strokekit.lines.strokeops import (
     CONTOUR_KINDS,
+    _sorted_unique,
     cut_pieces,
     join_arrays,
     keep_points,
@@ -758,7 +759,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     np.minimum.at(occ_level, path_of, lines.kind[p_line] // N_KINDS)
     paths = paths.replace(kind=paths.kind % N_KINDS + N_KINDS * occ_level)
     # 6. Ids: by the votes each path holds and the length of its pieces of each label.
-    known = np.unique(prev.ids) if history else np.zeros(0, np.int64)
+    known = _sorted_unique(prev.ids) if history else np.zeros(0, np.int64)  # (np.unique, by a sort)
     ids, next_id = _path_ids(S, path_of, p_label, plen, votes, vk, vid, vw, cover, smp_piece, D, p_s0, p_s1, known,
                              next_id)
     paths = paths.replace(ids=ids)
