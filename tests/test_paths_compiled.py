@@ -584,6 +584,31 @@ def _one_label_numpy(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> n
     return out
 
 
+def test_cover_table_is_the_numpy_one():
+    """_finish's covers: the drawn pieces and covered runs joined and ordered as np.lexsort orders
+    them (many ties in path, line and start: the joined order decides)."""
+    rng = np.random.default_rng(59)
+    K = kernels()
+    for _ in range(200):
+        S = int(rng.integers(0, 8))
+        P, C = int(rng.integers(0, 30)), int(rng.integers(0, 30))
+        top = S + 2 if rng.random() < 0.2 else max(S, 1)  # (paths beyond S: bincount's longer counts)
+        path_of, cp = rng.integers(0, top, P), rng.integers(0, top, C)
+        p_line, cl = rng.integers(0, 4, P), rng.integers(0, 4, C)
+        p_s0, c0 = rng.integers(0, 4, P) * 0.5, rng.integers(0, 4, C) * 0.5
+        p_s0[rng.random(P) < 0.2] = -0.0  # (-0.0 ties 0.0)
+        p_s1, c1 = p_s0 + rng.random(P), c0 + rng.random(C)
+        allp, alll = np.r_[path_of, cp], np.r_[p_line, cl]
+        all0, all1 = np.r_[p_s0, c0], np.r_[p_s1, c1]
+        drawn = np.r_[np.ones(P, bool), np.zeros(C, bool)]
+        o = np.lexsort((all0, alll, ~drawn, allp))
+        counts = np.bincount(allp, minlength=S)
+        ref = (np.r_[0, counts.cumsum()].astype(np.int64), alll[o].astype(np.int64), all0[o], all1[o], drawn[o])
+        got = K.cover_table(path_of, p_line, p_s0, p_s1, cl, c0, c1, cp, S)
+        for x, y in zip(ref, got):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
 def test_one_label_per_path_is_the_numpy_one():
     from strokekit.paths.stage import _one_label_per_path
 

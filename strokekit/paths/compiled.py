@@ -33,7 +33,7 @@ rounding depends on the BLAS kernel.
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
   (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers); `arcs` (Strokes'
   arc lengths and global arc).
-* Covers: `cover_runs` (paths.stage._finish's covered runs); `one_label`
+* Covers: `cover_runs`, `cover_table` (paths.stage._finish's covered runs, its covers); `one_label`
   (paths.stage._one_label_per_path after its sort).
 """
 
@@ -2063,6 +2063,73 @@ def cover_runs(cover, smp_piece, path_of, stroke, s, w):
 
 
 @njit(cache=True)
+def cover_table(path_of, p_line, p_s0, p_s1, cl, c0, c1, cp, S):
+    """paths.stage._finish's covers: the drawn pieces (path path_of, line p_line, from p_s0 to
+    p_s1 px) and the covered runs (cl, c0, c1, cp likewise), by path, the drawn ones first, then
+    by line, then by start, ties in that order (np.lexsort((s0, line, ~drawn, path)) of the two
+    joined). Returns the offsets (max(S, top path + 1) + 1,) of each path's covers (np.bincount's
+    counts summed), their lines, starts, ends and whether drawn."""
+    P = path_of.shape[0]
+    n = P + cp.shape[0]
+    path = np.empty(n, np.int64)
+    line = np.empty(n)
+    s0 = np.empty(n)
+    for i in range(n):
+        if i < P:
+            path[i] = path_of[i]
+            line[i] = p_line[i]
+            s0[i] = p_s0[i]
+        else:
+            path[i] = cp[i - P]
+            line[i] = cl[i - P]
+            s0[i] = c0[i - P]
+    top = S
+    for i in range(n):
+        if path[i] + 1 > top:
+            top = path[i] + 1
+    offsets = np.zeros(top + 1, np.int64)
+    for i in range(n):
+        offsets[path[i] + 1] += 1
+    for r in range(top):
+        offsets[r + 1] += offsets[r]
+    # By path, stably: the drawn pieces (the first P) come first in each; then each part sorted by
+    # start, then by line (stable sorts: by line, then start).
+    fill = offsets[:-1].copy()
+    o = np.empty(n, np.int64)
+    for i in range(n):
+        o[fill[path[i]]] = i
+        fill[path[i]] += 1
+    buf = np.empty(n, np.int64)
+    bounds = np.empty(n + 1, np.int64)
+    for r in range(top):
+        a = offsets[r]
+        b = offsets[r + 1]
+        m = a
+        while m < b and o[m] < P:
+            m += 1
+        for lo, hi in ((a, m), (m, b)):
+            _sort_by_key(o, lo, hi, s0, buf, bounds)
+            _sort_by_key(o, lo, hi, line, buf, bounds)
+    out_line = np.empty(n, np.int64)
+    out_s0 = np.empty(n)
+    out_s1 = np.empty(n)
+    drawn = np.empty(n, np.bool_)
+    for q in range(n):
+        i = o[q]
+        if i < P:
+            out_line[q] = p_line[i]
+            out_s0[q] = p_s0[i]
+            out_s1[q] = p_s1[i]
+            drawn[q] = True
+        else:
+            out_line[q] = cl[i - P]
+            out_s0[q] = c0[i - P]
+            out_s1[q] = c1[i - P]
+            drawn[q] = False
+    return offsets, out_line, out_s0, out_s1, drawn
+
+
+@njit(cache=True)
 def one_label(order, group, label):
     """paths.stage._one_label_per_path after its sort (order: the pieces by group, then position):
     each group's pieces' labels filled forward over the unlabelled ones (-1), then backward
@@ -2188,6 +2255,8 @@ def warmup() -> None:
     arcs(p, np.array([0, 1, 3]), np.zeros(3), np.zeros(3), np.zeros(2), np.zeros(2), np.zeros(3))
     cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),
                np.ones(3))
+    cover_table(np.array([0]), np.array([0]), np.zeros(1), np.ones(1), np.array([0]), np.zeros(1), np.ones(1),
+                np.array([0]), 1)
     X3 = np.zeros((3, 3))
     surface_mix(X3, X3, np.ones(3), np.ones(3), np.zeros(3))
     keep_rows(p, X3, np.zeros(3, np.int64), np.zeros(3), np.array([0, 3]), np.ones(3, np.bool_))

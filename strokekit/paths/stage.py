@@ -852,17 +852,13 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
         smp_piece = pmap[smp_piece]
         p_line, p_s0, p_s1, path_of = p_line[keep], p_s0[keep], p_s1[keep], new[path_of[keep]]
     # Covered samples in runs: same line, same covering path, consecutive samples.
-    cl, c0, c1, cp = kernels().cover_runs(cover, smp_piece, path_of, D.stroke, D.s, D.w)
-    allp = join_arrays(path_of, cp)
-    alll = join_arrays(p_line, cl)
-    all0 = join_arrays(p_s0, c0)
-    all1 = join_arrays(p_s1, c1)
-    drawn = join_arrays(np.ones(len(path_of), bool), np.zeros(len(cp), bool))
-    o = np.lexsort((all0, alll, ~drawn, allp))
-    counts = np.bincount(allp, minlength=len(paths))
-    return BrushPaths(strokes=paths, lines=lines, cover_offsets=join_arrays(0, counts.cumsum()).astype(np.int64),
-                      cover_line=alll[o].astype(np.int64), cover_s0=all0[o], cover_s1=all1[o], cover_drawn=drawn[o],
-                      held=held)
+    K = kernels()
+    cl, c0, c1, cp = K.cover_runs(cover, smp_piece, path_of, D.stroke, D.s, D.w)
+    # By path, the drawn pieces first, then by line and start.
+    off, line, s0, s1, drawn = K.cover_table(path_of, np.asarray(p_line, np.int64), p_s0, p_s1, cl, c0, c1, cp,
+                                              len(paths))
+    return BrushPaths(strokes=paths, lines=lines, cover_offsets=off, cover_line=line, cover_s0=s0, cover_s1=s1,
+                      cover_drawn=drawn, held=held)
 
 
 def _select(strokes: Strokes, mask: np.ndarray) -> Strokes:
