@@ -204,67 +204,71 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
     best = np.full(n, -1, np.int64)
     best_rank = np.zeros(n, np.int64)
     best_d2 = np.zeros(n)
-    for cy in range(ny):
-        for cx in range(nx):
-            c = cy * nx + cx
-            a0 = start[c]
-            a1 = start[c + 1]
-            if a0 == a1:
+    # The cells that hold samples, in slot order (each slot's cell as grid_index found it: no
+    # walk over the empty cells).
+    a1 = 0
+    while a1 < n:
+        cx = min(int((ps[a1, 0] - x0) / cell), nx - 1)
+        cy = min(int((ps[a1, 1] - y0) / cell), ny - 1)
+        c = cy * nx + cx
+        a0 = start[c]
+        if a0 != a1 or start[c + 1] <= a0:  # (never: the slots are in cell order)
+            return False
+        a1 = start[c + 1]
+        # The pairs of this cell with itself and the next one in its row, then with the three
+        # of the next row: two ranges of consecutive slots.
+        e1 = start[c + 2] if cx + 1 < nx else a1
+        f0 = f1 = 0
+        if cy + 1 < ny:
+            f0 = start[c + nx - 1] if cx > 0 else start[c + nx]
+            f1 = start[c + nx + 2] if cx + 1 < nx else start[c + nx + 1]
+        for q in range(a0, a1):
+            rq = run_s[q]
+            if rq < 0:
                 continue
-            # The pairs of this cell with itself and the next one in its row, then with the three
-            # of the next row: two ranges of consecutive slots.
-            e1 = start[c + 2] if cx + 1 < nx else a1
-            f0 = f1 = 0
-            if cy + 1 < ny:
-                f0 = start[c + nx - 1] if cx > 0 else start[c + nx]
-                f1 = start[c + nx + 2] if cx + 1 < nx else start[c + nx + 1]
-            for q in range(a0, a1):
-                rq = run_s[q]
-                if rq < 0:
-                    continue
-                qx = ps[q, 0]
-                qy = ps[q, 1]
-                for part in range(2):
-                    for q2 in range(q + 1 if part == 0 else f0, e1 if part == 0 else f1):
-                        if run_s[q2] < 0 or run_s[q2] == rq or sk_s[q2] != sk_s[q]:
-                            continue
-                        ddx = ps[q2, 0] - qx
-                        ddy = ps[q2, 1] - qy
-                        d2 = ddx * ddx + ddy * ddy
-                        if d2 > r2 + PAIR_SLACK:
-                            continue
-                        if abs(d2 - r2) <= PAIR_SLACK:
-                            return False
-                        if d2 > r2:
-                            continue
-                        # The sample of the lower-ranked run is the one covered (x), by y.
-                        rk1 = rank_of_run[rq]
-                        rk2 = rank_of_run[run_s[q2]]
-                        if rk2 == rk1:
-                            continue
-                        if rk2 < rk1:
-                            x = order[q]
-                            y = order[q2]
-                            ry = rk2
-                        else:
-                            x = order[q2]
-                            y = order[q]
-                            ry = rk1
-                            ddx = -ddx
-                            ddy = -ddy
-                        tx0 = t[x, 0]
-                        tx1 = t[x, 1]
-                        along = abs(ddx * tx0 + ddy * tx1)
-                        if not along <= 0.5 * (w[x] + w[y]) - 0.25:
-                            continue
-                        if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
-                            continue
-                        b = best[x]
-                        if b < 0 or ry < best_rank[x] or (ry == best_rank[x] and (d2 < best_d2[x] or (
-                                d2 == best_d2[x] and y < b))):
-                            best[x] = y
-                            best_rank[x] = ry
-                            best_d2[x] = d2
+            qx = ps[q, 0]
+            qy = ps[q, 1]
+            for part in range(2):
+                for q2 in range(q + 1 if part == 0 else f0, e1 if part == 0 else f1):
+                    if run_s[q2] < 0 or run_s[q2] == rq or sk_s[q2] != sk_s[q]:
+                        continue
+                    ddx = ps[q2, 0] - qx
+                    ddy = ps[q2, 1] - qy
+                    d2 = ddx * ddx + ddy * ddy
+                    if d2 > r2 + PAIR_SLACK:
+                        continue
+                    if abs(d2 - r2) <= PAIR_SLACK:
+                        return False
+                    if d2 > r2:
+                        continue
+                    # The sample of the lower-ranked run is the one covered (x), by y.
+                    rk1 = rank_of_run[rq]
+                    rk2 = rank_of_run[run_s[q2]]
+                    if rk2 == rk1:
+                        continue
+                    if rk2 < rk1:
+                        x = order[q]
+                        y = order[q2]
+                        ry = rk2
+                    else:
+                        x = order[q2]
+                        y = order[q]
+                        ry = rk1
+                        ddx = -ddx
+                        ddy = -ddy
+                    tx0 = t[x, 0]
+                    tx1 = t[x, 1]
+                    along = abs(ddx * tx0 + ddy * tx1)
+                    if not along <= 0.5 * (w[x] + w[y]) - 0.25:
+                        continue
+                    if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
+                        continue
+                    b = best[x]
+                    if b < 0 or ry < best_rank[x] or (ry == best_rank[x] and (d2 < best_d2[x] or (
+                            d2 == best_d2[x] and y < b))):
+                        best[x] = y
+                        best_rank[x] = ry
+                        best_d2[x] = d2
     for x in range(n):
         if best[x] >= 0:
             out[x] = best[x]
