@@ -306,7 +306,7 @@ def test_id_claims_are_the_numpy_sums():
         if trial % 5 == 0:  # (ids beyond `known`: the sums' cells as the dense ones alias them)
             vid = rng.integers(0, 70, V)
         a = _id_claims_numpy(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known, S)
-        b = K.id_claims(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known, S)
+        b = K.id_claims(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known)
         for x, y in zip(a, b):
             assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
 

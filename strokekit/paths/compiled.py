@@ -1314,60 +1314,52 @@ def _left(a, v):
 
 
 @njit(cache=True)
-def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known, S):
+def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known):
     """paths.stage._path_ids' claims of the paths on the previous ids, summed per (path, id): the
     pieces' labels (piece i of path path_of[i], labelled p_label[i] >= 0, weighs label_weight *
     plen[i]), the votes (on piece vk, id vid, weight vw) and those of the other kind class (where
     ok: on piece ok_k (in order), id oid, weight ow). Returns (cs, ci, cw), the pairs of a
     nonzero sum by path, then by the place of the id in `known` (sorted; K = its length): what
     np.bincount(cs * K + np.searchsorted(known, ci), weights=cw, minlength=S * K) and its
-    np.flatnonzero give (sums in the same order: the labels, the votes, the other votes)."""
+    np.flatnonzero give for any S (sums in the same order: the labels, the votes, the other
+    votes)."""
     K = known.shape[0]
-    n = vk.shape[0] + ok_k.shape[0]
-    for i in range(p_label.shape[0]):
+    P = p_label.shape[0]
+    V = vk.shape[0]
+    n = V + ok_k.shape[0]
+    for i in range(P):
         if p_label[i] >= 0:
             n += 1
     key = np.empty(n, np.int64)
     wt = np.empty(n)
     e = 0
-    for i in range(p_label.shape[0]):
-        if p_label[i] >= 0:
-            key[e] = path_of[i] * K + _left(known, p_label[i])
-            wt[e] = label_weight * plen[i]
-            e += 1
+    k = 0
     last = -1
     at = 0
-    for i in range(vk.shape[0]):
-        if i == 0 or vid[i] != last:  # (the votes of a line come in runs of one id)
-            last = vid[i]
-            at = _left(known, last)
-        key[e] = path_of[vk[i]] * K + at
-        wt[e] = vw[i]
-        e += 1
-    k = 0
-    for i in range(ok.shape[0]):
-        if ok[i]:
-            key[e] = path_of[ok_k[k]] * K + _left(known, oid[i])
-            wt[e] = ow[i]
-            e += 1
+    for i in range(P + V + ok.shape[0]):
+        if i < P:
+            if p_label[i] < 0:
+                continue
+            piece, cid, x = i, p_label[i], label_weight * plen[i]
+        elif i < P + V:
+            piece, cid, x = vk[i - P], vid[i - P], vw[i - P]
+        else:
+            if not ok[i - P - V]:
+                continue
+            piece, cid, x = ok_k[k], oid[i - P - V], ow[i - P - V]
             k += 1
+        if e == 0 or cid != last:  # (the votes of a line come in runs of one id)
+            last = cid
+            at = _left(known, cid)
+        key[e] = path_of[piece] * K + at
+        wt[e] = x
+        e += 1
     # By path (bucketed, in order), then summed per id on a scratch row of K: the sums of a
     # dense S x K bincount without its pages.
-    top = S
+    pr = np.empty(n, np.int64)
     for i in range(n):
-        if key[i] // K + 1 > top:
-            top = key[i] // K + 1
-    start = np.zeros(top + 1, np.int64)
-    for i in range(n):
-        start[key[i] // K + 1] += 1
-    for r in range(top):
-        start[r + 1] += start[r]
-    fill = start[:-1].copy()
-    o = np.empty(n, np.int64)
-    for i in range(n):
-        r = key[i] // K
-        o[fill[r]] = i
-        fill[r] += 1
+        pr[i] = key[i] // K
+    top, start, o = _buckets(pr)
     row = np.zeros(K)
     seen = np.zeros(K, np.bool_)
     touched = np.empty(K, np.int64)
@@ -1398,7 +1390,14 @@ def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, 
                 m += 1
             row[c] = 0.0
             seen[c] = False
-    return cs[:m].copy(), ci[:m].copy(), cw[:m].copy()
+    out_s = np.empty(m, np.int64)
+    out_i = np.empty(m, known.dtype)
+    out_w = np.empty(m)
+    for q in range(m):
+        out_s[q] = cs[q]
+        out_i[q] = ci[q]
+        out_w[q] = cw[q]
+    return out_s, out_i, out_w
 
 
 @njit(cache=True)
@@ -2138,33 +2137,22 @@ def cover_table(path_of, p_line, p_s0, p_s1, cl, c0, c1, cp, S):
             path[i] = cp[i - P]
             line[i] = cl[i - P]
             s0[i] = c0[i - P]
-    top = S
-    for i in range(n):
-        if path[i] + 1 > top:
-            top = path[i] + 1
-    offsets = np.zeros(top + 1, np.int64)
-    for i in range(n):
-        offsets[path[i] + 1] += 1
-    for r in range(top):
-        offsets[r + 1] += offsets[r]
-    # By path, stably: the drawn pieces (the first P) come first in each; then each part sorted by
-    # start, then by line (stable sorts: by line, then start).
-    fill = offsets[:-1].copy()
-    o = np.empty(n, np.int64)
-    for i in range(n):
-        o[fill[path[i]]] = i
-        fill[path[i]] += 1
+    # By path, stably (the drawn pieces, the first P, come first in each), then each part sorted
+    # by start, then by line (stable sorts: by line, then start).
+    top, start, o = _buckets(path)
+    offsets = np.empty(max(S, top) + 1, np.int64)
+    for r in range(offsets.shape[0]):
+        offsets[r] = start[r] if r <= top else n
     buf = np.empty(n, np.int64)
     bounds = np.empty(n + 1, np.int64)
     for r in range(top):
-        a = offsets[r]
-        b = offsets[r + 1]
-        m = a
-        while m < b and o[m] < P:
+        m = start[r]
+        while m < start[r + 1] and o[m] < P:
             m += 1
-        for lo, hi in ((a, m), (m, b)):
-            _sort_by_key(o, lo, hi, s0, buf, bounds)
-            _sort_by_key(o, lo, hi, line, buf, bounds)
+        _sort_by_key(o, start[r], m, s0, buf, bounds)
+        _sort_by_key(o, start[r], m, line, buf, bounds)
+        _sort_by_key(o, m, start[r + 1], s0, buf, bounds)
+        _sort_by_key(o, m, start[r + 1], line, buf, bounds)
     out_line = np.empty(n, np.int64)
     out_s0 = np.empty(n)
     out_s1 = np.empty(n)
@@ -2352,7 +2340,7 @@ def warmup() -> None:
     band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)
     id_claims(two, np.array([1, -1]), np.ones(2), 0.25, two, two, np.ones(2), np.ones(2, np.bool_), two, two,
-              np.ones(2), np.array([0, 1]), 2)
+              np.ones(2), np.array([0, 1]))
     vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
     st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
     resample_points(p, np.zeros(3), i, j, a)

@@ -175,7 +175,7 @@ def _path_ids(S: int, path_of: np.ndarray, p_label: np.ndarray, plen: np.ndarray
     i64 = np.int64
     cs, ci, cw = kernels().id_claims(np.asarray(path_of, i64), np.asarray(p_label, i64), plen, LABEL_ID_WEIGHT,
                                      np.asarray(vk, i64), np.asarray(vid, i64), vw, ok, np.asarray(ok_k, i64),
-                                     np.asarray(oid, i64), np.asarray(ow, float), np.asarray(known, i64), S)
+                                     np.asarray(oid, i64), np.asarray(ow, float), np.asarray(known, i64))
     if len(cs) == 0:
         return np.arange(next_id, next_id + S, dtype=np.int64), next_id + S
     return _assign_ids(S, cs, ci, cw, next_id)
