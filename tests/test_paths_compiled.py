@@ -584,26 +584,6 @@ def _one_label_numpy(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> n
     return out
 
 
-def test_run_ranks_are_the_numpy_ones():
-    """The cover's ranks of the runs: label totals summed in run order, lengths rounded to 1e-6
-    px, ties in both (lengths that round alike, labels that add up alike) broken by run."""
-    rng = np.random.default_rng(61)
-    K = kernels()
-    for _ in range(200):
-        R = int(rng.integers(0, 40))
-        r_len = np.where(rng.random(R) < 0.5, rng.integers(0, 5, R) * 0.5, rng.random(R) * 20.0)
-        r_len[rng.random(R) < 0.2] += 4e-7  # (rounds to the same 1e-6 px as its neighbours)
-        r_label = np.where(rng.random(R) < 0.3, -1, rng.integers(0, 6, R) * 97)
-        glen = r_len.copy()
-        lab = r_label >= 0
-        if lab.any():
-            _, inv = np.unique(r_label[lab], return_inverse=True)
-            glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
-        ref = np.empty(R, np.int64)
-        ref[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
-        assert np.array_equal(ref, K.run_ranks(r_len, r_label))
-
-
 def test_cover_table_is_the_numpy_one():
     """_finish's covers: the drawn pieces and covered runs joined and ordered as np.lexsort orders
     them (many ties in path, line and start: the joined order decides)."""

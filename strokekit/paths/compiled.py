@@ -18,8 +18,7 @@ rounding depends on the BLAS kernel.
   `bridges` (paths.stage.on_drawing).
 * Samples and votes: `resample_at`, `resample_points` (sampling.resample_strokes less its surface
   points); `carried` (the votes of carried_votes); `vote_labels` (tracking.votes.sample_labels);
-  `segment_runs` (tracking.votes.segment_by_votes after the labels); `run_ranks` (the runs'
-  ranks for the cover).
+  `segment_runs` (tracking.votes.segment_by_votes after the labels).
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
   links and walk); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
   (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass);
@@ -681,56 +680,6 @@ def _argsort(key):
     o = np.arange(n)
     _sort_by_key(o, 0, n, key, np.empty(n, np.int64), np.empty(n + 1, np.int64))
     return o
-
-
-@njit(cache=True)
-def run_ranks(r_len, r_label):
-    """paths.stage.brush_step's ranks of the runs for the cover (0 first): by the total length of
-    the run's label (the sum of r_len (R,) px over the runs of its label r_label (R,) >= 0, in
-    run order as np.bincount sums; an unlabelled run (-1) its own length), then by the run's
-    own length, both rounded to 1e-6 px as np.round(x, 6) rounds (rint(x * 1e6) / 1e6), longest
-    first, then by run: what rank[np.lexsort((arange, -round(r_len), -round(glen)))] = arange
-    gives."""
-    R = r_len.shape[0]
-    glen = r_len.copy()
-    n = 0
-    for i in range(R):
-        if r_label[i] >= 0:
-            n += 1
-    lab = np.empty(n, np.int64)
-    key = np.empty(n)
-    n = 0
-    for i in range(R):
-        if r_label[i] >= 0:
-            lab[n] = i
-            key[n] = r_label[i]
-            n += 1
-    o = _argsort(key)
-    g0 = 0
-    while g0 < n:
-        g1 = g0
-        total = 0.0
-        while g1 < n and key[o[g1]] == key[o[g0]]:
-            total += r_len[lab[o[g1]]]
-            g1 += 1
-        for q in range(g0, g1):
-            glen[lab[o[q]]] = total
-        g0 = g1
-    k1 = np.empty(R)
-    k2 = np.empty(R)
-    for i in range(R):
-        k1[i] = -(np.rint(glen[i] * 1e6) / 1e6)
-        k2[i] = -(np.rint(r_len[i] * 1e6) / 1e6)
-    # (Stable sorts from the last key to the first: the lexicographic order.)
-    order = np.arange(R)
-    buf = np.empty(R, np.int64)
-    bounds = np.empty(R + 1, np.int64)
-    _sort_by_key(order, 0, R, k2, buf, bounds)
-    _sort_by_key(order, 0, R, k1, buf, bounds)
-    rank = np.empty(R, np.int64)
-    for q in range(R):
-        rank[order[q]] = q
-    return rank
 
 
 @njit(cache=True)
@@ -2350,5 +2299,4 @@ def warmup() -> None:
             np.ones(3), t, 1)
     jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
-    run_ranks(np.array([1.0, 2.0, 0.5]), np.array([3, -1, 3]))
     cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))

@@ -701,9 +701,16 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     # 3. Labels: runs of one carried id along the lines.
     run, r_line, r_s0, r_s1, r_label = kernels().segment_runs(
         _labels(len(D), votes), D.stroke, D.s, D.w, lines.lengths, o.min_run_px)
+    R = len(r_line)
     r_len = r_s1 - r_s0
     # 4. Cover. Rank: the total length of the run's label, then its own length.
-    rank = kernels().run_ranks(r_len, r_label)
+    glen = r_len.copy()
+    lab = r_label >= 0
+    if lab.any():
+        _, inv = _unique_inverse(r_label[lab])
+        glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
+    rank = np.empty(R, np.int64)
+    rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
     # One grid of the line samples: for the cover, the bridges (on_drawing) and held_back.
     line_grid = SampleGrid(D.p, HOLD_RADIUS_PX)
     drawn_kind = hidden_as_one(lines.kind)
