@@ -9,10 +9,11 @@ import pytest
 
 from strokekit.camera.view import Camera
 from strokekit.lines.strokeops import drop_hairpins, query_tree
-from strokekit.model import Strokes
+from strokekit.model import N_KINDS, Strokes
 from strokekit.paths.grid import SampleGrid
 from strokekit.paths.kernels import kernels
 from strokekit.paths.stage import (
+    _CONTOUR,
     Votes,
     _arcs,
     _assign_ids,
@@ -20,6 +21,7 @@ from strokekit.paths.stage import (
     _drop_hairpins,
     _FitKernels,
     _insert_points,
+    _kind_class,
     _labels,
     _link_pieces,
     _lookback,
@@ -147,8 +149,7 @@ def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
 
 
 def test_lookback_in_crowded_windows_is_the_trees():
-    """The lookback where a window holds more samples than match_pieces keeps (it then reads the
-    cells again for every query): the tree's matches."""
+    """The lookback where a window holds many samples (a dense crowd): the tree's matches."""
     rng = np.random.default_rng(37)
     for lattice in (False, True):
         D = _samples(rng, 3000, lattice)
@@ -268,6 +269,110 @@ def test_id_assignment_is_assign_ids():
         a = assign_ids(S, cs, ci, cw, 20)
         b = _assign_ids(S, cs, ci, cw, 20)
         assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+
+
+def _id_claims_numpy(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known, S):
+    """paths.stage._path_ids' claims as numpy steps (the code id_claims replaced)."""
+    lk = np.flatnonzero(p_label >= 0)
+    cs = np.concatenate([path_of[lk], path_of[vk], path_of[ok_k]]).astype(np.int64)
+    ci = np.concatenate([p_label[lk], vid, oid[ok]]).astype(np.int64)
+    cw = np.concatenate([label_weight * plen[lk], vw, ow[ok]])
+    if len(cs) == 0:  # (no claims: _path_ids gives fresh ids before the sums)
+        return cs, ci, cw
+    K = len(known)
+    w = np.bincount(cs * K + np.searchsorted(known, ci), weights=cw, minlength=S * K)
+    nz = np.flatnonzero(w)
+    return nz // K, known[nz % K], w[nz]
+
+
+def test_id_claims_are_the_numpy_sums():
+    rng = np.random.default_rng(43)
+    K = kernels()
+    for trial in range(300):
+        S = int(rng.integers(1, 15))
+        known = np.unique(rng.integers(0, 60, int(rng.integers(1, 20))))
+        P = int(rng.integers(0, 30))
+        path_of = rng.integers(0, S, P)
+        p_label = np.where(rng.random(P) < 0.3, -1, known[rng.integers(0, len(known), P)])
+        # (weights that tie, cancel to zero and do not: sums whose order shows)
+        plen = np.where(rng.random(P) < 0.5, rng.integers(0, 4, P) * 0.5, rng.random(P) * 7.0)
+        V = int(rng.integers(0, 80)) if P else 0
+        vk, vid = rng.integers(0, max(P, 1), V), known[rng.integers(0, len(known), V)]
+        vw = np.where(rng.random(V) < 0.5, rng.integers(-2, 3, V) * 0.25, rng.random(V) * 0.1)
+        O = int(rng.integers(0, 40))
+        ok = rng.random(O) < 0.6 if P else np.zeros(O, bool)
+        ok_k = rng.integers(0, max(P, 1), int(ok.sum()))
+        oid, ow = known[rng.integers(0, len(known), O)], np.where(rng.random(O) < 0.5, 0.1, rng.random(O))
+        if trial % 5 == 0:  # (ids beyond `known`: the sums' cells as the dense ones alias them)
+            vid = rng.integers(0, 70, V)
+        a = _id_claims_numpy(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known, S)
+        b = K.id_claims(path_of, p_label, plen, 0.25, vk, vid, vw, ok, ok_k, oid, ow, known)
+        for x, y in zip(a, b):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+def _carried_numpy(rm, rq, sub, kind_d, Dstroke, kind_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
+    """carried's votes and other matches as numpy steps: the kind classes per stroke then per
+    sample (_kind_class), the other matches as carried_votes took them (the code carried's own
+    classes and other matches replaced), the votes one by one in the kernel's arithmetic."""
+    cls_v = _kind_class(kind_v).astype(np.int64).take(Vstroke)
+    cls_d = _kind_class(kind_d).astype(np.int64).take(Dstroke)
+    votes = []
+    for i in np.flatnonzero(rm >= 0):
+        j, h = rm[i], sub[i]
+        if cls_d[h] != cls_v[j]:
+            continue
+        off = (rq[i, 0] - Vp[j, 0]) * Vt[j, 0] + (rq[i, 1] - Vp[j, 1]) * Vt[j, 1]
+        off = min(max(off, -0.5 * Vw[j]), 0.5 * Vw[j])
+        nx = j + 1 if j + 1 < len(Vp) and Vstroke[j + 1] == Vstroke[j] else j
+        pv = j - 1 if j >= 1 and Vstroke[j - 1] == Vstroke[j] else j
+        ds = Vs[nx] - Vs[pv]
+        slope = (Vu[nx] - Vu[pv]) / ds if ds > 0 else 0.0
+        votes.append((h, Vids[j], Vu[j] + off * slope, step * Dw[h], np.sign(Vt[j, 0] * Dt[h, 0] + Vt[j, 1] * Dt[h, 1])))
+    cols = list(zip(*votes)) if votes else [[]] * 5
+    x = np.flatnonzero(rm >= 0)
+    x = x[cls_d[sub[x]] != cls_v[rm[x]]]
+    hx = sub[x]
+    return (np.array(cols[0], np.int64), np.array(cols[1], np.int64), np.array(cols[2], float), np.array(cols[3], float),
+            np.array(cols[4], float), hx, Vids[rm[x]], step * Dw[hx])
+
+
+def test_carried_votes_are_the_numpy_ones():
+    rng = np.random.default_rng(47)
+    K = kernels()
+    for trial in range(100):
+        V = _samples(rng, int(rng.integers(1, 80)), trial % 2 == 1)
+        D = _samples(rng, int(rng.integers(1, 80)), trial % 2 == 0)
+        # (kind codes of every kind and occlusion level: classes that agree and that do not)
+        kind_v = rng.integers(0, 3 * N_KINDS, V.stroke.max() + 1)
+        kind_d = rng.integers(0, 3 * N_KINDS, D.stroke.max() + 1)
+        step = int(rng.integers(1, 3))
+        sub = np.arange(0, len(D), step)
+        rm = np.where(rng.random(len(sub)) < 0.2, -1, rng.integers(0, len(V), len(sub)))
+        rq = D.p[sub] + rng.normal(0, 1.0, (len(sub), 2))
+        Vs = np.where(rng.random(len(V)) < 0.2, 0.0, V.s)  # (repeated arc lengths: no slope)
+        args = (rm, rq, sub, kind_d, D.stroke, kind_v)
+        rest = (V.p, V.t, V.w, V.u, Vs, V.stroke, V.ids, D.w, D.t, step)
+        a = _carried_numpy(*args, *rest)
+        b = K.carried(*args, _CONTOUR, N_KINDS, *rest)
+        for x, y in zip(a, b):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
+
+
+def test_inner_knots_are_piecewise_us():
+    rng = np.random.default_rng(53)
+    K = kernels()
+    for _ in range(100):
+        S = int(rng.integers(0, 12))
+        # (lengths of whole knot spacings, shorter than one, zero: every count of inner knots)
+        L = np.where(rng.random(S) < 0.3, rng.integers(0, 5, S) * 16.0, rng.random(S) * 90.0)
+        pw = PiecewiseU(L, 16.0)
+        if S == 0:  # (PiecewiseU.inner_knot_s needs a stroke; the kernel gives none)
+            assert all(len(x) == 0 for x in K.inner_knots(pw.n, pw.h))
+            continue
+        a = (pw.inner_knot_stroke(), pw.inner_knot_s())
+        for x, y in zip(a, K.inner_knots(pw.n, pw.h)):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
 
 
 def test_band_terms_are_piecewise_fits():
@@ -528,6 +633,31 @@ def _one_label_numpy(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> n
     out = np.empty(K, np.int64)
     out[order] = np.cumsum(cut) - 1
     return out
+
+
+def test_cover_table_is_the_numpy_one():
+    """_finish's covers: the drawn pieces and covered runs joined and ordered as np.lexsort orders
+    them (many ties in path, line and start: the joined order decides)."""
+    rng = np.random.default_rng(59)
+    K = kernels()
+    for _ in range(200):
+        S = int(rng.integers(0, 8))
+        P, C = int(rng.integers(0, 30)), int(rng.integers(0, 30))
+        top = S + 2 if rng.random() < 0.2 else max(S, 1)  # (paths beyond S: bincount's longer counts)
+        path_of, cp = rng.integers(0, top, P), rng.integers(0, top, C)
+        p_line, cl = rng.integers(0, 4, P), rng.integers(0, 4, C)
+        p_s0, c0 = rng.integers(0, 4, P) * 0.5, rng.integers(0, 4, C) * 0.5
+        p_s0[rng.random(P) < 0.2] = -0.0  # (-0.0 ties 0.0)
+        p_s1, c1 = p_s0 + rng.random(P), c0 + rng.random(C)
+        allp, alll = np.r_[path_of, cp], np.r_[p_line, cl]
+        all0, all1 = np.r_[p_s0, c0], np.r_[p_s1, c1]
+        drawn = np.r_[np.ones(P, bool), np.zeros(C, bool)]
+        o = np.lexsort((all0, alll, ~drawn, allp))
+        counts = np.bincount(allp, minlength=S)
+        ref = (np.r_[0, counts.cumsum()].astype(np.int64), alll[o].astype(np.int64), all0[o], all1[o], drawn[o])
+        got = K.cover_table(path_of, p_line, p_s0, p_s1, cl, c0, c1, cp, S)
+        for x, y in zip(ref, got):
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
 
 
 def test_one_label_per_path_is_the_numpy_one():

@@ -22,19 +22,20 @@ rounding depends on the BLAS kernel.
 * Paths: `link_candidates` (tracking.joins._touching_paths' candidate links), `link_paths` (its
   links and walk); `end_votes`, `continuing_links` (paths.stage.EndVotes: links that continue a
   previous path); `gather` (tracking.joins.gather_paths after its sort); `hairpins`
-  (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass).
+  (lines.strokeops.drop_hairpins' loop); `greedy_ids` (tracking.votes.assign_ids' pass);
+  `id_claims` (paths.stage._path_ids' sums of the claims on the ids).
 * u: `jump_order` (heal_jumps' order), `u_trend` (tracking.votes._u_trend),
   `band_terms` (tracking.ufit.PiecewiseU.fit's normal equations), `line_fit` (fit_u's linear
   fit), `vote_groups`, `to_primary` (fit_u's vote groups and their shift by whole periods),
   `knot_intervals`, `piecewise_system`, `piecewise_inliers`, `piecewise_at` (PiecewiseU's fit
-  and evaluation), `insert_at`, `insert_merge` (tracking.joins.insert_points, the knots made
-  points).
+  and evaluation), `inner_knots` (its inner knots), `insert_at`, `insert_merge`
+  (tracking.joins.insert_points, the knots made points).
 * Pieces: `cut_ends`, `cut_assemble` (lines.strokeops.cut_pieces less its surface points);
   `corner_cuts` (pieces cut where their line turns past the join angle).
 * Points: `surface_mix` (sampling.surface_between after its depths), `keep_rows`
   (lines.strokeops.keep_points), `take_strokes` (Strokes.select's gathers); `arcs` (Strokes'
   arc lengths and global arc).
-* Covers: `cover_runs` (paths.stage._finish's covered runs); `one_label`
+* Covers: `cover_runs`, `cover_table` (paths.stage._finish's covered runs, its covers); `one_label`
   (paths.stage._one_label_per_path after its sort).
 """
 
@@ -194,92 +195,82 @@ def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, o
         return False
     r2 = radius * radius
     n = p.shape[0]
-    # Per grid slot, read one after the other below: run (-1: not a contour), kind, run rank,
-    # tangent and length.
+    # Per grid slot, read one after the other below: run (-1: not a contour) and kind (the rest
+    # is looked up for the few pairs within the radius).
     run_s = np.empty(n, np.int64)
     sk_s = np.empty(n, np.int64)
-    rk_s = np.empty(n, np.int64)
-    ts = np.empty((n, 2))
-    w_s = np.empty(n)
     for q in range(n):
         j = order[q]
         run_s[q] = run[j] if contour[j] else -1
         sk_s[q] = sk[j]
-        rk_s[q] = rank_of_run[run[j]]
-        ts[q, 0] = t[j, 0]
-        ts[q, 1] = t[j, 1]
-        w_s[q] = w[j]
     best = np.full(n, -1, np.int64)
     best_rank = np.zeros(n, np.int64)
     best_d2 = np.zeros(n)
-    for cy in range(ny):
-        for cx in range(nx):
-            c = cy * nx + cx
-            a0 = start[c]
-            a1 = start[c + 1]
-            if a0 == a1:
+    # The cells that hold samples, in slot order (each slot's cell as grid_index found it: no
+    # walk over the empty cells).
+    a1 = 0
+    while a1 < n:
+        cx = min(int((ps[a1, 0] - x0) / cell), nx - 1)
+        cy = min(int((ps[a1, 1] - y0) / cell), ny - 1)
+        c = cy * nx + cx
+        a0 = start[c]
+        if a0 != a1 or start[c + 1] <= a0:  # (never: the slots are in cell order)
+            return False
+        a1 = start[c + 1]
+        # The pairs of this cell with itself and the next one in its row, then with the three
+        # of the next row: two ranges of consecutive slots.
+        e1 = start[c + 2] if cx + 1 < nx else a1
+        f0 = f1 = 0
+        if cy + 1 < ny:
+            f0 = start[c + nx - 1] if cx > 0 else start[c + nx]
+            f1 = start[c + nx + 2] if cx + 1 < nx else start[c + nx + 1]
+        for q in range(a0, a1):
+            rq = run_s[q]
+            if rq < 0:
                 continue
-            # This cell with itself, the next one in its row and the three of the next row.
-            for nb in range(5):
-                if nb == 0:
-                    c2 = c
-                elif nb == 1:
-                    if cx + 1 >= nx:
+            qx = ps[q, 0]
+            qy = ps[q, 1]
+            for part in range(2):
+                for q2 in range(q + 1 if part == 0 else f0, e1 if part == 0 else f1):
+                    if run_s[q2] < 0 or run_s[q2] == rq or sk_s[q2] != sk_s[q]:
                         continue
-                    c2 = c + 1
-                else:
-                    if cy + 1 >= ny:
+                    ddx = ps[q2, 0] - qx
+                    ddy = ps[q2, 1] - qy
+                    d2 = ddx * ddx + ddy * ddy
+                    if d2 > r2 + PAIR_SLACK:
                         continue
-                    ex = cx + nb - 3
-                    if ex < 0 or ex >= nx:
+                    if abs(d2 - r2) <= PAIR_SLACK:
+                        return False
+                    if d2 > r2:
                         continue
-                    c2 = c + nx + nb - 3
-                b1 = start[c2 + 1]
-                for q in range(a0, a1):
-                    rq = run_s[q]
-                    if rq < 0:
+                    # The sample of the lower-ranked run is the one covered (x), by y.
+                    rk1 = rank_of_run[rq]
+                    rk2 = rank_of_run[run_s[q2]]
+                    if rk2 == rk1:
                         continue
-                    qx = ps[q, 0]
-                    qy = ps[q, 1]
-                    for q2 in range(q + 1 if nb == 0 else start[c2], b1):
-                        if run_s[q2] < 0 or run_s[q2] == rq or sk_s[q2] != sk_s[q]:
-                            continue
-                        ddx = ps[q2, 0] - qx
-                        ddy = ps[q2, 1] - qy
-                        d2 = ddx * ddx + ddy * ddy
-                        if d2 > r2 + PAIR_SLACK:
-                            continue
-                        if abs(d2 - r2) <= PAIR_SLACK:
-                            return False
-                        if d2 > r2:
-                            continue
-                        # The sample of the lower-ranked run is the one covered (x), by y.
-                        if rk_s[q2] == rk_s[q]:
-                            continue
-                        if rk_s[q2] < rk_s[q]:
-                            xs = q
-                            ys = q2
-                        else:
-                            xs = q2
-                            ys = q
-                            ddx = -ddx
-                            ddy = -ddy
-                        tx0 = ts[xs, 0]
-                        tx1 = ts[xs, 1]
-                        along = abs(ddx * tx0 + ddy * tx1)
-                        if not along <= 0.5 * (w_s[xs] + w_s[ys]) - 0.25:
-                            continue
-                        if not abs(ts[ys, 0] * tx0 + ts[ys, 1] * tx1) >= min_dot:
-                            continue
-                        x = order[xs]
-                        y = order[ys]
-                        ry = rk_s[ys]
-                        b = best[x]
-                        if b < 0 or ry < best_rank[x] or (ry == best_rank[x] and (d2 < best_d2[x] or (
-                                d2 == best_d2[x] and y < b))):
-                            best[x] = y
-                            best_rank[x] = ry
-                            best_d2[x] = d2
+                    if rk2 < rk1:
+                        x = order[q]
+                        y = order[q2]
+                        ry = rk2
+                    else:
+                        x = order[q2]
+                        y = order[q]
+                        ry = rk1
+                        ddx = -ddx
+                        ddy = -ddy
+                    tx0 = t[x, 0]
+                    tx1 = t[x, 1]
+                    along = abs(ddx * tx0 + ddy * tx1)
+                    if not along <= 0.5 * (w[x] + w[y]) - 0.25:
+                        continue
+                    if not abs(t[y, 0] * tx0 + t[y, 1] * tx1) >= min_dot:
+                        continue
+                    b = best[x]
+                    if b < 0 or ry < best_rank[x] or (ry == best_rank[x] and (d2 < best_d2[x] or (
+                            d2 == best_d2[x] and y < b))):
+                        best[x] = y
+                        best_rank[x] = ry
+                        best_d2[x] = d2
     for x in range(n):
         if best[x] >= 0:
             out[x] = best[x]
@@ -418,10 +409,6 @@ def _window_inv(v, v0, inv, reach, n):
     return int(a), int(b)
 
 
-#: match_pieces' first room for the samples of its last window (more: it makes more).
-_WINDOW_CANDIDATES = 256
-
-
 @njit(cache=True)
 def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
     """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
@@ -430,16 +417,16 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
     (|t . st| >= min_dot), the first of least squared distance to its piece of line (across:
     the tree's distance squared less the part along t; beyond its ends along t): out (M,) its
     index, or -1. unsure (M,) set where two of the k + 1 nearest lie at the same distance (the
-    tree's order decides). The samples of a window are gathered once for the queries that
-    follow in the same window (line samples 1 px apart: most of them)."""
+    tree's order decides). The cells of a window's row hold consecutive grid slots: a window is
+    one slot range per row, found once for the queries that follow in the same window (line
+    samples 1 px apart: most of them)."""
     b2 = bound * bound
     inv = 1.0 / cell
     bd = np.empty(k + 1)
     bi = np.empty(k + 1, np.int64)
-    cpx = np.empty(_WINDOW_CANDIDATES)
-    cpy = np.empty(_WINDOW_CANDIDATES)
-    cj = np.empty(_WINDOW_CANDIDATES, np.int64)
-    nc = -1  # (candidates held: -1 none yet)
+    lo = np.empty(ny, np.int64)
+    hi = np.empty(ny, np.int64)
+    nr = 0  # (rows of the window holding samples)
     wax = wbx = way = wby = -1
     for m in range(q.shape[0]):
         qx = q[m, 0]
@@ -448,54 +435,45 @@ def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bou
         s1 = st[m, 1]
         ax, bx = _window_inv(qx, x0, inv, bound, nx)
         ay, by = _window_inv(qy, y0, inv, bound, ny)
-        if nc < 0 or ax != wax or bx != wbx or ay != way or by != wby:
+        if ax != wax or bx != wbx or ay != way or by != wby:
             wax, wbx, way, wby = ax, bx, ay, by
-            nc = 0
+            nr = 0
             for cy in range(ay, by + 1):
-                for cx in range(ax, bx + 1):
-                    nc += start[cy * nx + cx + 1] - start[cy * nx + cx]
-            if nc > cpx.shape[0]:
-                cpx = np.empty(nc)
-                cpy = np.empty(nc)
-                cj = np.empty(nc, np.int64)
-            e = 0
-            for cy in range(ay, by + 1):
-                row = cy * nx
-                for cx in range(ax, bx + 1):
-                    c = row + cx
-                    for s in range(start[c], start[c + 1]):
-                        cpx[e] = ps[s, 0]
-                        cpy[e] = ps[s, 1]
-                        cj[e] = order[s]
-                        e += 1
+                a = start[cy * nx + ax]
+                b = start[cy * nx + bx + 1]
+                if a < b:
+                    lo[nr] = a
+                    hi[nr] = b
+                    nr += 1
         cnt = 0
         e0 = e1 = e2 = np.inf
         j0 = j1 = j2 = -1
-        for e in range(nc):
-            dx = cpx[e] - qx
-            dy = cpy[e] - qy
-            d2 = dx * dx + dy * dy
-            if not d2 < b2:
-                continue
-            if k != 2:
-                cnt = _insert(bd, bi, cnt, d2, cj[e])
-                continue
-            # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
-            j = cj[e]
-            if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
-                continue
-            cnt = min(cnt + 1, 3)
-            if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
-                e2, j2 = e1, j1
-                if d2 < e0 or (d2 == e0 and j < j0):
-                    e1, j1 = e0, j0
+        for r in range(nr):
+            for e in range(lo[r], hi[r]):
+                dx = ps[e, 0] - qx
+                dy = ps[e, 1] - qy
+                d2 = dx * dx + dy * dy
+                if not d2 < b2:
+                    continue
+                if k != 2:
+                    cnt = _insert(bd, bi, cnt, d2, order[e])
+                    continue
+                # (k = 2, the lookback's: the three nearest in scalars, as _insert keeps them)
+                j = order[e]
+                if cnt == 3 and (d2 > e2 or (d2 == e2 and j > j2)):
+                    continue
+                cnt = min(cnt + 1, 3)
+                if cnt >= 2 and (d2 < e1 or (d2 == e1 and j < j1)):
+                    e2, j2 = e1, j1
+                    if d2 < e0 or (d2 == e0 and j < j0):
+                        e1, j1 = e0, j0
+                        e0, j0 = d2, j
+                    else:
+                        e1, j1 = d2, j
+                elif cnt >= 2:
+                    e2, j2 = d2, j
+                elif cnt == 1:
                     e0, j0 = d2, j
-                else:
-                    e1, j1 = d2, j
-            elif cnt >= 2:
-                e2, j2 = d2, j
-            elif cnt == 1:
-                e0, j0 = d2, j
         if k == 2:
             bd[0], bi[0], bd[1], bi[1], bd[2], bi[2] = e0, j0, e1, j1, e2, j2
         for s in range(cnt - 1):
@@ -1055,32 +1033,60 @@ def continuing_links(ra, end_a, rb, end_b, gap, tier, ue, d, slope, P, tol):
 
 
 @njit(cache=True)
-def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
+def _classes(codes, contour, n_kinds):
+    """paths.stage._kind_class of kind codes (kind + n_kinds x occlusion level): their hidden
+    levels as one, then the contour kinds (contour (n_kinds,)) in one class per level, -1 -
+    level; every other code its own class."""
+    out = np.empty(codes.shape[0], np.int64)
+    for i in range(codes.shape[0]):
+        c = codes[i] % n_kinds + n_kinds * min(codes[i] // n_kinds, 1)
+        out[i] = -1 - c // n_kinds if contour[c % n_kinds] else c
+    return out
+
+
+@njit(cache=True)
+def carried(rm, rq, sub, kind_d, Dstroke, kind_v, contour, n_kinds, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
     """paths.stage.carried_votes from the lookback's matches: rm (M,) the previous path sample
     each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
-    projected. Returns the votes where the kind classes (cls_d of the line samples, cls_v of the
-    path samples) agree: line sample m, id, u (refined along the old tangent by the local slope
-    of u, the offset clipped to the sample's piece), weight (step times the line sample's
-    length) and the sign of the tangents' agreement."""
+    projected. The kind classes (_classes) of the line samples come from their lines' kind codes
+    kind_d (by Dstroke), those of the path samples from their paths' kind_v (by Vstroke).
+    Returns the votes where the classes agree: line sample m, id, u (refined along the old
+    tangent by the local slope of u, the offset clipped to the sample's piece), weight (step
+    times the line sample's length) and the sign of the tangents' agreement; then the matches
+    where they differ (Votes.other): line sample, id, weight."""
     M = rm.shape[0]
+    cls_d = _classes(kind_d, contour, n_kinds)
+    cls_v = _classes(kind_v, contour, n_kinds)
     K = 0
+    n_other = 0
     for i in range(M):
         j = rm[i]
-        if j >= 0 and cls_d[sub[i]] == cls_v[j]:
-            K += 1
+        if j >= 0:
+            if cls_d[Dstroke[sub[i]]] == cls_v[Vstroke[j]]:
+                K += 1
+            else:
+                n_other += 1
     m = np.empty(K, np.int64)
     vid = np.empty(K, np.int64)
     u = np.empty(K)
     w = np.empty(K)
     sign = np.empty(K)
+    om = np.empty(n_other, np.int64)
+    oid = np.empty(n_other, Vids.dtype)
+    ow = np.empty(n_other)
     nv = Vp.shape[0]
     k = 0
+    o = 0
     for i in range(M):
         j = rm[i]
         if j < 0:
             continue
         h = sub[i]
-        if cls_d[h] != cls_v[j]:
+        if cls_d[Dstroke[h]] != cls_v[Vstroke[j]]:
+            om[o] = h
+            oid[o] = Vids[j]
+            ow[o] = step * Dw[h]
+            o += 1
             continue
         t0 = Vt[j, 0]
         t1 = Vt[j, 1]
@@ -1102,7 +1108,7 @@ def carried(rm, rq, sub, cls_d, cls_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt
         w[k] = step * Dw[h]
         sign[k] = np.sign(t0 * Dt[h, 0] + t1 * Dt[h, 1])
         k += 1
-    return m, vid, u, w, sign
+    return m, vid, u, w, sign, om, oid, ow
 
 
 @njit(cache=True)
@@ -1301,6 +1307,108 @@ def vote_labels(D, o, key, M, w):
             best = kw
         g0 = g1
     return label
+
+
+@njit(cache=True)
+def _left(a, v):
+    """np.searchsorted(a, v) (side left) in a sorted array a, without branches on the data (the
+    halving steps are selects)."""
+    n = a.shape[0]
+    if n == 0:
+        return 0
+    base = 0
+    while n > 1:
+        half = n >> 1
+        base = base + half if a[base + half] < v else base
+        n -= half
+    return base + 1 if a[base] < v else base
+
+
+@njit(cache=True)
+def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known):
+    """paths.stage._path_ids' claims of the paths on the previous ids, summed per (path, id): the
+    pieces' labels (piece i of path path_of[i], labelled p_label[i] >= 0, weighs label_weight *
+    plen[i]), the votes (on piece vk, id vid, weight vw) and those of the other kind class (where
+    ok: on piece ok_k (in order), id oid, weight ow). Returns (cs, ci, cw), the pairs of a
+    nonzero sum by path, then by the place of the id in `known` (sorted; K = its length): what
+    np.bincount(cs * K + np.searchsorted(known, ci), weights=cw, minlength=S * K) and its
+    np.flatnonzero give for any S (sums in the same order: the labels, the votes, the other
+    votes)."""
+    K = known.shape[0]
+    P = p_label.shape[0]
+    V = vk.shape[0]
+    n = V + ok_k.shape[0]
+    for i in range(P):
+        if p_label[i] >= 0:
+            n += 1
+    key = np.empty(n, np.int64)
+    wt = np.empty(n)
+    e = 0
+    k = 0
+    last = -1
+    at = 0
+    for i in range(P + V + ok.shape[0]):
+        if i < P:
+            if p_label[i] < 0:
+                continue
+            piece, cid, x = i, p_label[i], label_weight * plen[i]
+        elif i < P + V:
+            piece, cid, x = vk[i - P], vid[i - P], vw[i - P]
+        else:
+            if not ok[i - P - V]:
+                continue
+            piece, cid, x = ok_k[k], oid[i - P - V], ow[i - P - V]
+            k += 1
+        if e == 0 or cid != last:  # (the votes of a line come in runs of one id)
+            last = cid
+            at = _left(known, cid)
+        key[e] = path_of[piece] * K + at
+        wt[e] = x
+        e += 1
+    # By path (bucketed, in order), then summed per id on a scratch row of K: the sums of a
+    # dense S x K bincount without its pages.
+    pr = np.empty(n, np.int64)
+    for i in range(n):
+        pr[i] = key[i] // K
+    top, start, o = _buckets(pr)
+    row = np.zeros(K)
+    seen = np.zeros(K, np.bool_)
+    touched = np.empty(K, np.int64)
+    cs = np.empty(n, np.int64)
+    ci = np.empty(n, known.dtype)
+    cw = np.empty(n)
+    m = 0
+    for r in range(top):
+        nt = 0
+        for q in range(start[r], start[r + 1]):
+            c = key[o[q]] % K
+            row[c] += wt[o[q]]
+            if not seen[c]:
+                seen[c] = True
+                # (kept sorted: a path claims a few ids)
+                at = nt
+                while at > 0 and touched[at - 1] > c:
+                    touched[at] = touched[at - 1]
+                    at -= 1
+                touched[at] = c
+                nt += 1
+        for a in range(nt):
+            c = touched[a]
+            if row[c] != 0.0:
+                cs[m] = r
+                ci[m] = known[c]
+                cw[m] = row[c]
+                m += 1
+            row[c] = 0.0
+            seen[c] = False
+    out_s = np.empty(m, np.int64)
+    out_i = np.empty(m, known.dtype)
+    out_w = np.empty(m)
+    for q in range(m):
+        out_s[q] = cs[q]
+        out_i[q] = ci[q]
+        out_w[q] = cw[q]
+    return out_s, out_i, out_w
 
 
 @njit(cache=True)
@@ -1726,6 +1834,24 @@ def piecewise_at(knots, n, h, base, offsets, arc):
 
 
 @njit(cache=True)
+def inner_knots(n, h):
+    """PiecewiseU's inner knots (inner_knot_stroke, inner_knot_s): knots 1 .. n_r - 1 of every
+    stroke r (n (S,) intervals of h (S,) px each), their stroke and arc length j * h_r (px)."""
+    total = 0
+    for r in range(n.shape[0]):
+        total += n[r] - 1
+    st = np.empty(total, np.int64)
+    s = np.empty(total)
+    e = 0
+    for r in range(n.shape[0]):
+        for j in range(1, n[r]):
+            st[e] = r
+            s[e] = j * h[r]
+            e += 1
+    return st, s
+
+
+@njit(cache=True)
 def insert_at(base, G, offsets, stroke, s):
     """tracking.joins.insert_points' new points: at arc length s (px) of strokes `stroke`, the
     segment i -> j and fraction a holding it, its global arc g; points within 1e-6 px of an
@@ -2065,6 +2191,62 @@ def cover_runs(cover, smp_piece, path_of, stroke, s, w):
 
 
 @njit(cache=True)
+def cover_table(path_of, p_line, p_s0, p_s1, cl, c0, c1, cp, S):
+    """paths.stage._finish's covers: the drawn pieces (path path_of, line p_line, from p_s0 to
+    p_s1 px) and the covered runs (cl, c0, c1, cp likewise), by path, the drawn ones first, then
+    by line, then by start, ties in that order (np.lexsort((s0, line, ~drawn, path)) of the two
+    joined). Returns the offsets (max(S, top path + 1) + 1,) of each path's covers (np.bincount's
+    counts summed), their lines, starts, ends and whether drawn."""
+    P = path_of.shape[0]
+    n = P + cp.shape[0]
+    path = np.empty(n, np.int64)
+    line = np.empty(n)
+    s0 = np.empty(n)
+    for i in range(n):
+        if i < P:
+            path[i] = path_of[i]
+            line[i] = p_line[i]
+            s0[i] = p_s0[i]
+        else:
+            path[i] = cp[i - P]
+            line[i] = cl[i - P]
+            s0[i] = c0[i - P]
+    # By path, stably (the drawn pieces, the first P, come first in each), then each part sorted
+    # by start, then by line (stable sorts: by line, then start).
+    top, start, o = _buckets(path)
+    offsets = np.empty(max(S, top) + 1, np.int64)
+    for r in range(offsets.shape[0]):
+        offsets[r] = start[r] if r <= top else n
+    buf = np.empty(n, np.int64)
+    bounds = np.empty(n + 1, np.int64)
+    for r in range(top):
+        m = start[r]
+        while m < start[r + 1] and o[m] < P:
+            m += 1
+        _sort_by_key(o, start[r], m, s0, buf, bounds)
+        _sort_by_key(o, start[r], m, line, buf, bounds)
+        _sort_by_key(o, m, start[r + 1], s0, buf, bounds)
+        _sort_by_key(o, m, start[r + 1], line, buf, bounds)
+    out_line = np.empty(n, np.int64)
+    out_s0 = np.empty(n)
+    out_s1 = np.empty(n)
+    drawn = np.empty(n, np.bool_)
+    for q in range(n):
+        i = o[q]
+        if i < P:
+            out_line[q] = p_line[i]
+            out_s0[q] = p_s0[i]
+            out_s1[q] = p_s1[i]
+            drawn[q] = True
+        else:
+            out_line[q] = cl[i - P]
+            out_s0[q] = c0[i - P]
+            out_s1[q] = c1[i - P]
+            drawn[q] = False
+    return offsets, out_line, out_s0, out_s1, drawn
+
+
+@njit(cache=True)
 def one_label(order, group, label):
     """paths.stage._one_label_per_path after its sort (order: the pieces by group, then position):
     each group's pieces' labels filled forward over the unlabelled ones (-1), then backward
@@ -2190,6 +2372,8 @@ def warmup() -> None:
     arcs(p, np.array([0, 1, 3]), np.zeros(3), np.zeros(3), np.zeros(2), np.zeros(2), np.zeros(3))
     cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),
                np.ones(3))
+    cover_table(np.array([0]), np.array([0]), np.zeros(1), np.ones(1), np.array([0]), np.zeros(1), np.ones(1),
+                np.array([0]), 1)
     X3 = np.zeros((3, 3))
     surface_mix(X3, X3, np.ones(3), np.ones(3), np.zeros(3))
     keep_rows(p, X3, np.zeros(3, np.int64), np.zeros(3), np.array([0, 3]), np.ones(3, np.bool_))
@@ -2222,6 +2406,7 @@ def warmup() -> None:
                      np.ones(1), 0.1, 1e-3, 1e-2)
     piecewise_inliers(np.zeros(3), k1, a1_, np.ones(1), 10.0, 3.0)
     piecewise_at(np.zeros(3), n1, h1, base1, np.array([0, 3]), np.arange(3.0))
+    inner_knots(n1, h1)
     _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
                                    1.0)
     votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
@@ -2233,12 +2418,15 @@ def warmup() -> None:
     f = np.ones((1, 3))
     band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
     greedy_ids(two, two, two, 3, 5)
+    id_claims(two, np.array([1, -1]), np.ones(2), 0.25, two, two, np.ones(2), np.ones(2, np.bool_), two, two,
+              np.ones(2), np.array([0, 1]))
     vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
     st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
     resample_points(p, np.zeros(3), i, j, a)
     hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
              0.0, 1.0)
-    carried(two, p[:2], two, two, two, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3, np.ones(3), t, 1)
+    carried(two, p[:2], two, two, two, two, np.ones(2, np.bool_), 2, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3,
+            np.ones(3), t, 1)
     jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
     u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
     cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))

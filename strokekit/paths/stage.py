@@ -45,6 +45,7 @@ import numpy as np
 
 from strokekit.lines.strokeops import (
     CONTOUR_KINDS,
+    _sorted_unique,
     cut_pieces,
     join_arrays,
     keep_points,
@@ -170,20 +171,17 @@ def _path_ids(S: int, path_of: np.ndarray, p_label: np.ndarray, plen: np.ndarray
     120-frame orbit, M1 0.9717 -> 0.9742; the per-pair best assignment of ids to these paths
     gives 0.9744. `known`: the ids of the previous paths, sorted. Paths without a claim get fresh
     ids from next_id."""
-    lk = np.flatnonzero(p_label >= 0)
     om, oid, ow = votes.other
     ok, ok_k, _ = kernels().votes_landing(om, cover, smp_piece, D.s, p_s0, p_s1) if len(om) else (
         np.zeros(0, bool), np.zeros(0, np.int64), None)
-    cs = np.concatenate([path_of[lk], path_of[vk], path_of[ok_k]]).astype(np.int64)
-    ci = np.concatenate([p_label[lk], vid, oid[ok]]).astype(np.int64)
-    cw = np.concatenate([LABEL_ID_WEIGHT * plen[lk], vw, ow[ok]])
+    # (Every claimed id is one of the previous paths' `known` (sorted): sums over S x K cells.)
+    i64 = np.int64
+    cs, ci, cw = kernels().id_claims(np.asarray(path_of, i64), np.asarray(p_label, i64), plen, LABEL_ID_WEIGHT,
+                                     np.asarray(vk, i64), np.asarray(vid, i64), vw, ok, np.asarray(ok_k, i64),
+                                     np.asarray(oid, i64), np.asarray(ow, float), np.asarray(known, i64))
     if len(cs) == 0:
         return np.arange(next_id, next_id + S, dtype=np.int64), next_id + S
-    # (Every claimed id is one of the previous paths' `known` (sorted): sums over S x K cells.)
-    K = len(known)
-    w = np.bincount(cs * K + np.searchsorted(known, ci), weights=cw, minlength=S * K)
-    nz = np.flatnonzero(w)
-    return _assign_ids(S, nz // K, known[nz % K], w[nz], next_id)
+    return _assign_ids(S, cs, ci, cw, next_id)
 
 
 def _insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
@@ -240,7 +238,7 @@ def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.nda
         inlier = K.piecewise_inliers(knots, k, f, u, P, o.outlier_px)
     b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
     # u is interpolated linearly between points downstream: give it the knots as points.
-    cur = _insert_points(cur, pw.inner_knot_stroke(), pw.inner_knot_s())
+    cur = _insert_points(cur, *K.inner_knots(pw.n, pw.h))
     u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, _arcs(cur).arc_length)
     b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
     return cur, u_new, b
@@ -309,22 +307,18 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
     V = _resample(prev, to.vote_spacing_px, with_surface=False)  # (their surface points are not used)
     if len(V) == 0 or len(D) == 0:
         return Votes.none()
-    # (int64 both: the kernel's one compiled signature, whatever the kind codes' dtype)
-    # (Per stroke, then per sample: the same classes.)
-    cls_v = _kind_class(prev.kind).astype(np.int64, copy=False).take(V.stroke)
-    cls_d = _kind_class(lines.kind).astype(np.int64, copy=False).take(D.stroke)
     step = max(1, int(round(o.reverse_px / o.sample_px)))
     sub = np.arange(0, len(D), step)
     back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
                    stroke=None, s=None, w=None) if step > 1 else D
     rm, rq = _lookback(back, prev.camera, V, to.search_radius_px, to.min_tangent_dot)
-    m, vid, u, w, sign = kernels().carried(rm, rq, sub, cls_d, cls_v, V.p, V.t, V.w, V.u, V.s, V.stroke, V.ids, D.w, D.t,
-                                           step)
-    # The matches of another kind class: a claim on the id only (Votes.other).
-    x = np.flatnonzero(rm >= 0)
-    x = x[cls_d[sub[x]] != cls_v[rm[x]]]
-    hx = sub[x]
-    return Votes(m=m, vid=vid, u=u, w=w, sign=sign, other=(hx, V.ids[rm[x]], step * D.w[hx]))
+    # (Kind classes (_kind_class) per stroke, then per sample, in the kernel; int64 codes: its one
+    # compiled signature, whatever the codes' dtype.) The matches of another kind class: a claim
+    # on the id only (Votes.other).
+    m, vid, u, w, sign, om, oid, ow = kernels().carried(
+        rm, rq, sub, np.asarray(lines.kind, np.int64), D.stroke, np.asarray(prev.kind, np.int64), _CONTOUR, N_KINDS,
+        V.p, V.t, V.w, V.u, V.s, V.stroke, V.ids, D.w, D.t, step)
+    return Votes(m=m, vid=vid, u=u, w=w, sign=sign, other=(om, oid, ow))
 
 
 def _lookback(src: Samples, camera, V: Samples, radius_px: float, min_tangent_dot: float,
@@ -821,7 +815,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     np.minimum.at(occ_level, path_of, lines.kind[p_line] // N_KINDS)
     paths = paths.replace(kind=paths.kind % N_KINDS + N_KINDS * occ_level)
     # 6. Ids: by the votes each path holds and the length of its pieces of each label.
-    known = np.unique(prev.ids) if history else np.zeros(0, np.int64)
+    known = _sorted_unique(prev.ids) if history else np.zeros(0, np.int64)  # (np.unique, by a sort)
     ids, next_id = _path_ids(S, path_of, p_label, plen, votes, vk, vid, vw, cover, smp_piece, D, p_s0, p_s1, known,
                              next_id)
     paths = paths.replace(ids=ids)
@@ -914,17 +908,13 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
         smp_piece = pmap[smp_piece]
         p_line, p_s0, p_s1, path_of = p_line[keep], p_s0[keep], p_s1[keep], new[path_of[keep]]
     # Covered samples in runs: same line, same covering path, consecutive samples.
-    cl, c0, c1, cp = kernels().cover_runs(cover, smp_piece, path_of, D.stroke, D.s, D.w)
-    allp = join_arrays(path_of, cp)
-    alll = join_arrays(p_line, cl)
-    all0 = join_arrays(p_s0, c0)
-    all1 = join_arrays(p_s1, c1)
-    drawn = join_arrays(np.ones(len(path_of), bool), np.zeros(len(cp), bool))
-    o = np.lexsort((all0, alll, ~drawn, allp))
-    counts = np.bincount(allp, minlength=len(paths))
-    return BrushPaths(strokes=paths, lines=lines, cover_offsets=join_arrays(0, counts.cumsum()).astype(np.int64),
-                      cover_line=alll[o].astype(np.int64), cover_s0=all0[o], cover_s1=all1[o], cover_drawn=drawn[o],
-                      held=held)
+    K = kernels()
+    cl, c0, c1, cp = K.cover_runs(cover, smp_piece, path_of, D.stroke, D.s, D.w)
+    # By path, the drawn pieces first, then by line and start.
+    off, line, s0, s1, drawn = K.cover_table(path_of, np.asarray(p_line, np.int64), p_s0, p_s1, cl, c0, c1, cp,
+                                              len(paths))
+    return BrushPaths(strokes=paths, lines=lines, cover_offsets=off, cover_line=line, cover_s0=s0, cover_s1=s1,
+                      cover_drawn=drawn, held=held)
 
 
 def _select(strokes: Strokes, mask: np.ndarray) -> Strokes:
