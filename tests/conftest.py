@@ -40,7 +40,7 @@ def raster_kernels():
 
 @pytest.fixture(scope="session", autouse=True)
 def path_kernels():
-    """The brush path stage's numba kernels, compiled (a machine's first run: about 45 s) or loaded
+    """The brush path stage's numba kernels, compiled (a machine's first run: about 50 s) or loaded
     once for the session, before any test (see raster_kernels)."""
     from strokekit.paths.kernels import warm_kernels
 

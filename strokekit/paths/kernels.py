@@ -11,7 +11,7 @@ from strokekit.numba_cache import LazyKernels
 
 #: About how long the first compile of the kernels takes (s) on a free 2-core machine (longer
 #: under load).
-COMPILE_SECONDS = 45
+COMPILE_SECONDS = 50
 
 _KERNELS = LazyKernels("strokekit.paths.compiled", "brush path", COMPILE_SECONDS)
 
