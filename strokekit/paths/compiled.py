@@ -751,19 +751,10 @@ def u_trend(rk, pk, u, R):
     if R * top < 2.0 ** 40:
         # np.argsort(key, kind="mergesort") as the runs' keys lie apart (a run's span is less
         # than top, whole px apart at this scale): bucketed by run, each bucket sorted by key.
-        start = np.zeros(R + 1, np.int64)
-        for i in range(K):
-            start[rk[i] + 1] += 1
-        for r in range(R):
-            start[r + 1] += start[r]
-        fill = start[:-1].copy()
-        o = np.empty(K, np.int64)
-        for i in range(K):
-            o[fill[rk[i]]] = i
-            fill[rk[i]] += 1
+        n_runs, start, o = _buckets(rk)
         buf = np.empty(K, np.int64)
         bounds = np.empty(K + 1, np.int64)
-        for r in range(R):
+        for r in range(n_runs):
             _sort_by_key(o, start[r], start[r + 1], key, buf, bounds)
     else:
         o = _argsort(key)
