@@ -105,7 +105,7 @@ def _render(args: list[str], out: str) -> tuple[float, dict]:
     """Wall seconds of one `strokekit render ... --explain -q` and its stage ms (from --explain)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     t = time.perf_counter()
-    p = subprocess.run([sys.executable, "-m", "cli.main", "render", *args, "--out", out, "--explain", "-q"],
+    p = subprocess.run([sys.executable, "-m", "strokekit_cli.main", "render", *args, "--out", out, "--explain", "-q"],
                        cwd=ROOT, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t
     if p.returncode:

@@ -174,7 +174,7 @@ def _strokekit(args, log):
 
     env = dict(os.environ)
     env["PYTHONPATH"] = ROOT + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    cmd = [sys.executable, "-m", "cli.main", "render", *args, "-q"]
+    cmd = [sys.executable, "-m", "strokekit_cli.main", "render", *args, "-q"]
     with open(log, "w") as f:
         rc = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, env=env, cwd=ROOT).returncode
     if rc != 0:

@@ -203,7 +203,7 @@ def test_bench_plot_labels_do_not_overlap():
 def test_bench_cli_json(tmp_path, capsys):
     import json
 
-    from cli.main import main
+    from strokekit_cli.main import main
 
     sc = _small_scene()
     obj = tmp_path / "torus.obj"

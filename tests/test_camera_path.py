@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli.main import main
 from strokekit.camera.paths import camera_path_from_json, load_camera_path
 from strokekit.camera.view import MAX_IMAGE_PX
 from strokekit.errors import InputError
+from strokekit_cli.main import main
 
 KEY0 = {"frame": 0, "eye": [0, 0, 5], "target": [0, 0, 0]}
 KEY2 = {"frame": 2, "eye": [0, 0, 6], "target": [0, 0, 0]}

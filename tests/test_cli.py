@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from helpers import SAMPLES, model_path
 
-from cli.main import main
 from strokekit.camera.paths import load_camera_path
+from strokekit_cli.main import main
 
 
 def run_cli(args, capsys):
@@ -475,7 +475,7 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
 def test_ctrl_c_while_the_scene_loads_still_writes_the_report(cube, tmp_path, capsys, monkeypatch):
     """Ctrl-C before the run starts (the scene is loading): exit 130, one line, and --report is
     written with status 'interrupted', as for a Ctrl-C during the frames."""
-    import cli.commands.render as render_cmd
+    import strokekit_cli.commands.render as render_cmd
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
@@ -586,7 +586,7 @@ def test_empty_output_names_are_usage_errors_in_the_library_too():
 
 def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatch):
     """click turns a KeyboardInterrupt into an empty line and 'Aborted!'; the user gets one line."""
-    import cli.commands.info as info
+    import strokekit_cli.commands.info as info
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt

@@ -11,7 +11,6 @@ import pytest
 from click.testing import CliRunner
 from PIL import Image
 
-from cli.commands.diff import command as diff_command
 from strokekit.errors import InputError, UsageError
 from strokekit.metrics.diff import (
     A_ONLY_COLOR,
@@ -28,6 +27,7 @@ from strokekit.metrics.diff import (
 )
 from strokekit.model import KIND_INDEX, KINDS, Strokes
 from strokekit.writers.svg import svg_document
+from strokekit_cli.commands.diff import command as diff_command
 
 W, H = 200, 100
 L_SHAPE = np.array([[10.0, 10.0], [100.0, 10.0], [100.0, 50.0]])  # 130 px

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from cli.main import main
 from strokekit.cryptomatte import header_attributes, layer_key, manifest_json, name_to_bits, name_to_hex, name_to_id
 from strokekit.model import BACKGROUND_DEPTH
 from strokekit.options import QUALITY_PRESETS
 from strokekit.writers.exr import read_exr
+from strokekit_cli.main import main
 
 SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "still_life.glb"
 OBJECTS = ("ball", "box", "ground", "ring", "vase")

@@ -38,8 +38,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli.main import main
 from strokekit import fileio
+from strokekit_cli.main import main
 
 # Python's internal text, which a message for a user never shows.
 INTERNAL = re.compile(r"Traceback|\b[A-Z]\w*(Error|Exception)\b|\[Errno|list index|reshape|KeyError|"
@@ -461,7 +461,7 @@ def test_absurd_numbers_are_usage_errors_before_any_work(args, needle, cube, tmp
     frame_count 100000) and runs for minutes or out of memory. Run in a child process with a
     memory limit and a time limit so that today's failure is a clean one."""
     out = tmp_path / "o"
-    cmd = [sys.executable, "-c", "from cli.main import main; main()",
+    cmd = [sys.executable, "-c", "from strokekit_cli.main import main; main()",
            *[a.format(cube=cube) for a in args], *(["--out", str(out)] if args[0] == "render" else [])]
 
     def limit():

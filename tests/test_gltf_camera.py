@@ -308,7 +308,7 @@ def test_key_times_must_increase(tmp_path):
 def test_cli_renders_one_frame_per_animation_frame(tmp_path, capsys):
     """`render scene.glb --camera scene.glb` draws the box from the animated camera: 4 frames for a
     1/8 s animation at 24 fps; a bad animation is one line and exit 1."""
-    from cli.main import main
+    from strokekit_cli.main import main
 
     doc = Glb()
     cam = doc.node(camera=0, translation=[0, 0, 6])

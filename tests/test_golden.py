@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from helpers import ROOT, SAMPLES
 
-from cli.main import main
+from strokekit_cli.main import main
 
 GOLDEN = ROOT / "tests" / "golden" / "still_life"
 

@@ -13,7 +13,6 @@ import trimesh
 from helpers import box_mesh, model_path
 from scipy.spatial.transform import Rotation
 
-from cli.main import main
 from strokekit import LineOptions, LineRenderer, Strokes, build_scene, load_scene
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
@@ -27,6 +26,7 @@ from strokekit.scene.occluder import _order_along_rays
 from strokekit.tracking.tracker import track_frames
 from strokekit.writers.strokes_json import read_strokes_json, strokes_json
 from strokekit.writers.svg import svg_document
+from strokekit_cli.main import main
 
 HIDDEN = LineOptions(occlusion=(0, 15))
 

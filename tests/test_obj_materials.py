@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cli.main import main
 from strokekit.scene.load import load_scene
+from strokekit_cli.main import main
 
 CUBE_V = "".join(f"v {x} {y} {z}\n" for x, y, z in [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0),
                                                      (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)])

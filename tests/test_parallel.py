@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from helpers import box_mesh
 
-from cli.main import main
 from strokekit import LineOptions, LineRenderer, build_scene
 from strokekit.camera.paths import camera_path_from_json
 from strokekit.camera.view import ISOMETRIC_ELEVATION, Camera
 from strokekit.errors import InputError
+from strokekit_cli.main import main
 
 W = H = 400
 SIZE = 3.0  # ortho_height: world units across the image height

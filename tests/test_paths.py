@@ -208,7 +208,7 @@ def test_options_are_checked():
 # --- the render command --------------------------------------------------------------------------
 
 def _cli(args, capsys):
-    from cli.main import main
+    from strokekit_cli.main import main
 
     with pytest.raises(SystemExit) as e:
         main([str(a) for a in args])

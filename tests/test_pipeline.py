@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from helpers import SAMPLES, model_path
 
-from cli.main import main
 from strokekit.scene.load import load_scene
+from strokekit_cli.main import main
 
 
 def run_cli(args, capsys):
@@ -116,7 +116,7 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
     """Kill a run midway (SIGKILL: no cleanup at all), resume with --skip-existing: every frame is there,
     no half file anywhere, and the bytes equal an uninterrupted run."""
     scene = SAMPLES / "still_life.glb"
-    base = [sys.executable, "-m", "cli.main", "render", str(scene), "--orbit", "40", "--size", "640x480", "-q",
+    base = [sys.executable, "-m", "strokekit_cli.main", "render", str(scene), "--orbit", "40", "--size", "640x480", "-q",
             "--workers", "1"]
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
     full = tmp_path / "full"
@@ -464,7 +464,7 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     out, report = tmp_path / "o", tmp_path / "run.json"
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
     env.pop("STROKEKIT_DEBUG", None)
-    cmd = [sys.executable, "-m", "cli.main", "render", str(SAMPLES / "still_life.glb"), "--orbit", "1000",
+    cmd = [sys.executable, "-m", "strokekit_cli.main", "render", str(SAMPLES / "still_life.glb"), "--orbit", "1000",
            "--size", "200x150", "--workers", "2", "--out", str(out), "--report", str(report)]
     # SIGINT as a terminal gives it, also when this test runs where it is ignored (a background job).
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

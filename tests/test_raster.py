@@ -211,7 +211,7 @@ def test_smooth_shading_keeps_box_faces_flat(box, K):
 def test_crease_angle_reaches_the_raster_pass_from_the_command_line(box, tmp_path, capsys):
     """`strokekit render --shading smooth` splits normals at --crease-angle: the default keeps a
     cube's faces flat (same bands as --shading flat), --crease-angle 120 rounds them."""
-    from cli.main import main
+    from strokekit_cli.main import main
 
     p = tmp_path / "box.obj"
     p.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in box.vertices)
@@ -708,7 +708,7 @@ def test_svg_silhouettes_lie_on_the_edge_of_the_background_mask(tmp_path, capsys
     oblique (cavalier: the z-buffer shears the vertices along the slanted rays) projections."""
     from scipy.spatial import cKDTree
 
-    from cli.main import main
+    from strokekit_cli.main import main
 
     scene = _outline_scene()
     p = tmp_path / "two.obj"

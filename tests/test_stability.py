@@ -665,7 +665,7 @@ def test_empty_scene_is_one_clear_error(tmp_path):
 
 
 def test_bench_cli_reports_bad_input_in_one_line(tmp_path, capsys):
-    from cli.main import main
+    from strokekit_cli.main import main
 
     p = tmp_path / "empty.obj"
     p.write_text("# nothing here\n")

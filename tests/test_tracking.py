@@ -241,7 +241,7 @@ def test_coherence_command_prints_table_and_json(tmp_path, cube_frames):
     import orjson
     from click.testing import CliRunner
 
-    from cli.commands.coherence import command
+    from strokekit_cli.commands.coherence import command
 
     tracked = track_frames(cube_frames[:3])
     for f in tracked:
@@ -264,7 +264,7 @@ def test_coherence_command_reads_a_pattern_and_warns_about_missing_frames(tmp_pa
     numbers is said (the pair compares two frames that are not neighbours)."""
     from click.testing import CliRunner
 
-    from cli.commands.coherence import command
+    from strokekit_cli.commands.coherence import command
 
     tracked = track_frames(cube_frames[:4])
     for f in tracked:

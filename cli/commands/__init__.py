@@ -1,1 +1,1 @@
-"""Command modules: each exposes `command`, a click command registered by cli.main."""
+"""Command modules: each exposes `command`, a click command registered by cli/main.py."""

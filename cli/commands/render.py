@@ -227,7 +227,7 @@ def command(scene, **o):
             # (the disk that was full for a frame is likely full for the report too: the first
             # error is the one to say)
     if write_error is not None:
-        raise write_error  # one line naming the file, exit 1 (cli.main)
+        raise write_error  # one line naming the file, exit 1 (cli/main.py)
     _say_result(o, spec, res, len(frames))
     return res.exit_code
 
