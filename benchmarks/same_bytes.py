@@ -20,8 +20,8 @@ SAMPLES = ROOT / "samples"
 MODELS = ROOT.parent / "shared" / "models"
 
 
-def strokekit(*args) -> None:
-    cmd = [sys.executable, "-m", "strokekit_cli.main", *map(str, args), "-q"]
+def strokekit(*args, quiet: bool = True) -> None:
+    cmd = [sys.executable, "-m", "strokekit_cli.main", *map(str, args), *(["-q"] if quiet else [])]
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         raise SystemExit(f"failed ({p.returncode}): {' '.join(cmd)}\n{p.stderr}")
@@ -40,7 +40,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         iso = Path(tmp) / "iso.json"
         strokekit("camera", "parallel", MODELS / "fandisk.obj", "--projection", "isometric", "--width", "800",
-                  "--height", "600", "-o", iso)
+                  "--height", "600", "-o", iso, quiet=False)
         strokekit("render", MODELS / "fandisk.obj", "--camera", iso, "--hidden", "--out", out / "fandisk_hidden")
     strokekit("render", MODELS / "spot.obj", "--orbit", "12", "--strokes", "lines", "--out", out / "spot_lines")
     if not a.skip_scheduler:

@@ -161,3 +161,25 @@ def test_a_write_error_stops_the_run_and_raises_it_with_the_result(tmp_path, mon
     assert res.frames_ok == [1] and list(res.failures) == [2] and res.exit_code == 1 and res.status == "failed"
     assert res.write_error == f"{out / 'frame_0002.json'}: {os.strerror(errno.ENOSPC)}"
     assert sorted(p.name for p in out.iterdir()) == [".strokekit-run.json", "frame_0001.json", "frame_0001.svg"]
+
+
+def test_open3d_imported_from_several_threads_at_once_is_whole_in_each():
+    """A dask worker runs frames in threads: each must get open3d whole, never the half-made module
+    another thread is still initializing (AttributeError: partially initialized module 'open3d')."""
+    import subprocess
+    import sys
+
+    code = ("import threading\n"
+            "from strokekit.scene.occluder import import_open3d\n"
+            "out = []\n"
+            "def go():\n"
+            "    try:\n"
+            "        out.append(hasattr(import_open3d(), 'core') and hasattr(import_open3d().t, 'geometry'))\n"
+            "    except Exception as e:\n"
+            "        out.append(repr(e))\n"
+            "ts = [threading.Thread(target=go) for _ in range(4)]\n"
+            "[t.start() for t in ts]\n[t.join() for t in ts]\n"
+            "print(out)\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == "[True, True, True, True]"

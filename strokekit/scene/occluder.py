@@ -6,6 +6,7 @@ scaled as a whole gets the same answers."""
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 
@@ -15,6 +16,8 @@ from strokekit.model import row_norm
 from strokekit.numba_cache import LazyKernels
 from strokekit.scene.load import Scene
 
+_IMPORT_LOCK = threading.Lock()
+
 
 def import_open3d():
     """open3d, imported without its plotly drawing module.
@@ -22,7 +25,13 @@ def import_open3d():
     `import open3d` imports open3d.visualization, which imports plotly and dash (with IPython):
     0.7 s of a 1.2 s import, paid by the command and again by every spawned worker, for drawing
     functions strokekit never calls. A stand-in module takes their place when open3d has not been
-    imported yet; calling them says so."""
+    imported yet; calling them says so. Under a lock: a thread that finds open3d in sys.modules
+    while another is still initializing it would get a half-made module (a dask worker's threads)."""
+    with _IMPORT_LOCK:
+        return _import_open3d()
+
+
+def _import_open3d():
     import sys
 
     name = "open3d.visualization.draw_plotly"
