@@ -886,28 +886,6 @@ def test_brush_paths_refuse_lines_with_non_finite_points():
         PathTracker(PathOptions()).step(lines)
 
 
-def test_the_warm_up_compiles_every_kernel():
-    """A kernel the warm-up leaves out compiles during a run's first frame, after the run said
-    nothing of a compile (or, with its cache index missing, makes every later run say it compiles
-    on a machine where all is cached): each module's warmup() compiles all its public kernels (the
-    private ones compile, and are cached, with their callers). Checked in a fresh interpreter (this
-    one's other tests call the kernels themselves). sort_within, called only by a test, made CI's
-    first run say "compiling the brush path kernels" in the middle of the tests."""
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    code = ("import importlib\n"
-            "for name in ('strokekit.paths.compiled', 'strokekit.lines.compiled', 'strokekit.scene.compiled'):\n"
-            "    mod = importlib.import_module(name)\n"
-            "    mod.warmup()\n"
-            "    print(name, sorted(n for n, v in vars(mod).items() if hasattr(v, 'py_func') and not v.signatures\n"
-            "                       and not n.startswith('_')))\n")
-    root = str(Path(__file__).resolve().parents[1])
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root, check=True).stdout
-    assert [line.split(" ", 1)[1] for line in out.splitlines()] == ["[]"] * 3, out
-
-
 def _corner_cuts_numpy(strokes, p_line, p_s0, p_s1, smp, d_s, cos_min):
     """paths.compiled.corner_cuts in numpy: the vertices turning past acos(cos_min), each piece cut
     at those more than 0.5 px inside it, the samples following their part."""

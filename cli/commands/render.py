@@ -25,7 +25,7 @@ from strokekit.options import (
     QUALITY_PRESETS,
     LineOptions,
 )
-from strokekit.raster.hits import KernelWarmup
+from strokekit.run.kernels import RunKernels
 from strokekit.run.report import run_report
 from strokekit.run.runner import check_files_apart, run
 from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
@@ -181,11 +181,10 @@ def command(scene, **o):
     if not Path(scene).is_file():
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
     notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
-    kernels = None
     if wants_raster(o) and not o["scheduler"]:  # (on a dask cluster the workers draw every frame)
         raster_options_from(o, o["quality"])  # (its usage errors first)
-        # The raster kernels load (or compile, on a machine's first run) beside the scene's load.
-        kernels = KernelWarmup(notice)
+    # The kernels load (or compile, on a machine's first run): the raster ones beside the scene's load.
+    kernels = RunKernels(notice, raster=wants_raster(o) and not o["scheduler"])
     t_start = time.perf_counter()
     pool = make_executor(workers, o["scheduler"], warm=(str(scene), lines))
     spec = None

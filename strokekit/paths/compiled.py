@@ -46,6 +46,8 @@ import math
 import numpy as np
 from numba import njit
 
+from strokekit.numba_cache import kernel
+
 #: cover's cells must be wider than this times its radius.
 COVER_CELL = 1.001
 
@@ -54,7 +56,7 @@ COVER_CELL = 1.001
 PAIR_SLACK = 1e-6
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1],)")
 def grid_ok(p):
     """Whether the points p (N, 2) can be put on a grid: N > 0, every coordinate finite and so
     is the spread (max - min) along each axis (what np.isfinite(p).all() and a finite np.ptp(p,
@@ -82,7 +84,7 @@ def grid_ok(p):
     return math.isfinite(x1 - x0) and math.isfinite(y1 - y0)
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], f8)")
 def grid_index(p, cell):
     """Points p (N, 2) (finite, and so is their spread; cell > 0 finite) sorted into square cells of about `cell` px (larger where the
     points spread wide: at most max(8 N, 65536) cells). Returns (x0, y0, cell, nx, ny, start,
@@ -149,7 +151,8 @@ def _window(v, v0, cell, reach, n):
     return int(a), int(b)
 
 
-@njit(cache=True)
+@kernel(("(f8[:, ::1], i8, f8, f8, f8, i8, i8, i8[::1], i8[::1], f8[:, ::1], i8, f8, b1, f8[:, ::1], i8[:,"
+        " ::1], b1[::1])"))
 def knn(q, n, x0, y0, cell, nx, ny, start, order, ps, k, bound, as_set, out_d2, out_i, unsure):
     """For every query point q (M, 2): its k nearest of the n points of a grid (grid_index) at
     squared distance < bound**2, nearest first (equal distances: lower index first): out_d2 (M,
@@ -178,7 +181,8 @@ def knn(q, n, x0, y0, cell, nx, ny, start, order, ps, k, bound, as_set, out_d2, 
             out_i[m, s] = bi[s]
 
 
-@njit(cache=True)
+@kernel(("(f8[:, ::1], f8[:, ::1], f8[::1], i8[::1], b1[::1], i8[::1], i8[::1], f8, f8, f8, i8, i8, i8[::1],"
+        " i8[::1], f8[:, ::1], f8, f8, i8[::1])"))
 def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot, out):
     """covering_samples on the grid of p (N, 2) (see paths.stage.covering_samples): for every
     contour sample x, the sample y within `radius` (squared distance <= radius**2, the tree's
@@ -371,7 +375,8 @@ def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound,
     return False, full
 
 
-@njit(cache=True)
+@kernel(("(f8[:, ::1], f8[:, ::1], f8, f8[:, ::1], f8[:, ::1], f8[::1], f8, f8, f8, i8, i8, i8[::1], i8[::1],"
+        " f8[:, ::1], i8, f8, f8, b1[::1], b1[::1])"))
 def bridges(pa, pb, step, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, ok, unsure):
     """paths.stage.on_drawing on the grid: ok (K,) whether every point of the segments pa -> pb
     (K, 2) tested every `step` px (pa + (pb - pa) i / n, 0 < i < n, n = max(1, ceil(length /
@@ -409,7 +414,8 @@ def _window_inv(v, v0, inv, reach, n):
     return int(a), int(b)
 
 
-@njit(cache=True)
+@kernel(("(f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8, f8, f8, i8, i8, i8[::1], i8[::1], f8[:,"
+        " ::1], i8, f8, f8, i8[::1], b1[::1])"))
 def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
     """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
     tangents t (N, 2) and half lengths hw (N,): for every query point q (M, 2) (finite) with
@@ -546,7 +552,7 @@ def _runs(lab, stroke, w, run):
     return rl
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], f8[::1], f8[::1], f8[::1], f8)")
 def segment_runs(label, stroke, s, w, lengths, min_segment_px):
     """tracking.votes.segment_by_votes from its samples' labels (D,) (the id of most vote weight,
     -1: no vote; D >= 1): returns run (D,), and per run stroke, s0, s1 (px) and label."""
@@ -706,7 +712,7 @@ def _buckets(st):
     return S, start, order
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], f8[::1], f8[::1], f8, f8)")
 def jump_order(st, vid, s, u, P, min_jump):
     """heal_jumps' order of the votes, np.lexsort((s, vid, st)) (st, vid >= 0, vid < 2**53): by
     path (bucketed), then id, then s, each sort stable; and whether a step between two votes of
@@ -735,7 +741,7 @@ def jump_order(st, vid, s, u, P, min_jump):
     return o, False
 
 
-@njit(cache=True)
+@kernel("(i8[::1], f8[::1], f8[::1], i8)")
 def u_trend(rk, pk, u, R):
     """tracking.votes._u_trend after its selection: the votes rk (K,) (run), pk (K,) (position,
     px, shifted to start at 0), u (K,): per run the px along which u increases less those along
@@ -766,7 +772,7 @@ def u_trend(rk, pk, u, R):
     return out
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], i8[::1], i8, i8)")
 def link_paths(a, b, e_run, n, S):
     """tracking.joins._touching_paths' links and walk: the candidate links a, b (L,) between
     stroke ends (node i < n: the start of stroke e_run[i], else its end), in the order they are
@@ -864,7 +870,7 @@ def link_paths(a, b, e_run, n, S):
     return group, rev, pos
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], i8[::1], i8[::1], i8[::1], f8, f8, f8, f8)")
 def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
     """tracking.joins._touching_paths' candidate links of labelled strokes (label (S,), -1: none),
     up to its bridge test: the open strokes' ends (e_run (2n,): starts, then ends), their points
@@ -963,7 +969,7 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
     return n, e_run, pt, a, b, ok, straight, gap, tier, far
 
 
-@njit(cache=True)
+@kernel("(i8[::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8, f8)")
 def end_votes(vk, s_in, u, vid, label, plen, P, reach):
     """paths.stage.EndVotes.of: the votes (V,) landing on piece vk at arc length s_in (px) with
     carried u and id vid; a piece's own votes are those of its label (label (K,), -1: none). Per
@@ -1004,7 +1010,7 @@ def end_votes(vk, s_in, u, vid, label, plen, P, reach):
     return ue, d, slope
 
 
-@njit(cache=True)
+@kernel("(i8[::1], b1[::1], i8[::1], b1[::1], f8[::1], i8[::1], f8[:, ::1], f8[:, ::1], f8[::1], f8, f8)")
 def continuing_links(ra, end_a, rb, end_b, gap, tier, ue, d, slope, P, tol):
     """paths.stage.EndVotes.continues for the links (L,) of one label (tier 2; the others: False)."""
     L = ra.shape[0]
@@ -1035,7 +1041,8 @@ def _classes(codes, contour, n_kinds):
     return out
 
 
-@njit(cache=True)
+@kernel(("(i8[::1], f8[:, ::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8, f8[:, ::1], f8[:, ::1],"
+        " f8[::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8[:, ::1], i8)"))
 def carried(rm, rq, sub, kind_d, Dstroke, kind_v, contour, n_kinds, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
     """paths.stage.carried_votes from the lookback's matches: rm (M,) the previous path sample
     each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
@@ -1116,7 +1123,7 @@ def _sorted_unique(x):
     return out[:n].copy()
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], b1[::1], i8[::1], f8, f8)")
 def hairpins(P, ends, i, cos_max, max_px):
     """lines.strokeops.drop_hairpins' points kept (N,): P (N, 2) the points, ends (N,) the
     strokes' ends, i the sorted interior points looked at (hairpin_candidates)."""
@@ -1186,7 +1193,7 @@ def hairpins(P, ends, i, cos_max, max_px):
     return alive
 
 
-@njit(cache=True)
+@kernel("(f8[::1], f8, f8[::1], f8[::1], i8[::1])")
 def resample_at(L, step, base, G, offsets):
     """sampling.resample_strokes' samples, before their points are read: every stroke of lengths L
     (S,) cut into n = max(1, ceil(L / step - 1e-9)) equal pieces, a sample at the middle of each.
@@ -1243,7 +1250,7 @@ def resample_at(L, step, base, G, offsets):
     return stroke, s, w, i, j, a
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], f8[::1], i8[::1], i8[::1], f8[::1])")
 def resample_points(P, U, i, j, a):
     """sampling.resample_strokes' positions (M, 2), unit tangents (M, 2) (0 on a zero-length
     segment) and u (M,) of the samples at fraction a of the segments i -> j."""
@@ -1271,7 +1278,7 @@ def resample_points(P, U, i, j, a):
     return p, t, u
 
 
-@njit(cache=True)
+@kernel("(i8, i8[::1], i8[::1], i8, f8[::1])")
 def vote_labels(D, o, key, M, w):
     """tracking.votes.sample_labels: (D,) the id of most vote weight on every sample (ties: the
     lower id; -1: no vote), from the votes' keys sample * M + id (V,) and o (V,) a stable argsort
@@ -1315,7 +1322,8 @@ def _left(a, v):
     return base + 1 if a[base] < v else base
 
 
-@njit(cache=True)
+@kernel(("(i8[::1], i8[::1], f8[::1], f8, i8[::1], i8[::1], f8[::1], b1[::1], i8[::1], i8[::1], f8[::1],"
+        " i8[::1])"))
 def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known):
     """paths.stage._path_ids' claims of the paths on the previous ids, summed per (path, id): the
     pieces' labels (piece i of path path_of[i], labelled p_label[i] >= 0, weighs label_weight *
@@ -1402,7 +1410,7 @@ def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, 
     return out_s, out_i, out_w
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], i8[::1], i8, i8)")
 def greedy_ids(order, cs, ci, n_strokes, next_id):
     """tracking.votes.assign_ids' pass: the (stroke cs, id ci) pairs in `order` (heaviest first),
     each stroke and each id used once; strokes left without an id get fresh ids from next_id in
@@ -1425,7 +1433,7 @@ def greedy_ids(order, cs, ci, n_strokes, next_id):
     return ids, next_id
 
 
-@njit(cache=True)
+@kernel("(i8[::1], f8[::1], f8[::1], f8[::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1])")
 def band_terms(k, a, w, u, f0, f1, f2, f3):
     """tracking.ufit.PiecewiseU.fit's banded normal equations: the votes' terms (vote i: knots
     k[i], k[i] + 1 at fraction a[i], weight w[i], value u[i]), each summed over the votes in
@@ -1467,7 +1475,7 @@ def band_terms(k, a, w, u, f0, f1, f2, f3):
     return band, rhs
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], f8[::1], f8[::1], f8[::1], f8[::1], f8)")
 def pieces_of_runs(cover, run, s, w, r_s0, r_s1, min_piece_px):
     """paths.stage.brush_step's pieces: the stretches of samples (N,) of one run not covered
     (cover < 0) from arc length s0 to s1 (px; a run's own ends where the stretch reaches them,
@@ -1500,7 +1508,7 @@ def pieces_of_runs(cover, run, s, w, r_s0, r_s1, min_piece_px):
     return p_run[:P].copy(), p_s0[:P].copy(), p_s1[:P].copy(), smp_piece
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], i8[::1], f8[::1], f8, i8[::1], f8[::1], f8[::1], i8[::1], f8[::1])")
 def corner_cuts(P, offsets, arc, cos_min, p_line, p_s0, p_s1, smp_piece, d_s):
     """Pieces cut at the vertices of their line that turn by more than acos(cos_min): P (N, 2) the
     lines' points, offsets (S+1,), arc (N,) each point's arc length along its line (px); pieces
@@ -1563,7 +1571,7 @@ def corner_cuts(P, offsets, arc, cos_min, p_line, p_s0, p_s1, smp_piece, d_s):
     return owner, s0, s1, out
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], i8[::1], f8[::1], f8[::1], f8[::1])")
 def votes_landing(vm, cover, smp_piece, s, p_s0, p_s1):
     """Where every vote (on line sample vm (V,)) lands: on its sample, or where a covered sample's
     covering sample lies; ok (V,) where that sample draws a piece, and for those (in order) the
@@ -1593,7 +1601,7 @@ def votes_landing(vm, cover, smp_piece, s, p_s0, p_s1):
     return ok, vk, s_in
 
 
-@njit(cache=True)
+@kernel("(i8[::1], f8[::1], f8[::1], f8[::1], f8[::1], f8[::1], f8)")
 def line_fit(st, s, u, w, mask, lam, b0):
     """tracking.kalnins.fit_u's linear fit u = a + b s per stroke (S = lam.shape[0]) of the votes
     st, s, u weighted w * mask (sums in vote order, as np.bincount takes them), with the prior
@@ -1632,7 +1640,7 @@ def line_fit(st, s, u, w, mask, lam, b0):
     return a, b, ok
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], f8[::1])")
 def vote_groups(st, vid, w):
     """tracking.kalnins.fit_u's vote groups: the distinct (stroke st, id vid) pairs of the votes
     (V,) (st, vid >= 0, vid < 2**53) in (stroke, id) order, gkeys (G, 2); each vote's group ginv
@@ -1686,7 +1694,7 @@ def _group_weights(gst, gid, ginv, w):
     return gkeys, ginv, gw, primary
 
 
-@njit(cache=True)
+@kernel("(i8[::1], f8[::1], f8[::1], f8[::1], i8[::1], f8[::1], b1[::1], f8[::1], f8[::1])")
 def to_primary(st, s, u, w, ginv, gw, primary, a, b):
     """tracking.kalnins.fit_u's shift of the votes u (V,) of other groups than their stroke's
     primary one by whole periods, towards the line a + b s of their stroke: the group's weighted
@@ -1705,7 +1713,7 @@ def to_primary(st, s, u, w, ginv, gw, primary, a, b):
     return out
 
 
-@njit(cache=True)
+@kernel("(i8[::1], f8[::1], i8[::1], i8[::1], f8[::1])")
 def knot_intervals(n, h, base, st, s):
     """tracking.ufit.PiecewiseU's interval of arc length s (V,) on stroke st (V,) (n (S,)
     intervals of h (S,) px, first knot base (S + 1,)): its first knot k and the fraction a
@@ -1734,7 +1742,8 @@ def knot_intervals(n, h, base, st, s):
     return k, a
 
 
-@njit(cache=True)
+@kernel(("(i8[::1], f8[::1], f8[::1], f8[::1], f8[::1], i8[::1], f8[::1], i8[::1], f8[::1], f8[::1], f8[::1],"
+        " f8, f8, f8)"))
 def piecewise_system(k, a, w, inlier, u, n, h, base, L, prior_a, prior_b, b0, stretch_weight, bend_weight):
     """tracking.ufit.PiecewiseU.fit's banded system (band (3, nk), rhs (nk,)) for the votes at
     knots k, fraction a (knot_intervals), weight w * inlier, value u: its fixed terms
@@ -1787,7 +1796,7 @@ def piecewise_system(k, a, w, inlier, u, n, h, base, L, prior_a, prior_b, b0, st
     return band, rhs
 
 
-@njit(cache=True)
+@kernel("(f8[::1], i8[::1], f8[::1], f8[::1], f8, f8)")
 def piecewise_inliers(knots, k, a, u, P, outlier_px):
     """(V,) 1.0 where the vote u lies within outlier_px (px, u in periods of P px) of the
     piecewise-linear u (knots, at knot k and fraction a: PiecewiseU.eval), else 0.0."""
@@ -1798,7 +1807,7 @@ def piecewise_inliers(knots, k, a, u, P, outlier_px):
     return out
 
 
-@njit(cache=True)
+@kernel("(f8[::1], i8[::1], f8[::1], i8[::1], i8[::1], f8[::1])")
 def piecewise_at(knots, n, h, base, offsets, arc):
     """PiecewiseU.eval(knots, stroke_of_point, arc) of strokes with point offsets (S + 1,) and
     the points' arc lengths arc (N,)."""
@@ -1824,7 +1833,7 @@ def piecewise_at(knots, n, h, base, offsets, arc):
     return out
 
 
-@njit(cache=True)
+@kernel("(i8[::1], f8[::1])")
 def inner_knots(n, h):
     """PiecewiseU's inner knots (inner_knot_stroke, inner_knot_s): knots 1 .. n_r - 1 of every
     stroke r (n (S,) intervals of h (S,) px each), their stroke and arc length j * h_r (px)."""
@@ -1842,7 +1851,7 @@ def inner_knots(n, h):
     return st, s
 
 
-@njit(cache=True)
+@kernel("(f8[::1], f8[::1], i8[::1], i8[::1], f8[::1])")
 def insert_at(base, G, offsets, stroke, s):
     """tracking.joins.insert_points' new points: at arc length s (px) of strokes `stroke`, the
     segment i -> j and fraction a holding it, its global arc g; points within 1e-6 px of an
@@ -1876,7 +1885,8 @@ def insert_at(base, G, offsets, stroke, s):
     return ii[:n].copy(), jj[:n].copy(), aa[:n].copy(), gg[:n].copy(), ss[:n].copy()
 
 
-@njit(cache=True)
+@kernel(("(f8[:, ::1], f8[:, ::1], i8[::1], f8[::1], f8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[::1],"
+        " i8[::1], f8[:, ::1])"))
 def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
     """tracking.joins.insert_points' strokes: the points P, X, F, U (N) with the new ones
     (interpolated at fraction a of segments i -> j; surface points Xn) merged in by global arc
@@ -1937,7 +1947,7 @@ def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
     return True, P2, X2, F2, U2, off
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], i8[::1], i8[::1], f8, f8)")
 def hairpin_points(P, offsets, at, cos_max, max_px):
     """lines.strokeops.drop_hairpins' points kept (N,), from the strokes' offsets (S + 1,) and the
     points looked at `at` (hairpin_candidates' ends and interior points, then hairpins)."""
@@ -1957,7 +1967,7 @@ def hairpin_points(P, offsets, at, cos_max, max_px):
     return hairpins(P, ends, i[:m].copy(), cos_max, max_px)
 
 
-@njit(cache=True)
+@kernel("(f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8[::1])")
 def cut_ends(G, base, offsets, stroke, s0, s1):
     """lines.strokeops.cut_pieces' bookkeeping: for every piece k (stroke[k] from arc length s0[k]
     to s1[k], px) its first interior original point lo and their count n_in (G strictly inside),
@@ -1994,7 +2004,7 @@ def cut_ends(G, base, offsets, stroke, s0, s1):
     return lo, n_in, i, j, a
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], f8[:, ::1], i8[::1], i8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[:, ::1])")
 def cut_assemble(P, X, F, lo, n_in, i, j, a, Xe):
     """cut_pieces' points (not reversed): each piece's interpolated start, its interior original
     points, its interpolated end; Xe (2K, 3) the ends' surface points. Returns points, surface,
@@ -2032,7 +2042,7 @@ def cut_assemble(P, X, F, lo, n_in, i, j, a, Xe):
     return p, x, fc, off
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f8[::1])")
 def surface_mix(Xi, Xj, zi, zj, a):
     """sampling.surface_between's perspective-correct mix of the surface points Xi, Xj (K, 3) at
     screen fraction a (K,), their depths zi, zj (K,) given (numpy's matrix products: their
@@ -2072,7 +2082,7 @@ def _gather_points(P, X, F, U, rows):
     return p, x, f, u
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], f8[:, ::1], i8[::1], f8[::1], i8[::1], b1[::1])")
 def keep_rows(P, X, F, U, offsets, alive):
     """lines.strokeops.keep_points: the points (P (N, 2), surface X (N, 3), face F, u U) where
     alive (N,) is true, and the strokes' new offsets."""
@@ -2094,7 +2104,7 @@ def keep_rows(P, X, F, U, offsets, alive):
     return p, x, f, u, off
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], i8[::1], f8[::1], f8[::1], f8[::1], f8[::1], f8[::1])")
 def arcs(P, offsets, seg, arc, L, base, G):
     """Strokes' arc caches, the same bits (model.Strokes), into seg (N,) (zeros): segment_lengths
     (row_norm of the differences, 0 at each stroke's first point), arc (N,): arc_length (their
@@ -2129,7 +2139,7 @@ def arcs(P, offsets, seg, arc, L, base, G):
     return True
 
 
-@njit(cache=True)
+@kernel("(f8[:, ::1], f8[:, ::1], i8[::1], f8[::1], i8[::1], i8[::1])")
 def take_strokes(P, X, F, U, offsets, which):
     """The points (P (N, 2), surface X (N, 3), face F, u U) of the strokes `which` (K,), in that
     order, and their offsets (K + 1,) (Strokes.select's gathers, `which` its mask's indices)."""
@@ -2148,7 +2158,7 @@ def take_strokes(P, X, F, U, offsets, which):
     return p, x, f, u, off
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[::1])")
 def cover_runs(cover, smp_piece, path_of, stroke, s, w):
     """paths.stage._finish's covered runs: the samples covered (cover >= 0) by a sample of a
     drawn piece (smp_piece of the covering sample >= 0), in runs of consecutive samples of one
@@ -2181,7 +2191,7 @@ def cover_runs(cover, smp_piece, path_of, stroke, s, w):
     return cl[:R].copy(), c0[:R].copy(), c1[:R].copy(), cp[:R].copy()
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], f8[::1], f8[::1], i8[::1], f8[::1], f8[::1], i8[::1], i8)")
 def cover_table(path_of, p_line, p_s0, p_s1, cl, c0, c1, cp, S):
     """paths.stage._finish's covers: the drawn pieces (path path_of, line p_line, from p_s0 to
     p_s1 px) and the covered runs (cl, c0, c1, cp likewise), by path, the drawn ones first, then
@@ -2237,7 +2247,7 @@ def cover_table(path_of, p_line, p_s0, p_s1, cl, c0, c1, cp, S):
     return offsets, out_line, out_s0, out_s1, drawn
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], i8[::1])")
 def one_label(order, group, label):
     """paths.stage._one_label_per_path after its sort (order: the pieces by group, then position):
     each group's pieces' labels filled forward over the unlabelled ones (-1), then backward
@@ -2279,7 +2289,7 @@ def one_label(order, group, label):
     return out, cuts
 
 
-@njit(cache=True)
+@kernel("(i8[::1], i8[::1], b1[::1], i8[::1], f8[:, ::1])")
 def gather(offsets, order, rev, group, P):
     """tracking.joins.gather_paths after its order (the strokes by path, then position): where
     each stroke starts in the gathered points c0 (S,), the source point of each gathered point
@@ -2351,73 +2361,3 @@ def gather(offsets, order, rev, group, P):
                 m += 1
         src = kept
     return c0, src, new_g, joint, drop, path, first, n_path
-
-
-def warmup() -> None:
-    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
-    p = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.5]])
-    grid_ok(p)
-    gather(np.array([0, 1, 3]), np.array([1, 0]), np.zeros(2, np.bool_), np.array([0, 0]), p)
-    one_label(np.array([0, 1]), np.array([0, 0]), np.array([-1, 1]))
-    take_strokes(p, np.zeros((3, 3)), np.zeros(3, np.int64), np.zeros(3), np.array([0, 1, 3]), np.array([1, 0]))
-    arcs(p, np.array([0, 1, 3]), np.zeros(3), np.zeros(3), np.zeros(2), np.zeros(2), np.zeros(3))
-    cover_runs(np.array([-1, 0, 0]), np.array([0, 0, 0]), np.array([0]), np.zeros(3, np.int64), np.arange(3.0),
-               np.ones(3))
-    cover_table(np.array([0]), np.array([0]), np.zeros(1), np.ones(1), np.array([0]), np.zeros(1), np.ones(1),
-                np.array([0]), 1)
-    X3 = np.zeros((3, 3))
-    surface_mix(X3, X3, np.ones(3), np.ones(3), np.zeros(3))
-    keep_rows(p, X3, np.zeros(3, np.int64), np.zeros(3), np.array([0, 3]), np.ones(3, np.bool_))
-    g = grid_index(p, 2.0)
-    out_d2 = np.zeros((2, 2))
-    out_i = np.zeros((2, 2), np.int64)
-    knn(p[:2], 3, *g, 2, 3.0, False, out_d2, out_i, np.zeros(2, np.bool_))
-    t = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
-    i3 = np.zeros(3, np.int64)
-    match_pieces(p[:2], t[:2], p, t, np.ones(3), *g, 2, 3.0, 0.5,
-                 np.zeros(2, np.int64), np.zeros(2, np.bool_))
-    segment_runs(np.array([0, -1, 1]), i3, np.arange(3.0), np.ones(3), np.array([3.0]), 1.5)
-    bridges(p[:2], p[1:], 0.5, p, t, np.ones(3), *g, 2, 1.5, 1.0, np.zeros(2, np.bool_), np.zeros(2, np.bool_))
-    link_paths(np.array([1]), np.array([2]), np.array([0, 1, 0, 1]), 2, 2)
-    link_candidates(p, np.array([0, 1, 3]), np.zeros(2, np.int64), np.array([0, -1]), 2.0, 1.5, 0.0, 2.0)
-    two = np.array([0, 1])
-    lo, n_in, ci, cj, ca = cut_ends(np.array([0.0, 1.0, 2.0, 4.0]), np.array([0.0, 4.0]), np.array([0, 3, 4]), two,
-                                    np.array([0.5, 0.0]), np.array([1.5, 0.0]))
-    cut_assemble(np.zeros((4, 2)), np.zeros((4, 3)), np.zeros(4, np.int64), lo, n_in, ci, cj, ca, np.zeros((4, 3)))
-    hairpin_points(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([0, 4]), two + 1, 0.0, 1.0)
-    G3 = np.array([0.0, 1.0, 2.0])
-    i1, j1, a1, g1, s1 = insert_at(np.zeros(1), G3, np.array([0, 3]), np.array([0]), np.array([0.5]))
-    insert_merge(p, np.zeros((3, 3)), i3, np.zeros(3), G3, np.array([0, 3]), i1, j1, a1, g1, s1, np.zeros((1, 3)))
-    line_fit(two, np.ones(2), np.ones(2), np.ones(2), np.ones(2), np.ones(2), 0.1)
-    gk, gi, gw, gp = vote_groups(two, two, np.ones(2))
-    to_primary(two, np.ones(2), np.ones(2), np.ones(2), gi, gw, gp, np.ones(2), np.ones(2))
-    one, n1, h1, base1 = np.array([0]), np.array([2]), np.array([1.0]), np.array([0, 3])
-    k1, a1_ = knot_intervals(n1, h1, base1, one, np.array([0.5]))
-    piecewise_system(k1, a1_, np.ones(1), np.ones(1), np.ones(1), n1, h1, base1, np.array([2.0]), np.zeros(1),
-                     np.ones(1), 0.1, 1e-3, 1e-2)
-    piecewise_inliers(np.zeros(3), k1, a1_, np.ones(1), 10.0, 3.0)
-    piecewise_at(np.zeros(3), n1, h1, base1, np.array([0, 3]), np.arange(3.0))
-    inner_knots(n1, h1)
-    _, p0, p1, sp = pieces_of_runs(np.array([-1, -1]), two, np.array([0.5, 1.5]), np.ones(2), np.zeros(2), np.full(2, 2.0),
-                                   1.0)
-    votes_landing(two, np.array([-1, -1]), sp, np.array([0.5, 1.5]), p0, p1)
-    corner_cuts(p, np.array([0, 3]), np.array([0.0, 1.0, 2.1]), 0.0, np.zeros(len(p0), np.int64), p0, p1, sp,
-                np.array([0.5, 1.5]))
-    ue, de, sle = end_votes(two, np.array([0.5, 1.5]), np.ones(2), two, two, np.full(2, 2.0), 10.0, 4.0)
-    continuing_links(two, np.ones(2, np.bool_), two, np.zeros(2, np.bool_), np.ones(2), np.full(2, 2), ue, de, sle,
-                     10.0, 3.0)
-    f = np.ones((1, 3))
-    band_terms(two, np.zeros(2), np.ones(2), np.ones(2), f, f, f, f)
-    greedy_ids(two, two, two, 3, 5)
-    id_claims(two, np.array([1, -1]), np.ones(2), 0.25, two, two, np.ones(2), np.ones(2, np.bool_), two, two,
-              np.ones(2), np.array([0, 1]))
-    vote_labels(2, two, np.array([1, 2]), 2, np.ones(2))
-    st, _, _, i, j, a = resample_at(np.array([2.0]), 1.0, np.zeros(1), np.array([0.0, 1.0, 2.0]), np.array([0, 3]))
-    resample_points(p, np.zeros(3), i, j, a)
-    hairpins(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.1], [2.0, 0.0]]), np.array([True, False, False, True]), two + 1,
-             0.0, 1.0)
-    carried(two, p[:2], two, two, two, two, np.ones(2, np.bool_), 2, p, t, np.ones(3), np.ones(3), np.arange(3.0), i3, i3,
-            np.ones(3), t, 1)
-    jump_order(np.array([0, 0]), np.array([1, 1]), np.array([0.5, 0.25]), np.array([0.0, 3.0]), 10.0, 2.0)
-    u_trend(np.array([0, 0]), np.array([0.0, 1.0]), np.array([0.0, 0.5]), 1)
-    cover(p, t, np.ones(3), i3, np.ones(3, np.bool_), np.arange(3), np.arange(3), *g, 2.0, 0.9, np.full(3, -1, np.int64))
