@@ -36,6 +36,7 @@ def kernels():
     from strokekit.lines.kernels import HIDDEN_LINES
     from strokekit.paths.kernels import BRUSH_PATHS
     from strokekit.raster.hits import RASTER
+    from strokekit.tracking.kernels import TRACKING
 
-    for group in (RASTER, HIDDEN_LINES, BRUSH_PATHS):
+    for group in (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING):
         group.warm()

@@ -17,9 +17,10 @@ from strokekit import numba_cache
 from strokekit.lines.kernels import HIDDEN_LINES
 from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
+from strokekit.tracking.kernels import TRACKING
 
 ROOT = Path(__file__).resolve().parents[1]
-GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS)
+GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING)
 
 
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.label)
@@ -88,8 +89,9 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit.lines.kernels import HIDDEN_LINES
         from strokekit.paths.kernels import BRUSH_PATHS
         from strokekit.raster.hits import RASTER
+        from strokekit.tracking.kernels import TRACKING
         from strokekit_cli.main import cli
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS)
+        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING)
         for g in groups:
             g.warm()
         warm = {{}}

@@ -12,9 +12,11 @@ from strokekit.numba_cache import KernelGroup, Warmup
 from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
 from strokekit.run.spec import RASTER_STAGES, RunSpec
+from strokekit.tracking.kernels import TRACKING
 
 #: The run stage each group's load time is counted in (the report, --explain).
-STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths"}
+STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",
+            TRACKING: "tracking"}
 
 
 def kernels_needed(spec: RunSpec, frames_here: bool) -> list[KernelGroup]:
@@ -25,6 +27,8 @@ def kernels_needed(spec: RunSpec, frames_here: bool) -> list[KernelGroup]:
     out = []
     if spec.paths is not None:
         out.append(BRUSH_PATHS)
+    elif spec.tracking is not None and spec.tracking.method == "kalnins" and len(spec.cameras) > 1:
+        out.append(TRACKING)
     if frames_here and spec.lines.occlusion is not None:
         out.append(HIDDEN_LINES)
     if frames_here and spec.outputs.raster_options is not None:
