@@ -204,3 +204,32 @@ def test_a_kernel_is_compiled_again_when_a_kernel_it_calls_changes(tmp_path):
     assert run() == "3.0"  # (from the cache)
     (tmp_path / "sk_callee.py").write_text((tmp_path / "sk_callee.py").read_text().replace("x + 1.0", "x + 2.0"))
     assert run() == "5.0"
+
+
+def test_a_ctrl_c_in_the_trackers_compiled_loops_stays_a_keyboard_interrupt():
+    """A KeyboardInterrupt that lands as one of the tracker's compiled loops hands back its arrays
+    (a SystemError caused by it) comes out of Tracker.step as the KeyboardInterrupt."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from strokekit.camera.view import Camera
+    from strokekit.model import Strokes
+    from strokekit.tracking.tracker import Tracker
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=64, height=64)
+    lines = Strokes(points=np.array([[1.0, 1.0], [9.0, 1.0]]), surface=np.zeros((2, 3)), face=np.zeros(2, np.int64),
+                    offsets=np.array([0, 2]), kind=np.zeros(1, np.int64), ids=np.zeros(1, np.int64), u=np.zeros(2),
+                    level=np.zeros(1), level_weight=np.ones(1), camera=cam, frame=1, period_px=10.0)
+
+    def in_loop(*a):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as k:
+            raise SystemError("CPUDispatcher(segment_runs) returned a result with an exception set") from k
+
+    tr = Tracker()
+    tr.step(lines)
+    tr.method = SimpleNamespace(track=in_loop)
+    with pytest.raises(KeyboardInterrupt):
+        tr.step(lines)
