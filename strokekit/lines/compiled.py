@@ -65,8 +65,8 @@ def _segment_cells(pa, pb, grid):
     return gx[:c], gy[:c], owner[:c]
 
 
-@kernel(("(f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[:, ::1], f8[:, ::1], f8[::1],"
-        " f8[::1], i8[::1], i8[::1], b1, f8)"), error_model="numpy")
+@kernel(("(f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[:, ::1], f8[:, ::1], f8[::1], "
+        "f8[::1], i8[::1], i8[::1], b1, f8)"), error_model="numpy")
 def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, grid):
     """(segment (K,), s (K,), outline edge (K,), u (K,), depth gap (K,)), sorted by segment then
     s, each place once per outline edge: where segment f (pa -> pb, px; view depths za, zb; mesh vertices va,
@@ -262,8 +262,8 @@ def close_pairs(p, stroke, code, radius, per_point=16.0):
     return out_i[:n_out], out_j[:n_out]
 
 
-@kernel(("(i8[::1], f8[::1], f8[::1], f8[:, ::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], i8[::1], i8[:, ::1],"
-        " f8[:, ::1], f8[::1], b1, b1[::1], i8)"), error_model="numpy")
+@kernel(("(i8[::1], f8[::1], f8[::1], f8[:, ::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], i8[::1], i8[:, ::1], "
+        "f8[:, ::1], f8[::1], b1, b1[::1], i8)"), error_model="numpy")
 def crossing_deltas(edge, end_px, gap, ab, own, edges, edge_faces, face_count, faces, V, view, ortho, kept,
                     no_delta):
     """`occlusion.crossing_deltas` (which see) in one pass: view is the projection rays' direction

@@ -24,7 +24,7 @@ _CREASE, _SILHOUETTE = KINDS.index("crease"), KINDS.index("silhouette")
 #: A run of a crease line at least this long (px) is covered by a silhouette beside it: a sharp
 #: edge next to the outline, 0-2 px apart while the face between them turns edge on, is one line
 #: drawn twice. Shorter crease runs stay drawn (covering them too shrinks the drawn length more
-#: than it steadies it; docs/brush-paths.md).
+#: than it steadies it; docs/kernels.md).
 CREASE_COVER_MIN_PX = 10.0
 
 #: A strand covers another only where their tangents agree within 26 degrees (|t.t'| >= 0.9):

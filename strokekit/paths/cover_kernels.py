@@ -18,8 +18,8 @@ COVER_CELL = 1.001
 PAIR_SLACK = 1e-6
 
 
-@kernel(("(f8[:, ::1], f8[:, ::1], f8[::1], i8[::1], b1[::1], i8[::1], i8[::1], f8, f8, f8, i8, i8, i8[::1],"
-        " i8[::1], f8[:, ::1], f8, f8, i8[::1])"))
+@kernel(("(f8[:, ::1], f8[:, ::1], f8[::1], i8[::1], b1[::1], i8[::1], i8[::1], f8, f8, f8, i8, i8, i8[::1], "
+        "i8[::1], f8[:, ::1], f8, f8, i8[::1])"))
 def cover(p, t, w, sk, contour, run, rank_of_run, x0, y0, cell, nx, ny, start, order, ps, radius, min_dot, out):
     """covering_samples on the grid of p (N, 2) (see paths.cover.covering_samples): for every
     contour sample x, the sample y within `radius` (squared distance <= radius**2, the tree's

@@ -24,8 +24,8 @@ def _classes(codes, contour, n_kinds):
     return out
 
 
-@kernel(("(i8[::1], f8[:, ::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8, f8[:, ::1], f8[:, ::1],"
-        " f8[::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8[:, ::1], i8)"))
+@kernel(("(i8[::1], f8[:, ::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8, f8[:, ::1], f8[:, ::1], "
+        "f8[::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8[:, ::1], i8)"))
 def carried(rm, rq, sub, kind_d, Dstroke, kind_v, contour, n_kinds, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
     """paths.votes.carried_votes from the lookback's matches: rm (M,) the previous path sample
     each looking-back line sample (line sample sub (M,)) found (-1: none), rq (M, 2) where it
@@ -137,8 +137,8 @@ def _left(a, v):
     return base + 1 if a[base] < v else base
 
 
-@kernel(("(i8[::1], i8[::1], f8[::1], f8, i8[::1], i8[::1], f8[::1], b1[::1], i8[::1], i8[::1], f8[::1],"
-        " i8[::1])"))
+@kernel(("(i8[::1], i8[::1], f8[::1], f8, i8[::1], i8[::1], f8[::1], b1[::1], i8[::1], i8[::1], f8[::1], "
+        "i8[::1])"))
 def id_claims(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known):
     """paths.votes.path_ids' claims of the paths on the previous ids, summed per (path, id): the
     pieces' labels (piece i of path path_of[i], labelled p_label[i] >= 0, weighs label_weight *

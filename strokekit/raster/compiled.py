@@ -69,8 +69,8 @@ def label_samples(face, bary, label, coef, bands, thresholds, region, out_label,
         out_key[i] = lab if one else lab + step * region[f]
 
 
-@kernel(("(f8[:, ::1], f8[::1], i4[:, ::1], f8, i8, i8, i8, u1[::1], u1[::1], b1[::1], i4[::1], i8[:, ::1], i8,"
-        " f4[:, ::1], i4[:, ::1], b1, f8, b1[:, ::1])"), error_model="numpy")
+@kernel(("(f8[:, ::1], f8[::1], i4[:, ::1], f8, i8, i8, i8, u1[::1], u1[::1], b1[::1], i4[::1], i8[:, ::1], "
+        "i8, f4[:, ::1], i4[:, ::1], b1, f8, b1[:, ::1])"), error_model="numpy")
 def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step, depth, keys, ortho, slack, out):
     """Mark in out (H, W) bool the pixels where a thin triangle may show a key its pixel's K x K
     samples do not have (see bands._thin_face_pixels): xy (V, 2), z (V,) the vertices' pixel
@@ -206,8 +206,8 @@ def mixed_sums(labels, keys, colours, n_labels, counts, rgb):
         rgb[p, 2] = b
 
 
-@kernel(("(i4[:, ::1], f4[:, :, ::1], i8, i8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f8[::1],"
-        " f8[::1], f8[::1], f8[::1], f4[:, ::1])"), error_model="numpy")
+@kernel(("(i4[:, ::1], f4[:, :, ::1], i8, i8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f8[::1], "
+        "f8[::1], f8[::1], f8[::1], f4[:, ::1])"), error_model="numpy")
 def view_normals(face, bary, K, corner, normals, face_normals, right, up, fwd, ray_x, ray_y, ortho_dir, out):
     """View-space unit normals (x right, y up, z toward the camera) of each output pixel's sample
     nearest its centre: face (H K, W K) int32 (-1 background), bary (H K, W K, 2) float32; corner

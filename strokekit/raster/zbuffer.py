@@ -889,8 +889,8 @@ def _do_tile(t, ntx, T, Si, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, fac
                        bary)
 
 
-@kernel(("(f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1], b1[::1], i8, i8, i8, i8, b1, i4[:, ::1], b1[::1],"
-        " i8[::1], f8[:, ::1], i4[::1], i4[::1], f4[::1], f4[:, ::1])"), error_model="numpy")
+@kernel(("(f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1], b1[::1], i8, i8, i8, i8, b1, i4[:, ::1], b1[::1], "
+        "i8[::1], f8[:, ::1], i4[::1], i4[::1], f4[::1], f4[:, ::1])"), error_model="numpy")
 def _draw_serial(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, active, off, rec, rid, face, depth,
                  bary):
     _fill(fbox, fn, ftri, fplane, keep, S, WS, HS, T, active, off, rec, rid)
@@ -902,8 +902,8 @@ def _draw_serial(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, activ
             _do_tile(t, ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)
 
 
-@kernel(("(f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1], b1[::1], i8, i8, i8, i8, b1, i4[:, ::1], b1[::1],"
-        " i8[::1], f8[:, ::1], i4[::1], i4[::1], f4[::1], f4[:, ::1])"), parallel=True, error_model="numpy")
+@kernel(("(f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1], b1[::1], i8, i8, i8, i8, b1, i4[:, ::1], b1[::1], "
+        "i8[::1], f8[:, ::1], i4[::1], i4[::1], f4[::1], f4[:, ::1])"), parallel=True, error_model="numpy")
 def _draw_parallel(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, active, off, rec, rid, face, depth,
                    bary):
     _fill(fbox, fn, ftri, fplane, keep, S, WS, HS, T, active, off, rec, rid)

@@ -110,8 +110,8 @@ def _window(v, v0, cell, reach, n):
     return int(a), int(b)
 
 
-@kernel(("(f8[:, ::1], i8, f8, f8, f8, i8, i8, i8[::1], i8[::1], f8[:, ::1], i8, f8, b1, f8[:, ::1], i8[:,"
-        " ::1], b1[::1])"))
+@kernel(("(f8[:, ::1], i8, f8, f8, f8, i8, i8, i8[::1], i8[::1], f8[:, ::1], i8, f8, b1, f8[:, ::1], "
+        "i8[:, ::1], b1[::1])"))
 def knn(q, n, x0, y0, cell, nx, ny, start, order, ps, k, bound, as_set, out_d2, out_i, unsure):
     """For every query point q (M, 2): its k nearest of the n points of a grid (grid_index) at
     squared distance < bound**2, nearest first (equal distances: lower index first): out_d2 (M,
@@ -234,8 +234,8 @@ def _near_one(qx, qy, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound,
     return False, full
 
 
-@kernel(("(f8[:, ::1], f8[:, ::1], f8, f8[:, ::1], f8[:, ::1], f8[::1], f8, f8, f8, i8, i8, i8[::1], i8[::1],"
-        " f8[:, ::1], i8, f8, f8, b1[::1], b1[::1])"))
+@kernel(("(f8[:, ::1], f8[:, ::1], f8, f8[:, ::1], f8[:, ::1], f8[::1], f8, f8, f8, i8, i8, i8[::1], i8[::1], "
+        "f8[:, ::1], i8, f8, f8, b1[::1], b1[::1])"))
 def bridges(pa, pb, step, p, t, w, x0, y0, cell, nx, ny, start, order, ps, k, bound, limit, ok, unsure):
     """paths.cover.on_drawing on the grid: ok (K,) whether every point of the segments pa -> pb
     (K, 2) tested every `step` px (pa + (pb - pa) i / n, 0 < i < n, n = max(1, ceil(length /
@@ -273,8 +273,8 @@ def _window_inv(v, v0, inv, reach, n):
     return int(a), int(b)
 
 
-@kernel(("(f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8, f8, f8, i8, i8, i8[::1], i8[::1], f8[:,"
-        " ::1], i8, f8, f8, i8[::1], b1[::1])"))
+@kernel(("(f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8, f8, f8, i8, i8, i8[::1], i8[::1], "
+        "f8[:, ::1], i8, f8, f8, i8[::1], b1[::1])"))
 def match_pieces(q, st, p, t, hw, x0, y0, cell, nx, ny, start, order, ps, k, bound, min_dot, out, unsure):
     """sampling.match_samples(piece_distance=True) on the grid of the samples p (N, 2), their
     tangents t (N, 2) and half lengths hw (N,): for every query point q (M, 2) (finite) with

@@ -329,8 +329,8 @@ def insert_at(base, G, offsets, stroke, s):
     return ii[:n].copy(), jj[:n].copy(), aa[:n].copy(), gg[:n].copy(), ss[:n].copy()
 
 
-@kernel(("(f8[:, ::1], f8[:, ::1], i8[::1], f8[::1], f8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[::1],"
-        " i8[::1], f8[:, ::1])"))
+@kernel(("(f8[:, ::1], f8[:, ::1], i8[::1], f8[::1], f8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[::1], "
+        "i8[::1], f8[:, ::1])"))
 def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
     """insert_points' strokes: the points P, X, F, U (N) with the new ones (interpolated at
     fraction a of segments i -> j; surface points Xn) merged in by global arc (G (N,) increasing;
@@ -343,10 +343,10 @@ def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
     X2 = np.empty((M, 3))
     F2 = np.empty(M, F.dtype)
     U2 = np.empty(M)
-    m = 0
+    q = 0
     k = 0
-    for q in range(N):
-        while k < K and g[k] < G[q]:
+    for m in range(M):
+        if k < K and (q == N or g[k] < G[q]):  # (a new point before the old one at its place)
             f = a[k]
             P2[m, 0] = P[i[k], 0] * (1 - f) + P[j[k], 0] * f
             P2[m, 1] = P[i[k], 1] * (1 - f) + P[j[k], 1] * f
@@ -355,27 +355,16 @@ def insert_merge(P, X, F, U, G, offsets, i, j, a, g, stroke, Xn):
             X2[m, 2] = Xn[k, 2]
             F2[m] = F[i[k]] if f < 0.5 else F[j[k]]
             U2[m] = U[i[k]] * (1 - f) + U[j[k]] * f
-            m += 1
             k += 1
-        P2[m, 0] = P[q, 0]
-        P2[m, 1] = P[q, 1]
-        X2[m, 0] = X[q, 0]
-        X2[m, 1] = X[q, 1]
-        X2[m, 2] = X[q, 2]
-        F2[m] = F[q]
-        U2[m] = U[q]
-        m += 1
-    while k < K:
-        f = a[k]
-        P2[m, 0] = P[i[k], 0] * (1 - f) + P[j[k], 0] * f
-        P2[m, 1] = P[i[k], 1] * (1 - f) + P[j[k], 1] * f
-        X2[m, 0] = Xn[k, 0]
-        X2[m, 1] = Xn[k, 1]
-        X2[m, 2] = Xn[k, 2]
-        F2[m] = F[i[k]] if f < 0.5 else F[j[k]]
-        U2[m] = U[i[k]] * (1 - f) + U[j[k]] * f
-        m += 1
-        k += 1
+        else:
+            P2[m, 0] = P[q, 0]
+            P2[m, 1] = P[q, 1]
+            X2[m, 0] = X[q, 0]
+            X2[m, 1] = X[q, 1]
+            X2[m, 2] = X[q, 2]
+            F2[m] = F[q]
+            U2[m] = U[q]
+            q += 1
     S = offsets.shape[0] - 1
     off = np.empty(S + 1, np.int64)
     off[0] = 0

@@ -198,8 +198,8 @@ def band_terms(k, a, w, u, f0, f1, f2, f3):
     return band, rhs
 
 
-@kernel(("(i8[::1], f8[::1], f8[::1], f8[::1], f8[::1], i8[::1], f8[::1], i8[::1], f8[::1], f8[::1], f8[::1],"
-        " f8, f8, f8)"))
+@kernel(("(i8[::1], f8[::1], f8[::1], f8[::1], f8[::1], i8[::1], f8[::1], i8[::1], f8[::1], f8[::1], f8[::1], "
+        "f8, f8, f8)"))
 def piecewise_system(k, a, w, inlier, u, n, h, base, L, prior_a, prior_b, b0, stretch_weight, bend_weight):
     """The piecewise fit's banded system (band (3, nk), rhs (nk,)) for the votes at
     knots k, fraction a (knot_intervals), weight w * inlier, value u: its fixed terms
