@@ -27,10 +27,12 @@ from strokekit.options import (
 )
 from strokekit.raster.hits import KernelWarmup
 from strokekit.run.report import run_report
+from strokekit.run.request import RenderRequest
 from strokekit.run.runner import check_files_apart, run
 from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
-from strokekit.run.workers import MAX_WORKERS, make_executor
+from strokekit.run.workers import MAX_WORKERS, SceneRef, make_executor
 from strokekit.scene.load import load_scene
+from strokekit.tracking.options import TrackingOptions
 
 from ..common import FINITE, FiniteFloatRange, is_interactive, say_warnings, split_list
 from .render_options import (
@@ -187,7 +189,7 @@ def command(scene, **o):
         # The raster kernels load (or compile, on a machine's first run) beside the scene's load.
         kernels = KernelWarmup(notice)
     t_start = time.perf_counter()
-    pool = make_executor(workers, o["scheduler"], warm=(str(scene), lines))
+    pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines))
     spec = None
     write_error: RunWriteError | None = None
     try:
@@ -214,7 +216,8 @@ def command(scene, **o):
         # Ctrl-C while the scene loads, before the run: nothing written; the report still says so.
         res = RunResult(interrupted=True, wall_seconds=time.perf_counter() - t_start)
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)) if path is not None else (),
-                       lines=lines, outputs=OutputOptions(out_dir=Path(o["out_dir"]), pattern=o["pattern"]),
+                       request=RenderRequest(lines=lines),
+                       outputs=OutputOptions(out_dir=Path(o["out_dir"]), pattern=o["pattern"]),
                        workers=workers, scheduler=o["scheduler"])
     finally:
         pool.close()
@@ -296,7 +299,6 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
                             decimals=o["decimals"], stroke_width_px=o["stroke_width"],
                             gltf=gltf_options is not None, gltf_sequence=bool(o.get("gltf_sequence")),
                             gltf_options=gltf_options,
-                            raster_options=raster_options_from(o, o["quality"]),
                             hidden_dashes=dashes_from(o, lines.occlusion), dash_paths=o["dash_paths"],
                             exr=exr_options_from(o, o["stroke_width"]), lines_png=o["lines_png"])
     ctx = click.get_current_context()
@@ -305,8 +307,12 @@ def _run_spec(scene, o: dict, lines: LineOptions, path: CameraPath, frames: list
     if mode != "brush" and ctx.get_parameter_source("path_merge") == click.core.ParameterSource.COMMANDLINE:
         raise UsageError("--path-merge needs brush paths (--strokes brush; one frame, --no-coherence or a --coherence "
                          "method draw the lines by default)")
-    return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), lines=lines, outputs=outputs,
-                   tracking=tracking_options_from(o, len(frames), mode), paths=path_options_from(o, mode),
+    tracking = tracking_options_from(o, 2, "lines")
+    paths = path_options_from(o, "brush")
+    request = RenderRequest(lines=lines, strokes=mode, coherence="none" if o["no_coherence"] else o["coherence_method"] if given else None,
+                            tracking=tracking or TrackingOptions(), paths=paths,
+                            raster=raster_options_from(o, o["quality"]))
+    return RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), request=request, outputs=outputs,
                    workers=workers,
                    scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
                    camera_source=str(o["camera_file"]) if o["camera_file"] else path.source)

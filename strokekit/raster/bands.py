@@ -30,6 +30,7 @@ from strokekit.camera.view import Camera
 from strokekit.colour import srgb_encode
 from strokekit.errors import UsageError
 from strokekit.model import BandRegion
+from strokekit.options import QUALITY_PRESETS
 from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
 from strokekit.raster.hits import RayHits, ZBufferHits, compiled, ensure_kernels, scene_faces32
 from strokekit.raster.rays import RasterHits
@@ -110,6 +111,19 @@ class RasterOptions:
             raise UsageError(f"fill pattern must be one of {', '.join(FILL_PATTERNS)}, got {self.fill_pattern!r}")
         if not self.fill_period_px > 0:
             raise UsageError(f"fill period must be > 0 px, got {self.fill_period_px}")
+
+    @staticmethod
+    def preset(quality: str = "default", **overrides) -> "RasterOptions":
+        """Options of a named quality preset (options.QUALITY_PRESETS: supersample K and
+        edge_supersample R) with explicit overrides (None values ignored). A K given above the
+        preset's R turns the edge resampling off: the K x K grid is then as fine."""
+        if quality not in QUALITY_PRESETS:
+            raise UsageError(f"unknown quality {quality!r} (known: {', '.join(QUALITY_PRESETS)})")
+        given = {k: v for k, v in overrides.items() if v is not None}
+        k = int(given.pop("supersample", QUALITY_PRESETS[quality]["supersample"]))
+        r = QUALITY_PRESETS[quality]["edge_supersample"]
+        r = int(given.pop("edge_supersample", r if r > k else 0))
+        return RasterOptions(supersample=k, edge_supersample=r, **given)
 
 
 def check_crease_angle(crease_angle_deg: float) -> float:
