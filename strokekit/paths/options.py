@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass, field
 
 from strokekit.errors import UsageError
+from strokekit.options import option
 from strokekit.tracking.options import TrackingOptions
 
 
@@ -60,7 +61,10 @@ class PathOptions:
     new_join_px: float = 2.0
     join_angle_deg: float = 70.0
     min_run_px: float = 1.5
-    merge_px: float = 5.0
+    merge_px: float = option(
+        5.0, "--path-merge", "With brush paths: a path shorter than N px (two frames running) merges into the path "
+        "it touches [5; 0: never, the highest id persistence, but paths crumble over long sequences].",
+        needs="brush")
     hold_px: float = 8.0
     tracking: TrackingOptions = field(default_factory=path_tracking)
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 from strokekit.errors import UsageError
-from strokekit.options import LineOptions
+from strokekit.options import LineOptions, option
 from strokekit.paths.options import PathOptions
 from strokekit.raster.bands import RasterOptions
 from strokekit.tracking.options import METHODS, TrackingOptions
@@ -28,8 +28,15 @@ class RenderRequest:
     follow `coherence`). raster: the raster pass (bands, masks, ids, depth); None: none."""
 
     lines: LineOptions = field(default_factory=LineOptions)
-    strokes: str | None = None
-    coherence: str | None = None
+    strokes: str | None = option(
+        None, "--strokes", "What the SVG, the JSON's strokes and the ribbons draw: brush paths (smooth strokes that "
+        "persist from frame to frame, each covering nearby line pieces; the JSON keeps the exact lines beside them) or "
+        "the exact lines [brush for a sequence with coherence on, unless --coherence is given; lines for one frame or "
+        "--no-coherence].", choices=STROKES)
+    coherence: str | None = option(
+        None, "--coherence", "Frame-to-frame tracking of the lines (--strokes lines): kalnins (samples carry ids and u "
+        "to the next frame), seed (simple baseline: limited growth, short strokes not carried), or none.",
+        choices=METHODS, show_default=True, shown="kalnins")
     tracking: TrackingOptions = field(default_factory=TrackingOptions)
     paths: PathOptions = field(default_factory=PathOptions)
     raster: RasterOptions | None = None

@@ -11,10 +11,11 @@ from pathlib import Path
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.fileio import TEMP_SUFFIX
-from strokekit.options import LineOptions
+from strokekit.options import LineOptions, option
 from strokekit.raster.bands import RasterOptions
 from strokekit.raster.passes import PassOptions
 from strokekit.run.request import RenderRequest, SequencePlan
+from strokekit.run.workers import MAX_WORKERS
 from strokekit.scene.load import Scene
 from strokekit.writers.gltf import GltfOptions
 
@@ -27,20 +28,26 @@ class OutputOptions:
     """What to write and where. `pattern` names a frame's files (without extension)."""
 
     out_dir: Path
-    pattern: str = "frame_{frame:04d}"
-    svg: bool = True
-    json: bool = True
-    gltf: bool = False
-    gltf_sequence: bool = False
-    decimals: int = 2
-    stroke_width_px: float = 1.5
+    pattern: str = option("frame_{frame:04d}", "--pattern", "File name pattern (no extension).", show_default=True)
+    svg: bool = option(True, "--svg", "Write frame_NNNN.svg (the drawing).", off="--no-svg", show_default=True)
+    json: bool = option(True, "--json", "Write frame_NNNN.json (strokes with ids, kinds and u, for tools).",
+                        off="--no-json", show_default=True)
+    gltf: bool = option(False, "--gltf", "Write textured ribbons as frame_NNNN.glb.", off="--no-gltf",
+                        show_default=True)
+    gltf_sequence: bool = option(False, "--gltf-sequence",
+                                 "One sequence.glb for all frames (a node per frame) instead.", switch=True)
+    decimals: int = option(2, "--decimals", "SVG coordinate decimals.", low=0, high=8, show_default=True, needs="svg")
+    stroke_width_px: float = option(1.5, "--stroke-width", "SVG stroke width in px.", show_default=True)
     gltf_options: GltfOptions | None = None  # None: GltfOptions()
     # Hidden layers' dash pattern (px, on and off: writers.svg.svg_document); None: ISO 128's for
-    # the stroke width, (): solid.
+    # the stroke width, (): solid. On the command line: --dashes.
     hidden_dashes: tuple[float, ...] | None = None
-    dash_paths: bool = False  # the dashes as geometry (a subpath each), for plotters: svg_document
-    exr: PassOptions | None = None  # one multilayer EXR per frame with these passes; None: no EXR
-    lines_png: bool = False  # the strokes as an RGBA PNG (the EXR's lines layer)
+    dash_paths: bool = option(  # the dashes as geometry (a subpath each), for plotters: svg_document
+        False, "--dash-paths", "Write the hidden lines' dashes as geometry (a subpath per dash) instead of a dash "
+        "style: for plotters (vpype draws a styled dash pattern solid).", switch=True)
+    exr: PassOptions | None = None  # one multilayer EXR per frame with these passes; None: no EXR (--exr)
+    lines_png: bool = option(  # the strokes as an RGBA PNG (the EXR's lines layer)
+        False, "--lines-png", "Also lines/frame_NNNN.png: the visible strokes as an RGBA image.", switch=True)
 
     def stem(self, frame: int) -> str:
         return self.pattern.format(frame=frame)
@@ -101,10 +108,17 @@ class RunSpec:
     cameras: tuple[tuple[int, Camera], ...]
     outputs: OutputOptions
     request: RenderRequest = field(default_factory=RenderRequest)
-    workers: int = 1
-    scheduler: str | None = None
-    skip_existing: bool = False  # resume: see run(); frames of another scene or options are a UsageError
-    fail_fast: bool = False
+    workers: int = option(
+        1, "--workers", "Processes rendering frames: this one and N-1 started beside it (default: the machine's "
+        "cores for 8 frames or more, 16 with a raster output, else 1; at most 4 per core, 8 on smaller machines).",
+        low=1, high=MAX_WORKERS, needs="no scheduler")
+    scheduler: str | None = option(None, "--scheduler", "dask.distributed scheduler address, e.g. tcp://host:8786.")
+    skip_existing: bool = option(  # resume: see run(); frames of another scene or options are a UsageError
+        False, "--skip-existing", "Resume: do not rewrite frames whose files all exist and were rendered from the "
+        "same scene, options and camera (OUT/.strokekit-run.json says so); frames of another scene or other options "
+        "are a usage error.", switch=True)
+    fail_fast: bool = option(False, "--fail-fast", "Stop at the first failed frame (frames already written stay; the "
+                             "run streams them out in order).", switch=True)
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
 
     @cached_property

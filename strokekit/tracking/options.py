@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from strokekit.errors import UsageError
+from strokekit.options import option
 
 METHODS = ("kalnins", "seed", "none")
 
@@ -47,8 +48,11 @@ class TrackingOptions:
     stretch_weight: float = 3e-3
     outlier_px: float = 3.0
     min_id_px: float = 2.0
-    max_growth_px: float = 20.0
-    min_carry_px: float = 10.0
+    max_growth_px: float = option(20.0, "--max-growth", "With --coherence seed: a stroke grows at most N px per frame.",
+                                  show_default=True, needs="seed")
+    min_carry_px: float = option(
+        10.0, "--min-carry", "With --coherence seed: strokes shorter than N px are not carried to the next frame.",
+        show_default=True, needs="seed")
     seed_search_px: float = 12.0
     seed_angle_penalty_px: float = 10.0
     min_segment_px: float = 7.0
