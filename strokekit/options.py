@@ -37,8 +37,8 @@ QUALITY_PRESETS: dict[str, dict] = {
 DEFAULT_KINDS = ("silhouette", "border", "crease", "material", "nonmanifold")
 
 #: Bounds of the accuracy knobs. Visibility samples closer than 0.01 px find nothing the
-#: bisection does not (it locates every change to bisection_tol_px) and cost memory without end
-#: (1e-9 px asked for 33 TiB); a change located finer than 1e-6 px is below what the float32 ray
+#: bisection does not (it locates every change to bisection_tol_px) and cost memory without
+#: end; a change located finer than 1e-6 px is below what the float32 ray
 #: tracer can tell; doubled parts looked for beyond 16 px compare every sample with every other
 #: (the close pairs of a frame grow with the square of the radius) and drop lines a few pixels
 #: apart that are two lines. The line pass's memory is also estimated before a run

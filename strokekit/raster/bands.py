@@ -57,7 +57,7 @@ class RasterOptions:
     the line options' crease angle, which `render_raster` takes as an argument); light: direction
     toward the light, in camera space (x right, y up, z toward the viewer) or world space;
     supersample K in {1, 2, 4}: samples per pixel side everywhere; masks: one anti-aliased PNG per
-    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: seed 003
+    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: self-similar
     hatching/dots/noise of `fill_pattern` with a base period of `fill_period_px` output pixels;
     gooch: warm/cool ramps; band_polygons: the bands as SVG polygons (see `band_polygons_svg`);
     edge_supersample R (0 = off; R <= K has no effect, the K x K grid is as fine): the pixels that may hold more than one label, material or

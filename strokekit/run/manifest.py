@@ -52,11 +52,13 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
     scene_d = _digest({"content_hash": scene.content_hash, "objects": len(scene.objects),
                        "materials": [m.base_color for m in scene.materials]})
     o = spec.outputs
+    # An option at its default that a later option added is left out of the digest, so that the
+    # digests of runs made before it stay: the dashes, the EXR codec.
     outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
-               and not (f.name == "hidden_dashes" and o.hidden_dashes is None)  # (digested as before them)
+               and not (f.name == "hidden_dashes" and o.hidden_dashes is None)
                and not (f.name == "dash_paths" and not o.dash_paths)}
-    outputs["raster_options"] = plan.raster  # (digested among the outputs, where it was first)
-    if o.exr is not None and o.exr.codec == "zip":  # (the default codec: digested as before --exr-codec)
+    outputs["raster_options"] = plan.raster  # (the raster pass is digested with the outputs)
+    if o.exr is not None and o.exr.codec == "zip":
         outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr) if f.name != "codec"}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
     if o.gltf and brush is not None:
@@ -66,7 +68,7 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
             except OSError:
                 pass  # the run reports it
     opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking}
-    if plan.paths is not None:  # (only then: a lines run keeps its digest)
+    if plan.paths is not None:  # (brush runs only: a lines run's digest has no paths)
         opts["paths"] = plan.paths
     options_d = _digest(opts)
     frames, chain = {}, ""

@@ -22,8 +22,7 @@ MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
 def default_workers(n_frames: int, raster: bool) -> int:
     """Processes for a run of `n_frames` when none is said: the machine's cores from 8 frames on,
-    from 16 with a raster output (each process also starts numba for the raster kernels: about a
-    second of CPU), else 1."""
+    from 16 with a raster output (each process also starts numba for the raster kernels), else 1."""
     return (os.cpu_count() or 1) if n_frames >= (16 if raster else 8) else 1
 
 
