@@ -20,7 +20,7 @@ from strokekit.camera.view import Camera
 from strokekit.errors import InputError, UsageError
 from strokekit.lines import budget
 from strokekit.options import LineOptions
-from strokekit.run import RunWriteError, run
+from strokekit.run import RenderRequest, RunWriteError, run
 from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.scene.load import build_scene, load_scene
 from strokekit.scene.occluder import Occluder
@@ -152,7 +152,7 @@ def test_a_write_error_stops_the_run_and_raises_it_with_the_result(tmp_path, mon
         return real(src, dst, *a, **k)
 
     monkeypatch.setattr(fileio.os, "replace", replace)
-    spec = RunSpec(scene_path=str(path), cameras=cams, lines=LineOptions(), outputs=OutputOptions(out_dir=out))
+    spec = RunSpec(scene_path=str(path), cameras=cams, outputs=OutputOptions(out_dir=out), request=RenderRequest(strokes="lines", coherence="none"))
     with pytest.raises(RunWriteError) as e:
         run(spec)
     assert isinstance(e.value, OSError) and e.value.errno == errno.ENOSPC

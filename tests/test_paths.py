@@ -274,6 +274,7 @@ def test_a_brush_resume_computes_only_up_to_its_last_missing_frame(tmp_path, cap
     from helpers import SAMPLES
 
     import strokekit.run.runner as runner
+    import strokekit.run.tasks as tasks
 
     base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "-q", "--frames", "1-4",
             "--workers", "1", "--out", tmp_path / "a"]
@@ -281,13 +282,13 @@ def test_a_brush_resume_computes_only_up_to_its_last_missing_frame(tmp_path, cap
     ref = {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")}
     for f in (tmp_path / "a").glob("frame_0002*"):
         f.unlink()
-    seen, real = [], runner.frame_task
+    seen, real = [], tasks.frame_task
 
-    def counting(scene_path, scene_hash, lines, frame, *a, **k):
-        seen.append(frame)
-        return real(scene_path, scene_hash, lines, frame, *a, **k)
+    def counting(task):
+        seen.append(task.number)
+        return real(task)
 
-    monkeypatch.setattr(runner, "frame_task", counting)
+    monkeypatch.setattr(tasks, "frame_task", counting)
     assert _cli([*base, "--skip-existing"], capsys)[0] == 0
     assert sorted(seen) == [1, 2]
     assert {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")} == ref

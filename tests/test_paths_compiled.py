@@ -33,7 +33,7 @@ from strokekit.paths.stage import (
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking.joins import _touching_paths
 from strokekit.tracking.ufit import PiecewiseU
-from strokekit.tracking.votes import _u_trend, assign_ids, sample_labels, segment_by_votes
+from strokekit.tracking.votes import assign_ids, sample_labels, segment_by_votes, u_trend
 
 
 def _points(rng, n, lattice):
@@ -204,7 +204,7 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
         s = np.round(rng.random(n) * 10, int(rng.integers(0, 3)))
         s = (np.sort(s), -np.sort(-s), s)[trial % 3]  # in order, reversed, mixed; ties
         u, label = rng.random(n).round(1), rng.integers(0, 4, a.max() + 1)
-        assert np.array_equal(_u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+        assert np.array_equal(u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
     for trial in range(100):
         S = int(rng.integers(1, 12))
         counts = rng.integers(1, 8, S)
@@ -692,7 +692,7 @@ def test_stable_sorts_are_numpys():
         a, b = rng.integers(0, 4, n), rng.integers(0, 3, n)
         s = np.round(rng.random(n) * 10, 1) * 1e12  # (R * top beyond 2**40)
         u, label = rng.random(n).round(1), rng.integers(0, 3, a.max() + 1)
-        assert np.array_equal(_u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+        assert np.array_equal(u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
 
 
 def test_gathered_paths_are_gather_paths():
@@ -760,8 +760,8 @@ def test_compiled_u_fit_is_fit_u():
 
 def test_vote_groups_are_the_numpy_ones():
     """The compiled vote groups (bucketed by stroke, each bucket sorted by id) are np.unique's
-    groups, their bincount weights and _first_max_per_group's primaries."""
-    from strokekit.tracking.votes import _first_max_per_group, _unique_inverse
+    groups, their bincount weights and first_max_per_group's primaries."""
+    from strokekit.tracking.votes import first_max_per_group, unique_inverse
 
     rng = np.random.default_rng(29)
     for trial in range(100):
@@ -771,10 +771,10 @@ def test_vote_groups_are_the_numpy_ones():
         vid = rng.integers(0, [3, 40, 1000][trial % 3], V)
         w = np.where(rng.random(V) < 0.3, 1.0, rng.random(V))  # (ties of group weights)
         M = int(vid.max()) + 1
-        ukey, ginv = _unique_inverse(st * M + vid)
+        ukey, ginv = unique_inverse(st * M + vid)
         gw = np.bincount(ginv, weights=w)
         primary = np.zeros(len(gw), bool)
-        primary[_first_max_per_group(ukey // M, gw)] = True
+        primary[first_max_per_group(ukey // M, gw)] = True
         gk, gi, gw2, p2 = kernels().vote_groups(st, vid, w)
         assert np.array_equal(gk, np.c_[ukey // M, ukey % M]) and np.array_equal(gi, ginv)
         assert np.array_equal(gw2, gw) and np.array_equal(p2, primary)

@@ -462,9 +462,9 @@ def test_metric_match_finds_the_nearest_agreeing_sample_behind_a_crowd():
 
 def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
     """chain_touching's specialized linking (_touching_paths, _close_pairs) gives exactly what the
-    general _join_segments gives for its call, on random strokes with shared ends, rings, closed
+    general join_segments gives for its call, on random strokes with shared ends, rings, closed
     strokes and near-tolerance gaps."""
-    from strokekit.tracking.joins import _close_pairs, _join_segments, _touching_paths
+    from strokekit.tracking.joins import _close_pairs, _touching_paths, join_segments
 
     rng = np.random.default_rng(1)
     linked = 0
@@ -482,7 +482,7 @@ def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
         P = np.concatenate(pts)
         f = Strokes.build(P, np.zeros((len(P), 3)), np.zeros(len(P)), off, rng.integers(0, 2, S))
         for tol, ang in ((2.0, 90.0), (1.0, 170.0)):
-            want = _join_segments(f, np.arange(S), np.zeros(S), f.lengths, np.zeros(S, np.int64), np.ones(S),
+            want = join_segments(f, np.arange(S), np.zeros(S), f.lengths, np.zeros(S, np.int64), np.ones(S),
                                   tol, ang, straightest_first=True)
             got = _touching_paths(f, tol, ang)
             for w, g in zip(want, got):
@@ -497,14 +497,14 @@ def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
 
 
 def test_unique_inverse_is_np_unique():
-    from strokekit.tracking.votes import _unique_inverse
+    from strokekit.tracking.votes import unique_inverse
 
     rng = np.random.default_rng(2)
     for n in (0, 1, 2, 7, 300, 2000):
         x = rng.integers(0, max(n // 3, 1) * 1000003, n)  # repeats, large keys
         x[: n // 4] = x[n // 4: 2 * (n // 4)]
         want_u, want_inv = np.unique(x, return_inverse=True)
-        got_u, got_inv = _unique_inverse(x)
+        got_u, got_inv = unique_inverse(x)
         assert np.array_equal(got_u, want_u) and np.array_equal(got_inv, want_inv.ravel())
         assert np.array_equal(got_u[got_inv], x)
 

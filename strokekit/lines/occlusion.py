@@ -32,7 +32,7 @@ import numpy as np
 from strokekit.camera.view import Camera
 from strokekit.lines.features import silhouette_mask
 from strokekit.lines.kernels import kernels
-from strokekit.lines.visibility import _visible_runs_of, clip_segments, clipped_on_screen, world_between
+from strokekit.lines.visibility import clip_segments, clipped_on_screen, visible_runs_of, world_between
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
@@ -132,7 +132,7 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     X0, X1 = world_at(run_seg, s0), world_at(run_seg, s1)
     p0, _ = camera.project(X0)
     p1, _ = camera.project(X1)
-    runs = _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
+    runs = visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
     code = runs.kind.astype(np.int64) + N_KINDS * np.minimum(level, MAX_OCCLUSION)
     return VisibleRuns(edge=runs.edge, X0=runs.X0, X1=runs.X1, p0=runs.p0, p1=runs.p1, key0=runs.key0,
                        key1=runs.key1, kind=code.astype(np.int8), face=runs.face)

@@ -141,7 +141,7 @@ def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndar
             near = np.concatenate([live[kc - 1], live[np.minimum(kc + 1, len(live) - 1)]])
         alive[cand] = False
         live = np.flatnonzero(alive)
-        i = _sorted_unique(np.concatenate([i[alive[i]], near[alive[near] & ~ends[near]]]))
+        i = sorted_unique(np.concatenate([i[alive[i]], near[alive[near] & ~ends[near]]]))
     out = strokes if alive.all() else keep_points(strokes, alive)
     return (out, alive) if return_kept else out
 
@@ -154,7 +154,7 @@ def hairpin_candidates(strokes: Strokes, at: np.ndarray | None = None) -> tuple[
     full = np.flatnonzero(np.diff(strokes.offsets) > 0)  # (an empty stroke has no ends)
     ends[strokes.offsets[:-1][full]] = True
     ends[strokes.offsets[1:][full] - 1] = True
-    i = np.arange(1, n - 1) if at is None else _sorted_unique(np.asarray(at, np.int64))
+    i = np.arange(1, n - 1) if at is None else sorted_unique(np.asarray(at, np.int64))
     i = i[(i > 0) & (i < n - 1)]
     return ends, i[~ends[i]]  # interior points only (never a stroke's first or last)
 
@@ -170,7 +170,7 @@ def keep_points(strokes: Strokes, alive: np.ndarray) -> Strokes:
                    offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
 
 
-def _sorted_unique(x: np.ndarray) -> np.ndarray:
+def sorted_unique(x: np.ndarray) -> np.ndarray:
     """np.unique of a small 1-D integer array by a sort (numpy's hash-based unique costs ~15 us)."""
     x = np.sort(x)
     return x[join_arrays(True, x[1:] != x[:-1])] if len(x) else x

@@ -211,10 +211,10 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     X0, X1 = world_at(run_seg, s0), world_at(run_seg, s1)
     p0, _ = camera.project(X0)
     p1, _ = camera.project(X1)
-    return _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
+    return visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
 
 
-def _visible_runs_of(features: FeatureEdges, fe, t0, t1, s0, s1, X0, X1, p0, p1) -> VisibleRuns:
+def visible_runs_of(features: FeatureEdges, fe, t0, t1, s0, s1, X0, X1, p0, p1) -> VisibleRuns:
     """VisibleRuns of the runs on feature edges fe, each from parameter s0 to s1 of its clipped
     segment (t0, t1: the clip of every feature edge). A run end keys on its mesh vertex where it
     is the unclipped edge end (so chaining links runs through shared vertices), on a fresh
@@ -332,4 +332,4 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     X1 = np.concatenate([np.take(B, runs_w, axis=0), X1_l]).take(order, axis=0)
     p0 = np.concatenate([np.take(pa, runs_w, axis=0), p_l[:m]]).take(order, axis=0)
     p1 = np.concatenate([np.take(pb, runs_w, axis=0), p_l[m:]]).take(order, axis=0)
-    return _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
+    return visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)

@@ -45,11 +45,11 @@ import numpy as np
 
 from strokekit.lines.strokeops import (
     CONTOUR_KINDS,
-    _sorted_unique,
     cut_pieces,
     join_arrays,
     keep_points,
     query_tree,
+    sorted_unique,
 )
 from strokekit.model import KINDS, N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.numba_cache import keyboard_interrupts
@@ -60,7 +60,7 @@ from strokekit.sampling import Samples, match_samples, resample_strokes, surface
 from strokekit.tracking.joins import GatheredPaths, insert_points, rotate_closed
 from strokekit.tracking.kalnins import fit_u
 from strokekit.tracking.ufit import PiecewiseU, levels_from_slope, solve_banded
-from strokekit.tracking.votes import _first_max_per_group, _unique_inverse, _unwrap_loop_votes
+from strokekit.tracking.votes import first_max_per_group, unique_inverse, unwrap_loop_votes
 
 #: Kind class of each kind: the contour kinds share one (a silhouette path may take over a
 #: smooth contour's votes), every other kind is its own.
@@ -221,7 +221,7 @@ def _fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.nda
     P = cur.period_px
     L = _arcs(cur).lengths
     gkeys, ginv, gw, primary = K.vote_groups(st, vid, w)
-    u = _unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
+    u = unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
     b0 = 1.0 / P
     lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
     a, b, ok = K.line_fit(st, s, u, w, primary[ginv].astype(float), lam, b0)
@@ -718,9 +718,9 @@ def heal_jumps(st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray, w:
     ci = c.astype(np.int64)
     base = ci.min()
     n_off = int(ci.max() - base) + 1
-    ukey, kinv = _unique_inverse(group * n_off + (ci - base))
+    ukey, kinv = unique_inverse(group * n_off + (ci - base))
     kgroup = ukey // n_off
-    keep = _first_max_per_group(kgroup, np.bincount(kinv, weights=w[o]))
+    keep = first_max_per_group(kgroup, np.bincount(kinv, weights=w[o]))
     keep_c = np.zeros(int(group.max()) + 1, np.int64)
     keep_c[kgroup[keep]] = ukey[keep] % n_off + base
     out = u.copy()
@@ -755,7 +755,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     glen = r_len.copy()
     lab = r_label >= 0
     if lab.any():
-        _, inv = _unique_inverse(r_label[lab])
+        _, inv = unique_inverse(r_label[lab])
         glen[lab] = np.bincount(inv, weights=r_len[lab])[inv]
     rank = np.empty(R, np.int64)
     rank[np.lexsort((np.arange(R), -np.round(r_len, 6), -np.round(glen, 6)))] = np.arange(R)
@@ -784,7 +784,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     link_label = p_label
     lk = np.flatnonzero(p_label >= 0)
     if len(lk) and o.merge_px > 0:
-        ul, inv = _unique_inverse(p_label[lk])
+        ul, inv = unique_inverse(p_label[lk])
         tot = np.bincount(inv, weights=p_s1[lk] - p_s0[lk])
         small = tot < o.merge_px
         if history:
@@ -815,7 +815,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     np.minimum.at(occ_level, path_of, lines.kind[p_line] // N_KINDS)
     paths = paths.replace(kind=paths.kind % N_KINDS + N_KINDS * occ_level)
     # 6. Ids: by the votes each path holds and the length of its pieces of each label.
-    known = _sorted_unique(prev.ids) if history else np.zeros(0, np.int64)  # (np.unique, by a sort)
+    known = sorted_unique(prev.ids) if history else np.zeros(0, np.int64)  # (np.unique, by a sort)
     ids, next_id = _path_ids(S, path_of, p_label, plen, votes, vk, vid, vw, cover, smp_piece, D, p_s0, p_s1, known,
                              next_id)
     paths = paths.replace(ids=ids)

@@ -30,6 +30,7 @@ from strokekit.camera.view import Camera
 from strokekit.colour import srgb_encode
 from strokekit.errors import UsageError
 from strokekit.model import BandRegion
+from strokekit.options import QUALITY_PRESETS, option
 from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
 from strokekit.raster.hits import RayHits, ZBufferHits, compiled, ensure_kernels, scene_faces32
 from strokekit.raster.rays import RasterHits
@@ -56,7 +57,7 @@ class RasterOptions:
     the line options' crease angle, which `render_raster` takes as an argument); light: direction
     toward the light, in camera space (x right, y up, z toward the viewer) or world space;
     supersample K in {1, 2, 4}: samples per pixel side everywhere; masks: one anti-aliased PNG per
-    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: seed 003
+    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: self-similar
     hatching/dots/noise of `fill_pattern` with a base period of `fill_period_px` output pixels;
     gooch: warm/cool ramps; band_polygons: the bands as SVG polygons (see `band_polygons_svg`);
     edge_supersample R (0 = off; R <= K has no effect, the K x K grid is as fine): the pixels that may hold more than one label, material or
@@ -65,23 +66,46 @@ class RasterOptions:
     their neighbours, disagree, and pixels crossed by a triangle too thin for the K x K grid
     (slivers, trim, thin parts) where it may show another label (see `_mixed_pixels`)."""
 
-    bands: int = 3
-    thresholds: tuple[float, ...] = ()
-    shading: str = "smooth"
-    light: tuple[float, float, float] = (-0.4, 0.6, 0.7)
-    light_space: str = "camera"
-    supersample: int = 1
-    masks: bool = False
-    shade: bool = True
-    objectid: bool = False
-    depth: bool = False
-    fill: bool = False
-    fill_pattern: str = "hatch"
-    fill_period_px: float = 16.0
-    gooch: bool = False
-    band_polygons: bool = False
+    bands: int = option(3, "--bands", "Toon bands: write bands/frame_NNNN.png (labels) and shade/frame_NNNN.png "
+                        "with N bands of quantized n.l.", low=1, high=254)
+    thresholds: tuple[float, ...] = option(
+        (), "--band-thresholds", "Explicit n.l thresholds a,b,.. instead of N equal bands.", text="numbers")
+    shading: str = option(
+        "smooth", "--shading", "Band normals: per face, or interpolated and split at edges sharper than "
+        "--crease-angle.", choices=SHADINGS, show_default=True, needs="raster")
+    light: tuple[float, float, float] = option(
+        (-0.4, 0.6, 0.7), "--light", "Direction toward the light x,y,z.", text="numbers", count=3, show_default=True,
+        needs="raster")
+    light_space: str = option(
+        "camera", "--light-space", "--light is given in camera space (moves with the view) or in world space.",
+        choices=LIGHT_SPACES, show_default=True, needs="raster")
+    supersample: int = option(
+        1, "--supersample", "Samples per pixel side everywhere (default from --quality: 1 draft, 1 default, 4 exact).",
+        choices={"1": 1, "2": 2, "4": 4}, needs="raster")
+    masks: bool = option(False, "--masks", "Also one anti-aliased mask PNG per band (maskN/frame_NNNN.png).",
+                         switch=True)
+    shade: bool = option(True, "--no-shade", "No shade/ PNGs (the ramp colours).", switch=True, invert=True,
+                         needs="raster")
+    objectid: bool = option(False, "--objectid", "Also objectid/frame_NNNN.png (8-bit object ids, 0 background).",
+                            switch=True)
+    depth: bool = option(
+        False, "--depth", "Also depth/frame_NNNN.png (16-bit linear depth; its range in the PNG and the JSON).",
+        switch=True)
+    fill: bool = option(
+        False, "--fill", "Also fill/frame_NNNN.png: hatching that keeps its screen size at any zoom (self-similar "
+        "3D texture).", switch=True)
+    fill_pattern: str = option("hatch", "--fill-pattern", "Texture of the fill.", choices=FILL_PATTERNS,
+                               show_default=True, needs="fill")
+    fill_period_px: float = option(16.0, "--fill-period", "Fill texture period in px.", show_default=True,
+                                   needs="fill")
+    gooch: bool = option(False, "--gooch", "Gooch warm/cool ramp instead of darker shades.", switch=True,
+                         needs="raster")
+    band_polygons: bool = option(False, "--band-polygons", "Also the bands as vector polygons in an SVG layer under "
+                                 "the lines.", switch=True, needs="svg layer")
     pngs: bool = True  # write the PNG passes (off: the raster pass runs for the EXR alone)
-    edge_supersample: int = 4
+    edge_supersample: int = option(
+        4, "--edge-supersample", "Resample only the pixels at band, material or object edges R x R (default from "
+        "--quality: 0 draft, 4 default, 0 exact).", low=0, high=8, needs="raster")
 
     def __post_init__(self):
         th = tuple(float(t) for t in self.thresholds)
@@ -110,6 +134,19 @@ class RasterOptions:
             raise UsageError(f"fill pattern must be one of {', '.join(FILL_PATTERNS)}, got {self.fill_pattern!r}")
         if not self.fill_period_px > 0:
             raise UsageError(f"fill period must be > 0 px, got {self.fill_period_px}")
+
+    @staticmethod
+    def preset(quality: str = "default", **overrides) -> "RasterOptions":
+        """Options of a named quality preset (options.QUALITY_PRESETS: supersample K and
+        edge_supersample R) with explicit overrides (None values ignored). A K given above the
+        preset's R turns the edge resampling off: the K x K grid is then as fine."""
+        if quality not in QUALITY_PRESETS:
+            raise UsageError(f"unknown quality {quality!r} (known: {', '.join(QUALITY_PRESETS)})")
+        given = {k: v for k, v in overrides.items() if v is not None}
+        k = int(given.pop("supersample", QUALITY_PRESETS[quality]["supersample"]))
+        r = QUALITY_PRESETS[quality]["edge_supersample"]
+        r = int(given.pop("edge_supersample", r if r > k else 0))
+        return RasterOptions(supersample=k, edge_supersample=r, **given)
 
 
 def check_crease_angle(crease_angle_deg: float) -> float:

@@ -17,6 +17,7 @@ import numpy as np
 from strokekit.cryptomatte import ranked_matte
 from strokekit.errors import UsageError
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
+from strokekit.options import option
 from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.hits import compiled
 from strokekit.raster.strokes import stroke_coverage
@@ -38,9 +39,14 @@ class PassOptions:
     """Which compositing passes to compute (PASSES), the stroke width of the lines pass (px), and
     the EXR's compression (CODECS)."""
 
-    passes: tuple[str, ...] = PASSES
-    stroke_width_px: float = 1.5
-    codec: str = "zip"
+    passes: tuple[str, ...] = option(
+        PASSES, "--exr-layers", "The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all].",
+        text="names", needs="exr")
+    stroke_width_px: float = 1.5  # (the SVG's: --stroke-width)
+    codec: str = option(
+        "zip", "--exr-codec", "The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at "
+        "about twice their size, rle in about half zip's time at four to eight times the size.", choices=CODECS,
+        show_default=True, needs="exr")
 
     def __post_init__(self):
         unknown = [p for p in self.passes if p not in PASSES]

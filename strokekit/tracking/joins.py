@@ -70,7 +70,7 @@ def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> S
     return out.replace(u=out.arc_length / out.period_px)
 
 
-def _turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.ndarray, vid: np.ndarray, P: float):
+def turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.ndarray, vid: np.ndarray, P: float):
     """Rotate closed strokes whose votes show the seam of an old loop (consecutive votes of one id
     whose u differs by more than half the loop) so they start there. Returns the strokes, their
     1 px samples (reordered, s measured from the new start) and the vote targets remapped."""
@@ -109,7 +109,7 @@ def _turn_loops_to_seams(cur: Strokes, dense: Samples, vm: np.ndarray, u: np.nda
     return cur, dense, inv[vm]
 
 
-def _join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: float, angle_deg: float,
+def join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: float, angle_deg: float,
                    straightest_first: bool = False):
     """Healing at junctions: segments (runs) of different open strokes of the same kind that carry
     the same id and end at the same point (within tol_px, turning by at most angle_deg) are
@@ -266,7 +266,7 @@ def _straightest_order(straight: np.ndarray, ra: np.ndarray, rb: np.ndarray, S: 
 def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np.ndarray | None = None,
                     other_tol_px: float | None = None, bridge_ok=None, free_px: float = 2.0,
                     weight: np.ndarray | None = None, link=None):
-    """_join_segments(strokes, arange(S), zeros(S), lengths, zeros(S), ones(S), tol_px, angle_deg,
+    """join_segments(strokes, arange(S), zeros(S), lengths, zeros(S), ones(S), tol_px, angle_deg,
     straightest_first=True), the call chain_touching makes, specialized (same group, rev, pos): every
     run is a whole stroke, all labels agree and all signs are +1, so the label healing is moot, the
     ends are the open strokes' first and last points and a path is reversed when most of its
@@ -294,7 +294,7 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np
     n = len(op)
     if 2 * n < 2:
         return group, rev, pos
-    # Nodes: starts of the open strokes, then their ends (the order _join_segments uses).
+    # Nodes: starts of the open strokes, then their ends (the order join_segments uses).
     e_run = join_arrays(op, op)
     fo, lo = first[op], last[op]
     e_pt = join_arrays(fo, lo)
@@ -326,7 +326,7 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np
     if not ok.any():
         return group, rev, pos
     a, b, straight = a[ok], b[ok], straight[ok]
-    # Greedy links in the order of _join_segments (straightest first; the pairs come in another
+    # Greedy links in the order of join_segments (straightest first; the pairs come in another
     # order than the k-d tree's, the sort decides). A node's code is 2 * stroke + end.
     if tier is None:
         o = _straightest_order(straight, e_run[a], e_run[b], S)
@@ -491,7 +491,7 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
     return out.replace(u=out.arc_length / out.period_px)
 
 
-def _concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
+def concat_groups(pieces: Strokes, g_sorted: np.ndarray) -> Strokes:
     """Join consecutive pieces with the same group id into one stroke (the joint point of the
     second piece is dropped when it repeats the first's last point)."""
     K = len(pieces)

@@ -9,19 +9,19 @@ import numpy as np
 from strokekit.lines.strokeops import cut_pieces, drop_hairpins, join_arrays, query_tree
 from strokekit.model import Strokes
 from strokekit.sampling import Samples, match_samples, resample_strokes
-from strokekit.tracking.joins import _concat_groups, _join_segments, _turn_loops_to_seams, chain_touching, insert_points
+from strokekit.tracking.joins import chain_touching, concat_groups, insert_points, join_segments, turn_loops_to_seams
 from strokekit.tracking.options import TrackingOptions
-from strokekit.tracking.ufit import PiecewiseU, _local_slope, levels_from_slope
+from strokekit.tracking.ufit import PiecewiseU, levels_from_slope, local_slope
 from strokekit.tracking.votes import (
-    _end_samples,
-    _first_max_per_group,
-    _segment_sums,
-    _u_trend,
-    _unique_inverse,
-    _unwrap_loop_votes,
     assign_ids,
+    end_samples,
+    first_max_per_group,
     segment_by_votes,
+    segment_sums,
     snap_boundaries,
+    u_trend,
+    unique_inverse,
+    unwrap_loop_votes,
 )
 
 
@@ -46,7 +46,7 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
     # The previous strokes' ends (snap_boundaries) are matched in the same query as the votes
     # (each point's match is independent of the others; 2+ rows each, so that the projection
     # takes the same matrix-vector path).
-    ends = _end_samples(prev) if o.snap_boundaries and len(prev) and len(dense) else None
+    ends = end_samples(prev) if o.snap_boundaries and len(prev) and len(dense) else None
     V = len(votes)
     if ends is not None and V >= 2:
         # (only X, t and the length of the samples are used by the match)
@@ -83,7 +83,7 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
                                piece_distance=True)
         rh = np.flatnonzero(rm >= 0)
         src = rm[rh]
-        slope = _local_slope(votes)
+        slope = local_slope(votes)
         vts = votes.t.take(src, axis=0)
         off = np.clip(np.einsum("ij,ij->i", rq.take(rh, axis=0) - votes.p.take(src, axis=0), vts),
                       -0.5 * votes.w[src], 0.5 * votes.w[src])
@@ -96,7 +96,7 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
     # Closed strokes (contour loops) start anywhere the chaining happened to start: turn them
     # so that they start at the old seam, where the carried u jumps by a whole loop.
     dense0 = dense
-    cur, dense, vm = _turn_loops_to_seams(cur, dense, vm, u, vid, P)
+    cur, dense, vm = turn_loops_to_seams(cur, dense, vm, u, vid, P)
     if dense is not dense0:  # samples reordered: the tree's indices no longer apply
         dense_tree = ends_match = None
     # Segments (Kalnins' brush path segments): each new chain is cut where the id its votes
@@ -118,7 +118,7 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
     # ... unless the carried u itself says which way it increases: an edge turning through
     # edge-on flips its image direction, so the tangents disagree while u, on the surface,
     # keeps its order (followed by tangents alone, u ran backwards along the stroke).
-    trend = _u_trend(rv, vid, r_label, dense.s[vm] + ds, u, R)
+    trend = u_trend(rv, vid, r_label, dense.s[vm] + ds, u, R)
     r_sign = np.where(np.abs(trend) >= o.dense_spacing_px, trend, r_sign)
     # Healing (chain_touching off): segments carrying the same id that now end at the same
     # point (the chaining stopped at a junction it went through in the previous frame) are
@@ -127,12 +127,12 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
         # Chains that meet were joined before the cut: nothing is left to heal (measured).
         group, rev, pos = np.arange(R), r_sign < 0, np.zeros(R, np.int64)
     else:
-        group, rev, pos = _join_segments(cur, r_stroke, r_s0, r_s1, r_label, r_sign, o.join_tol_px,
+        group, rev, pos = join_segments(cur, r_stroke, r_s0, r_s1, r_label, r_sign, o.join_tol_px,
                                         o.join_angle_deg)
     order = np.lexsort((pos, group))
     pieces = cut_pieces(cur, r_stroke[order], r_s0[order], r_s1[order], rev[order])
     g_sorted = group[order]
-    cur = _concat_groups(pieces, g_sorted)
+    cur = concat_groups(pieces, g_sorted)
     S = len(cur)
     # Offset of every run inside its output stroke.
     off_sorted = np.cumsum(r_len[order]) - r_len[order]
@@ -175,7 +175,7 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
     if len(st):
         M = int(vid.max()) + 1
         key = st.astype(np.int64) * M + vid  # (stroke, id) as one integer
-        ukey, ginv = _unique_inverse(key)
+        ukey, ginv = unique_inverse(key)
         gkeys = np.empty((len(ukey), 2), np.int64)
         np.floor_divide(ukey, M, out=gkeys[:, 0])
         np.remainder(ukey, M, out=gkeys[:, 1])
@@ -183,12 +183,12 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
     else:
         gkeys, ginv, gw = np.zeros((0, 2), np.int64), np.zeros(0, np.int64), np.zeros(0)
     if len(st):
-        u = _unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
+        u = unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
     # Primary group per stroke: most matched length, ties to the lower id. gkeys come sorted
     # by (stroke, id): the first group of a stroke holding the stroke's maximum (no sort).
     primary = np.zeros(len(gw), bool)
     if len(gw):
-        primary[_first_max_per_group(gkeys[:, 0], gw)] = True
+        primary[first_max_per_group(gkeys[:, 0], gw)] = True
     b0 = 1.0 / P
     lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
 
@@ -196,7 +196,7 @@ def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndar
         if compiled is not None:
             return compiled.line_fit(st, s, u, w, mask, lam, b0)
         w_ = w * mask
-        S0, S1, S2, T0, T1 = _segment_sums(st, S, w_, w_ * s, w_ * s * s, w_ * u, w_ * s * u)
+        S0, S1, S2, T0, T1 = segment_sums(st, S, w_, w_ * s, w_ * s * s, w_ * u, w_ * s * u)
         A11, A12, A22 = S0, S1, S2 + lam
         R1, R2 = T0, T1 + lam * b0
         det = A11 * A22 - A12 * A12

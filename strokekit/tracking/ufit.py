@@ -163,7 +163,7 @@ def _fill_rows(buf: np.ndarray, rows: list) -> np.ndarray:
     return buf
 
 
-def _local_slope(smp: Samples) -> np.ndarray:
+def local_slope(smp: Samples) -> np.ndarray:
     """du/ds (periods per px) at every sample, from its neighbours in the same stroke."""
     n = len(smp)
     if n < 2:

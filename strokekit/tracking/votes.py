@@ -10,7 +10,7 @@ from strokekit.model import Strokes, row_norm
 from strokekit.sampling import Samples, match_samples
 
 
-def _u_trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarray, u: np.ndarray,
+def u_trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarray, u: np.ndarray,
              R: int) -> np.ndarray:
     """(R,) px of every run along which the carried u increases, less the px along which it
     decreases: the votes that carry the run's own id (`label`), in order of their position `pos`
@@ -28,7 +28,7 @@ def _u_trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarra
     return np.bincount(rq[1:], weights=step, minlength=R)
 
 
-def _unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndarray, group: np.ndarray,
+def unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndarray, group: np.ndarray,
                        w: np.ndarray, P: float, min_loop_spacing_px: float) -> np.ndarray:
     """Votes u (V,) made continuous across the seams of the previous frame's closed strokes.
 
@@ -72,9 +72,9 @@ def _unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndar
     ci = c.astype(np.int64)
     base = ci.min()
     n_off = int(ci.max() - base) + 1
-    ukey, kinv = _unique_inverse(gq.astype(np.int64) * n_off + (ci - base))
+    ukey, kinv = unique_inverse(gq.astype(np.int64) * n_off + (ci - base))
     kgroup = ukey // n_off
-    keep = _first_max_per_group(kgroup, np.bincount(kinv, weights=w[o]))
+    keep = first_max_per_group(kgroup, np.bincount(kinv, weights=w[o]))
     keep_c = np.zeros(int(gq.max()) + 1, np.int64)
     keep_c[kgroup[keep]] = ukey[keep] % n_off + base
     out = u.copy()
@@ -82,11 +82,11 @@ def _unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndar
     return out
 
 
-def _segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
+def segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
     return [np.bincount(idx, weights=w, minlength=n) for w in weights]
 
 
-def _unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """np.unique(x, return_inverse=True) of a 1-D integer array (same sort, same results) without
     np.unique's generic wrapping (~10 us a call; the tracker makes three a frame)."""
     perm = x.argsort(kind="stable")  # (any order of equal keys gives the same result; timsort is
@@ -99,7 +99,7 @@ def _unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return aux[mask], inv
 
 
-def _first_max_per_group(group: np.ndarray, weight: np.ndarray) -> np.ndarray:
+def first_max_per_group(group: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """For entries sorted by `group` (runs of equal values, non-empty): the index of the first
     entry of each group holding the group's maximum weight (ties: the earliest), in group order.
     The sorted-input form of a (group, -weight, position) lexsort, without the sort."""
@@ -127,7 +127,7 @@ def assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, can
     rank[order] = np.arange(len(order))
     alive = np.ones(len(cs), bool)
     # Ids as 0..n_ids-1 (so that both sides index flat arrays).
-    _, cinv = _unique_inverse(ci)
+    _, cinv = unique_inverse(ci)
     n_ids = int(cinv.max()) + 1 if len(cinv) else 0
     used_s = np.zeros(n_strokes, bool)
     used_i = np.zeros(n_ids, bool)
@@ -151,7 +151,7 @@ def assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, can
     return ids, next_id + len(fresh)
 
 
-def _end_samples(prev: Strokes) -> Samples:
+def end_samples(prev: Strokes) -> Samples:
     """Both ends of every stroke of `prev` (starts, then ends) as samples: surface point, tangent
     into the stroke, id (for snap_boundaries)."""
     first, last = prev.offsets[:-1], prev.offsets[1:] - 1
@@ -171,7 +171,7 @@ def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1,
     frame's stroke A or B projects on the new stroke (both ends found: their mean), when that is
     within `tol_px` of the cut. The end points are matched like the votes (projected with
     `camera`, nearest dense sample within `radius_px` with agreeing tangent, refined along its
-    tangent). `ends_match`: (_end_samples(prev), match, projected) when the caller already matched
+    tangent). `ends_match`: (end_samples(prev), match, projected) when the caller already matched
     them against `dense` (as match_samples(..., k=4, return_projected=True) would).
     Returns new (s0, s1) per run; runs keep at least 1e-3 px."""
     inner = np.flatnonzero((r_stroke[1:] == r_stroke[:-1]) & (r_label[1:] >= 0) & (r_label[:-1] >= 0))
@@ -180,7 +180,7 @@ def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1,
     if ends_match is not None:
         ends, m, q = ends_match
     else:
-        ends = _end_samples(prev)
+        ends = end_samples(prev)
         m, q = match_samples(ends, camera, dense, dense_tree, radius_px=radius_px, min_tangent_dot=min_tangent_dot,
                              k=4, return_projected=True)
     hit = np.flatnonzero(m >= 0)
@@ -233,14 +233,14 @@ def sample_labels(D: int, vm: np.ndarray, vid: np.ndarray, w: np.ndarray) -> np.
         # the single heaviest vote: where parallel contour pieces run 1-3 px apart, a sample gets
         # votes of its own line and a stray one of the neighbour line.
         M = int(vid.max()) + 1
-        key, inv = _unique_inverse(vm.astype(np.int64) * M + vid)
+        key, inv = unique_inverse(vm.astype(np.int64) * M + vid)
         # Rounded: a sum's last bits depend on the order of the votes, a tie must not.
         kw = np.round(np.bincount(inv.ravel(), weights=w), 9)
         ks, ki = key // M, key % M
         # Per sample the most weight, ties to the lower id: keys come sorted by (sample, id), so
         # that is the first key of its sample holding the sample's maximum (no sort needed; a
         # 3-key lexsort of ~1000 keys cost ~50 us).
-        win = _first_max_per_group(ks, kw)
+        win = first_max_per_group(ks, kw)
         label[ks[win]] = ki[win]
     return label
 
