@@ -193,9 +193,9 @@ def test_box_resting_on_ground_keeps_its_bottom_silhouette():
     probe = bottom[0] + t[:, None] * d
     from scipy.spatial import cKDTree
 
-    from strokekit.lines.strokeops import resample
+    from strokekit.sampling import segment_samples
 
-    pts, _ = resample(st, 0.05)
+    pts, _, _ = segment_samples(st.points, st.offsets, 0.05)
     dist, _ = cKDTree(pts).query(probe)
     assert dist.max() < 0.05  # the whole front bottom edge is drawn
 
@@ -217,9 +217,9 @@ def test_open_rim_resting_on_ground_is_visible():
     probe, _ = cam.project(rim)
     from scipy.spatial import cKDTree
 
-    from strokekit.lines.strokeops import resample
+    from strokekit.sampling import segment_samples
 
-    pts, _ = resample(border, 0.05)
+    pts, _, _ = segment_samples(border.points, border.offsets, 0.05)
     dist, _ = cKDTree(pts).query(probe)
     # The rim is a 64-gon: its chords lie within the sagitta of the circle.
     assert dist.max() < 0.3 * (1 - np.cos(np.pi / 64)) * cam.focal_px / 6.0 + 0.1

@@ -29,6 +29,7 @@ from strokekit.raster.bands import (
 from strokekit.raster.fill import fill_field, octave_weights, self_similar_field
 from strokekit.raster.rays import cast_pixels
 from strokekit.run.tasks import raster_outputs
+from strokekit.sampling import segment_samples
 from strokekit.scene.load import Material, build_scene, load_scene
 from strokekit.scene.occluder import Occluder
 from strokekit.writers.png import png_files, read_png
@@ -689,17 +690,6 @@ def _outline_scene():
     return build_scene(np.r_[m.vertices, bv], np.r_[m.faces, np.asarray(b.faces) + len(m.vertices)])
 
 
-def _resampled(polylines, step=0.5) -> np.ndarray:
-    """(M, 2) points every `step` px along every polyline."""
-    out = []
-    for p in np.split(polylines.points, polylines.offsets[1:-1]):
-        for a, b in zip(p[:-1], p[1:]):
-            n = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
-            out.append(a + (b - a) * (np.arange(n) / n)[:, None])
-        out.append(p[-1:])
-    return np.concatenate(out)
-
-
 @pytest.mark.parametrize("projection", ["perspective", "orthographic", "cavalier"])
 def test_svg_silhouettes_lie_on_the_edge_of_the_background_mask(tmp_path, capsys, projection):
     """Bar: the silhouettes of the SVG, drawn by the line pass (Embree visibility), lie on the
@@ -729,7 +719,7 @@ def test_svg_silhouettes_lie_on_the_edge_of_the_background_mask(tmp_path, capsys
     assert e.value.code == 0, capsys.readouterr().err
     silhouettes = read_svg(tmp_path / "o" / "frame_0001.svg").layers["silhouette"]
     assert len(silhouettes) >= 2
-    sil = _resampled(silhouettes)
+    sil, _, _ = segment_samples(silhouettes.points, silhouettes.offsets, 0.5)
     # Background coverage from the masks: 1 - the sum of the band masks.
     masks = sum(read_png((tmp_path / "o" / f"mask{b}" / "frame_0001.png").read_bytes()).astype(float) for b in (1, 2, 3))
     bg = 1.0 - masks / 255.0

@@ -5,7 +5,7 @@ recall    = share of the reference length that lies within `tol` px of a drawn l
 The reference is the tool's own slowest setting (the `exact` preset). Both drawings are cut into
 pieces of at most `step_px` (default 0.1 px); each piece counts with its length at its midpoint,
 and its distance to the other drawing is measured with a k-d tree over that drawing's points
-resampled at the same step (strokekit.lines.strokeops.resample), so distances are exact to step/2 px.
+resampled at the same step (both `sampling.segment_samples`), so distances are exact to step/2 px.
 """
 
 from __future__ import annotations
@@ -17,31 +17,14 @@ from scipy.spatial import cKDTree
 
 from strokekit.lines.contours import smooth_contour_edges
 from strokekit.lines.features import silhouette_mask
-from strokekit.lines.strokeops import resample
 from strokekit.lines.surface import surface_lift
 from strokekit.model import FeatureEdges, Strokes
-from strokekit.sampling import split_lengths
+from strokekit.sampling import segment_samples
 from strokekit.scene.occluder import Occluder
 from strokekit.scene.tables import face_size
 
 #: Default distance tolerances (px) reported by `strokekit bench`.
 DEFAULT_TOLS: tuple[float, ...] = (0.5, 1.0, 2.0)
-
-
-def length_samples(strokes: Strokes, step_px: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    """Midpoints (M, 2) px of pieces of at most `step_px` px along every stroke, and each piece's
-    length (M,) px. The weights sum to the total drawn length."""
-    if len(strokes) == 0 or len(strokes.points) == 0:
-        return np.zeros((0, 2)), np.zeros(0)
-    seg = strokes.segment_lengths  # length of the segment ending at each point
-    seg_idx = np.flatnonzero(seg > 0)
-    if len(seg_idx) == 0:  # only zero-length strokes: nothing drawn
-        return np.zeros((0, 2)), np.zeros(0)
-    piece, k, n = split_lengths(seg[seg_idx], step_px)
-    rep = seg_idx[piece]
-    t = ((k + 0.5) / n[piece])[:, None]
-    mid = strokes.points[rep - 1] * (1 - t) + strokes.points[rep] * t
-    return mid, (seg[seg_idx] / n)[piece]
 
 
 @dataclass
@@ -77,11 +60,11 @@ def _ratio(near: float, total: float, other_total: float) -> float:
 
 
 def _near_length(query: Strokes, against: Strokes, tols: tuple[float, ...], step_px: float) -> tuple[float, np.ndarray]:
-    mid, w = length_samples(query, step_px)
+    mid, _, w = segment_samples(query.points, query.offsets, step_px, middles=True)
     total = float(w.sum())
     if len(mid) == 0:
         return total, np.zeros(len(tols))
-    pts, _ = resample(against, step_px)
+    pts, _, _ = segment_samples(against.points, against.offsets, step_px)
     if len(pts) == 0:
         return total, np.zeros(len(tols))
     tree = cKDTree(pts)

@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 from strokekit.errors import InputError, UsageError
 from strokekit.fileio import atomic_write_bytes
 from strokekit.metrics.svg_reader import STYLE_KEYS, Polylines, SvgDrawing, read_svg
-from strokekit.sampling import split_lengths
+from strokekit.sampling import segment_samples
 
 #: Colours of the difference image (RGB): strokes only in A, only in B, and common to both.
 A_ONLY_COLOR = (220, 20, 20)
@@ -70,19 +70,8 @@ def _count_samples(pl: Polylines, step: float) -> int:
 
 
 def _resample(pl: Polylines, step: float) -> _Samples:
-    pts, n = pl.points, len(pl.points)
-    stroke_of_point = np.repeat(np.arange(len(pl)), np.diff(pl.offsets))
-    last = np.zeros(n, bool)
-    last[pl.offsets[1:] - 1] = True
-    d = np.zeros((n, 2))
-    d[:-1] = np.diff(pts, axis=0)
-    d[last] = 0.0
-    seg_len = np.linalg.norm(d, axis=1)
-    # every point but a polyline's last one owns the samples of the segment that starts there
-    owner, k, count = split_lengths(np.where(last, 0.0, seg_len), step, min_pieces=1)
-    frac = k / count[owner]
-    pos = pts[owner] + d[owner] * frac[:, None]
-    stroke = stroke_of_point[owner]
+    """The samples of `segment_samples`, each weighing half the gaps to its neighbours."""
+    pos, stroke, _ = segment_samples(pl.points, pl.offsets, step)
     gap = np.zeros(len(pos) + 1)
     if len(pos) > 1:
         same = stroke[1:] == stroke[:-1]

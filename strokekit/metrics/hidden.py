@@ -25,7 +25,7 @@ from strokekit.lines.visibility import clip_segments
 from strokekit.metrics.accuracy import DEFAULT_TOLS, Accuracy, aggregate, frame_accuracy
 from strokekit.model import MAX_OCCLUSION, N_KINDS, Strokes, row_norm
 from strokekit.options import LineOptions
-from strokekit.sampling import resample_strokes
+from strokekit.sampling import locate, resample_strokes
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
 from strokekit.scene.tables import face_edges
@@ -237,12 +237,8 @@ def _edge_faces_at(scene: Scene, strokes: Strokes, smp) -> tuple[np.ndarray, np.
     """The faces (M, 2) of the mesh edge each stroke sample's surface point lies on (the edge of
     the faces under the two stroke points around it nearest to it), and whether it does lie on
     one (within 1e-9 of the scene radius)."""
-    base, G = strokes.global_arc
-    j = np.searchsorted(G, base[smp.stroke] + smp.s, side="right")
-    first, last = strokes.offsets[smp.stroke], strokes.offsets[smp.stroke + 1] - 1
-    j = np.clip(j, first + 1, np.maximum(last, first + 1))
-    j = np.minimum(j, len(strokes.points) - 1)
-    faces = np.stack([strokes.face[j - 1], strokes.face[j]], axis=1)
+    i, j, _ = locate(strokes, smp.stroke, smp.s)
+    faces = np.stack([strokes.face[i], strokes.face[j]], axis=1)
     fe = face_edges(scene)[np.maximum(faces, 0)].reshape(len(j), 6)
     E = scene.edges[fe]
     a, b = scene.vertices[E[..., 0]], scene.vertices[E[..., 1]]
