@@ -35,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from strokekit import LineOptions, LineRenderer, build_scene, load_scene  # noqa: E402
 from strokekit.camera.view import Camera  # noqa: E402
+from strokekit.lines.facing import FrameView  # noqa: E402
 from strokekit.lines.features import feature_edges  # noqa: E402
 from strokekit.lines.occlusion import own_faces  # noqa: E402
 from strokekit.lines.visibility import clip_segments  # noqa: E402
@@ -112,7 +113,7 @@ def speed_rows(args) -> list[dict]:
 def _samples(scene, cam, options):
     """The points the level pass counts first on one frame: the middles of 4 px parts of every
     clipped candidate edge, with their own faces (lines.occlusion)."""
-    fe = feature_edges(scene, cam, options, with_lift=True)
+    fe = feature_edges(FrameView(scene, cam), options, with_lift=True)
     t0, t1 = clip_segments(fe.a, fe.b, cam, cam.near_distance(scene.radius))
     idx = np.flatnonzero(t1 > t0)
     A = fe.a[idx] + t0[idx, None] * (fe.b[idx] - fe.a[idx])

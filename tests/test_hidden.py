@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 from strokekit import LineOptions, LineRenderer, Strokes, build_scene, load_scene
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
+from strokekit.lines.facing import FrameView
 from strokekit.lines.features import feature_edges
 from strokekit.lines.occlusion import _bisect_levels, outline_crossings, outline_edges
 from strokekit.lines.visibility import clip_segments, clipped_on_screen
@@ -123,13 +124,13 @@ def test_outline_crossings_are_every_crossing_in_front(torus_and_box, which):
     else:
         scene = torus_and_box
         cam = _cameras()[["perspective", "cabinet", "isometric"].index(which)]
-    feat = feature_edges(scene, cam, HIDDEN, with_lift=True)
+    feat = feature_edges(FrameView(scene, cam), HIDDEN, with_lift=True)
     near = cam.near_distance(scene.radius)
     _, _, idx, _, _, _, pa, za, pb, zb, _ = clipped_on_screen(feat.a, feat.b, cam, near)
     va, vb = feat.va[idx], feat.vb[idx]
-    seg, s = outline_crossings(scene, cam, near, pa, pb, za, zb, va, vb)
+    seg, s = outline_crossings(FrameView(scene, cam), near, pa, pb, za, zb, va, vb)
     assert len(seg) >= 20  # (the scene has crossings to find)
-    E = scene.edges[outline_edges(scene, cam)]
+    E = scene.edges[outline_edges(FrameView(scene, cam))]
     V = scene.vertices
     c0, c1 = clip_segments(V[E[:, 0]], V[E[:, 1]], cam, near)
     ok = c1 > c0
@@ -203,7 +204,7 @@ def test_a_face_seen_edge_on_hides_nothing(options):
     in_plane = np.abs((sil.surface - scene.vertices[scene.faces[-1, 0]]) @ scene.face_normals[-1]) < 1e-9
     assert not (in_plane[1:] & in_plane[:-1] & (sil.stroke_of_point[1:] == sil.stroke_of_point[:-1])).any()
     full = r.occluder
-    r.occluder_for = lambda camera: full
+    r.occluder_for = lambda view: full
     cut = r.render(cam)
     assert _ridge_drawn(cut.select(cut.occlusion == 0), ridge)[0] < whole - 0.1
 
@@ -514,11 +515,11 @@ def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
 
     cam = _cameras()[0]
     scene = torus_and_box
-    occ = LineRenderer(scene, HIDDEN).occluder_for(cam)
-    fe = feature_edges(scene, cam, HIDDEN, with_lift=True)
+    occ = LineRenderer(scene, HIDDEN).occluder_for(FrameView(scene, cam))
+    fe = feature_edges(FrameView(scene, cam), HIDDEN, with_lift=True)
     from strokekit.lines.surface import surface_lift
 
-    lift = fe.lift if fe.lift is not None else surface_lift(scene, fe, cam, HIDDEN.occlusion_offset)
+    lift = fe.lift if fe.lift is not None else surface_lift(FrameView(scene, cam), fe, HIDDEN.occlusion_offset)
     _, _, idx, ab, A, B, _, _, _, _, _ = clipped_on_screen(fe.a, fe.b, cam, cam.near_distance(scene.radius))
     own, ends = own_faces(scene, fe, idx)
     on = np.flatnonzero(ends[:, 0] >= 0)

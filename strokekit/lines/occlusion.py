@@ -30,14 +30,13 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.camera.view import Camera
-from strokekit.lines.features import silhouette_mask
+from strokekit.lines.facing import FrameView
 from strokekit.lines.kernels import kernels
 from strokekit.lines.visibility import clip_segments, clipped_on_screen, visible_runs_of, world_between
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
-from strokekit.scene.tables import scene_cache
 
 #: Halvings at most (a 2^60 px bracket): the loop ends when every bracket is within tolerance.
 MAX_HALVINGS = 60
@@ -45,12 +44,12 @@ MAX_HALVINGS = 60
 GRID_PX = 8.0
 
 
-def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
-                   scene: Scene) -> VisibleRuns:
+def occlusion_runs(features: FeatureEdges, view: FrameView, occluder: Occluder, options: LineOptions) -> VisibleRuns:
     """The pieces of the feature edges whose occlusion level lies in `options.occlusion`
     (lo, hi), each with its level in its kind code. Without `bisect_changes` (the draft preset)
     a change between two samples lies in the middle of their bracket; changes at outline
     crossings are exact in every preset."""
+    scene, camera = view.scene, view.camera
     lo_level, hi_level = options.occlusion
     limit = min(hi_level, MAX_OCCLUSION) + 1  # counting further changes nothing kept
     a, b = features.a, features.b
@@ -73,7 +72,7 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     # Pieces between the outline crossings; samples at the middles of equal parts of each piece,
     # one part per sample_spacing_px (whole_edge_px: a short segment is one piece, one sample).
     cx_seg, cx_s, cx_edge, cx_end, cx_gap = outline_crossings(
-        scene, camera, near, pa, pb, za, zb, np.where(features.va[idx] >= 0, features.va[idx], -1),
+        view, near, pa, pb, za, zb, np.where(features.va[idx] >= 0, features.va[idx], -1),
         np.where(features.vb[idx] >= 0, features.vb[idx], -1), edges=True)
     whole = L < options.whole_edge_px
     keep_cx = np.flatnonzero(~whole[cx_seg])
@@ -206,10 +205,7 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
     mesh = (va >= 0) & (vb >= 0) & (va < V) & (vb < V)
     if mesh.any():
         lo, hi = np.minimum(va[mesh], vb[mesh]), np.maximum(va[mesh], vb[mesh])
-        keys = scene_cache(scene).get("edge_keys")
-        if keys is None:  # (the same every frame: 0.3 ms of the bunny's)
-            keys = scene.edges[:, 0].astype(np.int64) * (V + 1) + scene.edges[:, 1]
-            scene_cache(scene)["edge_keys"] = keys
+        keys = scene.edge_keys
         q = lo * (V + 1) + hi
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
@@ -219,18 +215,13 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
     return faces, ends
 
 
-def outline_edges(scene: Scene, camera: Camera, silhouettes: np.ndarray | None = None) -> np.ndarray:
+def outline_edges(view: FrameView) -> np.ndarray:
     """The scene edges where what hides a point can change: contour edges (a front and a back
-    face; `silhouettes`, the frame's silhouette_mask, when known), borders and non-manifold edges."""
-    sil = silhouette_mask(scene, camera) if silhouettes is None else silhouettes
-    fixed = scene_cache(scene).get("outline_fixed")
-    if fixed is None:
-        fixed = scene.is_border | scene.is_nonmanifold
-        scene_cache(scene)["outline_fixed"] = fixed
-    return np.flatnonzero(sil | fixed)
+    face), borders and non-manifold edges (those not manifold)."""
+    return np.flatnonzero(view.silhouettes | ~view.scene.is_manifold)
 
 
-def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb, va, vb, edges: bool = False):
+def outline_crossings(view: FrameView, near: float, pa, pb, za, zb, va, vb, edges: bool = False):
     """(segment (K,), s (K,)): where the image of each clipped segment pa -> pb (px; view depths
     za, zb at its ends; mesh vertices va, vb, -1 for none) crosses the image of an outline edge
     (`outline_edges`, clipped alike) that lies in front of it there, at screen parameter 0 < s < 1,
@@ -238,7 +229,8 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     at its end, not across it, and are skipped. With `edges`, also per place: the scene edge
     crossed (-1 where several meet there), the place's distance (px) to the nearer end of its
     image and the relative depth gap (zf - zc) / zf of the outline in front of the segment."""
-    eid = outline_edges(scene, camera)
+    scene, camera = view.scene, view.camera
+    eid = outline_edges(view)
     E = scene.edges.take(eid, axis=0)
     none = (np.zeros(0, np.int64), np.zeros(0))
     if edges:

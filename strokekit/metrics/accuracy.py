@@ -16,12 +16,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from strokekit.lines.contours import smooth_contour_edges
-from strokekit.lines.features import silhouette_mask
+from strokekit.lines.facing import FrameView
 from strokekit.lines.surface import surface_lift
 from strokekit.model import FeatureEdges, Strokes
 from strokekit.sampling import segment_samples
 from strokekit.scene.occluder import Occluder
-from strokekit.scene.tables import face_size
 
 #: Default distance tolerances (px) reported by `strokekit bench`.
 DEFAULT_TOLS: tuple[float, ...] = (0.5, 1.0, 2.0)
@@ -125,11 +124,12 @@ def mesh_contour_samples(scene, camera, n: int = 16) -> tuple[np.ndarray, np.nda
     """Samples (M, 3) world of the mesh contour edges (BRIEF 2 silhouettes), n per edge, and their
     occlusion-ray lifts (M, 3) as the line pass tests them (lines.surface_lift)."""
 
-    E = scene.edges[silhouette_mask(scene, camera)]
+    view = FrameView(scene, camera)
+    E = scene.edges[view.silhouettes]
     a, b = scene.vertices[E[:, 0]], scene.vertices[E[:, 1]]
     fe = FeatureEdges(a=a, b=b, kind=np.zeros(len(E), np.int8), va=E[:, 0], vb=E[:, 1],
                       face=np.zeros(len(E), np.int64))
-    lift = surface_lift(scene, fe, camera, 1e-5)
+    lift = surface_lift(view, fe, 1e-5)
     t = (np.arange(n) + 0.5) / n
     Q = (a[:, None] * (1 - t)[None, :, None] + b[:, None] * t[None, :, None]).reshape(-1, 3)
     return Q, np.repeat(lift, n, axis=0)
@@ -150,7 +150,7 @@ def smooth_contour_wrongly_hidden(scene, cameras, tol_px: float = 1.0, samples_p
     s = (np.arange(ns) + 0.5) / ns
     wrong = total = far = total_vis = 0.0
     for cam in cameras:
-        fe = smooth_contour_edges(scene, cam)
+        fe = smooth_contour_edges(FrameView(scene, cam))
         P = (fe.a[:, None] * (1 - s)[None, :, None] + fe.b[:, None] * s[None, :, None]).reshape(-1, 3)
         seg = np.repeat(np.arange(len(fe)), ns)
         pp, _ = cam.project(P)
@@ -165,7 +165,7 @@ def smooth_contour_wrongly_hidden(scene, cameras, tol_px: float = 1.0, samples_p
             dist, i = tree.query(pp, distance_upper_bound=tol_px)
             near = np.isfinite(dist)
             truth = np.zeros(len(P), bool)
-            truth[near] = np.linalg.norm(Qv[i[near]] - P[near], axis=1) < 2 * face_size(scene)[fe.face[seg[near]]]
+            truth[near] = np.linalg.norm(Qv[i[near]] - P[near], axis=1) < 2 * scene.face_size[fe.face[seg[near]]]
         wrong += w[truth & ~vis].sum()
         total += w[truth].sum()
         d2, _ = tree.query(pp, distance_upper_bound=2.0)

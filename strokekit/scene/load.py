@@ -23,6 +23,7 @@ import numpy as np
 
 from strokekit.errors import InputError, hold_interrupts
 from strokekit.fileio import atomic_write_bytes
+from strokekit.scene.tables import SceneTables
 
 SUPPORTED = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
 
@@ -34,9 +35,10 @@ class Material:
 
 
 @dataclass(frozen=True, eq=False)
-class Scene:
+class Scene(SceneTables):
     """World-space triangle scene. vertices (V, 3) float64, faces (F, 3) int64,
-    face_object (F,) int32 indices into `objects`, face_material (F,) int32 into `materials`."""
+    face_object (F,) int32 indices into `objects`, face_material (F,) int32 into `materials`.
+    Its derived tables (normals, topology, `SceneTables`) are built on first use and kept."""
 
     vertices: np.ndarray
     faces: np.ndarray
