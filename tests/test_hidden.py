@@ -18,12 +18,13 @@ from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.lines.facing import FrameView
 from strokekit.lines.features import feature_edges
+from strokekit.lines.levels import _levels_compiled, _order_along_rays, count_crossings, levels
 from strokekit.lines.occlusion import _bisect_levels, outline_crossings, outline_edges
+from strokekit.lines.sightlines import segments
 from strokekit.lines.visibility import clip_segments, clipped_on_screen
 from strokekit.metrics.bench import default_cameras
 from strokekit.metrics.hidden import hidden_accuracy, reference_drawing
 from strokekit.model import KIND_INDEX, N_KINDS
-from strokekit.scene.occluder import _order_along_rays
 from strokekit.tracking.tracker import track_frames
 from strokekit.writers.strokes_json import read_strokes_json, strokes_json
 from strokekit.writers.svg import svg_document
@@ -508,7 +509,7 @@ def test_close_pairs_are_the_kd_tree_pairs():
 
 
 def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
-    """Occluder.levels' compiled path (perspective, points on mesh edges) gives the numpy path's
+    """levels' compiled path (perspective, points on mesh edges) gives the numpy path's
     counts, sample for sample."""
     from strokekit.lines.occlusion import own_faces
     from strokekit.model import row_norm
@@ -528,13 +529,13 @@ def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
     size, L, off = row_norm(ab[on]), lift[idx][on], HIDDEN.occlusion_offset
     if occ.backend != "open3d":
         pytest.skip("the compiled level rays read open3d's hit lists")
-    compiled = occ._levels_compiled(P, cam, off, L, size, 16, own[on])
+    compiled = _levels_compiled(occ, P, cam, off, L, size, 16, own[on])
     assert compiled is not None  # (None: it fell back, and the test would compare numpy with numpy)
-    assert np.array_equal(occ.levels(P, cam, off, L, size, 16, own[on], ends[on]), compiled)
+    assert np.array_equal(levels(occ, P, cam, off, L, size, 16, own[on], ends[on]), compiled)
     c = P - occ.origin
     eps = off * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), size)
-    o, t = occ._segments(P, cam, eps, off)
-    plain, _ = occ.count_crossings(o, t, 16, skip=own[on], verify=(P, t, 100.0 * row_norm(L) + eps))
+    o, t = segments(occ, P, cam, eps, off)
+    plain, _ = count_crossings(occ, o, t, 16, skip=own[on], verify=(P, t, 100.0 * row_norm(L) + eps))
     assert np.array_equal(compiled, plain) and plain.max() >= 2
 
 

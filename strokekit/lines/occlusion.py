@@ -4,7 +4,7 @@ split where the level changes, for hidden-line drawings (`LineOptions.occlusion`
 
 The level of a point is the number of triangles the open segment from it to the eye (parallel
 cameras: along the projection rays, to the near plane) crosses, its own faces excluded
-(BRIEF 2): level 0 is visible (`Occluder.levels`: every hit of a ray in one Embree call).
+(BRIEF 2): level 0 is visible (`lines.levels`: every hit of a ray in one Embree call).
 
 Where levels change (Appel's observation, the basis of Freestyle's QI): a ray from a point on
 the edge gains or loses surfaces where the point passes behind the outline of the scene (its
@@ -32,6 +32,7 @@ import numpy as np
 from strokekit.camera.view import Camera
 from strokekit.lines.facing import FrameView
 from strokekit.lines.kernels import kernels
+from strokekit.lines.levels import levels
 from strokekit.lines.visibility import clip_segments, clipped_on_screen, visible_runs_of, world_between
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
@@ -65,7 +66,7 @@ def occlusion_runs(features: FeatureEdges, view: FrameView, occluder: Occluder, 
     own, ends = own_faces(scene, features, idx)
 
     def level_at(seg_i, s_i):  # (rows gathered by take: fancy indexing costs several times more)
-        return occluder.levels(world_at(seg_i, s_i), camera, options.occlusion_offset,
+        return levels(occluder, world_at(seg_i, s_i), camera, options.occlusion_offset,
                                None if lift is None else lift.take(seg_i, axis=0), size.take(seg_i), limit,
                                own.take(seg_i, axis=0), ends.take(seg_i, axis=0))
 
@@ -283,25 +284,13 @@ def crossing_deltas(scene: Scene, camera: Camera, occluder: Occluder, edge: np.n
     (K, 2) or one the occluder leaves out, a face or the segment within 1e-6 (relative) of the
     plane, the outline within 1e-6 (relative depth `gap`) in front of the segment, or the place
     within 1e-3 px (`end_px`) of the ends of the edge's image."""
-    kept = _kept_faces(occluder)
+    kept = occluder.kept_faces
     view = camera.ray_dir if camera.is_ortho else camera.eye
     return kernels().crossing_deltas(
         np.ascontiguousarray(edge, np.int64), end_px, gap, np.ascontiguousarray(ab), np.ascontiguousarray(own),
         scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=False),
         scene.faces.astype(np.int64, copy=False), scene.vertices, np.asarray(view, float), bool(camera.is_ortho),
         np.zeros(0, bool) if kept is None else kept, NO_DELTA)
-
-
-def _kept_faces(occluder: Occluder) -> np.ndarray | None:
-    """(F,) the faces an occluder hides with, None for all."""
-    if occluder.face_index is None:
-        return None
-    kept = getattr(occluder, "_kept_mask", None)
-    if kept is None:
-        kept = np.zeros(len(occluder.scene.faces), bool)
-        kept[occluder.face_index] = True
-        occluder._kept_mask = kept
-    return kept
 
 
 def _bisect_levels(cs, lo, hi, lev_lo, lev_hi, L, level_at, tol_px):

@@ -13,6 +13,7 @@ from strokekit.lines.chaining import chain_runs
 from strokekit.lines.facing import FrameView
 from strokekit.lines.features import feature_edges, static_features
 from strokekit.lines.occlusion import occlusion_runs
+from strokekit.lines.sightlines import eye_enclosed
 from strokekit.lines.strokeops import drop_overlaps, drop_short, simplify, split_max_length
 from strokekit.lines.surface import surface_lift
 from strokekit.lines.visibility import visible_runs
@@ -53,7 +54,7 @@ class LineRenderer:
         return self._edge_on[1]
 
     def check_camera(self, camera: Camera, frame: int = 0) -> None:
-        if self.occluder.eye_enclosed(camera):
+        if eye_enclosed(self.occluder, camera):
             raise InputError(f"frame {frame}: the camera eye is inside the mesh (nothing can be seen)",
                              self.scene.source or None)
 

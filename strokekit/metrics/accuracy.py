@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 
 from strokekit.lines.contours import smooth_contour_edges
 from strokekit.lines.facing import FrameView
+from strokekit.lines.sightlines import visible
 from strokekit.lines.surface import surface_lift
 from strokekit.model import FeatureEdges, Strokes
 from strokekit.sampling import segment_samples
@@ -155,9 +156,9 @@ def smooth_contour_wrongly_hidden(scene, cameras, tol_px: float = 1.0, samples_p
         seg = np.repeat(np.arange(len(fe)), ns)
         pp, _ = cam.project(P)
         w = np.repeat(np.linalg.norm(cam.project(fe.b)[0] - cam.project(fe.a)[0], axis=1) / ns, ns)
-        vis = occ.visible(P, cam, 1e-5, fe.lift[seg] if lift else None)
+        vis = visible(occ, P, cam, 1e-5, fe.lift[seg] if lift else None)
         Q, q_lift = mesh_contour_samples(scene, cam)
-        Qv = Q[occ.visible(Q, cam, 1e-5, q_lift)]
+        Qv = Q[visible(occ, Q, cam, 1e-5, q_lift)]
         tree = cKDTree(cam.project(Qv)[0])
         if all_visible:
             truth = np.ones(len(P), bool)

@@ -71,9 +71,9 @@ def _exact_levels(scene, camera, P, own, occ):
     # Embree's candidates, from the point itself.
     k = occ.inv_scale
     rays = np.concatenate([(P - occ.origin) * k, D * k], axis=1).astype(np.float32)
-    lx = occ._rs.list_intersections(occ._o3c.Tensor(rays))
-    ray = lx["ray_ids"].numpy().astype(np.int64)
-    prim = occ._scene_faces(lx["primitive_ids"].numpy())
+    _, ray, prim = occ.list_intersections(rays)
+    ray = ray.astype(np.int64)
+    prim = occ.scene_faces(prim)
     F = scene.faces
     vo, vf = _vertex_faces(scene)
     # Expanded: the triangles sharing a vertex with a hit, and those around the own edge's vertices.
