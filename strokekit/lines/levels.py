@@ -116,12 +116,11 @@ def count_crossings(occ: Occluder, origins: np.ndarray, targets: np.ndarray, lim
     vertex, facing the ray the same way, within 1e-5 of the scene radius of each other count
     once, whichever triangles Embree reported (crossing a consistently wound surface twice in
     a row flips the side it is crossed from, so two same-side hits in a row are one crossing;
-    a ray grazing a fold, in and out, keeps both). open3d's count_intersections is about twice
-    as fast but returns a number only: it cannot leave out a ray's own faces (0.9% of a bunny
-    frame's level samples come out wrong) and counts a shared edge twice when Embree reports
-    both triangles at float32 distances a little apart; rays continued past each hit
-    (`_count_crossings_stepping`, the path without open3d) are slower and meet a grazed
-    triangle again (benchmarks/bench_hidden.py, table 3)."""
+    a ray grazing a fold, in and out, keeps both). open3d's count_intersections is faster but
+    returns a number only: it cannot leave out a ray's own faces and counts a shared edge twice
+    when Embree reports both triangles at float32 distances a little apart; rays continued past
+    each hit (`_count_crossings_stepping`, the path without open3d) are slower and meet a grazed
+    triangle again (benchmarks/bench_hidden.py compares the three)."""
     n = len(origins)
     count = np.zeros(n, np.int64)
     first = np.full(n, np.inf)
@@ -287,9 +286,8 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _order_along_rays(t: np.ndarray, ray: np.ndarray) -> np.ndarray:
     """np.lexsort((t, ray)): the hits by ray, then along it (ties in list order). Embree's list
-    comes grouped by ray in ray order, and within a ray mostly in order already (99% of a bunny
-    frame's hits): only the rays whose hits are not are sorted (a full lexsort of a frame's
-    hits was 2 ms of its level pass)."""
+    comes grouped by ray in ray order, and within a ray mostly in order already: only the rays
+    whose hits are not are sorted (a full lexsort of a frame's hits costs more)."""
     n = len(t)
     if n < 2:
         return np.arange(n)

@@ -159,8 +159,8 @@ def visible_rows(occ: Occluder, P: np.ndarray, camera: Camera, offset: float, li
     where it is a back side. The plain ray is there for a lifted origin that starts inside an
     object the surface rests on, whose first hit is then that object's back side; a near
     front-side hit is the surface's own relief around the point, where the plain ray mostly
-    meets it too: skipping it changes under 1% of the re-tested answers, nearly all on lines
-    edge-on in concave corners (the README's draft figures)."""
+    meets it too: skipping it changes few of the re-tested answers, nearly all on lines edge-on
+    in concave corners (the README's draft figures)."""
     c = P - occ.origin[:, None]
     eps = offset * np.maximum(np.sqrt(_einsum_sq(c)), scale)
     eye = np.asarray(camera.eye, float)

@@ -24,7 +24,7 @@ from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
 
 #: One-ring averaging passes of the curvature tensor used by default (scans such as the bunny
-#: are noisy at the scale of a face; 3 passes keep the torus within 0.003 of theory).
+#: are noisy at the scale of a face; a clean torus keeps its curvature through them).
 SMOOTH_PASSES = 3
 
 
