@@ -21,11 +21,10 @@ from strokekit.scene.load import Scene
 
 @dataclass(frozen=True, eq=False)
 class StaticFeatures:
-    """What the feature edges of every frame share, built once per scene and options: the masks
-    of the kinds that do not depend on the camera, each edge's kind from them by priority
-    (kind (E,) int8, -1 none, read-only) and the intersection lines (None when not asked for)."""
+    """What the feature edges of every frame share, built once per scene and options: each edge's
+    kind among those that do not depend on the camera, by priority (kind (E,) int8, -1 none,
+    read-only), and the intersection lines (None when not asked for)."""
 
-    masks: dict[str, np.ndarray]
     kind: np.ndarray
     intersections: FeatureEdges | None
 
@@ -55,7 +54,7 @@ def static_features(scene: Scene, options: LineOptions) -> StaticFeatures:
         scene.split_normals(options.crease_angle_deg), scene.face_scale(options.crease_angle_deg)
     if "suggestive" in options.kinds:
         scene.curvature_tensors(SMOOTH_PASSES)
-    return StaticFeatures(masks, kind, intersection_edges(scene) if "intersection" in options.kinds else None)
+    return StaticFeatures(kind, intersection_edges(scene) if "intersection" in options.kinds else None)
 
 
 def feature_edges(view: FrameView, options: LineOptions, static: StaticFeatures | None = None,
