@@ -231,3 +231,16 @@ def test_bench_cli_json(tmp_path, capsys):
         assert e.code in (0, None)
     out = capsys.readouterr()
     assert "P@1" in out.out and out.err == ""
+
+
+def test_segment_samples_hold_every_point_at_most_a_step_apart():
+    """The samples of each polyline run in order along it, at most the step apart, through every
+    one of its points (a distance to them is exact to half the step at the vertices too)."""
+    s = polyline_strokes([[0, 0.1], [10, 0.1], [10, 7.4]], [[50, 50], [50.05, 50], [50.05, 50]])
+    pos, line, w = segment_samples(s.points, s.offsets, 0.4)
+    for k in range(2):
+        p = pos[line == k]
+        assert np.all(np.linalg.norm(np.diff(p, axis=0), axis=1) <= 0.4 + 1e-12)
+        assert all((p == q).all(axis=1).any() for q in s.points[s.offsets[k]:s.offsets[k + 1]])
+    assert np.all(pos[:, 1][(line == 0) & (pos[:, 0] < 10)] == 0.1)  # exact along the horizontal leg
+    assert w.sum() == pytest.approx(17.3 + 0.05)
