@@ -9,13 +9,13 @@ from scipy.spatial import cKDTree
 
 from strokekit.camera.paths import orbit_path
 from strokekit.lines.renderer import LineRenderer
-from strokekit.lines.strokeops import drop_doubled, resample
+from strokekit.lines.strokeops import drop_doubled
 from strokekit.metrics.coherence import sequence_metrics
 from strokekit.model import KIND_INDEX, Strokes
 from strokekit.options import LineOptions
 from strokekit.paths import PathOptions, PathTracker, brush_frames
 from strokekit.paths.stage import _one_label_per_path, held_back, on_drawing
-from strokekit.sampling import resample_strokes
+from strokekit.sampling import resample_strokes, segment_samples
 from strokekit.scene.load import build_scene
 
 SIZE = 512
@@ -58,8 +58,8 @@ def torus_frames():
 
 def _near(a: Strokes, b: Strokes, step: float = 0.1) -> np.ndarray:
     """Distance (px) from points every `step` px along the strokes `a` to the strokes `b`."""
-    pa, _ = resample(a, step)
-    pb, _ = resample(b, step)
+    pa, _, _ = segment_samples(a.points, a.offsets, step)
+    pb, _, _ = segment_samples(b.points, b.offsets, step)
     return cKDTree(pb).query(pa)[0]
 
 

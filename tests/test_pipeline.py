@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from helpers import SAMPLES, model_path
 
+from strokekit.metrics.svg_reader import read_svg
 from strokekit.scene.load import load_scene
 from strokekit_cli.main import main
 
@@ -458,7 +459,6 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     """SIGINT to `strokekit render` with a pool once frames are coming out: exit 130, one line
     saying how many frames were written, the --report written with status 'interrupted', the
     worker processes gone, no temporary file left, and every frame file there is whole."""
-    import xml.etree.ElementTree as ET
 
     psutil = pytest.importorskip("psutil")
     out, report = tmp_path / "o", tmp_path / "run.json"
@@ -493,7 +493,7 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     for f in done:  # the report's frames are there in full
         assert (out / f"frame_{f:04d}.svg").exists() and (out / f"frame_{f:04d}.json").exists()
     for p in out.glob("frame_*.svg"):  # and every file there is whole
-        ET.parse(p)
+        read_svg(p)
     for p in out.glob("frame_*.json"):
         json.loads(p.read_text())
     alive = psutil.wait_procs(children, timeout=10)[1]

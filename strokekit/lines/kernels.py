@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+from strokekit.lines.levels import LEVEL_KERNELS
 from strokekit.numba_cache import LazyKernels
-from strokekit.scene.occluder import LEVEL_KERNELS
 
 #: About how long the first compile of the kernels takes (s) on a free 2-core machine (longer
 #: under load).

@@ -21,7 +21,6 @@ from strokekit.options import option
 from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.hits import compiled
 from strokekit.raster.strokes import stroke_coverage
-from strokekit.scene.tables import split_normals
 
 #: The passes an EXR can hold, in the order they are written.
 PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
@@ -67,7 +66,7 @@ def view_normals(frame: RasterFrame, crease_angle_deg: float = 60.0) -> np.ndarr
     hits, cam, scene = frame.hits, frame.camera, frame.scene
     H, W = frame.height, frame.width
     if frame.options.shading == "smooth":
-        sn = split_normals(scene, crease_angle_deg)
+        sn = scene.split_normals(crease_angle_deg)
         corner, normals = np.ascontiguousarray(sn.corner, np.int64), np.ascontiguousarray(sn.normals, np.float64)
     else:
         corner, normals = np.zeros((0, 3), np.int64), np.zeros((0, 3))
