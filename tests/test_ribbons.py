@@ -446,3 +446,18 @@ def test_a_closed_loop_has_no_taper():
     assert np.allclose(np.sort(rows[0], axis=0), np.sort(rows[1], axis=0))
     ends = RibbonOptions(space="image", width_px=4.0, taper_head_px=8.0, taper_tail_px=12.0, join_px=0.0)
     assert _ends_width(build_ribbons(strokes_of([p]), CAM, ends), 0)[0] == pytest.approx([1.0, 1.0])
+
+
+def test_the_default_brush_reads_as_ink_with_its_texture():
+    """The default brush's body covers nearly all of the ribbon's width at nearly full density
+    (a ribbon 3 px wide, mipmapped down to a few texels across, must read as ink, not mid-grey),
+    and still varies along the stroke (its streaks and edges are its texture)."""
+    from strokekit.ribbons.brushes import brush_rgba, get_brush
+    from strokekit.writers.gltf import GltfOptions
+
+    a = brush_rgba(get_brush(GltfOptions().brush).png)[..., 3].astype(float) / 255
+    body = a[:, 64:192]  # (texture u 0.25 to 0.75)
+    assert body.mean() >= 0.93
+    across = body.mean(axis=1)  # the mipmap's view: its rows averaged along the stroke
+    assert across[2:-2].min() >= 0.9
+    assert np.ptp(body[8:24], axis=1).min() >= 0.03  # its density varies along the stroke (streaks)
