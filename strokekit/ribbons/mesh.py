@@ -89,7 +89,7 @@ class RibbonOptions:
     tex_head: float = 0.25
     tex_tail: float = 0.25
     miter_limit: float = 4.0
-    join_px: float = 1.5
+    join_px: float = 2.5
     join_angle_deg: float = 45.0
     space: str = "world"
     pull: float = 0.003
@@ -232,9 +232,6 @@ def _arc(p: np.ndarray, sid: np.ndarray) -> np.ndarray:
 #: A stroke's direction at an end: from its point this many px along it (at most half its length)
 #: to the end (a last segment a fraction of a pixel long says little of where the line goes).
 _END_REACH_PX = 2.0
-#: Two ends are joined only where the second lies on the line through the first: at most this many
-#: px beside it (two shingles of a mesh contour, side by side, end a pixel apart too).
-_JOIN_OFFSET_PX = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -256,10 +253,10 @@ def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.n
                  join_angle_deg: float) -> StrokeJoins:
     """Which ends of the strokes (points (N, 2) px grouped by stroke index sid (N,), kind (S,)) are
     joins: the end of another stroke of the same kind, or the stroke's other end (a loop at least
-    4 join_px long), within join_px and at most _JOIN_OFFSET_PX beside its line, the line running on
-    through both (their directions turning by at most join_angle_deg), and moving both to their
-    middle keeps each ahead of its stroke's next point. Each end joins one other, the nearest first
-    (then the straightest)."""
+    4 join_px long), within join_px, the line running on through both (their directions turning by
+    at most join_angle_deg; a stair-step, where a scanned mesh's contour moves from one shingle to
+    the next, is one too), and moving both to their middle keeps each ahead of its stroke's next
+    point. Each end joins one other, the nearest first (then the straightest)."""
     S = n_strokes
     joined = np.zeros((S, 2), bool)
     point = np.zeros((S, 2, 2))
@@ -291,14 +288,12 @@ def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.n
     a, b = pr[:, 0], pr[:, 1]
     sa, sb = owner[a], owner[b]
     dot = np.einsum("ij,ij->i", D[a], D[b])
-    gap = E[b] - E[a]
     thru = D[a] - D[b]  # the line's direction through the joint, from a's stroke into b's
     thru /= np.maximum(np.linalg.norm(thru, axis=1, keepdims=True), 1e-300)
-    side = np.abs(gap[:, 0] * thru[:, 1] - gap[:, 1] * thru[:, 0])
     mid = 0.5 * (E[a] + E[b])
     ahead = (np.einsum("ij,ij->i", mid - NX[a], D[a]) > 0) & (np.einsum("ij,ij->i", mid - NX[b], D[b]) > 0)
     keep = ((np.asarray(kind)[sa] == np.asarray(kind)[sb]) & (dot <= -np.cos(np.radians(join_angle_deg)))
-            & (side <= _JOIN_OFFSET_PX) & ahead & ((sa != sb) | (L[sa] >= 4.0 * join_px)))
+            & ahead & ((sa != sb) | (L[sa] >= 4.0 * join_px)))
     a, b, dot, thru, mid = a[keep], b[keep], dot[keep], thru[keep], mid[keep]
     dist = np.linalg.norm(E[b] - E[a], axis=1)
     used = np.zeros(len(E), bool)
