@@ -7,13 +7,13 @@ import json
 
 import numpy as np
 import pytest
+from helpers import run_cli
 
 from strokekit.camera.view import Camera
 from strokekit.errors import InputError
 from strokekit.metrics.coherence import LOOP_PX, ends_per_kpx, stroke_ends, wholeness
 from strokekit.model import KIND_INDEX, Strokes
 from strokekit.writers.strokes_json import strokes_json
-from strokekit_cli.main import main
 
 SIZE = 512
 
@@ -80,25 +80,18 @@ def _write(folder, frames):
         (folder / f"frame_{f.frame:04d}.json").write_bytes(strokes_json(f, SIZE, SIZE, f.frame))
 
 
-def _run(args, capsys):
-    with pytest.raises(SystemExit) as e:
-        main([str(a) for a in args])
-    out = capsys.readouterr()
-    return e.value.code, out.out, out.err
-
-
 def test_coherence_reports_m8_against_a_fresh_folder(tmp_path, capsys):
     _write(tmp_path / "tracked", [_strokes(_pieces(k), frame=f + 1) for f, k in enumerate([1, 2, 4, 4])])
     _write(tmp_path / "fresh", [_strokes(_pieces(k), frame=f + 1) for f, k in enumerate([1, 1, 2, 2])])
-    code, out, err = _run(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "fresh", "--json"], capsys)
+    code, out, err = run_cli(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "fresh", "--json"], capsys)
     assert code == 0, err
     doc = json.loads(out)
     assert doc["overall"]["M8_ratio"] == pytest.approx(2.0) and doc["overall"]["M8_frames"] == 2
     assert [p["M8_ratio"] for p in doc["pairs"]] == pytest.approx([2.0, 2.0, 2.0])
-    code, out, err = _run(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "fresh"], capsys)
+    code, out, err = run_cli(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "fresh"], capsys)
     assert code == 0 and "2.00 x fresh" in out, err
     # Without --fresh: the ends alone.
-    code, out, err = _run(["coherence", tmp_path / "tracked", "--json"], capsys)
+    code, out, err = run_cli(["coherence", tmp_path / "tracked", "--json"], capsys)
     assert code == 0 and json.loads(out)["overall"]["M8"] == pytest.approx(8000 / 300) and "M8_fresh" not in out
 
 
@@ -106,10 +99,10 @@ def test_coherence_fresh_folder_missing_frames_is_said(tmp_path, capsys):
     _write(tmp_path / "tracked", [_strokes(_pieces(2), frame=f + 1) for f in range(4)])
     _write(tmp_path / "part", [_strokes(_pieces(1), frame=4)])
     _write(tmp_path / "early", [_strokes(_pieces(1), frame=1)])
-    code, out, err = _run(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "part", "--json"], capsys)
+    code, out, err = run_cli(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "part", "--json"], capsys)
     assert code == 0 and "1 of the frames 3-4 are not in" in err
     assert json.loads(out)["overall"]["M8_ratio"] == pytest.approx(2.0)
-    code, _, err = _run(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "early"], capsys)
+    code, _, err = run_cli(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "early"], capsys)
     assert code == 1 and "holds none of the frames 3-4" in err and len(err.strip().splitlines()) == 1
-    code, _, err = _run(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "nowhere"], capsys)
+    code, _, err = run_cli(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "nowhere"], capsys)
     assert code == 1 and "nowhere" in err and len(err.strip().splitlines()) == 1
