@@ -14,14 +14,14 @@ import sys
 from pathlib import Path
 
 import pytest
-from helpers import ROOT
+from helpers import MODELS, ROOT
 
 README = ROOT / "README.md"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.M | re.S)
 
 
-def blocks(lang: str) -> list[str]:
-    return [body for tag, body in FENCE.findall(README.read_text(encoding="utf-8")) if tag == lang]
+def blocks(lang: str, page: Path = README) -> list[str]:
+    return [body for tag, body in FENCE.findall(page.read_text(encoding="utf-8")) if tag == lang]
 
 
 def commands(block: str) -> list[str]:
@@ -34,6 +34,9 @@ def workdir(tmp_path) -> Path:
     (work / "tests").mkdir(parents=True)
     (work / "samples").symlink_to(ROOT / "samples")
     (work / "tests" / "golden").symlink_to(ROOT / "tests" / "golden")
+    if MODELS.exists():  # ../shared/models, as beside the repository
+        (tmp_path / "shared").mkdir()
+        (tmp_path / "shared" / "models").symlink_to(MODELS)
     return work
 
 
@@ -87,6 +90,42 @@ def test_usage_commands_run_as_written(workdir):
                  "drawing/frame_0001.svg", "comp/frame_0002.exr", "bench.png"):
         assert (workdir / name).stat().st_size > 0, name
     assert "hidden-silhouette" in (workdir / "drawing" / "frame_0001.svg").read_text()
+
+
+IN_README = {line for block in blocks("sh") for line in commands(block)}
+
+
+def doc_commands(page: Path) -> list[str]:
+    """The commands of a docs page's ```sh blocks, less those the README tests run already."""
+    return [line for block in blocks("sh", page) for line in commands(block) if line not in IN_README]
+
+
+DOC_PAGES = sorted(p.name for p in (ROOT / "docs").glob("*.md") if doc_commands(p))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("page", DOC_PAGES)
+def test_docs_commands_run_as_written(workdir, page):
+    """The docs' ```sh blocks run too (```text blocks are other tools' commands, shown only)."""
+    text = (ROOT / "docs" / page).read_text(encoding="utf-8")
+    if "../shared/models" in text and not MODELS.exists():
+        pytest.skip(f"shared models folder not found at {MODELS}")
+    for line in doc_commands(ROOT / "docs" / page):
+        r = run(line, workdir)
+        assert r.returncode == 0, f"{page}: {line}\nexit {r.returncode}\n{r.stderr[-2000:]}"
+
+
+def test_camera_file_example_is_read(tmp_path):
+    """The parallel-projection frame that docs/camera-files.md shows is a valid camera file frame."""
+    import json
+
+    from strokekit import load_camera_path
+
+    frame = json.loads(blocks("json", ROOT / "docs" / "camera-files.md")[-1])
+    path = tmp_path / "cabinet.json"
+    path.write_text(json.dumps({"width": 640, "height": 480, "frames": [frame]}))
+    (camera,) = load_camera_path(path).cameras
+    assert camera.projection == "cabinet"
 
 
 def test_python_example_runs(workdir, monkeypatch):
