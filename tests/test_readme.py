@@ -133,8 +133,8 @@ def test_python_example_runs(workdir, monkeypatch):
     (code,) = blocks("python")
     names: dict = {}
     exec(compile(code, "README.md", "exec"), names)  # noqa: S102
-    strokes = names["strokes"]
-    assert len(strokes.offsets) > 1 and strokes.points.shape[1] == 2
+    assert names["strokes"].points.shape[1] == 2
+    assert sorted(p.name for p in (workdir / "svg").iterdir()) == [f"frame_{n:04d}.svg" for n in (1, 2, 3, 4)]
 
 
 def slug(heading: str) -> str:
