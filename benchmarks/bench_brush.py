@@ -5,6 +5,7 @@ distance, at 1024 x 1024; the frames' lines rendered once with LineRenderer(scen
 (per frame, independent), then each row draws the sequence from those lines:
 
 - `brush`: `--strokes brush`, the brush paths (strokekit.paths, PathOptions());
+- `fresh`: the brush paths made afresh every frame (`--no-coherence --strokes brush`);
 - `kalnins`, `seed`, `none`: `--strokes lines`, the lines tracked by today's methods (`--coherence`).
 
 Per row (BRIEF 3 metrics on what the row draws, `strokekit.metrics.coherence`):
@@ -65,15 +66,16 @@ def lines_tracker(method: str):
     return tr.step
 
 
-def brush_paths():
-    """The brush row: step(lines) -> the frame's brush paths."""
-    tr = PathTracker(PathOptions())
+def brush_paths(history: bool = True):
+    """The brush row: step(lines) -> the frame's brush paths (history False: each frame's drawn
+    afresh, as `--no-coherence --strokes brush` draws them)."""
+    tr = PathTracker(PathOptions(history=history))
     return lambda lines: tr.step(lines).strokes
 
 
 #: Rows: label -> a factory of a fresh per-sequence `step(lines) -> drawn strokes`.
-ROWS = {"brush": brush_paths, "kalnins": lambda: lines_tracker("kalnins"), "seed": lambda: lines_tracker("seed"),
-        "none": lambda: lines_tracker("none")}
+ROWS = {"brush": brush_paths, "fresh": lambda: brush_paths(history=False), "kalnins": lambda: lines_tracker("kalnins"),
+        "seed": lambda: lines_tracker("seed"), "none": lambda: lines_tracker("none")}
 
 
 def render(renderer: LineRenderer, cameras) -> tuple[list, np.ndarray]:
@@ -166,7 +168,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=120)
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--models", default="bunny,spot")
-    ap.add_argument("--methods", default=",".join(ROWS), help="rows: " + ", ".join(ROWS))
+    ap.add_argument("--methods", default="brush,kalnins,seed,none", help="rows: " + ", ".join(ROWS))
     ap.add_argument("--accuracy-every", type=int, default=4, help="precision/recall on every N-th orbit frame")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs of the lines and of each row (best median)")
     ap.add_argument("--no-dolly", action="store_true", help="skip the dolly (M5 column blank)")
@@ -222,7 +224,7 @@ def main() -> None:
                    "lines_ms": lm, "pass_ms": pm, "overhead": pm / lm}
             if row_name == "kalnins":
                 ref_len = row["lw_length"]
-            row["misses"] = bars_met(name, row, ref_len if row_name not in ("kalnins", "seed", "none") else None)
+            row["misses"] = bars_met(name, row, ref_len if row_name not in ("kalnins", "seed", "none", "fresh") else None)
             rows.append(row)
             print(f"{name:12} {row_name:8} {ov['M1']:6.3f} {ov['M2_median']:7.4f} {ov['M4_median']:6.2f} "
                   f"{ov['M4_p95']:6.2f} {ov['M5']:6.3f} {dv['M5']:6.3f} {row['P1']:7.4f} {row['R1']:7.4f} "

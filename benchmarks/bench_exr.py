@@ -1,7 +1,7 @@
 """What the multilayer EXR costs against the PNG passes it replaces (issue 18).
 
 Each variant writes one frame's raster files the way `strokekit render` does
-(`run.tasks.raster_files`: the raster pass, then the images and their encoding, into a
+(the raster pass, then `run.tasks.raster_files`: the images and their encoding, into a
 temporary folder), for every frame of an orbit, in turns, `--repeats` times:
 
 - `band PNGs`: render's default raster output (`--bands 3`: bands/ and shade/);
@@ -37,6 +37,7 @@ from strokekit.metrics.bench import default_cameras  # noqa: E402
 from strokekit.raster.bands import RasterOptions, render_raster  # noqa: E402
 from strokekit.raster.hits import thread_workspace, warm_kernels  # noqa: E402
 from strokekit.raster.passes import PassOptions, compositing_passes  # noqa: E402
+from strokekit.run.frame import Frame  # noqa: E402
 from strokekit.run.spec import OutputOptions  # noqa: E402
 from strokekit.run.tasks import raster_files  # noqa: E402
 from strokekit.writers.exr import exr_bytes, exr_channels  # noqa: E402
@@ -47,14 +48,19 @@ MODELS = {"bunny": ROOT.parent / "shared" / "models" / "stanford-bunny.obj",
 CODECS = ("NO", "RLE", "ZIPS", "ZIP", "PIZ")  # NO: the floor, copying the channels into scanlines
 
 
-def variants(out: Path) -> dict[str, OutputOptions]:
-    bands = RasterOptions(bands=3)
+def variants(out: Path) -> dict[str, tuple[RasterOptions, OutputOptions]]:
     return {
-        "band PNGs": OutputOptions(out, raster_options=bands),
-        "all PNGs": OutputOptions(out, raster_options=RasterOptions(bands=3, masks=True, objectid=True, depth=True),
-                                  lines_png=True),
-        "EXR": OutputOptions(out, raster_options=RasterOptions(bands=3, pngs=False), exr=PassOptions()),
+        "band PNGs": (RasterOptions(bands=3), OutputOptions(out)),
+        "all PNGs": (RasterOptions(bands=3, masks=True, objectid=True, depth=True), OutputOptions(out, lines_png=True)),
+        "EXR": (RasterOptions(bands=3, pngs=False), OutputOptions(out, exr=PassOptions())),
     }
+
+
+def raster_and_files(scene, cam, occ, strokes, number, variant) -> list[str]:
+    """One frame's raster pass and its files, as a render's frame task makes them."""
+    raster_options, outputs = variant
+    raster = render_raster(scene, cam, occ, raster_options, work=thread_workspace())
+    return raster_files(Frame(number, cam, strokes, {}, (), raster=raster), outputs, 60.0, {})
 
 
 def timed(fn, *args) -> tuple[float, float]:
@@ -76,12 +82,12 @@ def bench_model(name: str, args) -> None:
         wall = {k: [] for k in vs}
         for f, cam in enumerate(cams):  # warm: per-scene tables, first-call costs
             for o in vs.values():
-                raster_files(scene, cam, occ, strokes[f], f + 1, o, {})
+                raster_and_files(scene, cam, occ, strokes[f], f + 1, o)
         for _ in range(args.repeats):
             for key, o in vs.items():  # in turns: the machine's load hits every variant alike
                 c = w = 0.0
                 for f, cam in enumerate(cams):
-                    dc, dw = timed(raster_files, scene, cam, occ, strokes[f], f + 1, o, {})
+                    dc, dw = timed(raster_and_files, scene, cam, occ, strokes[f], f + 1, o)
                     c, w = c + dc, w + dw
                 cpu[key].append(1000 * c / len(cams))
                 wall[key].append(1000 * w / len(cams))

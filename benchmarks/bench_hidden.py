@@ -35,8 +35,11 @@ sys.path.insert(0, str(ROOT))
 
 from strokekit import LineOptions, LineRenderer, build_scene, load_scene  # noqa: E402
 from strokekit.camera.view import Camera  # noqa: E402
+from strokekit.lines.facing import FrameView  # noqa: E402
 from strokekit.lines.features import feature_edges  # noqa: E402
+from strokekit.lines.levels import _count_crossings_stepping, count_crossings  # noqa: E402
 from strokekit.lines.occlusion import own_faces  # noqa: E402
+from strokekit.lines.sightlines import segments  # noqa: E402
 from strokekit.lines.visibility import clip_segments  # noqa: E402
 from strokekit.metrics.bench import default_cameras, frame_bytes  # noqa: E402
 from strokekit.metrics.hidden import exact_levels, hidden_accuracy, reference_drawing  # noqa: E402
@@ -112,7 +115,7 @@ def speed_rows(args) -> list[dict]:
 def _samples(scene, cam, options):
     """The points the level pass counts first on one frame: the middles of 4 px parts of every
     clipped candidate edge, with their own faces (lines.occlusion)."""
-    fe = feature_edges(scene, cam, options, with_lift=True)
+    fe = feature_edges(FrameView(scene, cam), options, with_lift=True)
     t0, t1 = clip_segments(fe.a, fe.b, cam, cam.near_distance(scene.radius))
     idx = np.flatnonzero(t1 > t0)
     A = fe.a[idx] + t0[idx, None] * (fe.b[idx] - fe.a[idx])
@@ -128,25 +131,24 @@ def _samples(scene, cam, options):
 
 def _continued(occ, o, t, own):
     """Rays continued past each hit: cast_rays from just past it to the same target, a round per
-    crossing (Occluder._count_crossings_stepping, the non-open3d path)."""
-    return occ._count_crossings_stepping(o, t, 16, skip=own)[0]
+    crossing (levels._count_crossings_stepping, the non-open3d path)."""
+    return _count_crossings_stepping(occ, o, t, 16, skip=own)[0]
 
 
 def _count_twice(occ, o, t, own):
     """open3d's count_intersections counts along the whole ray: from the origin, minus from the
     target on. It cannot skip the point's own faces or merge a shared edge's double report."""
-    import open3d as o3d
 
     k = occ.inv_scale
     lo = (o - occ.origin) * k
     d = (t - o) * k
-    a = occ._rs.count_intersections(o3d.core.Tensor(np.concatenate([lo, d], 1).astype(np.float32))).numpy()
-    b = occ._rs.count_intersections(o3d.core.Tensor(np.concatenate([lo + d, d], 1).astype(np.float32))).numpy()
+    a = occ.count_intersections(np.concatenate([lo, d], 1).astype(np.float32))
+    b = occ.count_intersections(np.concatenate([lo + d, d], 1).astype(np.float32))
     return a.astype(np.int64) - b.astype(np.int64)
 
 
 def ray_rows(args) -> list[dict]:
-    methods = {"list_intersections (chosen)": lambda occ, o, t, own: occ.count_crossings(o, t, 16, skip=own)[0],
+    methods = {"list_intersections (chosen)": lambda occ, o, t, own: count_crossings(occ, o, t, 16, skip=own)[0],
                "continued cast_rays": _continued, "count_intersections x2": _count_twice}
     rows = []
     v = np.array([[x, y, z] for x in (0.0, 1) for y in (0.0, 1) for z in (0.0, 1)])
@@ -161,7 +163,7 @@ def ray_rows(args) -> list[dict]:
         occ = r.occluder
         X, own = _samples(scene, cam, r.options)
         eps = 1e-5 * np.maximum(np.linalg.norm(X - occ.origin, axis=1), scene.radius * 1e-3)
-        o, t = occ._segments(X, cam, eps, 1e-5)
+        o, t = segments(occ, X, cam, eps, 1e-5)
         exact = exact_levels(scene, cam, X, own, occ)
         for name, fn in methods.items():
             fn(occ, o, t, own)

@@ -33,7 +33,7 @@ from strokekit.camera.paths import orbit_path  # noqa: E402
 from strokekit.camera.view import Camera  # noqa: E402
 from strokekit.lines import contours as C  # noqa: E402
 from strokekit.lines.contours import smooth_contour_edges  # noqa: E402
-from strokekit.lines.features import silhouette_mask  # noqa: E402
+from strokekit.lines.facing import FrameView  # noqa: E402
 from strokekit.lines.intersections import intersection_edges  # noqa: E402
 from strokekit.lines.renderer import LineRenderer  # noqa: E402
 from strokekit.metrics.accuracy import screen_reversals, smooth_contour_wrongly_hidden  # noqa: E402
@@ -104,7 +104,7 @@ def sphere_errors(sub, eye=np.array([0.3, 0.5, 4.0])):
         p = st.points[st.stroke(s)]
         sm.append(sample(p[:-1], p[1:], 9))
     e_s, _ = tree.query(np.concatenate(sm))
-    E = sc.edges[silhouette_mask(sc, cam)]
+    E = sc.edges[FrameView(sc, cam).silhouettes]
     e_m, _ = tree.query(sample(cam.project(sc.vertices[E[:, 0]])[0], cam.project(sc.vertices[E[:, 1]])[0], 9))
     return len(sc.faces), e_s.max(), e_s.mean(), e_m.max(), e_m.mean()
 
@@ -115,7 +115,7 @@ def wrongly_hidden(scene, cams, analytic_all_visible=False, lift=True):
 
 
 def reversals(scene, cam, split):
-    fe = smooth_contour_edges(scene, cam, split_cusps=split)
+    fe = smooth_contour_edges(FrameView(scene, cam), split_cusps=split)
     return screen_reversals(fe, cam), int((fe.va < 0).sum())
 
 
@@ -184,7 +184,7 @@ def split_normal_checks():
         m = trimesh.creation.cylinder(radius=R, height=H, sections=sections)
         cy = build_scene(np.asarray(m.vertices), np.asarray(m.faces))
         cam = Camera(eye=tuple(eye), target=(0, 0, 0), up=(0, 0, 1), fov_y=40, width=1024, height=1024)
-        fe = smooth_contour_edges(cy, cam)
+        fe = smooth_contour_edges(FrameView(cy, cam))
         side = np.abs(np.abs(fe.a[:, 2]) - H / 2) > 1e-12
         side |= np.abs(np.abs(fe.b[:, 2]) - H / 2) > 1e-12
         rho, base = np.hypot(eye[0], eye[1]), np.arctan2(eye[1], eye[0])

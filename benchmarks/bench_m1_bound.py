@@ -29,9 +29,9 @@ cells whose ids are equal / all matched length.
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
+from bench_brush import FILES, MODELS
 from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 
@@ -45,9 +45,6 @@ from strokekit.paths import PathOptions, PathTracker
 from strokekit.sampling import match_samples, resample_strokes
 from strokekit.scene.load import load_scene
 
-MODELS = Path(__file__).resolve().parents[2] / "shared" / "models"
-FILES = {"spot": "spot.obj", "fandisk": "fandisk.obj", "bunny": "stanford-bunny.obj", "homer": "homer.obj",
-         "rocker-arm": "rocker-arm.obj", "cheburashka": "cheburashka.obj"}
 SHORT_PX = 20.0
 
 

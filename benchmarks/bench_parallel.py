@@ -33,16 +33,17 @@ sys.path.insert(0, str(ROOT))
 
 from strokekit.camera.paths import orbit_path  # noqa: E402
 from strokekit.options import LineOptions  # noqa: E402
+from strokekit.run.request import RenderRequest  # noqa: E402
 from strokekit.run.runner import run  # noqa: E402
 from strokekit.run.spec import OutputOptions, RunSpec  # noqa: E402
-from strokekit.run.workers import make_executor  # noqa: E402
+from strokekit.run.workers import SceneRef, make_executor  # noqa: E402
 from strokekit.scene.load import load_scene  # noqa: E402
 
 
 def spec_for(scene_path, cams, workers, out_dir, gltf, tracking):
-    return RunSpec(scene_path=str(scene_path), cameras=tuple(cams), lines=LineOptions(),
+    return RunSpec(scene_path=str(scene_path), cameras=tuple(cams),
                    outputs=OutputOptions(out_dir=Path(out_dir), gltf=gltf, gltf_options=_gltf_options() if gltf else None),
-                   tracking=tracking, workers=workers)
+                   request=RenderRequest(strokes="lines", coherence=None if tracking else "none"), workers=workers)
 
 
 def _gltf_options():
@@ -62,11 +63,7 @@ def main():
     s = load_scene(a.scene)
     path = orbit_path(s.center, s.radius, a.frames, degrees_per_frame=3.0)
     cams = [(i + 1, c) for i, c in enumerate(path.cameras)]
-    tracking = None
-    if a.tracking:
-        from strokekit.tracking.options import TrackingOptions
-
-        tracking = TrackingOptions()
+    tracking = a.tracking
     cold, warm = {1: [], 2: []}, {1: [], 2: []}
     for _ in range(a.repeats):
         for workers in (1, 2):
@@ -75,7 +72,7 @@ def main():
                 res = run(spec_for(a.scene, cams, workers, d, a.gltf, tracking))
                 cold[workers].append(time.perf_counter() - t)
                 assert not res.failures, res.failures
-    pools = {w: make_executor(w, None, (a.scene, LineOptions())) for w in (1, 2)}
+    pools = {w: make_executor(w, None, SceneRef(a.scene, "", LineOptions())) for w in (1, 2)}
     try:
         while pools[2].started.value < 1:  # the pool worker has its scene and BVH
             time.sleep(0.02)

@@ -117,6 +117,15 @@ for f in frames:
 """
 
 
+def blender_env() -> dict:
+    """The environment to start Blender in: Debian's Blender finds its Python home from PATH, so
+    pyenv / virtualenv interpreters are kept out of it."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYENV", "VIRTUAL_ENV", "PYTHONHOME"))}
+    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
+                                  if ".pyenv" not in p and "venv" not in p)
+    return env
+
+
 def blender_check(out: Path, frames: list, opts: GltfOptions, seq: bytes) -> None:
     exe = shutil.which("blender")
     if exe is None:
@@ -128,10 +137,7 @@ def blender_check(out: Path, frames: list, opts: GltfOptions, seq: bytes) -> Non
     script = out / "import_check.py"
     script.write_text(_BLENDER_SCRIPT)
     nums = ",".join(str(int(f.frame)) for f in frames)
-    # Debian's Blender finds its Python home from PATH: keep pyenv/virtualenv interpreters out of it
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYENV", "VIRTUAL_ENV", "PYTHONHOME"))}
-    env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep)
-                                  if ".pyenv" not in p and "venv" not in p)
+    env = blender_env()
     for name, fr in (("frame_0001.glb", str(int(frames[0].frame))), ("sequence.glb", nums)):
         r = subprocess.run([exe, "-b", "--python-exit-code", "1", "--python", str(script), "--", str(out / f"blender_{Path(name).stem}"),
                             str(out / name), fr], capture_output=True, text=True, timeout=600, env=env)

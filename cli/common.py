@@ -10,31 +10,6 @@ import click
 
 from strokekit.errors import UsageError
 
-#: The command-line flag of each options field (LineOptions, TrackingOptions) whose name differs
-#: from it; the others are the field name with dashes.
-FLAGS = {"sample_spacing_px": "--sample-spacing", "bisection_tol_px": "--bisection-tol", "period_px": "--period",
-         "max_length_px": "--max-length", "min_length_px": "--min-length", "simplify_tol_px": "--simplify",
-         "doubled_px": "--doubled", "whole_edge_px": "--whole-edge", "max_growth_px": "--max-growth",
-         "min_carry_px": "--min-carry", "suggestive_derivative_threshold": "--suggestive-threshold",
-         "suggestive_kr_threshold": "--suggestive-kr-threshold", "crease_angle_deg": "--crease-angle",
-         "split_angle_deg": "--split-angle", "codec": "--exr-codec", "merge_px": "--path-merge"}
-#: Fields that only the library sets: no flag of their own.
-_LIBRARY_ONLY = {"search_radius_px", "vote_spacing_px", "seed_search_px", "dense_spacing_px", "bend_weight",
-                 "knot_spacing_px", "min_segment_px", "stretch_weight", "outlier_px", "min_id_px", "join_tol_px",
-                 "join_angle_deg", "min_tangent_dot"}
-
-
-def user_message(e: Exception) -> str:
-    """The one-line text of an error for the command line: a UsageError about an options field
-    names the field's flag first, then the field ('--sample-spacing (sample_spacing_px) must ...')."""
-    text = str(e)
-    field = getattr(e, "option", None)
-    if field and field not in _LIBRARY_ONLY and text.startswith(field):
-        flag = FLAGS.get(field, "--" + field.replace("_", "-"))
-        text = (f"{flag} ({field})" if field in FLAGS and field not in ("crease_angle_deg", "split_angle_deg")
-                else flag) + text[len(field):]
-    return text
-
 
 def say_warnings(scene) -> None:
     """Say a loaded scene's warnings on stderr, one line each, even with --quiet: the file is
@@ -51,6 +26,17 @@ def split_list(value: str | None, option: str = "the list") -> tuple[str, ...] |
     if not items:
         raise UsageError(f"{option} needs at least one name, got {value!r}")
     return items
+
+
+def floats(text: str, what: str, n: int | None = None) -> tuple[float, ...]:
+    """'1, 2.5' -> (1.0, 2.5); a usage error naming `what` when they are not numbers, or not `n` of them."""
+    try:
+        vals = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise UsageError(f"bad {what} {text!r}: give numbers separated by commas") from None
+    if n is not None and len(vals) != n:
+        raise UsageError(f"bad {what} {text!r}: give {n} numbers")
+    return vals
 
 
 def echo_json(obj) -> None:

@@ -28,7 +28,7 @@ import click  # noqa: E402
 from strokekit.errors import StrokekitError  # noqa: E402
 
 from . import commands  # noqa: E402
-from .common import user_message  # noqa: E402
+from .flags import user_message  # noqa: E402
 
 
 class _Interrupted(Exception):

@@ -1,6 +1,8 @@
-"""Samples along strokes, shared by the stages and the metrics: the one way lengths are cut into
-pieces (`split_lengths`), strokes resampled with u and surface points (`resample_strokes`), and
-samples of one frame matched to another's (`match_samples`, BRIEF 3)."""
+"""Samples along strokes, the one resampler of the stages, the metrics and the writers: lengths cut
+into equal pieces (`split_lengths`), the place of an arc length on a stroke (`locate`), strokes
+resampled by arc length with u and surface points (`resample_strokes`: tracking, brush paths,
+coherence), points along every segment (`segment_samples`: distances between drawings), and
+samples of one frame matched to another's (`match_samples`)."""
 
 from __future__ import annotations
 
@@ -11,7 +13,8 @@ from scipy.spatial import cKDTree
 
 from strokekit.model import Strokes, bracket, row_norm, uclip
 
-#: BRIEF 3 constants.
+#: A sample's match in the other frame lies within this radius (px) and its tangent agrees with
+#: the sample's: |t . t'| at least MIN_TANGENT_DOT (the coherence metrics' rule).
 MATCH_RADIUS_PX = 6.0
 MIN_TANGENT_DOT = 0.65
 
@@ -30,6 +33,30 @@ def split_lengths(lengths: np.ndarray, step_px: float, *, min_pieces: int = 0,
     cn = n.cumsum()
     k = np.arange(cn[-1] if len(cn) else 0) - (cn - n).repeat(n)
     return owner, k, n
+
+
+def segment_samples(points: np.ndarray, offsets: np.ndarray, step_px: float, *,
+                    middles: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points along polylines (points (N, 2), polyline p = points[offsets[p]:offsets[p + 1]]) at
+    most `step_px` apart: the segment from each point to the next cut into ceil(length / step_px)
+    equal pieces (at least one), a sample at the start of each piece, so at every point, in order
+    along each polyline. With `middles`, a sample at the middle of each piece of positive length
+    instead. Returns the positions (M, 2), the polyline of each (M,) and the length of the piece
+    each sample starts or stands for (M,) (0 at a polyline's last point). Distances to the
+    samples are exact to step_px / 2; P0 + t (P1 - P0) keeps exact a coordinate the segment
+    does not change."""
+    P = np.asarray(points, float)
+    polyline = np.arange(len(offsets) - 1).repeat(np.diff(offsets))
+    d = np.zeros((len(P), 2))
+    if len(P) > 1:
+        d[:-1] = P[1:] - P[:-1]
+    d[np.asarray(offsets[1:], np.int64) - 1] = 0.0  # (no segment from a polyline's last point)
+    seg = row_norm(d)
+    start = np.flatnonzero(seg > 0) if middles else np.arange(len(P))
+    owner, k, n = split_lengths(seg[start], step_px, min_pieces=0 if middles else 1)
+    t = (k + 0.5) / n[owner] if middles else k / n[owner]
+    rep = start[owner]
+    return P[rep] + d[rep] * t[:, None], polyline[rep], (seg[start] / n)[owner]
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,7 +88,7 @@ def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarra
     cam = strokes.camera
     a = np.asarray(a, float)
     # Gathered once for the depths and the interpolation; take(axis=0): numpy's fancy indexing of
-    # (N, 3) rows is ~8x slower on frame-sized arrays (same values).
+    # (N, 3) rows is several times slower (same values).
     Xi, Xj = X.take(i, axis=0), X.take(j, axis=0)
     if cam is not None and not cam.is_ortho and len(i):
         fwd, eye = cam.basis[2], cam.eye_array
@@ -78,6 +105,29 @@ def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarra
     return Xi * (1 - a)[:, None] + Xj * a[:, None]
 
 
+def locate(strokes: Strokes, stroke: np.ndarray, s: np.ndarray, side: str = "right"
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where arc length s (px) of strokes `stroke` lies: (i, j, a), the segment from point i to
+    point j and the fraction a in [0, 1] of the way along it (a one-point stroke: i = j, a = 0).
+    An s past a stroke's ends is held at them. side "right": a point between two segments
+    belongs to the one after it; "left": to the one before (searchsorted's sides)."""
+    base, G = strokes.global_arc
+    offsets = strokes.offsets
+    g = s + base[stroke]
+    first = offsets[:-1][stroke]
+    last = offsets[1:][stroke] - 1
+    i, j = bracket(G, G.searchsorted(g, side=side), first, last)
+    single = last == first
+    if single.any():
+        j = np.where(single, first, j)
+        i = np.where(single, first, i)
+    Gi = G[i]
+    d = G[j] - Gi
+    dp = d > 0
+    a = (g - Gi) / d if dp.all() else np.where(dp, (g - Gi) / np.where(dp, d, 1.0), 0.0)
+    return i, j, uclip(a, 0.0, 1.0)
+
+
 def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool = True) -> Samples:
     """Resample every stroke into pieces of at most `step_px` px; one sample at the middle of each
     piece, with u, X and position interpolated linearly along the polyline (vectorized).
@@ -90,21 +140,7 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     stroke, k, n = split_lengths(L, step_px, min_pieces=1, slack=1e-9)
     w = (L / n)[stroke]
     s = (k + 0.5) * w
-    base, G = strokes.global_arc
-    offsets = strokes.offsets
-    g = s + base[stroke]
-    first = offsets[:-1][stroke]
-    last = offsets[1:][stroke] - 1
-    i, j = bracket(G, G.searchsorted(g, side="right"), first, last)
-    single = last == first  # one-point stroke
-    if single.any():
-        j = np.where(single, first, j)
-        i = np.where(single, first, i)
-    Gi = G[i]
-    d = G[j] - Gi
-    dp = d > 0
-    a = (g - Gi) / d if dp.all() else np.where(dp, (g - Gi) / np.where(dp, d, 1.0), 0.0)
-    a = uclip(a, 0.0, 1.0)
+    i, j, a = locate(strokes, stroke, s)
     P, U = strokes.points, strokes.u
     Xs = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
     u = U[i] * (1 - a) + U[j] * a
@@ -130,14 +166,14 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     instead of the one whose centre is nearest: where lines run 1-3 px apart (shingled mesh
     contours) the nearest centre of samples 3-4 px apart is often on the wrong line, the line
     the 1 px samples of the metrics pick is not. The metrics use the plain rule.
-    exact (the metrics, BRIEF 3): where all k nearest samples are within reach and none agrees,
+    exact (the metrics): where all k nearest samples are within reach and none agrees,
     every sample within reach is examined, so the nearest agreeing one is never missed in
     crowded places (the tracker's votes are content with the k nearest)."""
     out = np.full(len(src), -1, np.int64)
     if len(src) == 0 or len(dst) == 0:
         return (out, np.full((len(src), 2), np.nan)) if return_projected else out
     q, z = camera.project(src.X)
-    # (Columns combined by hand: numpy's reductions along a short trailing axis cost ~10 us.)
+    # (Columns combined by hand: numpy's reductions along a short trailing axis cost more.)
     fin = np.isfinite(q)
     ok = fin[:, 0] & fin[:, 1] & ((z > 0) | camera.is_ortho)
     if not ok.any():
@@ -205,7 +241,7 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
         T = dst.t[safe]
         dots = np.abs(T[..., 0] * st[:, None, 0] + T[..., 1] * st[:, None, 1])
         good = valid & (dots >= min_tangent_dot)
-        has = good[:, 0].copy()  # good.any(axis=1), by columns (numpy's reductions along a short axis cost ~10 us)
+        has = good[:, 0].copy()  # good.any(axis=1), by columns (cheaper, as above)
         for c in range(1, kk):
             has |= good[:, c]
         # Neighbours come sorted by distance: the first good one is the nearest agreeing sample.

@@ -27,3 +27,13 @@ def box_mesh(lo, hi):
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     m = trimesh.creation.box(extents=hi - lo)
     return np.asarray(m.vertices) + (lo + hi) / 2, np.asarray(m.faces)
+
+
+def run_cli(args, capsys):
+    """(exit code, stdout, stderr) of `strokekit ARGS` run in this process."""
+    from strokekit_cli.main import main
+
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from strokekit import LineOptions, LineRenderer, Strokes, load_scene, orbit_path
-from strokekit.metrics.accuracy import accuracy, frame_accuracy, length_samples
+from strokekit.metrics.accuracy import accuracy, frame_accuracy
+from strokekit.sampling import segment_samples
 
 MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
 
@@ -20,9 +21,10 @@ def polyline_strokes(*lines) -> Strokes:
     return Strokes.build(pts, np.zeros((len(pts), 3)), np.full(len(pts), -1), offsets, np.zeros(len(lines)))
 
 
-def test_length_samples_weights_sum_to_drawn_length():
+def test_piece_middles_weigh_the_drawn_length():
+    """The middles of pieces of at most the step, each weighing its piece's length."""
     s = polyline_strokes([[0, 0], [10, 0], [10, 7.3]], [[50, 50], [50.05, 50]])
-    mid, w = length_samples(s, 0.1)
+    mid, _, w = segment_samples(s.points, s.offsets, 0.1, middles=True)
     assert w.sum() == pytest.approx(17.3 + 0.05)
     assert w.max() <= 0.1 + 1e-12
     assert np.all((mid[:, 0] >= 0) & (mid[:, 0] <= 50.05))
@@ -229,3 +231,16 @@ def test_bench_cli_json(tmp_path, capsys):
         assert e.code in (0, None)
     out = capsys.readouterr()
     assert "P@1" in out.out and out.err == ""
+
+
+def test_segment_samples_hold_every_point_at_most_a_step_apart():
+    """The samples of each polyline run in order along it, at most the step apart, through every
+    one of its points (a distance to them is exact to half the step at the vertices too)."""
+    s = polyline_strokes([[0, 0.1], [10, 0.1], [10, 7.4]], [[50, 50], [50.05, 50], [50.05, 50]])
+    pos, line, w = segment_samples(s.points, s.offsets, 0.4)
+    for k in range(2):
+        p = pos[line == k]
+        assert np.all(np.linalg.norm(np.diff(p, axis=0), axis=1) <= 0.4 + 1e-12)
+        assert all((p == q).all(axis=1).any() for q in s.points[s.offsets[k]:s.offsets[k + 1]])
+    assert np.all(pos[:, 1][(line == 0) & (pos[:, 0] < 10)] == 0.1)  # exact along the horizontal leg
+    assert w.sum() == pytest.approx(17.3 + 0.05)

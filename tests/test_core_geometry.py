@@ -193,9 +193,9 @@ def test_box_resting_on_ground_keeps_its_bottom_silhouette():
     probe = bottom[0] + t[:, None] * d
     from scipy.spatial import cKDTree
 
-    from strokekit.lines.strokeops import resample
+    from strokekit.sampling import segment_samples
 
-    pts, _ = resample(st, 0.05)
+    pts, _, _ = segment_samples(st.points, st.offsets, 0.05)
     dist, _ = cKDTree(pts).query(probe)
     assert dist.max() < 0.05  # the whole front bottom edge is drawn
 
@@ -217,9 +217,9 @@ def test_open_rim_resting_on_ground_is_visible():
     probe, _ = cam.project(rim)
     from scipy.spatial import cKDTree
 
-    from strokekit.lines.strokeops import resample
+    from strokekit.sampling import segment_samples
 
-    pts, _ = resample(border, 0.05)
+    pts, _, _ = segment_samples(border.points, border.offsets, 0.05)
     dist, _ = cKDTree(pts).query(probe)
     # The rim is a 64-gon: its chords lie within the sagitta of the circle.
     assert dist.max() < 0.3 * (1 - np.cos(np.pi / 64)) * cam.focal_px / 6.0 + 0.1
@@ -416,3 +416,56 @@ def test_orthographic_view_is_not_hidden_by_what_lies_behind_the_camera():
         b = LineRenderer(both, LineOptions()).render(cam)
         assert a.lengths.sum() > 150, projection
         assert b.lengths.sum() == pytest.approx(a.lengths.sum(), abs=0.01), projection
+
+
+# --- derived tables: kept with the scene, built on first use; per-frame ones kept with the frame -------
+
+def _torus_scene():
+    m = trimesh.creation.torus(major_radius=1.0, minor_radius=0.4, major_sections=24, minor_sections=12)
+    return build_scene(m.vertices, m.faces)
+
+
+def test_scene_tables_are_built_once_and_kept():
+    """A table asked for twice is the same array (a crease angle of 60 and 60.0 is one value)."""
+    scene = _torus_scene()
+    assert scene.vertex_normals is scene.vertex_normals
+    assert scene.split_normals(60) is scene.split_normals(60.0)
+    assert scene.split_normals(60.0) is not scene.split_normals(5.0)
+    assert scene.curvature_tensors() is scene.curvature_tensors(0)
+    assert scene.face_scale() is not scene.face_scale(60.0)
+
+
+def test_a_drawing_builds_only_the_tables_its_lines_ask_for(monkeypatch):
+    """Mesh lines need no normals, split normals or curvature: they are never built for them;
+    smooth contours build the split normals, suggestive contours the curvature tensors."""
+    from strokekit.scene.tables import SceneTables
+
+    def not_asked(*args):
+        raise AssertionError("a table the drawing does not ask for was built")
+
+    scene = _torus_scene()
+    cam = Camera(eye=(0.0, 2.0, 4.0), target=(0.0, 0.0, 0.0), width=300, height=300)
+    built = SceneTables._accumulate_normals
+    monkeypatch.setattr(SceneTables, "_accumulate_normals", not_asked)
+    monkeypatch.setattr(SceneTables, "_ring_average", not_asked)
+    assert len(LineRenderer(scene, LineOptions()).render(cam)) > 0
+    with pytest.raises(AssertionError, match="does not ask"):
+        LineRenderer(scene, LineOptions(contours="smooth"))
+    monkeypatch.setattr(SceneTables, "_accumulate_normals", built)
+    LineRenderer(scene, LineOptions(contours="smooth"))  # normals now, no curvature
+    with pytest.raises(AssertionError, match="does not ask"):
+        LineRenderer(scene, LineOptions(kinds=("silhouette", "suggestive")))
+
+
+def test_frames_leave_nothing_of_their_camera_in_the_scene():
+    """What a camera sees (facing, contour edges) is the frame's: drawing a second frame from
+    another camera adds no table to the scene and replaces none."""
+    scene = _torus_scene()
+    r = LineRenderer(scene, LineOptions(kinds=("silhouette", "crease", "smooth_contour", "suggestive"),
+                                        occlusion=(0, 2)))
+    r.render(Camera(eye=(0.0, 2.0, 4.0), target=(0.0, 0.0, 0.0), width=300, height=300))
+    kept = {k: id(v) for k, v in vars(scene).items()}
+    per_value = dict(vars(scene).get("_tables_per_value", {}))
+    r.render(Camera(eye=(3.0, -1.0, 2.0), target=(0.0, 0.0, 0.0), width=300, height=300))
+    assert {k: id(v) for k, v in vars(scene).items()} == kept
+    assert {k: id(v) for k, v in vars(scene)["_tables_per_value"].items()} == {k: id(v) for k, v in per_value.items()}

@@ -16,15 +16,13 @@ from strokekit.metrics.diff import (
     A_ONLY_COLOR,
     B_ONLY_COLOR,
     COMMON_COLOR,
-    Polylines,
     _NearestStroke,
     assert_same_drawing,
     diff_dirs,
     diff_polylines,
     diff_svgs,
-    parse_path_data,
-    read_svg,
 )
+from strokekit.metrics.svg_reader import Polylines, parse_path_data, read_svg
 from strokekit.model import KIND_INDEX, KINDS, Strokes
 from strokekit.writers.svg import svg_document
 from strokekit_cli.commands.diff import command as diff_command

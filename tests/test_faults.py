@@ -32,13 +32,13 @@ import subprocess
 import sys
 import textwrap
 import time
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from strokekit import fileio
+from strokekit.metrics.svg_reader import read_svg
 from strokekit_cli.main import main
 
 # Python's internal text, which a message for a user never shows.
@@ -87,7 +87,7 @@ def check_readable(p: Path) -> None:
     """Raise unless file `p` is whole: it parses as what its name says."""
     data = p.read_bytes()
     if p.suffix == ".svg":
-        ET.fromstring(data)
+        read_svg(p)
     elif p.suffix == ".json":
         json.loads(data)
     elif p.suffix == ".glb":

@@ -19,8 +19,9 @@ from strokekit.camera.paths import camera_path_from_json, orbit_path
 from strokekit.camera.view import Camera
 from strokekit.errors import InputError, UsageError
 from strokekit.lines import budget
+from strokekit.lines.sightlines import eye_enclosed
 from strokekit.options import LineOptions
-from strokekit.run import RunWriteError, run
+from strokekit.run import RenderRequest, RunWriteError, run
 from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.scene.load import build_scene, load_scene
 from strokekit.scene.occluder import Occluder
@@ -55,9 +56,9 @@ def test_eye_inside_a_closed_box_by_parity_whatever_the_winding(backend, inward)
     scene = build_scene(box.vertices, box.faces[:, ::-1] if inward else box.faces)
     occ = Occluder(scene, backend)
     assert occ.backend == backend
-    assert occ.eye_enclosed(Camera(eye=(0.1, 0.2, 0.3), target=(1, 0, 0)))
-    assert not occ.eye_enclosed(Camera(eye=(3, 2, 1), target=(0, 0, 0)))
-    assert not occ.eye_enclosed(Camera(eye=(0.1, 0.2, 0.3), target=(1, 0, 0), projection="orthographic"))
+    assert eye_enclosed(occ, Camera(eye=(0.1, 0.2, 0.3), target=(1, 0, 0)))
+    assert not eye_enclosed(occ, Camera(eye=(3, 2, 1), target=(0, 0, 0)))
+    assert not eye_enclosed(occ, Camera(eye=(0.1, 0.2, 0.3), target=(1, 0, 0), projection="orthographic"))
 
 
 def test_eye_inside_a_thick_walled_room_is_outside_the_solid():
@@ -66,8 +67,8 @@ def test_eye_inside_a_thick_walled_room_is_outside_the_solid():
     outer, inner = trimesh.creation.box(extents=(4, 4, 4)), trimesh.creation.box(extents=(3, 3, 3))
     scene = build_scene(np.r_[outer.vertices, inner.vertices], np.r_[outer.faces, inner.faces[:, ::-1] + 8])
     occ = Occluder(scene)
-    assert not occ.eye_enclosed(Camera(eye=(0.1, 0.2, 0.3), target=(1, 0, 0)))
-    assert occ.eye_enclosed(Camera(eye=(1.75, 0.2, 0.3), target=(0, 0, 0)))
+    assert not eye_enclosed(occ, Camera(eye=(0.1, 0.2, 0.3), target=(1, 0, 0)))
+    assert eye_enclosed(occ, Camera(eye=(1.75, 0.2, 0.3), target=(0, 0, 0)))
 
 
 # --- a scene's warnings, through the cache ----------------------------------------------------------------
@@ -152,7 +153,7 @@ def test_a_write_error_stops_the_run_and_raises_it_with_the_result(tmp_path, mon
         return real(src, dst, *a, **k)
 
     monkeypatch.setattr(fileio.os, "replace", replace)
-    spec = RunSpec(scene_path=str(path), cameras=cams, lines=LineOptions(), outputs=OutputOptions(out_dir=out))
+    spec = RunSpec(scene_path=str(path), cameras=cams, outputs=OutputOptions(out_dir=out), request=RenderRequest(strokes="lines", coherence="none"))
     with pytest.raises(RunWriteError) as e:
         run(spec)
     assert isinstance(e.value, OSError) and e.value.errno == errno.ENOSPC

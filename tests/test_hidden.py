@@ -16,13 +16,15 @@ from scipy.spatial.transform import Rotation
 from strokekit import LineOptions, LineRenderer, Strokes, build_scene, load_scene
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
+from strokekit.lines.facing import FrameView
 from strokekit.lines.features import feature_edges
+from strokekit.lines.levels import _levels_compiled, _order_along_rays, count_crossings, levels
 from strokekit.lines.occlusion import _bisect_levels, outline_crossings, outline_edges
+from strokekit.lines.sightlines import segments
 from strokekit.lines.visibility import clip_segments, clipped_on_screen
 from strokekit.metrics.bench import default_cameras
 from strokekit.metrics.hidden import hidden_accuracy, reference_drawing
 from strokekit.model import KIND_INDEX, N_KINDS
-from strokekit.scene.occluder import _order_along_rays
 from strokekit.tracking.tracker import track_frames
 from strokekit.writers.strokes_json import read_strokes_json, strokes_json
 from strokekit.writers.svg import svg_document
@@ -123,13 +125,13 @@ def test_outline_crossings_are_every_crossing_in_front(torus_and_box, which):
     else:
         scene = torus_and_box
         cam = _cameras()[["perspective", "cabinet", "isometric"].index(which)]
-    feat = feature_edges(scene, cam, HIDDEN, with_lift=True)
+    feat = feature_edges(FrameView(scene, cam), HIDDEN, with_lift=True)
     near = cam.near_distance(scene.radius)
     _, _, idx, _, _, _, pa, za, pb, zb, _ = clipped_on_screen(feat.a, feat.b, cam, near)
     va, vb = feat.va[idx], feat.vb[idx]
-    seg, s = outline_crossings(scene, cam, near, pa, pb, za, zb, va, vb)
+    seg, s = outline_crossings(FrameView(scene, cam), near, pa, pb, za, zb, va, vb)
     assert len(seg) >= 20  # (the scene has crossings to find)
-    E = scene.edges[outline_edges(scene, cam)]
+    E = scene.edges[outline_edges(FrameView(scene, cam))]
     V = scene.vertices
     c0, c1 = clip_segments(V[E[:, 0]], V[E[:, 1]], cam, near)
     ok = c1 > c0
@@ -203,7 +205,7 @@ def test_a_face_seen_edge_on_hides_nothing(options):
     in_plane = np.abs((sil.surface - scene.vertices[scene.faces[-1, 0]]) @ scene.face_normals[-1]) < 1e-9
     assert not (in_plane[1:] & in_plane[:-1] & (sil.stroke_of_point[1:] == sil.stroke_of_point[:-1])).any()
     full = r.occluder
-    r.occluder_for = lambda camera: full
+    r.occluder_for = lambda view: full
     cut = r.render(cam)
     assert _ridge_drawn(cut.select(cut.occlusion == 0), ridge)[0] < whole - 0.1
 
@@ -507,18 +509,18 @@ def test_close_pairs_are_the_kd_tree_pairs():
 
 
 def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
-    """Occluder.levels' compiled path (perspective, points on mesh edges) gives the numpy path's
+    """levels' compiled path (perspective, points on mesh edges) gives the numpy path's
     counts, sample for sample."""
     from strokekit.lines.occlusion import own_faces
     from strokekit.model import row_norm
 
     cam = _cameras()[0]
     scene = torus_and_box
-    occ = LineRenderer(scene, HIDDEN).occluder_for(cam)
-    fe = feature_edges(scene, cam, HIDDEN, with_lift=True)
+    occ = LineRenderer(scene, HIDDEN).occluder_for(FrameView(scene, cam))
+    fe = feature_edges(FrameView(scene, cam), HIDDEN, with_lift=True)
     from strokekit.lines.surface import surface_lift
 
-    lift = fe.lift if fe.lift is not None else surface_lift(scene, fe, cam, HIDDEN.occlusion_offset)
+    lift = fe.lift if fe.lift is not None else surface_lift(FrameView(scene, cam), fe, HIDDEN.occlusion_offset)
     _, _, idx, ab, A, B, _, _, _, _, _ = clipped_on_screen(fe.a, fe.b, cam, cam.near_distance(scene.radius))
     own, ends = own_faces(scene, fe, idx)
     on = np.flatnonzero(ends[:, 0] >= 0)
@@ -527,13 +529,13 @@ def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
     size, L, off = row_norm(ab[on]), lift[idx][on], HIDDEN.occlusion_offset
     if occ.backend != "open3d":
         pytest.skip("the compiled level rays read open3d's hit lists")
-    compiled = occ._levels_compiled(P, cam, off, L, size, 16, own[on])
+    compiled = _levels_compiled(occ, P, cam, off, L, size, 16, own[on])
     assert compiled is not None  # (None: it fell back, and the test would compare numpy with numpy)
-    assert np.array_equal(occ.levels(P, cam, off, L, size, 16, own[on], ends[on]), compiled)
+    assert np.array_equal(levels(occ, P, cam, off, L, size, 16, own[on], ends[on]), compiled)
     c = P - occ.origin
     eps = off * np.maximum(np.sqrt(np.einsum("ij,ij->i", c, c)), size)
-    o, t = occ._segments(P, cam, eps, off)
-    plain, _ = occ.count_crossings(o, t, 16, skip=own[on], verify=(P, t, 100.0 * row_norm(L) + eps))
+    o, t = segments(occ, P, cam, eps, off)
+    plain, _ = count_crossings(occ, o, t, 16, skip=own[on], verify=(P, t, 100.0 * row_norm(L) + eps))
     assert np.array_equal(compiled, plain) and plain.max() >= 2
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 PKG = Path(__file__).resolve().parents[1] / "strokekit"
+CLI = PKG.parent / "cli"
 
 #: Stages in pipeline order. A stage may import the shared top-level modules and the stages
 #: before it, never one after it; writers and metrics read what the stages make.
@@ -151,6 +152,37 @@ def test_shared_top_level_modules_import_no_stage():
 def test_imports_inside_functions_are_only_optional_backends():
     _, inner = _imports()
     wrong = [f"{m}:{line} imports {name}" for m, line, name in inner if name.split(".")[0] not in LAZY_OK]
+    assert not wrong, "\n".join(wrong)
+
+
+def _private_imports(paths) -> list[str]:
+    """'module:line imports name' for each import of another module's private name (one leading
+    underscore): `from m import _x`, or `m._x` on a module imported as `m`."""
+    wrong = []
+    for path in paths:
+        tree = ast.parse(path.read_text())
+        modules = {a.asname or a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names
+                   if a.name.startswith("strokekit")}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                wrong += [f"{path.name}:{node.lineno} imports {node.module}.{a.name}" for a in node.names
+                          if a.name.startswith("_") and not a.name.startswith("__")]
+            elif isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in modules \
+                    and node.attr.startswith("_") and not node.attr.startswith("__"):
+                wrong.append(f"{path.name}:{node.lineno} uses {node.value.id}.{node.attr}")
+    return wrong
+
+
+def test_the_private_import_finder_finds_them(tmp_path):
+    (tmp_path / "a.py").write_text("from strokekit.run.tasks import _write, frame_task\nimport strokekit.run.tasks as T\n"
+                                   "T._write\nfrom x import __version__\n")
+    assert _private_imports([tmp_path / "a.py"]) == ["a.py:1 imports strokekit.run.tasks._write", "a.py:3 uses T._write"]
+
+
+def test_no_module_imports_a_private_name_of_another():
+    """A name with a leading underscore belongs to its module: what another module needs is made
+    public (or moved where both can reach it), so that a module can change its own helpers."""
+    wrong = _private_imports(sorted([*PKG.rglob("*.py"), *CLI.rglob("*.py")]))
     assert not wrong, "\n".join(wrong)
 
 

@@ -15,15 +15,15 @@ from scipy.spatial import cKDTree
 
 from strokekit.camera.view import Camera
 from strokekit.lines.contours import smooth_contour_edges
-from strokekit.lines.features import feature_edges, silhouette_mask
+from strokekit.lines.facing import FrameView
+from strokekit.lines.features import feature_edges
 from strokekit.lines.intersections import intersection_edges
 from strokekit.lines.renderer import LineRenderer
-from strokekit.lines.suggestive import curvature_tensors, suggestive_contour_edges
+from strokekit.lines.suggestive import suggestive_contour_edges
 from strokekit.metrics.accuracy import screen_reversals, smooth_contour_wrongly_hidden
 from strokekit.model import KIND_INDEX, KINDS
 from strokekit.options import LineOptions
 from strokekit.scene.load import build_scene, load_scene
-from strokekit.scene.tables import vertex_normals
 
 MODELS = Path(__file__).resolve().parents[1].parent / "shared" / "models"
 
@@ -110,7 +110,7 @@ def test_sphere_smooth_contour_on_analytic_circle(sphere):
     circumference = np.linalg.norm(np.diff(np.vstack([circ_px, circ_px[:1]]), axis=0), axis=1).sum()
     assert abs(st.lengths.sum() / circumference - 1) < 1e-3
     # The mesh contour (zig-zag over vertices) is further from the circle on average.
-    E = sphere.edges[silhouette_mask(sphere, cam)]
+    E = sphere.edges[FrameView(sphere, cam).silhouettes]
     pa, _ = cam.project(sphere.vertices[E[:, 0]])
     pb, _ = cam.project(sphere.vertices[E[:, 1]])
     mesh_err, _ = circle.query(sample_segments(pa, pb))
@@ -120,12 +120,12 @@ def test_sphere_smooth_contour_on_analytic_circle(sphere):
 def test_smooth_contours_replace_mesh_silhouettes(sphere):
     """contours="smooth" swaps silhouette edges for smooth_contour segments; mesh stays default."""
     cam = Camera(eye=tuple(SPHERE_EYE), target=(0, 0, 0))
-    fe_mesh = feature_edges(sphere, cam, LineOptions())
-    fe_smooth = feature_edges(sphere, cam, LineOptions(contours="smooth"))
+    fe_mesh = feature_edges(FrameView(sphere, cam), LineOptions())
+    fe_smooth = feature_edges(FrameView(sphere, cam), LineOptions(contours="smooth"))
     assert set(fe_mesh.kind.tolist()) == {KIND_INDEX["silhouette"]}
     assert set(fe_smooth.kind.tolist()) == {KIND_INDEX["smooth_contour"]}
     # Smooth contour endpoints lie on the zero set of the interpolated n.(P - eye).
-    n = vertex_normals(sphere)
+    n = sphere.vertex_normals
     assert fe_smooth.lift is not None and fe_smooth.lift.shape == fe_smooth.a.shape
     assert np.all(fe_smooth.va >= len(sphere.vertices))  # keys are V + edge index (no cusp on a sphere)
     np.testing.assert_allclose(np.einsum("ij,ij->i", fe_smooth.a, fe_smooth.a), 1.0, atol=1e-5)
@@ -187,7 +187,7 @@ def test_bunny_smooth_contour_reverses_only_at_cusps():
     cam = orbit_cams(sc, 3)[1]
     counts = []
     for split in (False, True):
-        counts.append(screen_reversals(smooth_contour_edges(sc, cam, split_cusps=split), cam))
+        counts.append(screen_reversals(smooth_contour_edges(FrameView(sc, cam), split_cusps=split), cam))
     assert counts[0] > 0  # the bunny's contour does have cusps
     assert counts[1] == 0
     st = LineRenderer(sc, LineOptions(contours="smooth", kinds=("silhouette",))).render(cam)
@@ -248,7 +248,7 @@ def analytic_suggestive(eye, scene_radius, N=1200):
 def test_curvature_tensor_on_torus():
     """Per-vertex curvature tensors have the torus's principal curvatures (and 0 along n)."""
     sc = build_scene(*torus_scene(nu=200, nv=80))
-    ev = np.sort(np.linalg.eigvalsh(curvature_tensors(sc)), axis=1)
+    ev = np.sort(np.linalg.eigvalsh(sc.curvature_tensors()), axis=1)
     rho = np.hypot(sc.vertices[:, 0], sc.vertices[:, 1])
     cv = (rho - RT) / rt
     expect = np.sort(np.stack([np.zeros_like(cv), cv / (RT + rt * cv), np.full_like(cv, 1 / rt)], 1), axis=1)
@@ -263,7 +263,7 @@ def test_torus_suggestive_contours_where_theory_puts_them(eye):
     sc = build_scene(*torus_scene())
     cam = Camera(eye=tuple(eye), target=(0, 0, 0), fov_y=40)
     thr = 0.05
-    fe = suggestive_contour_edges(sc, cam, LineOptions(suggestive_derivative_threshold=thr))
+    fe = suggestive_contour_edges(FrameView(sc, cam), LineOptions(suggestive_derivative_threshold=thr))
     assert len(fe) > 20 and set(fe.kind.tolist()) == {KIND_INDEX["suggestive"]}
     X, T = analytic_suggestive(eye, sc.radius)
     M = sample_segments(fe.a, fe.b, 5)
@@ -280,7 +280,7 @@ def test_torus_suggestive_contours_where_theory_puts_them(eye):
 def test_sphere_has_no_suggestive_contours(sphere):
     """k_r = 1/r > 0 everywhere on a sphere: no zero crossing, no suggestive contour."""
     cam = Camera(eye=tuple(SPHERE_EYE), target=(0, 0, 0))
-    assert len(suggestive_contour_edges(sphere, cam, LineOptions(suggestive_derivative_threshold=0.0))) == 0
+    assert len(suggestive_contour_edges(FrameView(sphere, cam), LineOptions(suggestive_derivative_threshold=0.0))) == 0
 
 
 # --- intersection lines ---------------------------------------------------------------------
@@ -372,9 +372,9 @@ def test_feature_edges_select_new_kinds(boxes):
     """--kinds selects each new kind on its own; the default kinds draw none of them."""
     cam = Camera(eye=(3.0, 2.2, 4.0), target=(0.2, 0.1, 0.0))
     for kind in ("smooth_contour", "intersection"):
-        fe = feature_edges(boxes, cam, LineOptions(kinds=(kind,)))
+        fe = feature_edges(FrameView(boxes, cam), LineOptions(kinds=(kind,)))
         assert set(fe.kind.tolist()) == {KIND_INDEX[kind]}, kind
-    default = feature_edges(boxes, cam, LineOptions())
+    default = feature_edges(FrameView(boxes, cam), LineOptions())
     new = {KIND_INDEX[k] for k in ("smooth_contour", "suggestive", "intersection")}
     assert not new & set(default.kind.tolist())
     assert KINDS[int(default.kind[0])] in LineOptions().kinds
@@ -434,7 +434,7 @@ def test_box_smooth_contours_are_the_mesh_silhouettes(cam):
             k = next(i for i, q in enumerate(left) if _canonical_matches(p, q, 1e-6))
             left.pop(k)
     # No zero crossing inside the flat faces: every smooth contour segment lies on a mesh edge.
-    fe = smooth_contour_edges(sc, cam)
+    fe = smooth_contour_edges(FrameView(sc, cam))
     assert np.all((fe.va < len(sc.vertices)) & (fe.vb < len(sc.vertices)))
 
 
@@ -454,7 +454,7 @@ def test_cylinder_smooth_sides_and_sharp_rims(eye):
     V = len(sc.vertices)
     eye = np.array(eye)
     cam = Camera(eye=tuple(eye), target=(0, 0, 0), up=(0, 0, 1), fov_y=40, width=1024, height=1024)
-    fe = smooth_contour_edges(sc, cam)
+    fe = smooth_contour_edges(FrameView(sc, cam))
     on_rim = (np.abs(np.abs(fe.a[:, 2]) - H / 2) < 1e-12) & (np.abs(np.abs(fe.b[:, 2]) - H / 2) < 1e-12)
     side = ~on_rim
     # Tangent lines: phi = atan2(e_y, e_x) +- acos(R / rho_e), for every height.
@@ -492,15 +492,15 @@ def test_sphere_smooth_contour_unchanged_by_split_normals(sphere):
     """A sphere has no crease: split normals are the vertex normals, and the smooth contour is
     bit for bit the zero set of the vertex normal view function (no sharp-edge pieces)."""
     from strokekit.lines.contours import phong_points, zero_set_segments
-    from strokekit.scene.tables import split_normals, view_function
+    from strokekit.scene.tables import view_function
 
-    sn = split_normals(sphere, 60.0)
+    sn = sphere.split_normals(60.0)
     assert not sn.split.any() and np.array_equal(sn.corner, sphere.faces)
-    assert np.array_equal(sn.normals, vertex_normals(sphere))
+    assert np.array_equal(sn.normals, sphere.vertex_normals)
     cam = Camera(eye=tuple(SPHERE_EYE), target=(0, 0, 0))
-    fe = smooth_contour_edges(sphere, cam)
+    fe = smooth_contour_edges(FrameView(sphere, cam))
     zs = zero_set_segments(sphere, view_function(sphere, cam))
-    pts = phong_points(sphere, zs, vertex_normals(sphere))
+    pts = phong_points(sphere, zs, sphere.vertex_normals)
     assert np.array_equal(fe.a, pts[zs.ia]) and np.array_equal(fe.b, pts[zs.ib])
     V = len(sphere.vertices)
     assert np.array_equal(fe.va, V + zs.edges[zs.ia]) and np.array_equal(fe.vb, V + zs.edges[zs.ib])
@@ -511,13 +511,11 @@ def test_crease_threshold_splits_normals():
     cylinder's side edges turn by 5.6 degrees, so a threshold of 5 degrees splits every side
     edge too (the sides become flat facets: no smooth contour inside a face), 60 only the rims."""
     sc = cylinder_scene(sections=64)
-    from strokekit.scene.tables import split_normals
-
-    assert split_normals(sc, 60.0).split.sum() == 128
-    assert split_normals(sc, 5.0).split.sum() == 128 + 64  # the rims and the vertical side edges
+    assert sc.split_normals(60.0).split.sum() == 128
+    assert sc.split_normals(5.0).split.sum() == 128 + 64  # the rims and the vertical side edges
     cam = Camera(eye=(3.0, 1.5, 3.0), target=(0, 0, 0), up=(0, 0, 1))
-    fe = smooth_contour_edges(sc, cam, crease_angle_deg=5.0)
+    fe = smooth_contour_edges(FrameView(sc, cam), crease_angle_deg=5.0)
     V = len(sc.vertices)
     assert np.all((fe.va < V) & (fe.vb < V))
     np.testing.assert_array_equal(np.sort(np.sort(np.c_[fe.va, fe.vb], axis=1), axis=0),
-                                  np.sort(sc.edges[silhouette_mask(sc, cam)], axis=0))
+                                  np.sort(sc.edges[FrameView(sc, cam).silhouettes], axis=0))

@@ -9,14 +9,14 @@ from scipy.spatial import cKDTree
 
 from strokekit.camera.paths import orbit_path
 from strokekit.lines.renderer import LineRenderer
-from strokekit.lines.strokeops import drop_doubled, resample
+from strokekit.lines.strokeops import drop_doubled
 from strokekit.metrics.coherence import sequence_metrics
 from strokekit.model import KIND_INDEX, Strokes
 from strokekit.options import LineOptions
 from strokekit.paths import PathOptions, PathTracker, brush_frames
 from strokekit.paths.cover import held_back, on_drawing
 from strokekit.paths.pieces import one_label_per_path
-from strokekit.sampling import resample_strokes
+from strokekit.sampling import resample_strokes, segment_samples
 from strokekit.scene.load import build_scene
 
 SIZE = 512
@@ -59,8 +59,8 @@ def torus_frames():
 
 def _near(a: Strokes, b: Strokes, step: float = 0.1) -> np.ndarray:
     """Distance (px) from points every `step` px along the strokes `a` to the strokes `b`."""
-    pa, _ = resample(a, step)
-    pb, _ = resample(b, step)
+    pa, _, _ = segment_samples(a.points, a.offsets, step)
+    pb, _, _ = segment_samples(b.points, b.offsets, step)
     return cKDTree(pb).query(pa)[0]
 
 
@@ -274,7 +274,7 @@ def test_a_brush_resume_computes_only_up_to_its_last_missing_frame(tmp_path, cap
     nothing missing, no frame is computed and the brush path kernels are not loaded."""
     from helpers import SAMPLES
 
-    import strokekit.run.runner as runner
+    import strokekit.run.tasks as tasks
 
     base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "-q", "--frames", "1-4",
             "--workers", "1", "--out", tmp_path / "a"]
@@ -282,13 +282,13 @@ def test_a_brush_resume_computes_only_up_to_its_last_missing_frame(tmp_path, cap
     ref = {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")}
     for f in (tmp_path / "a").glob("frame_0002*"):
         f.unlink()
-    seen, real = [], runner.frame_task
+    seen, real = [], tasks.frame_task
 
-    def counting(scene_path, scene_hash, lines, frame, *a, **k):
-        seen.append(frame)
-        return real(scene_path, scene_hash, lines, frame, *a, **k)
+    def counting(task):
+        seen.append(task.number)
+        return real(task)
 
-    monkeypatch.setattr(runner, "frame_task", counting)
+    monkeypatch.setattr(tasks, "frame_task", counting)
     assert _cli([*base, "--skip-existing"], capsys)[0] == 0
     assert sorted(seen) == [1, 2]
     assert {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")} == ref

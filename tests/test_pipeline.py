@@ -10,11 +10,13 @@ import subprocess
 import sys
 import time
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import pytest
 from helpers import SAMPLES, model_path
 
+from strokekit.metrics.svg_reader import read_svg
 from strokekit.scene.load import load_scene
 from strokekit_cli.main import main
 
@@ -154,15 +156,15 @@ class CountingPool:
         self.outstanding = self.max_outstanding = 0
         self.submitted = []
 
-    def submit(self, fn, *args):
+    def submit(self, task):
         with self.lock:
             self.outstanding += 1
             self.max_outstanding = max(self.max_outstanding, self.outstanding)
-            self.submitted.append(args[0])
+            self.submitted.append(task)
 
         def run():
             try:
-                return fn(*args)
+                return task()
             finally:
                 with self.lock:
                     self.outstanding -= 1
@@ -194,7 +196,7 @@ def test_main_process_shares_the_frames_and_feeds_only_started_workers():
             ran.append(r["k"])
             return stop_after is None or r["k"] < stop_after
         Workers(pool, lambda: None, started=SimpleNamespace(value=started_workers)).map(
-            [(task, k) for k in range(tasks)], handle)
+            [partial(task, k) for k in range(tasks)], handle)
         return pool, ran
 
     pool, ran = share(0)  # the worker is still starting: everything is done here
@@ -239,19 +241,19 @@ def test_main_process_helping_feeds_the_pool_as_results_arrive():
 
     pool, ran = CountingPool(), []
     Workers(pool, lambda: None, started=SimpleNamespace(value=1)).map(
-        [(task, k) for k in range(10)], lambda r: ran.append(r["k"]) or True)
+        [partial(task, k) for k in range(10)], lambda r: ran.append(r["k"]) or True)
     assert sorted(ran) == list(range(10)) and pool.max_outstanding <= 2
     assert sum(where.values()) == 1  # this process ran one task, the pool the other nine
 
     class DoneAtOnce:  # runs the task inside submit
-        def submit(self, fn, *args):
+        def submit(self, fn):
             fut = Future()
-            fut.set_result(fn(*args))
+            fut.set_result(fn())
             return fut
 
     ran.clear()
     Workers(DoneAtOnce(), lambda: None, started=SimpleNamespace(value=1)).map(
-        [(lambda k: {"k": k}, k) for k in range(10)], lambda r: ran.append(r["k"]) or True)
+        [partial(lambda k: {"k": k}, k) for k in range(10)], lambda r: ran.append(r["k"]) or True)
     assert sorted(ran) == list(range(10))
 
 
@@ -271,7 +273,7 @@ def test_a_dead_worker_ends_the_run_with_an_error_not_a_hang():
         def __init__(self):
             self._shutdown_lock, self.futures = threading.Lock(), []
 
-        def submit(self, fn, *args):
+        def submit(self, fn):
             with self._shutdown_lock:
                 fut = Future()
                 self.futures.append(fut)
@@ -294,7 +296,7 @@ def test_a_dead_worker_ends_the_run_with_an_error_not_a_hang():
     def go():
         try:
             Workers(BreakingPool(), lambda: None, started=SimpleNamespace(value=1)).map(
-                [(task, k) for k in range(200)], lambda r: True)
+                [partial(task, k) for k in range(200)], lambda r: True)
         except BaseException as e:  # noqa: BLE001 (what the run raises is the point)
             raised.append(e)
 
@@ -309,14 +311,13 @@ def test_a_run_given_the_loaded_scene_reports_its_load_and_start_time(tmp_path):
     """The command loads the scene and starts the pool before run(): the report's load stage
     and wall time still count them."""
     from strokekit.camera.paths import orbit_path
-    from strokekit.options import LineOptions
     from strokekit.run.runner import run
     from strokekit.run.spec import OutputOptions, RunSpec
 
     path = model_path("spot.obj")
     scene = load_scene(path)
     cams = orbit_path(scene.center, scene.radius, 1, width=64, height=64).cameras
-    spec = RunSpec(scene_path=str(path), cameras=((1, cams[0]),), lines=LineOptions(),
+    spec = RunSpec(scene_path=str(path), cameras=((1, cams[0]),),
                    outputs=OutputOptions(out_dir=tmp_path))
     res = run(spec, scene=scene, load_seconds=5.0, started_at=time.perf_counter() - 6.0)
     assert res.stages[0].seconds >= 5.0 and res.wall_seconds >= 6.0 and res.frames_ok == [1]
@@ -338,17 +339,17 @@ def test_tasks_added_while_mapping_run_next():
         order.append(name)
         return {"name": name}
 
-    pending = deque([(task, "lines 1"), (task, "lines 2")])
+    pending = deque([partial(task, "lines 1"), partial(task, "lines 2")])
 
     def handle(r):
         if r["name"].startswith("lines"):
-            pending.appendleft((task, "write " + r["name"][-1]))
+            pending.appendleft(partial(task, "write " + r["name"][-1]))
         return True
-    make_executor(1, None, warm=()).map(pending, handle)  # --workers 1
+    make_executor(1, None, warm=None).map(pending, handle)  # --workers 1
     assert order == ["lines 1", "write 1", "lines 2", "write 2"]
     # The main process helping a pool whose workers have not started does the same.
     order.clear()
-    pending.extend([(task, "lines 1"), (task, "lines 2")])
+    pending.extend([partial(task, "lines 1"), partial(task, "lines 2")])
     Workers(None, lambda: None, started=SimpleNamespace(value=0)).map(pending, handle)
     assert order == ["lines 1", "write 1", "lines 2", "write 2"]
 
@@ -381,8 +382,8 @@ def test_interrupted_run_keeps_what_it_wrote_and_says_so(tmp_path):
     with the frames written so far; the temporary files of writes this run was in are removed
     (not other files); the report says 'interrupted' and exit code 130."""
     from strokekit.camera.paths import orbit_path
-    from strokekit.options import LineOptions
     from strokekit.run.report import run_report
+    from strokekit.run.request import RenderRequest
     from strokekit.run.runner import run
     from strokekit.run.spec import OutputOptions, RunInterrupted, RunSpec
 
@@ -391,7 +392,7 @@ def test_interrupted_run_keeps_what_it_wrote_and_says_so(tmp_path):
     out = tmp_path / "o"
     spec = RunSpec(scene_path=str(cube), cameras=tuple(orbit_path(s.center, s.radius, 6, width=64, height=64)
                                                         .select(list(range(1, 7)))),
-                   lines=LineOptions(), outputs=OutputOptions(out_dir=out))
+                   outputs=OutputOptions(out_dir=out), request=RenderRequest(strokes="lines", coherence="none"))
     foreign = out / ".notes.txt.k2j4h5g6.part"
 
     def progress(phase, done, total):
@@ -420,10 +421,10 @@ def test_a_frame_written_whole_just_before_ctrl_c_counts_as_written(tmp_path, mo
     every file of frame 1 on disk and 'interrupted: 0 of 20 frame(s) written', the report saying
     'not run'): the frame is whole and this run wrote it, so it counts as written and its files
     are listed; a frame with a file missing is not."""
-    import strokekit.run.runner as pl
+    import strokekit.run.tasks as pl
     from strokekit.camera.paths import orbit_path
-    from strokekit.options import LineOptions
     from strokekit.run.report import run_report
+    from strokekit.run.request import RenderRequest
     from strokekit.run.runner import run
     from strokekit.run.spec import OutputOptions, RunInterrupted, RunSpec
 
@@ -432,14 +433,14 @@ def test_a_frame_written_whole_just_before_ctrl_c_counts_as_written(tmp_path, mo
     out = tmp_path / "o"
     spec = RunSpec(scene_path=str(cube), cameras=tuple(orbit_path(s.center, s.radius, 4, width=64, height=64)
                                                         .select([1, 2, 3, 4])),
-                   lines=LineOptions(), outputs=OutputOptions(out_dir=out))
+                   outputs=OutputOptions(out_dir=out), request=RenderRequest(strokes="lines", coherence="none"))
     (out / "frame_0004.svg").parent.mkdir(parents=True)
     (out / "frame_0004.svg").write_text("<svg/>")  # frame 4: one file of an earlier run, not whole
     real = pl.frame_task
 
-    def interrupted_after_writing(*args):
-        r = real(*args)
-        if args[3] == 2:  # frame 2 is on disk, whole; Ctrl-C before its result is handled
+    def interrupted_after_writing(task):
+        r = real(task)
+        if task.number == 2:  # frame 2 is on disk, whole; Ctrl-C before its result is handled
             raise KeyboardInterrupt
         return r
 
@@ -458,7 +459,6 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     """SIGINT to `strokekit render` with a pool once frames are coming out: exit 130, one line
     saying how many frames were written, the --report written with status 'interrupted', the
     worker processes gone, no temporary file left, and every frame file there is whole."""
-    import xml.etree.ElementTree as ET
 
     psutil = pytest.importorskip("psutil")
     out, report = tmp_path / "o", tmp_path / "run.json"
@@ -493,7 +493,7 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     for f in done:  # the report's frames are there in full
         assert (out / f"frame_{f:04d}.svg").exists() and (out / f"frame_{f:04d}.json").exists()
     for p in out.glob("frame_*.svg"):  # and every file there is whole
-        ET.parse(p)
+        read_svg(p)
     for p in out.glob("frame_*.json"):
         json.loads(p.read_text())
     alive = psutil.wait_procs(children, timeout=10)[1]
@@ -594,8 +594,8 @@ def test_stopped_rerun_with_new_cameras_never_leaves_an_old_frame_looking_done(t
     not rewritten yet still hold the old cameras' drawings, so the manifest (written before the
     first frame) must not claim them; a resume then renders them and matches a fresh run."""
     from strokekit.camera.paths import orbit_path
-    from strokekit.options import LineOptions
     from strokekit.run.manifest import read_run_manifest
+    from strokekit.run.request import RenderRequest
     from strokekit.run.runner import run
     from strokekit.run.spec import OutputOptions, RunInterrupted, RunSpec
 
@@ -604,8 +604,8 @@ def test_stopped_rerun_with_new_cameras_never_leaves_an_old_frame_looking_done(t
 
     def spec(out, elevation, **kw):
         cams = orbit_path(s.center, s.radius, 4, elevation=elevation, width=64, height=64).select([1, 2, 3, 4])
-        return RunSpec(scene_path=str(cube), cameras=tuple(cams), lines=LineOptions(),
-                       outputs=OutputOptions(out_dir=out), **kw)
+        return RunSpec(scene_path=str(cube), cameras=tuple(cams), outputs=OutputOptions(out_dir=out),
+                       request=RenderRequest(strokes="lines", coherence="none"), **kw)
 
     out = tmp_path / "o"
     run(spec(out, 15.0))
@@ -641,17 +641,18 @@ def test_resume_after_a_failed_frame_with_tracking_gives_the_uninterrupted_bytes
     """Frame 3 of a tracked run fails once: the frames after it were tracked without it, so the
     resume must render them again (they stayed in the manifest as done and kept their wrong ids).
     After the resume every file equals an uninterrupted run's."""
-    import strokekit.run.runner as pl
+    import strokekit.run.tasks as pl
+    from strokekit.run.tasks import FrameResult
 
     args = ["render", model_path("spot.obj"), "--orbit", "6", "--size", "160x160", "--workers", "1", "-q", "--no-svg"]
     ref, part = tmp_path / "ref", tmp_path / "part"
     assert run_cli([*args, "--out", ref], capsys)[0] == 0
     real = pl.frame_task
 
-    def failing(scene_path, scene_hash, lines, frame, *a, **k):
-        if frame == 3:
-            return {"frame": frame, "error": "frame 3: simulated failure"}
-        return real(scene_path, scene_hash, lines, frame, *a, **k)
+    def failing(task):
+        if task.number == 3:
+            return FrameResult(3, error="frame 3: simulated failure")
+        return real(task)
 
     monkeypatch.setattr(pl, "frame_task", failing)
     assert run_cli([*args, "--out", part], capsys)[0] == 3
@@ -685,10 +686,10 @@ def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path
     from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
     from strokekit.raster.bands import RasterOptions
+    from strokekit.run.request import RenderRequest
     from strokekit.run.runner import run
     from strokekit.run.spec import OutputOptions, RunSpec
-    from strokekit.run.workers import make_executor
-    from strokekit.tracking.options import TrackingOptions
+    from strokekit.run.workers import SceneRef, make_executor
 
     path = model_path("spot.obj")
     s = load_scene(path)
@@ -696,10 +697,10 @@ def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path
     inside = replace(cams[9][1], eye=tuple(s.center), target=tuple(s.center + [0.0, 0.0, -1.0]))
     cams[9] = (10, inside)  # frame 10: the eye inside the mesh
     out = tmp_path / "o"
-    spec = RunSpec(scene_path=str(path), cameras=tuple(cams), lines=LineOptions(),
-                   outputs=OutputOptions(out_dir=out, raster_options=RasterOptions(bands=2)),
-                   tracking=TrackingOptions(), workers=2, fail_fast=True)
-    pool = make_executor(2, None, (str(path), LineOptions()))
+    spec = RunSpec(scene_path=str(path), cameras=tuple(cams),
+                   outputs=OutputOptions(out_dir=out),
+                   request=RenderRequest(strokes="lines", raster=RasterOptions(bands=2)), workers=2, fail_fast=True)
+    pool = make_executor(2, None, SceneRef(str(path), "", LineOptions()))
     try:
         while pool.started.value < 1:
             time.sleep(0.02)
@@ -760,7 +761,7 @@ def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
     --fail-fast, frame 2 failing) stops before them, even within the same second: 'written by
     this run' is a file that was missing at its start or has changed since, not a file time."""
     from strokekit.camera.paths import orbit_path
-    from strokekit.options import LineOptions
+    from strokekit.run.request import RenderRequest
     from strokekit.run.runner import run
     from strokekit.run.spec import OutputOptions, RunSpec
 
@@ -768,15 +769,15 @@ def test_a_failed_run_removes_only_what_it_wrote(tmp_path):
     s = load_scene(path)
     cams = [(i + 1, c) for i, c in enumerate(orbit_path(s.center, s.radius, 8, width=96, height=96).cameras)]
     out = tmp_path / "o"
-    first = run(RunSpec(scene_path=str(path), cameras=tuple(cams[4:]), lines=LineOptions(),
-                        outputs=OutputOptions(out_dir=out)), scene=s)
+    first = run(RunSpec(scene_path=str(path), cameras=tuple(cams[4:]), outputs=OutputOptions(out_dir=out),
+                        request=RenderRequest(strokes="lines", coherence="none")), scene=s)
     assert first.frames_ok == [5, 6, 7, 8]
     kept = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
     inside = replace(cams[1][1], eye=tuple(s.center), target=tuple(s.center + [0.0, 0.0, -1.0]))
     cams2 = list(cams)
     cams2[1] = (2, inside)
-    second = run(RunSpec(scene_path=str(path), cameras=tuple(cams2), lines=LineOptions(),
-                         outputs=OutputOptions(out_dir=out), fail_fast=True), scene=s)
+    second = run(RunSpec(scene_path=str(path), cameras=tuple(cams2), outputs=OutputOptions(out_dir=out),
+                         request=RenderRequest(strokes="lines", coherence="none"), fail_fast=True), scene=s)
     assert list(second.failures) == [2] and second.frames_ok == [1]
     now = {p.name: p.read_bytes() for p in out.iterdir() if not p.name.startswith(".")}
     assert {k: v for k, v in now.items() if k in kept} == kept
@@ -789,13 +790,13 @@ def test_an_interrupted_rewrite_leaves_no_frame_of_two_runs(tmp_path, monkeypatc
     whole (a resume renders it again); frames 4-6, which this run never touched, stay."""
     import strokekit.run as P
     from strokekit.camera.paths import orbit_path
-    from strokekit.options import LineOptions
 
     path = model_path("spot.obj")
     s = load_scene(path)
     cams = tuple((i + 1, c) for i, c in enumerate(orbit_path(s.center, s.radius, 6, width=96, height=96).cameras))
     out = tmp_path / "o"
-    spec = P.RunSpec(scene_path=str(path), cameras=cams, lines=LineOptions(), outputs=P.OutputOptions(out_dir=out))
+    spec = P.RunSpec(scene_path=str(path), cameras=cams, outputs=P.OutputOptions(out_dir=out),
+                     request=P.RenderRequest(strokes="lines", coherence="none"))
     assert P.run(spec, scene=s).frames_ok == [1, 2, 3, 4, 5, 6]
     earlier = {p.name: p.read_bytes() for p in out.iterdir() if p.name[-6] in "456"}
     import strokekit.run.tasks as T

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import io
 import json
-import re
 from dataclasses import fields, replace
 from pathlib import Path
 
@@ -16,6 +15,7 @@ from strokekit.camera.paths import dolly_path, orbit_path
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.lines.renderer import LineRenderer
+from strokekit.metrics.svg_reader import read_svg
 from strokekit.model import KINDS
 from strokekit.options import LineOptions
 from strokekit.raster.bands import (
@@ -29,6 +29,7 @@ from strokekit.raster.bands import (
 from strokekit.raster.fill import fill_field, octave_weights, self_similar_field
 from strokekit.raster.rays import cast_pixels
 from strokekit.run.tasks import raster_outputs
+from strokekit.sampling import segment_samples
 from strokekit.scene.load import Material, build_scene, load_scene
 from strokekit.scene.occluder import Occluder
 from strokekit.writers.png import png_files, read_png
@@ -689,17 +690,6 @@ def _outline_scene():
     return build_scene(np.r_[m.vertices, bv], np.r_[m.faces, np.asarray(b.faces) + len(m.vertices)])
 
 
-def _resampled(polylines, step=0.5) -> np.ndarray:
-    """(M, 2) points every `step` px along every polyline ((n, 2) arrays)."""
-    out = []
-    for p in polylines:
-        for a, b in zip(p[:-1], p[1:]):
-            n = max(int(np.ceil(np.linalg.norm(b - a) / step)), 1)
-            out.append(a + (b - a) * (np.arange(n) / n)[:, None])
-        out.append(p[-1:])
-    return np.concatenate(out)
-
-
 @pytest.mark.parametrize("projection", ["perspective", "orthographic", "cavalier"])
 def test_svg_silhouettes_lie_on_the_edge_of_the_background_mask(tmp_path, capsys, projection):
     """Bar: the silhouettes of the SVG, drawn by the line pass (Embree visibility), lie on the
@@ -727,13 +717,9 @@ def test_svg_silhouettes_lie_on_the_edge_of_the_background_mask(tmp_path, capsys
         main([str(a) for a in ["render", p, "--camera", path, "--kinds", "silhouette", "--bands", "3", "--masks",
                                "--no-json", "-q", "--out", tmp_path / "o"]])
     assert e.value.code == 0, capsys.readouterr().err
-    doc = (tmp_path / "o" / "frame_0001.svg").read_text()
-    # The silhouette layer's paths: M x,y L x,y ... (absolute, one subpath each).
-    layer = doc[doc.index('inkscape:label="silhouette"'):]
-    pts = [np.array([float(v) for v in re.findall(r"-?[0-9.]+", d)]).reshape(-1, 2)
-           for d in re.findall(r' d="([^"]+)"', layer)]
-    assert len(pts) >= 2
-    sil = _resampled(pts)
+    silhouettes = read_svg(tmp_path / "o" / "frame_0001.svg").layers["silhouette"]
+    assert len(silhouettes) >= 2
+    sil, _, _ = segment_samples(silhouettes.points, silhouettes.offsets, 0.5)
     # Background coverage from the masks: 1 - the sum of the band masks.
     masks = sum(read_png((tmp_path / "o" / f"mask{b}" / "frame_0001.png").read_bytes()).astype(float) for b in (1, 2, 3))
     bg = 1.0 - masks / 255.0

@@ -367,3 +367,95 @@ def test_a_section_view_keeps_its_near_plane_in_the_glb(projection):
     glb = glb_for_frame(st, cam, GltfOptions(), surface_depth_at(r.occluder))
     n = struct.unpack_from("<I", glb, 12)[0]
     assert json.loads(glb[20:20 + n])["cameras"][0][projection]["znear"] > 0.99 * near
+
+
+# --- joins: one line drawn as two strokes ---------------------------------------------------------
+
+TAPERED = RibbonOptions(space="image", width_px=4.0, taper_head_px=8.0, taper_tail_px=12.0, head_px=4.0,
+                        tail_px=8.0, taper_min=0.25)
+
+
+def _ends_width(m, k):
+    """(width at the start, width at the end) of stroke k's ribbon, and the pixels of its two end rows."""
+    v = slice(m.vertex_offsets[k], m.vertex_offsets[k + 1])
+    P, A = m.pixels[v], m.arc[v]
+    rows = [P[np.isclose(A, A.min())], P[np.isclose(A, A.max())]]
+    return [np.linalg.norm(r[:, None] - r[None], axis=2).max() for r in rows], rows
+
+
+def _two_pieces(turn_deg=10.0, gap=0.0, kinds=(0, 0), sideways=0.0):
+    """A line cut into two strokes at (300, 500): the second turns by turn_deg there and starts
+    `gap` px further along (and `sideways` px beside it)."""
+    a = np.c_[np.linspace(100, 300, 21), np.full(21, 500.0)]
+    th = np.radians(turn_deg)
+    start = np.array([300.0 + gap, 500.0 + sideways])
+    b = start + np.c_[np.cos(th), np.sin(th)] * np.linspace(0, 200, 21)[:, None]
+    pts = np.concatenate([a, b])
+    return Strokes.build(pts, np.zeros((42, 3)), np.zeros(42), [0, 21, 42], list(kinds), camera=CAM)
+
+
+@pytest.mark.parametrize("gap, sideways", [(0.0, 0.0), (0.8, 0.0), (0.5, 1.0)])
+def test_a_join_has_no_tapered_vertices_at_the_joined_ends(gap, sideways):
+    """Two strokes of one line meeting end to end (or a stair-step, the second a pixel beside the
+    first): full width and the brush's body at the joint, one end edge shared by both ribbons (no
+    pinch, no hole, no overlap); the free ends keep their taper."""
+    s = _two_pieces(gap=gap, sideways=sideways)
+    m = build_ribbons(s, CAM, TAPERED)
+    (w0, w1), rows0 = _ends_width(m, 0)
+    (v0, v1), rows1 = _ends_width(m, 1)
+    assert w1 >= 4.0 - 1e-9 and v0 >= 4.0 - 1e-9  # the joined ends: full width (the miter a little more)
+    assert w0 == pytest.approx(1.0) and v1 == pytest.approx(1.0)  # the free ends: taper_min x width
+    assert np.allclose(np.sort(rows0[1], axis=0), np.sort(rows1[0], axis=0))  # one shared end edge
+    # the texture at the joint is the body's, neither the head's nor the tail's
+    for k, end in ((0, "max"), (1, "min")):
+        v = slice(m.vertex_offsets[k], m.vertex_offsets[k + 1])
+        at = np.isclose(m.arc[v], getattr(m.arc[v], end)())
+        assert np.all((m.uv[v][at, 0] >= TAPERED.tex_head) & (m.uv[v][at, 0] <= 1 - TAPERED.tex_tail))
+    # no hole and no overlap at the joint
+    from shapely.geometry import LineString, box
+
+    both = unary_union([Polygon(x) for x in tri_xy(m)])
+    near = box(280, 1024 - 530, 320, 1024 - 470)
+    joint = [300 + gap / 2, 500 + sideways / 2]  # (both ends moved to the middle of the two)
+    line = np.array([s.points[19], joint, s.points[22], s.points[23]])
+    band = LineString(np.c_[line[:, 0], 1024 - line[:, 1]]).buffer(1.9, cap_style=2).intersection(near)
+    assert band.difference(both).area < 1e-3 * band.area
+    total = signed_areas(tri_xy(m)).sum()
+    assert total == pytest.approx(both.area, rel=1e-3)
+
+
+def test_ends_that_do_not_continue_one_line_stay_free():
+    """A corner (the line turns 80 degrees), two kinds, an end too far: every end tapers."""
+    for s in (_two_pieces(turn_deg=80.0), _two_pieces(kinds=(0, 2)), _two_pieces(gap=3.0)):
+        m = build_ribbons(s, CAM, TAPERED)
+        for k in range(2):
+            assert _ends_width(m, k)[0] == pytest.approx([1.0, 1.0])
+
+
+def test_a_closed_loop_has_no_taper():
+    """A circle whose last point repeats its first: one line without ends, full width all round
+    and the start and end rows the same edge."""
+    t = np.linspace(0, 2 * np.pi, 90)
+    p = np.c_[512 + 200 * np.cos(t), 512 + 200 * np.sin(t)]
+    p[-1] = p[0]
+    m = build_ribbons(strokes_of([p]), CAM, TAPERED)
+    (w0, w1), rows = _ends_width(m, 0)
+    assert w0 == pytest.approx(w1) and w0 >= 4.0 - 1e-9
+    assert np.allclose(np.sort(rows[0], axis=0), np.sort(rows[1], axis=0))
+    ends = RibbonOptions(space="image", width_px=4.0, taper_head_px=8.0, taper_tail_px=12.0, join_px=0.0)
+    assert _ends_width(build_ribbons(strokes_of([p]), CAM, ends), 0)[0] == pytest.approx([1.0, 1.0])
+
+
+def test_the_default_brush_reads_as_ink_with_its_texture():
+    """The default brush's body covers nearly all of the ribbon's width at nearly full density
+    (a ribbon 3 px wide, mipmapped down to a few texels across, must read as ink, not mid-grey),
+    and still varies along the stroke (its streaks and edges are its texture)."""
+    from strokekit.ribbons.brushes import brush_rgba, get_brush
+    from strokekit.writers.gltf import GltfOptions
+
+    a = brush_rgba(get_brush(GltfOptions().brush).png)[..., 3].astype(float) / 255
+    body = a[:, 64:192]  # (texture u 0.25 to 0.75)
+    assert body.mean() >= 0.93
+    across = body.mean(axis=1)  # the mipmap's view: its rows averaged along the stroke
+    assert across[2:-2].min() >= 0.9
+    assert np.ptp(body[8:24], axis=1).min() >= 0.03  # its density varies along the stroke (streaks)

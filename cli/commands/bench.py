@@ -1,4 +1,4 @@
-"""`strokekit bench`: what accuracy costs in time (issue 6)."""
+"""`strokekit bench`: what accuracy costs in time."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""`strokekit camera orbit|dolly SCENE`: write a camera path file (BRIEF 1.2) to stdout or a file."""
+"""`strokekit camera orbit|dolly SCENE`: write a camera path file (the README's format) to stdout or a file."""
 
 from __future__ import annotations
 

@@ -1,116 +1,148 @@
-"""Options of `strokekit render` for the optional stages (tracking, glTF ribbons, raster masks),
-kept apart so render.py stays a list of the core options. Each `*_options_from` turns the parsed
-values into the library's options dataclass, or None when that stage is off."""
+"""The options of `strokekit render` that no library field holds (`RenderCommand`: where the
+cameras come from, the preset, hidden lines, the run's report), when an option means something
+(`NEEDS`), and the library's request and outputs made from what the command line said."""
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from pathlib import Path
 
-import click
-
+from strokekit.camera.view import MAX_PATH_FRAMES
 from strokekit.errors import UsageError
 from strokekit.model import MAX_OCCLUSION
-from strokekit.options import QUALITY_PRESETS
+from strokekit.options import QUALITY_PRESETS, LineOptions, option
 from strokekit.paths.options import PathOptions
 from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import CODECS, PASSES, PassOptions
+from strokekit.raster.passes import PassOptions
 from strokekit.ribbons.brushes import get_brush
+from strokekit.run.request import RenderRequest
+from strokekit.run.spec import OutputOptions
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.gltf import GltfOptions
 
-from ..common import FINITE, split_list
-
-_GLTF = [
-    click.option("--gltf/--no-gltf", default=False, show_default=True, help="Write textured ribbons as frame_NNNN.glb."),
-    click.option("--gltf-sequence", is_flag=True, help="One sequence.glb for all frames (a node per frame) instead."),
-    click.option("--ribbon-width", type=FINITE, default=3.0, show_default=True, help="Ribbon width in px."),
-    click.option("--taper", type=FINITE, default=1.0, show_default=True, help="Head/tail taper (0: none)."),
-    click.option("--brush", default="ink", show_default=True, help="plain, ink, dry, or a PNG of your own stroke."),
-    click.option("--alpha-mode", type=click.Choice(["blend", "mask"]), default="blend", show_default=True,
-                 help="glTF alpha of the ribbons: blended, or cut out (mask)."),
-    click.option("--ribbon-space", type=click.Choice(["world", "image"]), default="world", show_default=True,
-                 help="Ribbons in the scene facing the camera, or flat in pixel units for 2D compositing."),
-]
+from ..common import floats, split_list
+from ..flags import OPTION_CLASSES, field_values, flags_of
 
 
-_TRACKING = [
-    click.option("--strokes", "strokes_mode", type=click.Choice(["brush", "lines"]), default=None,
-                 help="What the SVG, the JSON's strokes and the ribbons draw: brush paths (smooth strokes that "
-                      "persist from frame to frame, each covering nearby line pieces; the JSON keeps the exact lines "
-                      "beside them) or the exact lines [brush for a sequence with coherence on, unless --coherence "
-                      "is given; lines for one frame or --no-coherence]."),
-    click.option("--path-merge", type=FINITE, default=None,
-                 help="With brush paths: a path shorter than N px (two frames running) merges into the path it "
-                      "touches [5; 0: never, the highest id persistence, but paths crumble over long sequences]."),
-    click.option("--coherence", "coherence_method", type=click.Choice(["kalnins", "seed", "none"]), default="kalnins",
-                 show_default=True, help="Frame-to-frame tracking of the lines (--strokes lines): kalnins (samples carry "
-                      "ids and u to the next frame), seed (simple baseline: limited growth, short strokes not carried), "
-                      "or none."),
-    click.option("--no-coherence", is_flag=True, help="Same as --coherence none: ids per frame, u = arc length / P "
-                      "(brush paths: made afresh every frame)."),
-    click.option("--max-growth", type=FINITE, default=20.0, show_default=True,
-                 help="With --coherence seed: a stroke grows at most N px per frame."),
-    click.option("--min-carry", type=FINITE, default=10.0, show_default=True,
-                 help="With --coherence seed: strokes shorter than N px are not carried to the next frame."),
-]
+@dataclass(frozen=True)
+class RenderCommand:
+    """The command's own options, declared as the library's fields are (never instantiated)."""
+
+    camera: str | None = option(None, "--camera", "Camera path JSON (format: README, camera path files), or a "
+                                "glTF/GLB file with a camera node (its animation, if any, sampled at 24 fps).", path=True)
+    orbit: int | None = option(None, "--orbit", "Orbit the scene in N frames (instead of --camera; at most as many "
+                               "as a camera file may have).", low=1, high=MAX_PATH_FRAMES)
+    elevation: float = option(15.0, "--elevation", "Orbit elevation, degrees.", low=-90, high=90, show_default=True,
+                              needs="orbit")
+    fov: float = option(40.0, "--fov", "Orbit field of view, degrees.", low=0.1, high=179.9, show_default=True,
+                        needs="orbit")
+    up: str = option("y", "--up", "Orbit up axis.", choices=("y", "z"), show_default=True, needs="orbit")
+    size: str | None = option(None, "--size", "Image size WxH (overrides the camera file), e.g. 1024x1024.")
+    frames: str | None = option(None, "--frames", "Frames to render, 1-based: 1-24 or 1,3,5-9 (default all).")
+    out: str = option("out", "--out", "Folder for the frame files (created if missing).", path=True,
+                      show_default=True)
+    quality: str = option("default", "--quality", "Accuracy preset: draft (fast), default, exact (slow reference).",
+                          choices=tuple(QUALITY_PRESETS), show_default=True)
+    no_coherence: bool = option(False, "--no-coherence", "Same as --coherence none: ids per frame, u = arc length / P "
+                                "(brush paths: made afresh every frame).", switch=True)
+    hidden: bool = option(False, "--hidden", "Also draw the hidden lines (occlusion level >= 1: behind 1, 2, ... "
+                          "surfaces), dashed, in hidden-<kind> layers under the visible ones; each JSON stroke gets "
+                          "its level.", switch=True)
+    occlusion_range: str | None = option(
+        None, "--occlusion", "Draw the pieces whose occlusion level is in A-B (Line Art's range): 0-2, 1 (just behind "
+        f"one surface), 2- (two or more); 0 is visible; levels deeper than {MAX_OCCLUSION} count as {MAX_OCCLUSION}.",
+        name_of_value="occlusion_range")
+    dashes: str | None = option(None, "--dashes", "Hidden lines' dash and gap in px (SVG stroke-dasharray), e.g. 6,3, "
+                                "or 'solid' [ISO 128 dashed: 12 and 3 stroke widths].")
+    exr: bool = option(False, "--exr", "Write frame_NNNN.exr: multilayer OpenEXR with float depth Z, normals N, shade "
+                       "RGBA (premultiplied), band labels, Cryptomatte (objects, materials) and the lines per kind.",
+                       switch=True)
+    quiet: bool = option(False, "--quiet", "No progress and no summary.", short="-q", switch=True)
+    report: str | None = option(None, "--report", "Write a JSON run report.", path=True)
+    explain: bool = option(False, "--explain", "List the stages that ran, why, and their time.", switch=True)
 
 
-_RASTER = [
-    click.option("--bands", type=click.IntRange(min=1, max=254), default=None,
-                 help="Toon bands: write bands/frame_NNNN.png (labels) and shade/frame_NNNN.png with N bands of quantized n.l."),
-    click.option("--band-thresholds", default=None, help="Explicit n.l thresholds a,b,.. instead of N equal bands."),
-    click.option("--shading", type=click.Choice(["flat", "smooth"]), default="smooth", show_default=True,
-                 help="Band normals: per face, or interpolated and split at edges sharper than --crease-angle."),
-    click.option("--light", default="-0.4,0.6,0.7", show_default=True, help="Direction toward the light x,y,z."),
-    click.option("--light-space", type=click.Choice(["camera", "world"]), default="camera", show_default=True,
-                 help="--light is given in camera space (moves with the view) or in world space."),
-    click.option("--supersample", type=click.Choice(["1", "2", "4"]), default=None,
-                 help="Samples per pixel side everywhere (default from --quality: 1 draft, 1 default, 4 exact)."),
-    click.option("--edge-supersample", type=click.IntRange(min=0, max=8), default=None,
-                 help="Resample only the pixels at band, material or object edges R x R (default from --quality: "
-                      "0 draft, 4 default, 0 exact)."),
-    click.option("--masks", is_flag=True, help="Also one anti-aliased mask PNG per band (maskN/frame_NNNN.png)."),
-    click.option("--no-shade", is_flag=True, help="No shade/ PNGs (the ramp colours)."),
-    click.option("--objectid", is_flag=True, help="Also objectid/frame_NNNN.png (8-bit object ids, 0 background)."),
-    click.option("--depth", is_flag=True, help="Also depth/frame_NNNN.png (16-bit linear depth; its range in the PNG and the JSON)."),
-    click.option("--fill", is_flag=True, help="Also fill/frame_NNNN.png: hatching that keeps its screen size at any zoom (self-similar 3D texture)."),
-    click.option("--fill-pattern", type=click.Choice(["hatch", "dots", "noise"]), default="hatch", show_default=True,
-                 help="Texture of the fill."),
-    click.option("--fill-period", type=FINITE, default=16.0, show_default=True, help="Fill texture period in px."),
-    click.option("--gooch", is_flag=True, help="Gooch warm/cool ramp instead of darker shades."),
-    click.option("--band-polygons", is_flag=True, help="Also the bands as vector polygons in an SVG layer under the lines."),
-    click.option("--exr", is_flag=True,
-                 help="Write frame_NNNN.exr: multilayer OpenEXR with float depth Z, normals N, shade RGBA "
-                      "(premultiplied), band labels, Cryptomatte (objects, materials) and the lines per kind."),
-    click.option("--exr-layers", default=None,
-                 help="The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all]."),
-    click.option("--exr-codec", type=click.Choice(CODECS), default="zip", show_default=True,
-                 help="The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at about "
-                      "twice their size, rle in about half zip's time at four to eight times the size."),
-    click.option("--lines-png", is_flag=True, help="Also lines/frame_NNNN.png: the visible strokes as an RGBA image."),
-]
+#: Every class whose fields are options of `strokekit render`, in the order --help lists them.
+RENDER_CLASSES = (RenderCommand, *OPTION_CLASSES)
 
-_HIDDEN = [
-    click.option("--hidden", is_flag=True,
-                 help="Also draw the hidden lines (occlusion level >= 1: behind 1, 2, ... surfaces), dashed, in "
-                      "hidden-<kind> layers under the visible ones; each JSON stroke gets its level."),
-    click.option("--occlusion", "occlusion_range", default=None,
-                 help="Draw the pieces whose occlusion level is in A-B (Line Art's range): 0-2, 1 (just behind one "
-                      f"surface), 2- (two or more); 0 is visible; levels deeper than {MAX_OCCLUSION} count as "
-                      f"{MAX_OCCLUSION}."),
-    click.option("--dashes", default=None,
-                 help="Hidden lines' dash and gap in px (SVG stroke-dasharray), e.g. 6,3, or 'solid' [ISO 128 "
-                      "dashed: 12 and 3 stroke widths]."),
-    click.option("--dash-paths", is_flag=True,
-                 help="Write the hidden lines' dashes as geometry (a subpath per dash) instead of a dash style: "
-                      "for plotters (vpype draws a styled dash pattern solid)."),
-]
+#: When an option means something: {Flag.needs: (what it needs, whether the parsed values have it)}.
+NEEDS = {
+    "orbit": ("--orbit (they shape the orbit; a --camera file has its own)", lambda x: not x["camera"]),
+    "seed": ("--coherence seed", lambda x: x["coherence"] == "seed" and not x["no_coherence"]
+             and x["strokes"] != "brush"),
+    "fill": ("--fill", lambda x: x["fill"]),
+    "exr": ("--exr", lambda x: x["exr"]),
+    "brush": ("brush paths (--strokes brush, the default for a sequence)", lambda x: x["strokes"] != "lines"),
+    "svg layer": ("the SVG (they are a layer of it; not --no-svg)", lambda x: x["svg"]),
+    "gltf": ("--gltf or --gltf-sequence", lambda x: x["gltf"] or x["gltf_sequence"]),
+    "raster": ("a raster output (--bands, --masks, --fill, --objectid, --depth, --band-polygons or --exr)",
+               lambda x: wants_raster(x) or x["exr"]),
+    "suggestive": ("suggestive in --kinds", lambda x: "suggestive" in (split_list(x["kinds"], "--kinds") or ())),
+    "svg": ("the SVG (its coordinates; not --no-svg)", lambda x: x["svg"]),
+    "no scheduler": ("no --scheduler (a dask cluster's workers draw the frames)", lambda x: not x["scheduler"]),
+}
 
 
-def render_extra_options(f):
-    for deco in reversed(_TRACKING + _GLTF + _RASTER + _HIDDEN):
-        f = deco(f)
-    return f
+def check_needs(values: dict, said: dict) -> None:
+    """A usage error for options said that mean nothing beside the others (NEEDS)."""
+    flags = [flag for cls in RENDER_CLASSES for _, flag, _ in flags_of(cls) if flag.needs]
+    for key, (need, holds) in NEEDS.items():
+        names = [flag.name for flag in flags if flag.needs == key and flag.dest in said]
+        if names and not holds(values):
+            raise UsageError(f"{', '.join(names)} {'needs' if len(names) == 1 else 'need'} {need}")
+
+
+def wants_raster(values: dict) -> bool:
+    """Whether any raster PNG is asked for (--bands, --band-thresholds, --masks, --fill,
+    --objectid, --depth, --band-polygons)."""
+    return any(values.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth",
+                                       "band_polygons"))
+
+
+def request_from(values: dict, said: dict) -> RenderRequest:
+    """The RenderRequest the command line says: the --quality preset, the options said over it."""
+    lines = field_values(LineOptions, said)
+    occlusion = occlusion_from(values)
+    if occlusion is not None:
+        lines["occlusion"] = occlusion
+    raster = None
+    if wants_raster(values) or values["exr"]:
+        raster = {**field_values(RasterOptions, said), "pngs": wants_raster(values)}
+        thresholds, bands = raster.get("thresholds", ()), raster.get("bands")
+        if thresholds and bands and bands != len(thresholds) + 1:
+            raise UsageError(f"--bands {bands} but --band-thresholds gives {len(thresholds) + 1} bands "
+                             "(N thresholds make N + 1 bands; give one of the two)")
+    fields = field_values(RenderRequest, said)
+    if values["no_coherence"]:
+        fields["coherence"] = "none"
+    request = RenderRequest.preset(values["quality"], lines=lines, raster=raster,
+                                   tracking=TrackingOptions(**field_values(TrackingOptions, said)),
+                                   paths=PathOptions(**field_values(PathOptions, said)), **fields)
+    r = raster.get("edge_supersample") if raster is not None else None
+    if r and r <= request.raster.supersample:
+        raise UsageError(f"--edge-supersample {r} must be above --supersample {request.raster.supersample} (or 0, "
+                         "off): the edge pixels would get no more samples than the others")
+    return request
+
+
+def outputs_from(values: dict, said: dict, occlusion: tuple[int, int] | None, fps: float) -> OutputOptions:
+    """The OutputOptions the command line says; `fps`: the camera path's (the glTF's timing)."""
+    gltf = values["gltf"] or values["gltf_sequence"]
+    exr = PassOptions(**field_values(PassOptions, said), stroke_width_px=values["stroke_width"]) \
+        if values["exr"] else None
+    return OutputOptions(out_dir=Path(values["out"]), **{**field_values(OutputOptions, said), "gltf": gltf},
+                         gltf_options=gltf_options_from(values, said, fps) if gltf else None,
+                         hidden_dashes=dashes_from(values, occlusion), exr=exr)
+
+
+def gltf_options_from(values: dict, said: dict, fps: float) -> GltfOptions:
+    """GltfOptions of the ribbons. A bad brush fails here, before any work."""
+    if values["ribbon_width"] <= 0:
+        raise UsageError(f"--ribbon-width must be > 0, got {values['ribbon_width']}")
+    opts = GltfOptions(**field_values(GltfOptions, said), fps=fps)
+    get_brush(opts.brush)
+    return opts
 
 
 def occlusion_from(extra: dict) -> tuple[int, int] | None:
@@ -152,106 +184,10 @@ def dashes_from(extra: dict, occlusion: tuple[int, int] | None) -> tuple[float, 
         if extra.get("dash_paths"):
             raise UsageError("--dash-paths with --dashes solid: there are no dashes to write")
         return ()
-    vals = _floats(text, "--dashes")
+    vals = floats(text, "--dashes")
     if len(vals) % 2 or any(not (math.isfinite(v) and v >= 0) for v in vals) or not sum(vals) > 0:
         raise UsageError(f"bad --dashes {text!r}: give dash and gap lengths in px (pairs of numbers >= 0, not all 0), "
                          "or 'solid'")
     return vals
 
 
-def strokes_mode(extra: dict, n_frames: int, coherence_given: bool) -> str:
-    """'brush' or 'lines': --strokes, or by default brush paths for a sequence with coherence on
-    (what a sequence is drawn for: strokes that persist), the exact lines for one frame, with
-    --no-coherence or a --coherence method named (they track lines)."""
-    if extra.get("strokes_mode"):
-        return extra["strokes_mode"]
-    coherent = not extra.get("no_coherence") and extra.get("coherence_method", "kalnins") != "none"
-    return "brush" if n_frames >= 2 and coherent and not coherence_given else "lines"
-
-
-def tracking_options_from(extra: dict, n_frames: int, mode: str = "lines"):
-    """TrackingOptions for a sequence of lines with coherence on; None for one frame, brush paths
-    or --no-coherence."""
-    method = "none" if extra.get("no_coherence") else extra.get("coherence_method", "kalnins")
-    if n_frames < 2 or method == "none" or mode == "brush":
-        return None
-    return TrackingOptions(method=method, max_growth_px=extra["max_growth"],
-                           min_carry_px=extra["min_carry"])
-
-
-def path_options_from(extra: dict, mode: str):
-    """PathOptions for brush paths (history off with --no-coherence); None for lines."""
-    if mode != "brush":
-        return None
-    merge = {} if extra.get("path_merge") is None else {"merge_px": extra["path_merge"]}
-    return PathOptions(history=not extra.get("no_coherence") and extra.get("coherence_method") != "none", **merge)
-
-
-def gltf_options_from(extra: dict, lines, fps: float = 24.0):
-    """GltfOptions when glTF output is on, else None. A bad brush fails here, before any work."""
-    if extra.get("gltf_sequence"):
-        extra["gltf"] = True
-    if not extra.get("gltf"):
-        return None
-
-    if extra["ribbon_width"] <= 0:
-        raise UsageError(f"--ribbon-width must be > 0, got {extra['ribbon_width']}")
-    opts = GltfOptions(width_px=extra["ribbon_width"], taper=extra["taper"], brush=extra["brush"],
-                       alpha_mode=extra["alpha_mode"].upper(), space=extra["ribbon_space"], fps=fps)
-    get_brush(opts.brush)
-    return opts
-
-
-def _floats(text: str, what: str, n: int | None = None) -> tuple[float, ...]:
-    try:
-        vals = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        raise UsageError(f"bad {what} {text!r}: give numbers separated by commas") from None
-    if n is not None and len(vals) != n:
-        raise UsageError(f"bad {what} {text!r}: give {n} numbers")
-    return vals
-
-
-def wants_raster(extra: dict) -> bool:
-    """Whether any raster output is asked for (--bands, --masks, --fill, --objectid, --depth,
-    --band-polygons)."""
-    return any(extra.get(k) for k in ("bands", "band_thresholds", "masks", "fill", "objectid", "depth",
-                                      "band_polygons"))
-
-
-def raster_options_from(extra: dict, quality: str):
-    """RasterOptions when any raster output is asked for (--bands, --masks, --fill, --objectid,
-    --depth, --band-polygons, or --exr), else None: lines-only runs do no raster pass at all.
-    (Smooth shading splits normals at the line options' --crease-angle: the run passes it.)"""
-    pngs = wants_raster(extra)
-    if not (pngs or extra.get("exr")):
-        return None
-    k_default = QUALITY_PRESETS[quality]["supersample"]
-    r_default = QUALITY_PRESETS[quality]["edge_supersample"]
-    thresholds = _floats(extra["band_thresholds"], "--band-thresholds") if extra.get("band_thresholds") else ()
-    if thresholds and extra.get("bands") and extra["bands"] != len(thresholds) + 1:
-        raise UsageError(f"--bands {extra['bands']} but --band-thresholds gives {len(thresholds) + 1} bands "
-                         "(N thresholds make N + 1 bands; give one of the two)")
-    bands = extra.get("bands") or (len(thresholds) + 1 if thresholds else 3)
-    K = int(extra["supersample"] or k_default)
-    R = extra.get("edge_supersample")
-    if R is None:
-        R = r_default if r_default > K else 0  # (--supersample 4 on the default preset: uniform 4 x 4)
-    elif R and R <= K:
-        raise UsageError(f"--edge-supersample {R} must be above --supersample {K} (or 0, off): the edge pixels "
-                         "would get no more samples than the others")
-    return RasterOptions(bands=bands, thresholds=thresholds, shading=extra["shading"],
-                         light=_floats(extra["light"], "--light", 3), light_space=extra["light_space"],
-                         supersample=K, edge_supersample=R,
-                         masks=extra["masks"], shade=not extra["no_shade"], objectid=extra["objectid"],
-                         depth=extra["depth"], fill=extra["fill"], fill_pattern=extra["fill_pattern"],
-                         fill_period_px=extra["fill_period"], gooch=extra["gooch"],
-                         band_polygons=extra["band_polygons"], pngs=pngs)
-
-
-def exr_options_from(extra: dict, stroke_width_px: float):
-    """PassOptions of the EXR (--exr, --exr-layers), or None without --exr."""
-    if not extra.get("exr"):
-        return None
-    layers = split_list(extra["exr_layers"], "--exr-layers") if extra.get("exr_layers") else PASSES
-    return PassOptions(passes=layers, stroke_width_px=stroke_width_px, codec=extra.get("exr_codec") or "zip")

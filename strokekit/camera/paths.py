@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from strokekit.camera.gltf import gltf_camera_path
-from strokekit.camera.view import _FALLBACK_UPS, ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES, Camera, CameraPath, angled_basis
+from strokekit.camera.view import ANGLED, FALLBACK_UPS, MAX_IMAGE_PX, MAX_PATH_FRAMES, Camera, CameraPath, angled_basis
 from strokekit.errors import InputError, UsageError
 
 # --- keyframes ----------------------------------------------------------------------------------
@@ -30,7 +30,7 @@ def _turn(u0: np.ndarray, u1: np.ndarray, t: float, spare_axis: np.ndarray) -> n
             return u0
         axis = spare_axis - (spare_axis @ u0) * u0
         if np.linalg.norm(axis) < 1e-9:
-            axis = np.cross(u0, _FALLBACK_UPS[0] if abs(u0[1]) < 0.9 else _FALLBACK_UPS[2])
+            axis = np.cross(u0, FALLBACK_UPS[0] if abs(u0[1]) < 0.9 else FALLBACK_UPS[2])
     k = axis / np.linalg.norm(axis)
     a = t * angle  # Rodrigues; k is perpendicular to u0
     return u0 * math.cos(a) + np.cross(k, u0) * math.sin(a)

@@ -27,7 +27,7 @@ import numpy as np
 
 from strokekit.errors import InputError
 
-_FALLBACK_UPS = (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+FALLBACK_UPS = (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
 # Limits of what a camera file (JSON or glTF) may ask for: beyond them a run would fail late (a
 # width of 1e30 px overflows the writers) or never end (a frame_count of 1e12).
 MAX_IMAGE_PX = 100_000  # per side
@@ -167,7 +167,7 @@ class Camera:
         if self.projection in ANGLED:
             return angled_basis(self.up, self.azimuth, self.elevation)
         fwd = _unit(np.subtract(self.target, self.eye))
-        candidates = [np.asarray(self.up, float)] + list(_FALLBACK_UPS)
+        candidates = [np.asarray(self.up, float)] + list(FALLBACK_UPS)
         for up in candidates:
             r = np.cross(fwd, up)
             nr = np.linalg.norm(r)

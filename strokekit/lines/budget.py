@@ -10,7 +10,8 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
-from strokekit.lines.features import silhouette_mask, wants_smooth_contours
+from strokekit.lines.facing import FrameView
+from strokekit.lines.features import wants_smooth_contours
 from strokekit.lines.visibility import clip_segments
 from strokekit.model import row_norm
 from strokekit.options import LineOptions
@@ -41,7 +42,7 @@ def visibility_samples(scene: Scene, camera: Camera, options: LineOptions) -> in
     if "material" in kinds and len(scene.materials) > 1:
         mask |= scene.is_material_boundary
     inner = int(wants_smooth_contours(options)) + int("suggestive" in kinds) + int("intersection" in kinds)
-    sil = silhouette_mask(scene, camera) if ("silhouette" in kinds or inner) else np.zeros_like(mask)
+    sil = FrameView(scene, camera).silhouettes if ("silhouette" in kinds or inner) else np.zeros_like(mask)
     mesh_sil = sil if "silhouette" in kinds and options.contours == "mesh" else np.zeros_like(mask)
     return _samples(scene, camera, options, mask | mesh_sil) + inner * _samples(scene, camera, options, sil)
 

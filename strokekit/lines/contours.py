@@ -36,17 +36,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from strokekit.camera.view import Camera
-from strokekit.lines.surface import front_facing, surface_lift
+from strokekit.lines.facing import FrameView
+from strokekit.lines.surface import surface_lift
 from strokekit.model import KIND_INDEX, FeatureEdges
 from strokekit.scene.load import Scene
-from strokekit.scene.tables import (
-    SplitNormals,
-    face_edges,
-    face_scale,
-    face_size,
-    scene_cache,
-    split_normals,
-)
+from strokekit.scene.tables import SplitNormals
 
 #: Lift of a smooth contour's occlusion ray origin (see `contour_lift`): LIFT_GAIN x the face's
 #: chord error scale along the normal, VIEW_LIFT_GAIN x the face's longest edge toward the eye.
@@ -55,16 +49,6 @@ from strokekit.scene.tables import (
 #: balance the two (benchmarks/bench_line_types.py, section 3, measures both).
 LIFT_GAIN = 0.25
 VIEW_LIFT_GAIN = 3.5
-
-
-def flat_faces(scene: Scene, crease_angle_deg: float = 60.0) -> np.ndarray:
-    """(F,) faces whose corner normals, split at `crease_angle_deg`, are all their plane normal
-    (within 1e-6 of the face size): a box's faces, a cylinder's caps. Cached."""
-    c = scene_cache(scene)
-    key = ("flat_faces", float(crease_angle_deg))
-    if key not in c:
-        c[key] = face_scale(scene, crease_angle_deg) <= 1e-6 * face_size(scene)
-    return c[key]
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,7 +107,7 @@ def zero_set_segments(scene: Scene, g: np.ndarray, face_mask: np.ndarray | None 
     # From the crossing on ka to the one on kb the lone vertex lies on the right.
     k = np.concatenate([np.where(lone_pos, ka, kb), np.where(lone_pos, kb, ka)])
     ff = np.concatenate([faces, faces])
-    e = face_edges(scene)[ff, k]
+    e = scene.face_edges[ff, k]
     key = V + e.astype(np.int64)
     if split is not None:
         key = np.where(split[e], V + E + 3 * ff.astype(np.int64) + k, key)
@@ -185,15 +169,15 @@ def screen_side(camera: Camera, points: np.ndarray, tangents: np.ndarray, normal
     return np.sign(t2[:, 0] * n2[:, 1] - t2[:, 1] * n2[:, 0])
 
 
-def smooth_contour_edges(scene: Scene, camera: Camera, lift_gain: float = LIFT_GAIN,
+def smooth_contour_edges(view: FrameView, lift_gain: float = LIFT_GAIN,
                          split_cusps: bool = True, crease_angle_deg: float = 60.0,
                          occlusion_offset: float = 1e-5) -> FeatureEdges:
     """Smooth contour segments of one frame as FeatureEdges of kind "smooth_contour" (the first
     element of `smooth_contours`)."""
-    return smooth_contours(scene, camera, lift_gain, split_cusps, crease_angle_deg, occlusion_offset)[0]
+    return smooth_contours(view, lift_gain, split_cusps, crease_angle_deg, occlusion_offset)[0]
 
 
-def smooth_contours(scene: Scene, camera: Camera, lift_gain: float = LIFT_GAIN, split_cusps: bool = True,
+def smooth_contours(view: FrameView, lift_gain: float = LIFT_GAIN, split_cusps: bool = True,
                     crease_angle_deg: float = 60.0, occlusion_offset: float = 1e-5
                     ) -> tuple[FeatureEdges, np.ndarray]:
     """Smooth contours of one frame with normals split at creases sharper than `crease_angle_deg`.
@@ -209,9 +193,10 @@ def smooth_contours(scene: Scene, camera: Camera, lift_gain: float = LIFT_GAIN, 
     `contour_lift`. Flat faces (`flat_faces`) hold none. Then the pieces of `sharp_edge_contours`
     along split edges (their lift is described there; `occlusion_offset` as LineOptions'), with
     key -1 where the screen tangent reverses at a junction with a piece (`_split_reversals`)."""
-    sn = split_normals(scene, crease_angle_deg)
-    g = sn.view_function(scene, camera)
-    flat = flat_faces(scene, crease_angle_deg)
+    scene, camera = view.scene, view.camera
+    sn = scene.split_normals(crease_angle_deg)
+    g = sn.view_function(camera)
+    flat = scene.flat_faces(crease_angle_deg)
     # g is constant on a flat face: no crossing there, whatever the rounding when it is edge-on.
     zs = zero_set_segments(scene, g, face_mask=~flat if flat.any() else None, corner=sn.corner, split=sn.split)
     parts = []
@@ -222,15 +207,15 @@ def smooth_contours(scene: Scene, camera: Camera, lift_gain: float = LIFT_GAIN, 
         nm = nrm[zs.ia] + nrm[zs.ib]
         nm /= np.maximum(np.linalg.norm(nm, axis=1), 1e-300)[:, None]
         lift = contour_lift(scene, camera, zs.faces, 0.5 * (a + b), nm, lift_gain,
-                            scale=face_scale(scene, crease_angle_deg))
+                            scale=scene.face_scale(crease_angle_deg))
         key = zs.keys
         if split_cusps:
             key = np.where(cusp_mask(camera, zs, a, b, nm), -1, key)
         kind = np.full(len(zs), KIND_INDEX["smooth_contour"], np.int8)
         parts.append(FeatureEdges(a=a, b=b, kind=kind, va=key[zs.ia], vb=key[zs.ib],
                                   face=zs.faces.astype(np.int64), lift=lift))
-    sharp, full = sharp_edge_contours(scene, camera, sn, g, occlusion_offset, lift_gain,
-                                      face_scale(scene, crease_angle_deg), flat)
+    sharp, full = sharp_edge_contours(view, sn, g, occlusion_offset, lift_gain, scene.face_scale(crease_angle_deg),
+                                      flat)
     parts.append(sharp)
     fe = FeatureEdges.concat(parts)
     if split_cusps and len(sharp):
@@ -262,7 +247,7 @@ def _split_reversals(camera: Camera, fe: FeatureEdges, first_piece: int) -> Feat
     return replace(fe, va=key[:S], vb=key[S:])
 
 
-def sharp_edge_contours(scene: Scene, camera: Camera, sn: SplitNormals, g: np.ndarray,
+def sharp_edge_contours(view: FrameView, sn: SplitNormals, g: np.ndarray,
                         occlusion_offset: float = 1e-5, lift_gain: float = LIFT_GAIN,
                         scale: np.ndarray | None = None, flat: np.ndarray | None = None
                         ) -> tuple[FeatureEdges, np.ndarray]:
@@ -278,8 +263,8 @@ def sharp_edge_contours(scene: Scene, camera: Camera, sn: SplitNormals, g: np.nd
     goes on from one to the other; whole-edge ends carry the vertex ids, as mesh silhouettes.
     face: the side facing the eye along the piece. `g` (N,) the view function of the nodes of
     `sn`; `scale` (F,) the chord error scales for `contour_lift`; `flat` (F,) faces whose side
-    takes its facing from features.front_facing (the mesh silhouette's own test, so that an
-    edge-on face is decided as in mesh mode; default `flat_faces`).
+    takes its facing from the frame's front_facing (the mesh silhouette's own test, so that an
+    edge-on face is decided as in mesh mode; default the scene's `flat_faces`).
 
     Occlusion lift: where one side is flat (its corner normals are its plane normal and it has
     an unsplit edge: a box, a cylinder's cap) that of a mesh silhouette (lines.surface_lift, `occlusion_offset` x scene
@@ -287,18 +272,19 @@ def sharp_edge_contours(scene: Scene, camera: Camera, sn: SplitNormals, g: np.nd
     scans: the bunny has 110 edges sharper than 60 degrees) the ray grazes the 1-ring like a
     smooth contour's and gets `contour_lift` (with the mesh lift such pieces are hit by adjacent
     faces a few hundredths of a face size away and wrongly hidden)."""
+    scene = view.scene
     E_s = np.flatnonzero(sn.split & scene.is_manifold)
     if len(E_s) == 0:
         return FeatureEdges.empty(), np.zeros(0, np.int64)
     f = scene.faces
     V, E = len(scene.vertices), len(scene.edges)
     ev, ef = scene.edges[E_s], scene.edge_faces[E_s]
-    fe = face_edges(scene)
+    fe = scene.face_edges
     P = scene.vertices
     vi, vj = P[ev[:, 0]], P[ev[:, 1]]
 
-    flat = flat_faces(scene, 60.0) if flat is None else flat
-    front = front_facing(scene, camera)
+    flat = scene.flat_faces(60.0) if flat is None else flat
+    front = view.front_facing
     cuts, keys, gs, pts, nodes, crosses = [], [], [], [], [], []
     for side in (0, 1):
         fs = ef[:, side]
@@ -351,9 +337,9 @@ def sharp_edge_contours(scene: Scene, camera: Camera, sn: SplitNormals, g: np.nd
 
     probe = FeatureEdges(a=a, b=b, kind=out.kind, va=ev[r, 0].astype(np.int64), vb=ev[r, 1].astype(np.int64),
                          face=face)
-    lift = surface_lift(scene, probe, camera, occlusion_offset)
-    scale = face_scale(scene) if scale is None else scale
-    fsize = face_size(scene)
+    lift = surface_lift(view, probe, occlusion_offset)
+    scale = scene.face_scale() if scale is None else scale
+    fsize = scene.face_size
 
     def curved(faces):
         # Flat: corner normals all the plane normal, and part of a region (one of its edges
@@ -374,7 +360,7 @@ def sharp_edge_contours(scene: Scene, camera: Camera, sn: SplitNormals, g: np.nd
         nrm = sn.normals[lo] * (1 - mid) + sn.normals[hi] * mid
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1), 1e-300)[:, None]
         big = np.where(fsize[ef[r, 0]] >= fsize[ef[r, 1]], ef[r, 0], ef[r, 1])
-        lift[fold] = contour_lift(scene, camera, big[fold], 0.5 * (a[fold] + b[fold]), nrm[fold], lift_gain,
+        lift[fold] = contour_lift(scene, view.camera, big[fold], 0.5 * (a[fold] + b[fold]), nrm[fold], lift_gain,
                                   scale=scale)
     full = E_s[np.unique(r[(sa[r, c] == 0.0) & (sb[r, c] == 1.0)])]
     return replace(out, lift=lift), full
@@ -393,7 +379,7 @@ def contour_lift(scene: Scene, camera: Camera, faces: np.ndarray, mid: np.ndarra
     a face length, so hits closer than that along the ray are the point's own neighbourhood, not
     an occluder. Moving along the line of sight does not move the point's projection.
     `scale` (F,): the chord error scales to use (default `face_scale(scene)`, vertex normals)."""
-    view = (VIEW_LIFT_GAIN if view_gain is None else view_gain) * face_size(scene)[faces]
+    view = (VIEW_LIFT_GAIN if view_gain is None else view_gain) * scene.face_size[faces]
     if camera.is_ortho:
         toward = np.broadcast_to(-camera.view_dir, mid.shape)  # (-fwd but for oblique rays)
     else:
@@ -402,7 +388,7 @@ def contour_lift(scene: Scene, camera: Camera, faces: np.ndarray, mid: np.ndarra
         toward = toward / np.maximum(dist, 1e-300)[:, None]
         # Long faces (a cylinder's sides span its height) must not carry the origin past the eye.
         view = np.minimum(view, 0.5 * dist)
-    scale = face_scale(scene) if scale is None else scale
+    scale = scene.face_scale() if scale is None else scale
     return normal * (gain * scale[faces] + 1e-6 * scene.radius)[:, None] + toward * view[:, None]
 
 

@@ -1,101 +1,65 @@
-"""Feature edges of one frame (BRIEF 2): silhouette, border, crease, material, non-manifold, and
-the lines inside faces: smooth contours (contours.py), suggestive contours (suggestive.py) and
-intersection lines (intersections.py).
-
-All vectorized over the scene's edges. Facing is decided per face in float64 from the face plane
-(n . eye - n . centroid), one rule per face, so two neighbours never disagree about a shared
-edge-on face: a face with n.(eye - P) <= 0 counts as back-facing."""
+"""Feature edges of one frame: silhouette, border, crease, material, non-manifold, and the lines
+inside faces: smooth contours (contours.py), suggestive contours (suggestive.py) and
+intersection lines (intersections.py). All vectorized over the scene's edges; which faces face
+the eye is the frame's (facing.py)."""
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from strokekit.camera.view import Camera
 from strokekit.lines.contours import smooth_contours
+from strokekit.lines.facing import FrameView
 from strokekit.lines.intersections import intersection_edges
-from strokekit.lines.suggestive import SMOOTH_PASSES, curvature_tensors, suggestive_contour_edges
-from strokekit.lines.surface import front_facing, surface_lift
+from strokekit.lines.suggestive import SMOOTH_PASSES, suggestive_contour_edges
+from strokekit.lines.surface import surface_lift
 from strokekit.model import KIND_INDEX, FeatureEdges
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
-from strokekit.scene.tables import face_edges, face_scale, face_size, scene_cache, split_normals
 
 
-def _manifold_face_pairs(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """(E,) int32 first and second face of each manifold edge, F (one past the last face) elsewhere:
-    index a facing array padded with one False to compare the two faces of every edge at once."""
-    c = scene_cache(scene)
-    pairs = c.get("manifold_face_pairs")
-    if pairs is None:
-        F = len(scene.faces)
-        m = scene.is_manifold
-        ef = scene.edge_faces
-        pairs = (np.where(m, ef[:, 0], F).astype(np.intp), np.where(m, ef[:, 1], F).astype(np.intp))
-        c["manifold_face_pairs"] = pairs
-    return pairs
+@dataclass(frozen=True, eq=False)
+class StaticFeatures:
+    """What the feature edges of every frame share, built once per scene and options: each edge's
+    kind among those that do not depend on the camera, by priority (kind (E,) int8, -1 none,
+    read-only), and the intersection lines (None when not asked for)."""
+
+    kind: np.ndarray
+    intersections: FeatureEdges | None
 
 
-def static_feature_mask(scene: Scene, options: LineOptions) -> dict[str, np.ndarray]:
-    """Edge masks of the kinds that do not depend on the camera (computed once per scene)."""
-    out = {}
+def static_features(scene: Scene, options: LineOptions) -> StaticFeatures:
+    """The frames' StaticFeatures, and the scene tables the lines asked for built now, so that no
+    frame pays for them: vertex normals, normals split at creases and the face -> edge table
+    (smooth contours), curvature tensors (suggestive)."""
+    masks = {}
     if "border" in options.kinds:
-        out["border"] = scene.is_border
+        masks["border"] = scene.is_border
     if "nonmanifold" in options.kinds:
-        out["nonmanifold"] = scene.is_nonmanifold
+        masks["nonmanifold"] = scene.is_nonmanifold
     if "crease" in options.kinds:
-        out["crease"] = scene.crease_mask(options.crease_angle_deg)
+        masks["crease"] = scene.crease_mask(options.crease_angle_deg)
     if "material" in options.kinds and len(scene.materials) > 1:
-        out["material"] = scene.is_material_boundary
-    # Warm the per-scene caches of the lines inside faces now, so no frame pays for them: vertex
-    # normals, normals split at creases and the face -> edge table (smooth contours), curvature
-    # tensors (suggestive), the intersection segments (BVH + narrow phase). They live in
-    # scene_cache(scene).
+        masks["material"] = scene.is_material_boundary
+    kind = np.full(len(scene.edges), -1, np.int8)
+    # Lowest priority first so that higher kinds overwrite.
+    for name in ("material", "crease", "nonmanifold", "border"):
+        if name in masks:
+            kind[masks[name]] = KIND_INDEX[name]
+    kind.setflags(write=False)
     if wants_smooth_contours(options) or "suggestive" in options.kinds:
-        face_edges(scene), face_scale(scene), face_size(scene)
+        scene.face_edges, scene.face_scale(), scene.face_size
     if wants_smooth_contours(options):
-        split_normals(scene, options.crease_angle_deg), face_scale(scene, options.crease_angle_deg)
+        scene.split_normals(options.crease_angle_deg), scene.face_scale(options.crease_angle_deg)
     if "suggestive" in options.kinds:
-        curvature_tensors(scene, SMOOTH_PASSES)
-    if "intersection" in options.kinds:
-        intersection_edges(scene)
-    return out
+        scene.curvature_tensors(SMOOTH_PASSES)
+    return StaticFeatures(kind, intersection_edges(scene) if "intersection" in options.kinds else None)
 
 
-def _static_kinds(scene: Scene, static: dict[str, np.ndarray]) -> np.ndarray:
-    """(E,) int8 kind of every edge from the camera-independent masks (-1: none), by priority;
-    kept in `static` under "_kinds" (read-only), as the masks are kept for many frames."""
-    kind = static.get("_kinds")
-    if kind is None:
-        kind = np.full(len(scene.edges), -1, np.int8)
-        # Lowest priority first so that higher kinds overwrite.
-        for name in ("material", "crease", "nonmanifold", "border"):
-            if name in static:
-                kind[static[name]] = KIND_INDEX[name]
-        kind.setflags(write=False)
-        static["_kinds"] = kind
-    return kind
-
-
-def silhouette_mask(scene: Scene, camera: Camera) -> np.ndarray:
-    """(E,) manifold edges whose two faces face opposite ways. Read-only; the last camera's
-    answer is kept per scene (the hidden-line pass asks again for the outline)."""
-    c = scene_cache(scene)
-    last = c.get("silhouette_mask")
-    if last is not None and last[0] is camera:
-        return last[1]
-    ff = np.append(front_facing(scene, camera), False)
-    f0, f1 = _manifold_face_pairs(scene)
-    mask = np.take(ff, f0, mode="wrap") != np.take(ff, f1, mode="wrap")  # in range: no bounds check
-    mask.setflags(write=False)
-    c["silhouette_mask"] = (camera, mask)
-    return mask
-
-
-def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
-                  static: dict[str, np.ndarray] | None = None, with_lift: bool = False) -> FeatureEdges:
-    """Candidate feature edges for this camera. Each mesh edge gets one kind, in priority order
+def feature_edges(view: FrameView, options: LineOptions, static: StaticFeatures | None = None,
+                  with_lift: bool = False) -> FeatureEdges:
+    """Candidate feature edges of the frame. Each mesh edge gets one kind, in priority order
     silhouette > border > nonmanifold > crease > material; then the lines inside faces, each with
     its own occlusion-ray lift: smooth contours (`wants_smooth_contours`; they replace the mesh
     silhouettes when contours == "smooth"), suggestive contours and intersection lines, when
@@ -104,15 +68,16 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     meet each other at mesh vertex ids; a mesh edge such a piece covers whole gets no other kind,
     as a mesh silhouette edge gets none. `with_lift`: also give the mesh edges their occlusion-ray
     lift (lines.surface_lift) when no other part brings one."""
-    static = static_feature_mask(scene, options) if static is None else static
-    static_kind = _static_kinds(scene, static)
+    scene = view.scene
+    static = static_features(scene, options) if static is None else static
+    static_kind = static.kind
     mesh_silhouettes = "silhouette" in options.kinds and options.contours == "mesh"
     smooth = None
     if wants_smooth_contours(options):
         kind = static_kind.copy()
         if mesh_silhouettes:
-            kind[np.flatnonzero(silhouette_mask(scene, camera))] = KIND_INDEX["silhouette"]
-        smooth, whole = smooth_contours(scene, camera, crease_angle_deg=options.crease_angle_deg,
+            kind[np.flatnonzero(view.silhouettes)] = KIND_INDEX["silhouette"]
+        smooth, whole = smooth_contours(view, crease_angle_deg=options.crease_angle_deg,
                                         occlusion_offset=options.occlusion_offset)
         # The contour takes the whole edge from the lower kinds (as a mesh silhouette does; a mesh
         # silhouette drawn beside smooth contours keeps its edge).
@@ -121,7 +86,7 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
         kind_sel = kind[sel]
     elif mesh_silhouettes:
         # Silhouette over the static kinds, without writing an array of every edge.
-        sil_mask = silhouette_mask(scene, camera)
+        sil_mask = view.silhouettes
         sel = np.flatnonzero(sil_mask | (static_kind >= 0))
         kind_sel = np.where(sil_mask[sel], np.int8(KIND_INDEX["silhouette"]), static_kind[sel])
     else:
@@ -133,7 +98,7 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     face = ef[:, 0].copy()
     sil = kind_sel == KIND_INDEX["silhouette"]
     if sil.any():
-        ff = front_facing(scene, camera)
+        ff = view.front_facing
         second_front = ff[ef[sil, 1]]
         face[sil] = np.where(second_front, ef[sil, 1], ef[sil, 0])
     v = scene.vertices
@@ -143,16 +108,16 @@ def feature_edges(scene: Scene, camera: Camera, options: LineOptions,
     if smooth is not None:
         parts.append(smooth)
     if "suggestive" in options.kinds:
-        parts.append(suggestive_contour_edges(scene, camera, options))
+        parts.append(suggestive_contour_edges(view, options))
     if "intersection" in options.kinds:
-        parts.append(intersection_edges(scene))
+        parts.append(static.intersections if static.intersections is not None else intersection_edges(scene))
     if len(parts) == 1 and not with_lift:
         return mesh
     if len(mesh) or len(parts) == 1:
         # Lines inside faces bring their own lift, so the concatenation has one and the renderer
         # would not add the mesh edges' lift (it only fills a missing one): add it here.
 
-        parts[0] = replace(mesh, lift=surface_lift(scene, mesh, camera, options.occlusion_offset, edge_index=sel,
+        parts[0] = replace(mesh, lift=surface_lift(view, mesh, options.occlusion_offset, edge_index=sel,
                                                    edge_faces=ef))
     if len(parts) == 1:
         return parts[0]

@@ -19,7 +19,6 @@ import numpy as np
 
 from strokekit.model import KIND_INDEX, FeatureEdges
 from strokekit.scene.load import Scene
-from strokekit.scene.tables import scene_cache
 
 #: Signed plane distances below this fraction of the scene radius count as exactly zero, so that
 #: touching surfaces whose float coordinates differ by rounding do not cross.
@@ -123,17 +122,14 @@ def triangle_intersections(scene: Scene, i: np.ndarray, j: np.ndarray):
 
 def intersection_edges(scene: Scene) -> FeatureEdges:
     """All intersection segments of the scene (kind "intersection"), world space; `face` is the
-    lower-numbered face of each pair. Cached per scene."""
-    cache = scene_cache(scene)
-    if "intersection_edges" not in cache:
-        i, j = candidate_pairs(scene)
-        keep, a, b = triangle_intersections(scene, i, j)
-        ka, kb = merge_coincident_keys(len(scene.vertices), a, b, PLANE_TOL * scene.radius)
-        face = i[keep]
-        cache["intersection_edges"] = FeatureEdges(
-            a=a, b=b, kind=np.full(len(a), KIND_INDEX["intersection"], np.int8), va=ka.astype(np.int64),
-            vb=kb.astype(np.int64), face=face.astype(np.int64))
-    return cache["intersection_edges"]
+    lower-numbered face of each pair. The same in every frame: the renderer builds them once
+    (features.StaticFeatures)."""
+    i, j = candidate_pairs(scene)
+    keep, a, b = triangle_intersections(scene, i, j)
+    ka, kb = merge_coincident_keys(len(scene.vertices), a, b, PLANE_TOL * scene.radius)
+    face = i[keep]
+    return FeatureEdges(a=a, b=b, kind=np.full(len(a), KIND_INDEX["intersection"], np.int8), va=ka.astype(np.int64),
+                        vb=kb.astype(np.int64), face=face.astype(np.int64))
 
 
 def merge_coincident_keys(V: int, a: np.ndarray, b: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:

@@ -4,8 +4,8 @@ on first use: drawings of visible lines only never import numba."""
 
 from __future__ import annotations
 
+from strokekit.lines.levels import LEVEL_KERNELS
 from strokekit.numba_cache import KernelGroup, LazyKernels
-from strokekit.scene.occluder import LEVEL_KERNELS
 
 LINES = LazyKernels("strokekit.lines.compiled")
 HIDDEN_LINES = KernelGroup("hidden-line", (LINES, LEVEL_KERNELS), compile_seconds=15)

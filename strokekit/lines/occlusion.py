@@ -1,17 +1,17 @@
-"""Occlusion levels of feature edges (issue 20): the pieces of every candidate edge with the number
+"""Occlusion levels of feature edges: the pieces of every candidate edge with the number
 of surfaces that hide them (Freestyle's quantitative invisibility, Line Art's occlusion levels),
 split where the level changes, for hidden-line drawings (`LineOptions.occlusion`).
 
 The level of a point is the number of triangles the open segment from it to the eye (parallel
 cameras: along the projection rays, to the near plane) crosses, its own faces excluded
-(BRIEF 2): level 0 is visible (`Occluder.levels`: every hit of a ray in one Embree call).
+(level 0 is visible; `lines.levels` counts them, every hit of a ray from one Embree call).
 
 Where levels change (Appel's observation, the basis of Freestyle's QI): a ray from a point on
 the edge gains or loses surfaces where the point passes behind the outline of the scene (its
 contour edges, borders, non-manifold edges) in the image. So every clipped edge is cut where its
 image crosses the image of an outline edge lying in front of it (`outline_crossings`: exact to
-float64, no tolerance), and one level is counted per piece. On a bunny orbit frame 98.7% of
-the level changes that bisection found lay within 0.05 px of such a crossing. The other changes
+float64, no tolerance), and one level is counted per piece: nearly every change of level lies at
+such a crossing. The other changes
 (an edge that pierces a surface, faces the camera sees edge-on, the rounding at a grazing ray)
 are caught as in `visibility.visible_runs`: a piece longer than `sample_spacing_px` gets a
 sample every spacing, and a change between two samples is bisected to `bisection_tol_px` (a
@@ -30,14 +30,14 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.camera.view import Camera
-from strokekit.lines.features import silhouette_mask
+from strokekit.lines.facing import FrameView
 from strokekit.lines.kernels import kernels
-from strokekit.lines.visibility import _visible_runs_of, clip_segments, clipped_on_screen, world_between
+from strokekit.lines.levels import levels
+from strokekit.lines.visibility import clip_segments, clipped_on_screen, visible_runs_of, world_between
 from strokekit.model import MAX_OCCLUSION, N_KINDS, FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
-from strokekit.scene.tables import scene_cache
 
 #: Halvings at most (a 2^60 px bracket): the loop ends when every bracket is within tolerance.
 MAX_HALVINGS = 60
@@ -45,12 +45,12 @@ MAX_HALVINGS = 60
 GRID_PX = 8.0
 
 
-def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, options: LineOptions,
-                   scene: Scene) -> VisibleRuns:
+def occlusion_runs(features: FeatureEdges, view: FrameView, occluder: Occluder, options: LineOptions) -> VisibleRuns:
     """The pieces of the feature edges whose occlusion level lies in `options.occlusion`
     (lo, hi), each with its level in its kind code. Without `bisect_changes` (the draft preset)
     a change between two samples lies in the middle of their bracket; changes at outline
     crossings are exact in every preset."""
+    scene, camera = view.scene, view.camera
     lo_level, hi_level = options.occlusion
     limit = min(hi_level, MAX_OCCLUSION) + 1  # counting further changes nothing kept
     a, b = features.a, features.b
@@ -66,14 +66,14 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     own, ends = own_faces(scene, features, idx)
 
     def level_at(seg_i, s_i):  # (rows gathered by take: fancy indexing costs several times more)
-        return occluder.levels(world_at(seg_i, s_i), camera, options.occlusion_offset,
+        return levels(occluder, world_at(seg_i, s_i), camera, options.occlusion_offset,
                                None if lift is None else lift.take(seg_i, axis=0), size.take(seg_i), limit,
                                own.take(seg_i, axis=0), ends.take(seg_i, axis=0))
 
     # Pieces between the outline crossings; samples at the middles of equal parts of each piece,
     # one part per sample_spacing_px (whole_edge_px: a short segment is one piece, one sample).
     cx_seg, cx_s, cx_edge, cx_end, cx_gap = outline_crossings(
-        scene, camera, near, pa, pb, za, zb, np.where(features.va[idx] >= 0, features.va[idx], -1),
+        view, near, pa, pb, za, zb, np.where(features.va[idx] >= 0, features.va[idx], -1),
         np.where(features.vb[idx] >= 0, features.vb[idx], -1), edges=True)
     whole = L < options.whole_edge_px
     keep_cx = np.flatnonzero(~whole[cx_seg])
@@ -132,7 +132,7 @@ def occlusion_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, o
     X0, X1 = world_at(run_seg, s0), world_at(run_seg, s1)
     p0, _ = camera.project(X0)
     p1, _ = camera.project(X1)
-    runs = _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
+    runs = visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
     code = runs.kind.astype(np.int64) + N_KINDS * np.minimum(level, MAX_OCCLUSION)
     return VisibleRuns(edge=runs.edge, X0=runs.X0, X1=runs.X1, p0=runs.p0, p1=runs.p1, key0=runs.key0,
                        key1=runs.key1, kind=code.astype(np.int8), face=runs.face)
@@ -206,10 +206,7 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
     mesh = (va >= 0) & (vb >= 0) & (va < V) & (vb < V)
     if mesh.any():
         lo, hi = np.minimum(va[mesh], vb[mesh]), np.maximum(va[mesh], vb[mesh])
-        keys = scene_cache(scene).get("edge_keys")
-        if keys is None:  # (the same every frame: 0.3 ms of the bunny's)
-            keys = scene.edges[:, 0].astype(np.int64) * (V + 1) + scene.edges[:, 1]
-            scene_cache(scene)["edge_keys"] = keys
+        keys = scene.edge_keys
         q = lo * (V + 1) + hi
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
@@ -219,18 +216,13 @@ def own_faces(scene: Scene, features: FeatureEdges, idx: np.ndarray) -> tuple[np
     return faces, ends
 
 
-def outline_edges(scene: Scene, camera: Camera, silhouettes: np.ndarray | None = None) -> np.ndarray:
+def outline_edges(view: FrameView) -> np.ndarray:
     """The scene edges where what hides a point can change: contour edges (a front and a back
-    face; `silhouettes`, the frame's silhouette_mask, when known), borders and non-manifold edges."""
-    sil = silhouette_mask(scene, camera) if silhouettes is None else silhouettes
-    fixed = scene_cache(scene).get("outline_fixed")
-    if fixed is None:
-        fixed = scene.is_border | scene.is_nonmanifold
-        scene_cache(scene)["outline_fixed"] = fixed
-    return np.flatnonzero(sil | fixed)
+    face), borders and non-manifold edges (those not manifold)."""
+    return np.flatnonzero(view.silhouettes | ~view.scene.is_manifold)
 
 
-def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb, va, vb, edges: bool = False):
+def outline_crossings(view: FrameView, near: float, pa, pb, za, zb, va, vb, edges: bool = False):
     """(segment (K,), s (K,)): where the image of each clipped segment pa -> pb (px; view depths
     za, zb at its ends; mesh vertices va, vb, -1 for none) crosses the image of an outline edge
     (`outline_edges`, clipped alike) that lies in front of it there, at screen parameter 0 < s < 1,
@@ -238,7 +230,8 @@ def outline_crossings(scene: Scene, camera: Camera, near: float, pa, pb, za, zb,
     at its end, not across it, and are skipped. With `edges`, also per place: the scene edge
     crossed (-1 where several meet there), the place's distance (px) to the nearer end of its
     image and the relative depth gap (zf - zc) / zf of the outline in front of the segment."""
-    eid = outline_edges(scene, camera)
+    scene, camera = view.scene, view.camera
+    eid = outline_edges(view)
     E = scene.edges.take(eid, axis=0)
     none = (np.zeros(0, np.int64), np.zeros(0))
     if edges:
@@ -291,25 +284,13 @@ def crossing_deltas(scene: Scene, camera: Camera, occluder: Occluder, edge: np.n
     (K, 2) or one the occluder leaves out, a face or the segment within 1e-6 (relative) of the
     plane, the outline within 1e-6 (relative depth `gap`) in front of the segment, or the place
     within 1e-3 px (`end_px`) of the ends of the edge's image."""
-    kept = _kept_faces(occluder)
+    kept = occluder.kept_faces
     view = camera.ray_dir if camera.is_ortho else camera.eye
     return kernels().crossing_deltas(
         np.ascontiguousarray(edge, np.int64), end_px, gap, np.ascontiguousarray(ab), np.ascontiguousarray(own),
         scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=False),
         scene.faces.astype(np.int64, copy=False), scene.vertices, np.asarray(view, float), bool(camera.is_ortho),
         np.zeros(0, bool) if kept is None else kept, NO_DELTA)
-
-
-def _kept_faces(occluder: Occluder) -> np.ndarray | None:
-    """(F,) the faces an occluder hides with, None for all."""
-    if occluder.face_index is None:
-        return None
-    kept = getattr(occluder, "_kept_mask", None)
-    if kept is None:
-        kept = np.zeros(len(occluder.scene.faces), bool)
-        kept[occluder.face_index] = True
-        occluder._kept_mask = kept
-    return kept
 
 
 def _bisect_levels(cs, lo, hi, lev_lo, lev_hi, L, level_at, tol_px):

@@ -10,10 +10,12 @@ import numpy as np
 from strokekit.camera.view import Camera
 from strokekit.errors import InputError
 from strokekit.lines.chaining import chain_runs
-from strokekit.lines.features import feature_edges, static_feature_mask
+from strokekit.lines.facing import FrameView
+from strokekit.lines.features import feature_edges, static_features
 from strokekit.lines.occlusion import occlusion_runs
+from strokekit.lines.sightlines import eye_enclosed
 from strokekit.lines.strokeops import drop_overlaps, drop_short, simplify, split_max_length
-from strokekit.lines.surface import edge_on_faces, surface_lift
+from strokekit.lines.surface import surface_lift
 from strokekit.lines.visibility import visible_runs
 from strokekit.model import Strokes
 from strokekit.numba_cache import keyboard_interrupts
@@ -24,7 +26,7 @@ from strokekit.scene.occluder import Occluder
 
 @dataclass
 class LineRenderer:
-    """Holds what is built once per scene (BVH, static edge masks) for many frames."""
+    """Holds what is built once per scene (BVH, static features) for many frames."""
 
     scene: Scene
     options: LineOptions
@@ -33,25 +35,26 @@ class LineRenderer:
 
     def __post_init__(self):
         self.occluder = Occluder(self.scene, self.backend)
-        self.static = static_feature_mask(self.scene, self.options)
+        self.static = static_features(self.scene, self.options)
         if not self.options.retest_front_hits and self.occluder.backend == "open3d":
             _ = self.scene.face_normal_rows  # built with the scene, not by the first frame
         self._edge_on: tuple[bytes, Occluder] | None = None
 
-    def occluder_for(self, camera: Camera) -> Occluder:
+    def occluder_for(self, view: FrameView) -> Occluder:
         """The occluder of this frame's rays: the scene, less the faces the camera sees exactly
         edge-on (they hide nothing: a camera in a model's symmetry plane must see the lines behind
         the faces that lie in it). Such a BVH is built once per set of faces (a still camera, or
         the frames of a path that return to it) and kept for the next frames."""
-        edge_on = edge_on_faces(self.scene, camera)
+        edge_on = view.edge_on
         if not edge_on.any():
             return self.occluder
         key = np.packbits(edge_on).tobytes()
         if self._edge_on is None or self._edge_on[0] != key:
             self._edge_on = (key, self.occluder.without_faces(edge_on))
         return self._edge_on[1]
+
     def check_camera(self, camera: Camera, frame: int = 0) -> None:
-        if self.occluder.eye_enclosed(camera):
+        if eye_enclosed(self.occluder, camera):
             raise InputError(f"frame {frame}: the camera eye is inside the mesh (nothing can be seen)",
                              self.scene.source or None)
 
@@ -64,16 +67,17 @@ class LineRenderer:
     def _render(self, camera: Camera, frame: int, timings: dict | None) -> Strokes:
         opts = self.options
         clock = _Clock(timings)
-        fe = feature_edges(self.scene, camera, opts, self.static, with_lift=True)
+        view = FrameView(self.scene, camera)
+        fe = feature_edges(view, opts, self.static, with_lift=True)
         if fe.lift is None:
-            fe = replace(fe, lift=surface_lift(self.scene, fe, camera, opts.occlusion_offset))
+            fe = replace(fe, lift=surface_lift(view, fe, opts.occlusion_offset))
         clock.lap("feature edges")
-        occluder = self.occluder_for(camera)
+        occluder = self.occluder_for(view)
         if opts.occlusion is None:
             runs = visible_runs(fe, camera, occluder, opts, self.scene.radius)
             clock.lap("visibility")
         else:
-            runs = occlusion_runs(fe, camera, occluder, opts, self.scene)
+            runs = occlusion_runs(fe, view, occluder, opts)
             clock.lap("occlusion levels")
         strokes = chain_runs(runs, opts, camera=camera, frame=frame)
         # A run visible at a single point (an edge touching the view only at one sample) has no

@@ -10,7 +10,7 @@ import numpy as np
 
 from strokekit.lines.kernels import kernels
 from strokekit.model import KIND_INDEX, Strokes, bracket, kind_of, uclip
-from strokekit.sampling import resample_strokes, split_lengths, surface_between
+from strokekit.sampling import resample_strokes, surface_between
 
 
 def split_max_length(strokes: Strokes, max_length_px: float) -> Strokes:
@@ -47,23 +47,6 @@ def drop_short(strokes: Strokes, min_length_px: float) -> Strokes:
     if min_length_px <= 0 or len(strokes) == 0:
         return strokes
     return strokes.select(strokes.lengths >= min_length_px)
-
-
-def resample(strokes: Strokes, step_px: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points every ~`step_px` along all strokes (stroke vertices included): (M, 2) points and the
-    (M,) stroke index of each."""
-    if len(strokes.points) == 0:
-        return np.zeros((0, 2)), np.zeros(0, np.int64)
-    seg = strokes.segment_lengths
-    sop = strokes.stroke_of_point
-    # Segment i runs from point i-1 to point i (for non-first points).
-    seg_idx = np.flatnonzero(seg > 0)
-    piece, k, n = split_lengths(seg[seg_idx], step_px)
-    rep = seg_idx[piece]
-    t = (k / n[piece])[:, None]
-    pts = strokes.points[rep - 1] * (1 - t) + strokes.points[rep] * t
-    last = strokes.offsets[1:] - 1
-    return np.concatenate([pts, strokes.points[last]]), np.concatenate([sop[rep], sop[last]])
 
 
 def simplify(strokes: Strokes, tol_px: float) -> Strokes:

@@ -6,15 +6,10 @@ derivative along w is positive, on the part of the surface that faces the eye. T
 the true contours into the surface: the places that would become contours under a small change
 of view.
 
-Curvature: our own vectorized per-vertex curvature tensor after Rusinkiewicz 2004 ("Estimating
-curvatures and their derivatives on triangle meshes"): per face, the second fundamental form is
-the least-squares fit of the change of the vertex normals along the three edges; each vertex
-takes the area-weighted mean of its faces' tensors, projected onto its tangent plane (the paper
-rotates the face frame instead of projecting; the difference is second order in the angle
-between face and vertex normals), then optionally averaged over its one-ring (scans are noisy).
-Cached per scene. The derivative D_w k_r is the gradient of the piecewise-linear k_r field (each
-vertex's k_r uses that vertex's own view vector, so the view's change along w is included) taken
-along w, per face.
+Curvature: the scene's per-vertex curvature tensors (`Scene.curvature_tensors`, after
+Rusinkiewicz 2004), averaged over each vertex's one-ring SMOOTH_PASSES times (scans are noisy).
+The derivative D_w k_r is the gradient of the piecewise-linear k_r field (each vertex's k_r uses
+that vertex's own view vector, so the view's change along w is included) taken along w, per face.
 """
 
 from __future__ import annotations
@@ -23,88 +18,21 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.lines.contours import zero_set_segments
-from strokekit.lines.surface import front_facing
+from strokekit.lines.facing import FrameView
 from strokekit.model import KIND_INDEX, FeatureEdges
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
-from strokekit.scene.tables import face_scale, scene_cache, vertex_normals
 
 #: One-ring averaging passes of the curvature tensor used by default (scans such as the bunny
-#: are noisy at the scale of a face; 3 passes keep the torus within 0.003 of theory).
+#: are noisy at the scale of a face; a clean torus keeps its curvature through them).
 SMOOTH_PASSES = 3
-
-
-def curvature_tensors(scene: Scene, smooth_passes: int = 0) -> np.ndarray:
-    """(V, 3, 3) symmetric second fundamental form of each vertex as a world-space tensor S with
-    S n = 0: the normal curvature in unit tangent direction t is t.S.t (1 / world unit, > 0
-    where the surface bends away from its normal, e.g. 1/r on a sphere of radius r).
-    `smooth_passes` averages each vertex's tensor with its one-ring that many times. Cached."""
-    key = ("curvature_tensors", smooth_passes)
-    c = scene_cache(scene)
-    if key in c:
-        return c[key]
-    if smooth_passes > 0:
-        c[key] = _ring_average(scene, curvature_tensors(scene, smooth_passes - 1))
-        return c[key]
-    v, f = scene.vertices, scene.faces
-    nv = vertex_normals(scene)
-    P = v[f]  # (F, 3, 3)
-    N = nv[f]
-    fn = scene.face_normals
-    # Edges opposite each corner and the matching change of normal.
-    E = P[:, [2, 0, 1]] - P[:, [1, 2, 0]]  # (F, 3, 3)
-    dN = N[:, [2, 0, 1]] - N[:, [1, 2, 0]]
-    u = E[:, 0] / np.linalg.norm(E[:, 0], axis=1)[:, None]
-    w = np.cross(fn, u)
-    eu, ew = np.einsum("fki,fi->fk", E, u), np.einsum("fki,fi->fk", E, w)
-    nu, nw = np.einsum("fki,fi->fk", dN, u), np.einsum("fki,fi->fk", dN, w)
-    # Rows per edge: [eu, ew, 0] . (a, b, c) = nu and [0, eu, ew] . (a, b, c) = nw.
-    A = np.zeros((len(f), 6, 3))
-    A[:, 0::2, 0], A[:, 0::2, 1] = eu, ew
-    A[:, 1::2, 1], A[:, 1::2, 2] = eu, ew
-    rhs = np.empty((len(f), 6))
-    rhs[:, 0::2], rhs[:, 1::2] = nu, nw
-    AtA = np.einsum("fki,fkj->fij", A, A)
-    Atb = np.einsum("fki,fk->fi", A, rhs)
-    abc = np.linalg.solve(AtA, Atb[..., None])[..., 0]
-    a, b, cc = abc[:, 0], abc[:, 1], abc[:, 2]
-    Sf = (a[:, None, None] * np.einsum("fi,fj->fij", u, u)
-          + b[:, None, None] * (np.einsum("fi,fj->fij", u, w) + np.einsum("fi,fj->fij", w, u))
-          + cc[:, None, None] * np.einsum("fi,fj->fij", w, w))
-    area = scene.face_areas
-    idx = f.ravel()
-    wts = np.repeat(area, 3)
-    acc = np.stack([np.bincount(idx, wts * np.repeat(Sf[:, i // 3, i % 3], 3), minlength=len(v))
-                    for i in range(9)], axis=1).reshape(-1, 3, 3)
-    wsum = np.bincount(idx, wts, minlength=len(v))
-    S = acc / np.maximum(wsum, 1e-300)[:, None, None]
-    c[key] = _project_tangent(S, nv)
-    return c[key]
-
-
-def _project_tangent(S: np.ndarray, n: np.ndarray) -> np.ndarray:
-    Pm = np.eye(3)[None] - np.einsum("vi,vj->vij", n, n)
-    S = Pm @ S @ Pm
-    return 0.5 * (S + np.transpose(S, (0, 2, 1)))
-
-
-def _ring_average(scene: Scene, S: np.ndarray) -> np.ndarray:
-    """Mean of each vertex's tensor and its edge neighbours' tensors, re-projected."""
-    e = scene.edges
-    V = len(scene.vertices)
-    flat = S.reshape(V, 9)
-    acc = flat.copy()
-    for i in range(9):
-        acc[:, i] += np.bincount(e[:, 0], flat[e[:, 1], i], V) + np.bincount(e[:, 1], flat[e[:, 0], i], V)
-    cnt = 1.0 + np.bincount(e[:, 0], minlength=V) + np.bincount(e[:, 1], minlength=V)
-    return _project_tangent((acc / cnt[:, None]).reshape(V, 3, 3), vertex_normals(scene))
 
 
 def radial_curvature(scene: Scene, camera: Camera, smooth_passes: int = SMOOTH_PASSES):
     """Per vertex: (k_r (V,), ndotv (V,), w (V, 3)) with v the unit vector to the eye, w = v - n (n.v)
     the view projected on the tangent plane (length sin theta) and k_r = w.S.w / |w|^2
     (1 / world unit; 0 where w vanishes)."""
-    n = vertex_normals(scene)
+    n = scene.vertex_normals
     if camera.is_ortho:
         view = np.broadcast_to(-camera.view_dir, n.shape)  # (-fwd but for oblique rays)
     else:
@@ -112,7 +40,7 @@ def radial_curvature(scene: Scene, camera: Camera, smooth_passes: int = SMOOTH_P
         view = view / np.linalg.norm(view, axis=1)[:, None]
     ndotv = np.einsum("ij,ij->i", n, view)
     w = view - n * ndotv[:, None]
-    S = curvature_tensors(scene, smooth_passes)
+    S = scene.curvature_tensors(smooth_passes)
     w2 = np.einsum("ij,ij->i", w, w)
     ok = w2 > 1e-24
     kr = np.where(ok, np.einsum("vi,vij,vj->v", w, S, w) / np.where(ok, w2, 1.0), 0.0)
@@ -132,7 +60,7 @@ def face_gradients(scene: Scene, values: np.ndarray, faces: np.ndarray) -> np.nd
     return g / (2.0 * scene.face_areas[faces])[:, None]
 
 
-def suggestive_contour_edges(scene: Scene, camera: Camera, options: LineOptions | None = None,
+def suggestive_contour_edges(view: FrameView, options: LineOptions | None = None,
                              smooth_passes: int | None = None, return_tests: bool = False):
     """Suggestive contour segments of one frame (kind "suggestive"), one per face, endpoints on
     mesh edges (chaining keys V + edge index, as smooth contours).
@@ -145,11 +73,12 @@ def suggestive_contour_edges(scene: Scene, camera: Camera, options: LineOptions 
     D_w k_r / cos(theta) with unnormalized w: it removes lines where the eye looks straight down
     the normal, where they are unstable). With `return_tests`, also returns T (S,) per segment."""
 
+    scene, camera = view.scene, view.camera
     opts = options or LineOptions()
     R = scene.radius
     kr, ndotv, w = radial_curvature(scene, camera, SMOOTH_PASSES if smooth_passes is None else smooth_passes)
     f = scene.faces
-    front = (ndotv[f] > 0).all(axis=1) & front_facing(scene, camera)
+    front = (ndotv[f] > 0).all(axis=1) & view.front_facing
     if opts.suggestive_kr_threshold > 0:
         front &= np.abs(kr[f]).max(axis=1) >= opts.suggestive_kr_threshold / R
     zs = zero_set_segments(scene, kr, front)
@@ -171,7 +100,7 @@ def suggestive_contour_edges(scene: Scene, camera: Camera, options: LineOptions 
     key = zs.keys  # V + edge index
     # Lines on front faces: a ray to the eye leaves the face on its open side; a small lift
     # along the face normal keeps float32 rounding in the neighbouring faces from catching it.
-    lift = scene.face_normals[faces] * (0.25 * face_scale(scene)[faces] + 1e-6 * R)[:, None]
+    lift = scene.face_normals[faces] * (0.25 * scene.face_scale()[faces] + 1e-6 * R)[:, None]
     out = FeatureEdges(a=pts[ia], b=pts[ib], kind=np.full(len(faces), KIND_INDEX["suggestive"], np.int8),
                        va=key[ia], vb=key[ib], face=faces.astype(np.int64), lift=lift)
     return (out, test) if return_tests else out

@@ -1,64 +1,16 @@
-"""Where a frame's lines lie on the surface: which faces face the eye (`front_facing`), and
-the lift of occlusion-ray origins off the surface they start on (`surface_lift`), so a ray from
-a point on a face does not hit that face or its neighbours."""
+"""The lift of occlusion-ray origins off the surface a frame's lines start on (`surface_lift`), so
+a ray from a point on a face does not hit that face or its neighbours."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from strokekit.camera.view import Camera
+from strokekit.lines.facing import FrameView
 from strokekit.model import KIND_INDEX, FeatureEdges, row_norm
 from strokekit.scene.load import Scene
-from strokekit.scene.tables import scene_cache
-
-#: A face is seen edge-on when the eye lies within this fraction of the eye's distance (plus the
-#: scene radius) of its plane (parallel cameras: the rays' direction within this of its plane):
-#: float64 rounding of an exactly edge-on face (the eye in a model's symmetry plane) and nothing
-#: a pixel could show (at 1e-12 rad a face 1e6 px long is 1e-6 px wide).
-EDGE_ON_TOL = 1e-12
 
 
-def front_facing(scene: Scene, camera: Camera) -> np.ndarray:
-    """(F,) True where the face's front side faces the eye (perspective) or the view (ortho).
-    A face seen exactly edge-on (`edge_on_faces`) faces neither way and counts as back-facing,
-    whatever the rounding of its n.(eye - P) says. Read-only; the last camera's answer is kept
-    per scene (a frame asks for it several times)."""
-    return _facing(scene, camera)[0]
-
-
-def edge_on_faces(scene: Scene, camera: Camera) -> np.ndarray:
-    """(F,) True where the frame sees the face exactly edge-on (EDGE_ON_TOL): the eye in its
-    plane, or for a parallel camera the projection rays along it. Such a face covers no area and
-    hides nothing (BRIEF 2): the renderer leaves it out of the occlusion rays, and it counts as
-    back-facing. Kept per scene for the last camera."""
-    return _facing(scene, camera)[1]
-
-
-def _facing(scene: Scene, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """(front_facing, edge_on) of the faces for the camera, cached together."""
-    c = scene_cache(scene)
-    last = c.get("front_facing")
-    if last is not None and last[0] is camera:
-        return last[1], last[2]
-    n = scene.face_normals
-    if camera.is_ortho:
-        d = camera.ray_dir  # (fwd but for the oblique projections: their rays' direction)
-        g = n @ -d
-        tol = EDGE_ON_TOL * float(np.linalg.norm(d))
-    else:
-        # n.eye - offset > 0 (a difference of doubles is 0 only when they are equal).
-        eye = np.asarray(camera.eye, float)
-        g = n @ eye - scene.face_offsets
-        tol = EDGE_ON_TOL * float(np.linalg.norm(eye - scene.center) + scene.radius)
-    ff = g > tol
-    on = np.abs(g) <= tol
-    ff.setflags(write=False)
-    on.setflags(write=False)
-    c["front_facing"] = (camera, ff, on)  # holds the camera: its id cannot be reused while cached
-    return ff, on
-
-
-def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float,
+def surface_lift(view: FrameView, fe: FeatureEdges, fraction: float,
                  edge_index: np.ndarray | None = None, edge_faces: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) ray-origin offsets for mesh-edge features: `fraction` x scene radius along the mean
     normal of the edge's faces that face the eye (all its faces, turned around, when none does).
@@ -73,6 +25,7 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     `edge_index` (N,), if given, is the scene edge of each feature (all mesh edges, va < vb as
     in scene.edges): it saves looking the edges up by their vertices; `edge_faces` (N, 2), with
     it, their scene.edge_faces rows."""
+    scene = view.scene
     lift = np.zeros((len(fe), 3))
     V = len(scene.vertices)
     if edge_index is not None and edge_faces is not None:  # every feature is a mesh edge
@@ -92,13 +45,13 @@ def surface_lift(scene: Scene, fe: FeatureEdges, camera: Camera, fraction: float
     else:
         lo = np.minimum(fe.va[mesh], fe.vb[mesh])
         hi = np.maximum(fe.va[mesh], fe.vb[mesh])
-        keys = scene.edges[:, 0] * (V + 1) + scene.edges[:, 1]  # sorted: edges are sorted rows
+        keys = scene.edge_keys
         q = lo * (V + 1) + hi
         pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
         found = keys[pos] == q
     if not (edge_faces is not None and all_mesh):
         ef = np.take(scene.edge_faces, pos, axis=0)
-    ff = front_facing(scene, camera)
+    ff = view.front_facing
     if edge_faces is not None and all_mesh:
         rows = _lift_rows(scene, fe, ef, ff, fraction)
         if rows is not None:

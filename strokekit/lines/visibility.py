@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.camera.view import Camera
+from strokekit.lines.sightlines import visible, visible_local, visible_rows
 from strokekit.model import FeatureEdges, VisibleRuns, row_norm
 from strokekit.options import LineOptions
 from strokekit.scene.occluder import Occluder
@@ -140,19 +141,19 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
         return world_between(A, B, za, zb, camera.is_ortho, seg_i, s_i)
 
     lift = None if features.lift is None else features.lift[idx]
-    # Local size for the ray offset: the segment's world length (see Occluder.visible).
+    # Local size for the ray offset: the segment's world length (see sightlines.visible).
     size = row_norm(ab)
     offset = options.occlusion_offset
     retest = options.retest_front_hits
     if lift is not None and not camera.is_ortho and occluder.backend == "open3d":
-        # The same samples and rays on (3, N) rows (Occluder.visible_rows): the per-segment
+        # The same samples and rays on (3, N) rows (sightlines.visible_rows): the per-segment
         # arrays are gathered once for the samples and once for the bisected changes.
         At, Dt, liftT = A.T.copy(), (B - A).T.copy(), lift.T.copy()
 
         def visible_at(seg_i, s_i):
             z0, z1 = za.take(seg_i), zb.take(seg_i)
             lam = s_i * z0 / ((1 - s_i) * z1 + s_i * z0)
-            return occluder.visible_rows(At.take(seg_i, axis=1) + lam * Dt.take(seg_i, axis=1), camera, offset,
+            return visible_rows(occluder, At.take(seg_i, axis=1) + lam * Dt.take(seg_i, axis=1), camera, offset,
                                          liftT.take(seg_i, axis=1), size.take(seg_i),
                                          retest)
 
@@ -163,12 +164,12 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
 
             def at(mid, m):
                 lam = mid * z0[:m] / ((1 - mid) * z1[:m] + mid * z0[:m])
-                return occluder.visible_rows(A_c[:, :m] + lam * D_c[:, :m], camera, offset, lift_c[:, :m], size_c[:m],
+                return visible_rows(occluder, A_c[:, :m] + lam * D_c[:, :m], camera, offset, lift_c[:, :m], size_c[:m],
                                              retest)
             return at
     else:
         def visible_at(seg_i, s_i):
-            return occluder.visible(world_at(seg_i, s_i), camera, offset,
+            return visible(occluder, world_at(seg_i, s_i), camera, offset,
                                     None if lift is None else lift[seg_i], size[seg_i])
 
         def bisect_visible(cs):
@@ -211,10 +212,10 @@ def visible_runs(features: FeatureEdges, camera: Camera, occluder: Occluder, opt
     X0, X1 = world_at(run_seg, s0), world_at(run_seg, s1)
     p0, _ = camera.project(X0)
     p1, _ = camera.project(X1)
-    return _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
+    return visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
 
 
-def _visible_runs_of(features: FeatureEdges, fe, t0, t1, s0, s1, X0, X1, p0, p1) -> VisibleRuns:
+def visible_runs_of(features: FeatureEdges, fe, t0, t1, s0, s1, X0, X1, p0, p1) -> VisibleRuns:
     """VisibleRuns of the runs on feature edges fe, each from parameter s0 to s1 of its clipped
     segment (t0, t1: the clip of every feature edge). A run end keys on its mesh vertex where it
     is the unclipped edge end (so chaining links runs through shared vertices), on a fresh
@@ -237,7 +238,7 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     clipped; segments shorter than `whole_edge_px` (most of a draft frame) are one ray each and,
     when visible, one run whose ends are the segment's ends, taken as they are (no
     re-projection); only the longer segments go through sampling and run assembly. The rays are
-    built in the Embree frame (Occluder.visible_local), in float64 and rounded to float32 once at
+    built in the Embree frame (sightlines.visible_local), in float64 and rounded to float32 once at
     the end, as the other path does: built in float32, a ray from an edge resting on a floor, seen
     at a grazing angle, started inside the floor."""
     a, b = features.a, features.b
@@ -285,7 +286,7 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     At = (A.T - occluder.origin[:, None]) * k
     Dt = (D * k).T
     liftT = (lift * k).T
-    size = row_norm(b - a) * k  # the segment's world length (Occluder.visible)
+    size = row_norm(b - a) * k  # the segment's world length (sightlines.visible)
     offset, retest = options.occlusion_offset, options.retest_front_hits
 
     def lam_at(seg_i, s_i):
@@ -294,7 +295,7 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
 
     lam = lam_at(seg, s)
     P = At.take(seg, axis=1) + lam * Dt.take(seg, axis=1)
-    vis = occluder.visible_local(P, camera, offset, liftT.take(seg, axis=1), size.take(seg), retest)
+    vis = visible_local(occluder, P, camera, offset, liftT.take(seg, axis=1), size.take(seg), retest)
     runs_w = w_seg[vis[:nw]]
     vis_l = vis[nw:]
     if len(vis_l):
@@ -332,4 +333,4 @@ def _visible_runs_sampled(features: FeatureEdges, camera: Camera, occluder: Occl
     X1 = np.concatenate([np.take(B, runs_w, axis=0), X1_l]).take(order, axis=0)
     p0 = np.concatenate([np.take(pa, runs_w, axis=0), p_l[:m]]).take(order, axis=0)
     p1 = np.concatenate([np.take(pb, runs_w, axis=0), p_l[m:]]).take(order, axis=0)
-    return _visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)
+    return visible_runs_of(features, idx[run_seg], t0, t1, s0, s1, X0, X1, p0, p1)

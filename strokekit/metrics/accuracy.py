@@ -5,7 +5,7 @@ recall    = share of the reference length that lies within `tol` px of a drawn l
 The reference is the tool's own slowest setting (the `exact` preset). Both drawings are cut into
 pieces of at most `step_px` (default 0.1 px); each piece counts with its length at its midpoint,
 and its distance to the other drawing is measured with a k-d tree over that drawing's points
-resampled at the same step (strokekit.lines.strokeops.resample), so distances are exact to step/2 px.
+resampled at the same step (both `sampling.segment_samples`), so distances are exact to step/2 px.
 """
 
 from __future__ import annotations
@@ -16,32 +16,15 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from strokekit.lines.contours import smooth_contour_edges
-from strokekit.lines.features import silhouette_mask
-from strokekit.lines.strokeops import resample
+from strokekit.lines.facing import FrameView
+from strokekit.lines.sightlines import visible
 from strokekit.lines.surface import surface_lift
 from strokekit.model import FeatureEdges, Strokes
-from strokekit.sampling import split_lengths
+from strokekit.sampling import segment_samples
 from strokekit.scene.occluder import Occluder
-from strokekit.scene.tables import face_size
 
 #: Default distance tolerances (px) reported by `strokekit bench`.
 DEFAULT_TOLS: tuple[float, ...] = (0.5, 1.0, 2.0)
-
-
-def length_samples(strokes: Strokes, step_px: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    """Midpoints (M, 2) px of pieces of at most `step_px` px along every stroke, and each piece's
-    length (M,) px. The weights sum to the total drawn length."""
-    if len(strokes) == 0 or len(strokes.points) == 0:
-        return np.zeros((0, 2)), np.zeros(0)
-    seg = strokes.segment_lengths  # length of the segment ending at each point
-    seg_idx = np.flatnonzero(seg > 0)
-    if len(seg_idx) == 0:  # only zero-length strokes: nothing drawn
-        return np.zeros((0, 2)), np.zeros(0)
-    piece, k, n = split_lengths(seg[seg_idx], step_px)
-    rep = seg_idx[piece]
-    t = ((k + 0.5) / n[piece])[:, None]
-    mid = strokes.points[rep - 1] * (1 - t) + strokes.points[rep] * t
-    return mid, (seg[seg_idx] / n)[piece]
 
 
 @dataclass
@@ -77,11 +60,11 @@ def _ratio(near: float, total: float, other_total: float) -> float:
 
 
 def _near_length(query: Strokes, against: Strokes, tols: tuple[float, ...], step_px: float) -> tuple[float, np.ndarray]:
-    mid, w = length_samples(query, step_px)
+    mid, _, w = segment_samples(query.points, query.offsets, step_px, middles=True)
     total = float(w.sum())
     if len(mid) == 0:
         return total, np.zeros(len(tols))
-    pts, _ = resample(against, step_px)
+    pts, _, _ = segment_samples(against.points, against.offsets, step_px)
     if len(pts) == 0:
         return total, np.zeros(len(tols))
     tree = cKDTree(pts)
@@ -142,11 +125,12 @@ def mesh_contour_samples(scene, camera, n: int = 16) -> tuple[np.ndarray, np.nda
     """Samples (M, 3) world of the mesh contour edges (BRIEF 2 silhouettes), n per edge, and their
     occlusion-ray lifts (M, 3) as the line pass tests them (lines.surface_lift)."""
 
-    E = scene.edges[silhouette_mask(scene, camera)]
+    view = FrameView(scene, camera)
+    E = scene.edges[view.silhouettes]
     a, b = scene.vertices[E[:, 0]], scene.vertices[E[:, 1]]
     fe = FeatureEdges(a=a, b=b, kind=np.zeros(len(E), np.int8), va=E[:, 0], vb=E[:, 1],
                       face=np.zeros(len(E), np.int64))
-    lift = surface_lift(scene, fe, camera, 1e-5)
+    lift = surface_lift(view, fe, 1e-5)
     t = (np.arange(n) + 0.5) / n
     Q = (a[:, None] * (1 - t)[None, :, None] + b[:, None] * t[None, :, None]).reshape(-1, 3)
     return Q, np.repeat(lift, n, axis=0)
@@ -167,14 +151,14 @@ def smooth_contour_wrongly_hidden(scene, cameras, tol_px: float = 1.0, samples_p
     s = (np.arange(ns) + 0.5) / ns
     wrong = total = far = total_vis = 0.0
     for cam in cameras:
-        fe = smooth_contour_edges(scene, cam)
+        fe = smooth_contour_edges(FrameView(scene, cam))
         P = (fe.a[:, None] * (1 - s)[None, :, None] + fe.b[:, None] * s[None, :, None]).reshape(-1, 3)
         seg = np.repeat(np.arange(len(fe)), ns)
         pp, _ = cam.project(P)
         w = np.repeat(np.linalg.norm(cam.project(fe.b)[0] - cam.project(fe.a)[0], axis=1) / ns, ns)
-        vis = occ.visible(P, cam, 1e-5, fe.lift[seg] if lift else None)
+        vis = visible(occ, P, cam, 1e-5, fe.lift[seg] if lift else None)
         Q, q_lift = mesh_contour_samples(scene, cam)
-        Qv = Q[occ.visible(Q, cam, 1e-5, q_lift)]
+        Qv = Q[visible(occ, Q, cam, 1e-5, q_lift)]
         tree = cKDTree(cam.project(Qv)[0])
         if all_visible:
             truth = np.ones(len(P), bool)
@@ -182,7 +166,7 @@ def smooth_contour_wrongly_hidden(scene, cameras, tol_px: float = 1.0, samples_p
             dist, i = tree.query(pp, distance_upper_bound=tol_px)
             near = np.isfinite(dist)
             truth = np.zeros(len(P), bool)
-            truth[near] = np.linalg.norm(Qv[i[near]] - P[near], axis=1) < 2 * face_size(scene)[fe.face[seg[near]]]
+            truth[near] = np.linalg.norm(Qv[i[near]] - P[near], axis=1) < 2 * scene.face_size[fe.face[seg[near]]]
         wrong += w[truth & ~vis].sum()
         total += w[truth].sum()
         d2, _ = tree.query(pp, distance_upper_bound=2.0)

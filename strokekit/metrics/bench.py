@@ -20,7 +20,7 @@ import numpy as np
 from strokekit.camera.paths import orbit_path
 from strokekit.camera.view import Camera
 from strokekit.fileio import atomic_write_bytes
-from strokekit.lines.features import static_feature_mask
+from strokekit.lines.features import static_features
 from strokekit.lines.renderer import LineRenderer
 from strokekit.metrics.accuracy import DEFAULT_TOLS, Accuracy, accuracy
 from strokekit.model import Strokes
@@ -105,7 +105,7 @@ def _renderer_with(base: LineRenderer, options: LineOptions) -> LineRenderer:
     differ only in accuracy knobs, never in the scene)."""
     r = copy.copy(base)
     r.options = options
-    r.static = static_feature_mask(base.scene, options)
+    r.static = static_features(base.scene, options)
     return r
 
 

@@ -19,12 +19,16 @@ the screen position of the projected point, never on identical surface points.
   c = level + 1 - level_weight. `flatness_blend` counts the two octaves apart with their
   weights instead (an upper bound: 1/3 octave on average even for a perfect level choice).
 - M7 end growth: per id present in both frames, |L' - L| in px.
+- M8 wholeness, one frame against the same frame drawn afresh (`--no-coherence`): path ends per
+  1000 px drawn, 2 per open stroke, none for a loop (a stroke whose ends lie within LOOP_PX);
+  over a sequence the tracked value, the fresh one and their ratio, each the median over the
+  second half of the frames (where a tracker that only ever splits has crumbled).
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -180,8 +184,9 @@ def overall(pairs: list[PairMetrics]) -> dict:
             **_stats("M7", np.concatenate([p.growth_px for p in pairs]))}
 
 
-def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
-    """The frame JSON files of a folder named by `pattern` (render --pattern), sorted by name."""
+def frame_files(out_dir, pattern: str = "frame_{frame:04d}", at_least: int = 2) -> list[Path]:
+    """The frame JSON files of a folder named by `pattern` (render --pattern), sorted by name; fewer
+    than `at_least` is an InputError."""
 
     check_pattern(pattern)
     d = Path(out_dir)
@@ -222,20 +227,21 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}") -> list[Path]:
         return False
 
     files = sorted(p for p in d.glob(glob) if named_by_pattern(p.name))  # (not render's .strokekit-run.json)
-    if len(files) < 2:
+    if len(files) < at_least:
         hint = " (its frames have no JSON: render without --no-json)" if not files and any(d.glob(glob[:-5] + ".svg")) else ""
-        raise InputError(f"needs at least 2 {glob} files to compare, found {len(files)}{hint}", d)
+        need = f"needs at least {at_least} {glob} files to compare" if at_least > 1 else f"needs {glob} files"
+        raise InputError(f"{need}, found {len(files)}{hint}", d)
     return files
 
 
-def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[int, int] | None = None,
-                   **kw) -> tuple[list[PairMetrics], dict]:
-    """Read every frame JSON of `out_dir` named by `pattern` (strokekit.writers.strokes_json
-    format), in frame order, and return (per pair metrics, overall summary). `occlusion` (lo, hi):
-    only the strokes of those occlusion levels (hidden-line runs: 1-15 measures the hidden lines)."""
+def read_frames(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[int, int] | None = None,
+                at_least: int = 2) -> list[Strokes]:
+    """The strokes of every frame JSON of `out_dir` named by `pattern` (strokekit.writers.strokes_json
+    format), in frame order. `occlusion` (lo, hi): only the strokes of those occlusion levels
+    (hidden-line runs: 1-15 measures the hidden lines). `at_least`: see frame_files."""
 
     frames = []
-    for f in frame_files(out_dir, pattern):
+    for f in frame_files(out_dir, pattern, at_least):
         try:
             st = read_strokes_json(f)
         except (KeyError, ValueError, TypeError) as e:
@@ -246,4 +252,96 @@ def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple
             st = st.select((st.occlusion >= occlusion[0]) & (st.occlusion <= occlusion[1]))
         frames.append(st)
     frames.sort(key=lambda s: s.frame)
-    return sequence_metrics(frames, **kw)
+    return frames
+
+
+def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[int, int] | None = None,
+                   **kw) -> tuple[list[PairMetrics], dict]:
+    """Read every frame JSON of `out_dir` named by `pattern` (read_frames) and return (per pair
+    metrics, overall summary)."""
+    return sequence_metrics(read_frames(out_dir, pattern, occlusion), **kw)
+
+
+# --- M8 wholeness -----------------------------------------------------------------------------
+
+#: M8: a stroke whose two ends lie within this many px of each other is a loop: it has no ends.
+LOOP_PX = 0.5
+
+
+def stroke_ends(strokes: Strokes) -> np.ndarray:
+    """(S,) the ends of each stroke (BRIEF 3, M8): 2 for an open stroke, 0 for a loop (its first
+    and last points within LOOP_PX; a stroke with no length is one too: it draws nothing)."""
+    if len(strokes) == 0:
+        return np.zeros(0, np.int64)
+    off = strokes.offsets
+    first, last = strokes.points[off[:-1]], strokes.points[np.maximum(off[1:] - 1, off[:-1])]
+    gap = np.hypot(*(last - first).T)
+    return np.where((off[1:] > off[:-1]) & (gap > LOOP_PX), 2, 0).astype(np.int64)
+
+
+def ends_per_kpx(strokes: Strokes) -> float:
+    """Path ends per 1000 px drawn of one frame (nan when nothing is drawn)."""
+    L = float(strokes.lengths.sum()) if len(strokes) else 0.0
+    return 1000.0 * float(stroke_ends(strokes).sum()) / L if L > 0 else float("nan")
+
+
+def ends_ratio(tracked: float, fresh: float) -> float:
+    """tracked / fresh ends per 1000 px: 1 where neither frame has an end (both loops only), inf
+    where only the tracked one has ends, nan where either draws nothing."""
+    if not (np.isfinite(tracked) and np.isfinite(fresh)):
+        return float("nan")
+    if fresh == 0:
+        return 1.0 if tracked == 0 else float("inf")
+    return tracked / fresh
+
+
+@dataclass(frozen=True)
+class FrameWholeness:
+    """M8 of one frame: its ends, length drawn (px) and ends per 1000 px; with the same frame
+    drawn afresh, that frame's ends per 1000 px and the ratio (nan without one)."""
+
+    frame: int
+    ends: int
+    length_px: float
+    ends_per_kpx: float
+    fresh_ends_per_kpx: float = float("nan")
+    ratio: float = float("nan")
+
+
+def _same_view(a, b) -> bool:
+    """Whether two cameras (read back from frame JSON, rounded there) show the same view."""
+    return (a.projection == b.projection and a.width == b.width and a.height == b.height
+            and np.allclose(a.eye, b.eye, rtol=1e-6, atol=1e-9) and np.allclose(a.target, b.target, rtol=1e-6, atol=1e-9)
+            and np.isclose(a.fov_y, b.fov_y, rtol=1e-6) and np.isclose(a.ortho_height, b.ortho_height, rtol=1e-6))
+
+
+def wholeness(frames: list[Strokes], fresh: list[Strokes] | None = None) -> tuple[list[FrameWholeness], dict]:
+    """M8 of every frame of a sequence (in order) and its summary over the second half of the
+    frames (frames[len // 2:], the late half): M8 (ends per 1000 px), M8_fresh and M8_ratio,
+    each the median over the late frames that have them, and M8_frames, how many late frames the
+    ratio was taken over. `fresh`: the same frames drawn afresh, matched by frame number (a frame
+    missing there has no ratio); a fresh frame seen through another camera is an InputError."""
+    by_frame = {int(f.frame): f for f in fresh} if fresh is not None else {}
+    rows = []
+    for st in frames:
+        e = int(stroke_ends(st).sum())
+        L = float(st.lengths.sum()) if len(st) else 0.0
+        row = FrameWholeness(frame=int(st.frame), ends=e, length_px=L, ends_per_kpx=ends_per_kpx(st))
+        other = by_frame.get(int(st.frame))
+        if other is not None:
+            if st.camera is not None and other.camera is not None and not _same_view(st.camera, other.camera):
+                raise InputError(f"frame {st.frame} is seen through another camera than in the sequence "
+                                 "measured: not the same frames drawn afresh")
+            f8 = ends_per_kpx(other)
+            row = replace(row, fresh_ends_per_kpx=f8, ratio=ends_ratio(row.ends_per_kpx, f8))
+        rows.append(row)
+    late = rows[len(rows) // 2:]
+
+    def med(v):
+        v = np.asarray([x for x in v if not np.isnan(x)], float)
+        return float(np.median(v)) if len(v) else float("nan")
+
+    ratios = [r.ratio for r in late]
+    return rows, {"M8": med([r.ends_per_kpx for r in late]), "M8_fresh": med([r.fresh_ends_per_kpx for r in late]),
+                  "M8_ratio": med(ratios), "M8_frames": int(sum(not np.isnan(x) for x in ratios)),
+                  "M8_late_first": late[0].frame if late else -1}

@@ -20,15 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from strokekit.camera.view import Camera
+from strokekit.lines.facing import FrameView
 from strokekit.lines.features import feature_edges
 from strokekit.lines.visibility import clip_segments
 from strokekit.metrics.accuracy import DEFAULT_TOLS, Accuracy, aggregate, frame_accuracy
 from strokekit.model import MAX_OCCLUSION, N_KINDS, Strokes, row_norm
 from strokekit.options import LineOptions
-from strokekit.sampling import resample_strokes
+from strokekit.sampling import locate, resample_strokes
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
-from strokekit.scene.tables import face_edges
 
 
 def _vertex_faces(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
@@ -71,9 +71,9 @@ def _exact_levels(scene, camera, P, own, occ):
     # Embree's candidates, from the point itself.
     k = occ.inv_scale
     rays = np.concatenate([(P - occ.origin) * k, D * k], axis=1).astype(np.float32)
-    lx = occ._rs.list_intersections(occ._o3c.Tensor(rays))
-    ray = lx["ray_ids"].numpy().astype(np.int64)
-    prim = occ._scene_faces(lx["primitive_ids"].numpy())
+    _, ray, prim = occ.list_intersections(rays)
+    ray = ray.astype(np.int64)
+    prim = occ.scene_faces(prim)
     F = scene.faces
     vo, vf = _vertex_faces(scene)
     # Expanded: the triangles sharing a vertex with a hit, and those around the own edge's vertices.
@@ -135,7 +135,7 @@ def _own_faces(scene: Scene, va: np.ndarray, vb: np.ndarray) -> np.ndarray:
     """(N, 2) the faces of the mesh edges va-vb (-1: not a mesh edge, or a single face)."""
     V = len(scene.vertices)
     lo, hi = np.minimum(va, vb), np.maximum(va, vb)
-    keys = scene.edges[:, 0] * (V + 1) + scene.edges[:, 1]
+    keys = scene.edge_keys
     q = lo * (V + 1) + hi
     pos = np.clip(np.searchsorted(keys, q), 0, len(keys) - 1)
     found = (keys[pos] == q) & (va >= 0) & (vb >= 0) & (va < V) & (vb < V)
@@ -152,7 +152,7 @@ def reference_drawing(scene: Scene, camera: Camera, options: LineOptions, step_p
     that differ, its kind code carrying min(level, MAX_OCCLUSION) (model.MAX_OCCLUSION). One
     stroke per piece, surface points included."""
     occluder = Occluder(scene) if occluder is None else occluder
-    fe = feature_edges(scene, camera, options, with_lift=False)
+    fe = feature_edges(FrameView(scene, camera), options, with_lift=False)
     mesh = (fe.va >= 0) & (fe.vb >= 0) & (fe.va < len(scene.vertices)) & (fe.vb < len(scene.vertices))
     near = camera.near_distance(scene.radius)
     t0, t1 = clip_segments(fe.a, fe.b, camera, near)
@@ -237,13 +237,9 @@ def _edge_faces_at(scene: Scene, strokes: Strokes, smp) -> tuple[np.ndarray, np.
     """The faces (M, 2) of the mesh edge each stroke sample's surface point lies on (the edge of
     the faces under the two stroke points around it nearest to it), and whether it does lie on
     one (within 1e-9 of the scene radius)."""
-    base, G = strokes.global_arc
-    j = np.searchsorted(G, base[smp.stroke] + smp.s, side="right")
-    first, last = strokes.offsets[smp.stroke], strokes.offsets[smp.stroke + 1] - 1
-    j = np.clip(j, first + 1, np.maximum(last, first + 1))
-    j = np.minimum(j, len(strokes.points) - 1)
-    faces = np.stack([strokes.face[j - 1], strokes.face[j]], axis=1)
-    fe = face_edges(scene)[np.maximum(faces, 0)].reshape(len(j), 6)
+    i, j, _ = locate(strokes, smp.stroke, smp.s)
+    faces = np.stack([strokes.face[i], strokes.face[j]], axis=1)
+    fe = scene.face_edges[np.maximum(faces, 0)].reshape(len(j), 6)
     E = scene.edges[fe]
     a, b = scene.vertices[E[..., 0]], scene.vertices[E[..., 1]]
     ab = b - a

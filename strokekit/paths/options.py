@@ -6,14 +6,14 @@ import math
 from dataclasses import dataclass, field
 
 from strokekit.errors import UsageError
+from strokekit.options import option
 from strokekit.tracking.options import TrackingOptions
 
 
 def path_tracking() -> TrackingOptions:
-    """TrackingOptions of the brush paths: knots every 16 px (not 24) and a tenth of the stretch
-    weight. Paths are 5 times longer than tracked lines (bunny), so u bends over longer spans
-    between its votes: 120-frame orbits, M4 p95 bunny 1.17 -> 0.98 px, rocker-arm 0.90 -> 0.80,
-    for texture stretch M5 on the orbit 0.09 -> 0.15 octaves (bunny; dolly 0.02 either way)."""
+    """TrackingOptions of the brush paths: closer knots and a tenth of the stretch weight. Paths
+    are several times longer than tracked lines, so u must bend over longer spans between its
+    votes (less sliding for a little more texture stretch)."""
     return TrackingOptions(knot_spacing_px=16.0, stretch_weight=3e-4)
 
 
@@ -33,18 +33,16 @@ class PathOptions:
     bridge between them is drawn: beyond 2 px, only where all of it lies within 1 px of a line);
     a piece no path claims joins a path, or another such piece, within new_join_px.
     join_angle_deg: the most a path may turn where two pieces join, and at a vertex of its line:
-    a line turning more is cut there (a brush stroke ends at a corner). 70 rather than 90: the
-    corners of a CAD model turn by about 90 degrees on screen, one frame as one line round the
-    corner and the next as two lines meeting there, and a path that ran round one split off a
-    fresh id (fandisk, 120-frame orbit, M1 0.9796 -> 0.9818; 80 degrees, 0.9801).
+    a line turning more is cut there (a brush stroke ends at a corner). Below 90: the corners of
+    a CAD model turn by about 90 degrees on screen, one frame as one line round the corner and
+    the next as two lines meeting there, and a path that ran round one split off a fresh id.
     min_run_px: along a line, a run of samples claimed by one path shorter than this is given
     to its neighbours (labels do not flicker between two paths on a few samples).
     merge_px: a path shorter than this (in this frame and the last) gives way: its pieces join
     the path they touch like pieces no path claims (it merges; its id ends). Each merge costs M1
     its length once; without merges every split leaves an id behind for good and the paths
-    crumble over a long sequence (0: never merge). 5 px rather than 10 since short strands are
-    held back (hold_px): bunny, 120 frames, M1 0.9525 -> 0.9553, M2 0.0101 -> 0.0099, for 145
-    paths a frame instead of 113.
+    crumble over a long sequence (0: never merge). Short strands are held back (hold_px), so
+    a small merge length does.
     hold_px: a new path shorter than this lying beside the drawn paths (within 3 px all along)
     is held back one frame: drawn from the next frame on if it is still there, so that a piece
     that shows for one frame costs no id (0: never hold).
@@ -60,7 +58,10 @@ class PathOptions:
     new_join_px: float = 2.0
     join_angle_deg: float = 70.0
     min_run_px: float = 1.5
-    merge_px: float = 5.0
+    merge_px: float = option(
+        5.0, "--path-merge", "With brush paths: a path shorter than N px (two frames running) merges into the path "
+        "it touches [5; 0: never, the highest id persistence, but paths crumble over long sequences].",
+        needs="brush")
     hold_px: float = 8.0
     tracking: TrackingOptions = field(default_factory=path_tracking)
 

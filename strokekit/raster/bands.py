@@ -30,12 +30,13 @@ from strokekit.camera.view import Camera
 from strokekit.colour import srgb_encode
 from strokekit.errors import UsageError
 from strokekit.model import BandRegion
+from strokekit.options import QUALITY_PRESETS, option
 from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
-from strokekit.raster.hits import RayHits, ZBufferHits, compiled, ensure_kernels, scene_faces32
+from strokekit.raster.hits import RayHits, ZBufferHits, compiled, ensure_kernels
 from strokekit.raster.rays import RasterHits
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
-from strokekit.scene.tables import scene_cache, split_normals
+from strokekit.scene.tables import corner_gram, min_interpolated_norm
 
 SHADINGS = ("flat", "smooth")
 LIGHT_SPACES = ("camera", "world")
@@ -52,11 +53,11 @@ class RasterOptions:
     bands: N; thresholds: explicit n.l thresholds (increasing, in (0, 1)), which override N with
     len(thresholds) + 1; shading 'flat' (face normals) or 'smooth' (corner normals interpolated
     across each face, split at creases sharper than the crease angle like Blender's auto smooth,
-    `scene.tables.split_normals`: a box's faces stay flat, a sphere shades smoothly; the angle is
+    `Scene.split_normals`: a box's faces stay flat, a sphere shades smoothly; the angle is
     the line options' crease angle, which `render_raster` takes as an argument); light: direction
     toward the light, in camera space (x right, y up, z toward the viewer) or world space;
     supersample K in {1, 2, 4}: samples per pixel side everywhere; masks: one anti-aliased PNG per
-    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: seed 003
+    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: self-similar
     hatching/dots/noise of `fill_pattern` with a base period of `fill_period_px` output pixels;
     gooch: warm/cool ramps; band_polygons: the bands as SVG polygons (see `band_polygons_svg`);
     edge_supersample R (0 = off; R <= K has no effect, the K x K grid is as fine): the pixels that may hold more than one label, material or
@@ -65,23 +66,46 @@ class RasterOptions:
     their neighbours, disagree, and pixels crossed by a triangle too thin for the K x K grid
     (slivers, trim, thin parts) where it may show another label (see `_mixed_pixels`)."""
 
-    bands: int = 3
-    thresholds: tuple[float, ...] = ()
-    shading: str = "smooth"
-    light: tuple[float, float, float] = (-0.4, 0.6, 0.7)
-    light_space: str = "camera"
-    supersample: int = 1
-    masks: bool = False
-    shade: bool = True
-    objectid: bool = False
-    depth: bool = False
-    fill: bool = False
-    fill_pattern: str = "hatch"
-    fill_period_px: float = 16.0
-    gooch: bool = False
-    band_polygons: bool = False
+    bands: int = option(3, "--bands", "Toon bands: write bands/frame_NNNN.png (labels) and shade/frame_NNNN.png "
+                        "with N bands of quantized n.l.", low=1, high=254)
+    thresholds: tuple[float, ...] = option(
+        (), "--band-thresholds", "Explicit n.l thresholds a,b,.. instead of N equal bands.", text="numbers")
+    shading: str = option(
+        "smooth", "--shading", "Band normals: per face, or interpolated and split at edges sharper than "
+        "--crease-angle.", choices=SHADINGS, show_default=True, needs="raster")
+    light: tuple[float, float, float] = option(
+        (-0.4, 0.6, 0.7), "--light", "Direction toward the light x,y,z.", text="numbers", count=3, show_default=True,
+        needs="raster")
+    light_space: str = option(
+        "camera", "--light-space", "--light is given in camera space (moves with the view) or in world space.",
+        choices=LIGHT_SPACES, show_default=True, needs="raster")
+    supersample: int = option(
+        1, "--supersample", "Samples per pixel side everywhere (default from --quality: 1 draft, 1 default, 4 exact).",
+        choices={"1": 1, "2": 2, "4": 4}, needs="raster")
+    masks: bool = option(False, "--masks", "Also one anti-aliased mask PNG per band (maskN/frame_NNNN.png).",
+                         switch=True)
+    shade: bool = option(True, "--no-shade", "No shade/ PNGs (the ramp colours).", switch=True, invert=True,
+                         needs="raster")
+    objectid: bool = option(False, "--objectid", "Also objectid/frame_NNNN.png (8-bit object ids, 0 background).",
+                            switch=True)
+    depth: bool = option(
+        False, "--depth", "Also depth/frame_NNNN.png (16-bit linear depth; its range in the PNG and the JSON).",
+        switch=True)
+    fill: bool = option(
+        False, "--fill", "Also fill/frame_NNNN.png: hatching that keeps its screen size at any zoom (self-similar "
+        "3D texture).", switch=True)
+    fill_pattern: str = option("hatch", "--fill-pattern", "Texture of the fill.", choices=FILL_PATTERNS,
+                               show_default=True, needs="fill")
+    fill_period_px: float = option(16.0, "--fill-period", "Fill texture period in px.", show_default=True,
+                                   needs="fill")
+    gooch: bool = option(False, "--gooch", "Gooch warm/cool ramp instead of darker shades.", switch=True,
+                         needs="raster")
+    band_polygons: bool = option(False, "--band-polygons", "Also the bands as vector polygons in an SVG layer under "
+                                 "the lines.", switch=True, needs="svg layer")
     pngs: bool = True  # write the PNG passes (off: the raster pass runs for the EXR alone)
-    edge_supersample: int = 4
+    edge_supersample: int = option(
+        4, "--edge-supersample", "Resample only the pixels at band, material or object edges R x R (default from "
+        "--quality: 0 draft, 4 default, 0 exact).", low=0, high=8, needs="raster")
 
     def __post_init__(self):
         th = tuple(float(t) for t in self.thresholds)
@@ -110,6 +134,19 @@ class RasterOptions:
             raise UsageError(f"fill pattern must be one of {', '.join(FILL_PATTERNS)}, got {self.fill_pattern!r}")
         if not self.fill_period_px > 0:
             raise UsageError(f"fill period must be > 0 px, got {self.fill_period_px}")
+
+    @staticmethod
+    def preset(quality: str = "default", **overrides) -> "RasterOptions":
+        """Options of a named quality preset (options.QUALITY_PRESETS: supersample K and
+        edge_supersample R) with explicit overrides (None values ignored). A K given above the
+        preset's R turns the edge resampling off: the K x K grid is then as fine."""
+        if quality not in QUALITY_PRESETS:
+            raise UsageError(f"unknown quality {quality!r} (known: {', '.join(QUALITY_PRESETS)})")
+        given = {k: v for k, v in overrides.items() if v is not None}
+        k = int(given.pop("supersample", QUALITY_PRESETS[quality]["supersample"]))
+        r = QUALITY_PRESETS[quality]["edge_supersample"]
+        r = int(given.pop("edge_supersample", r if r > k else 0))
+        return RasterOptions(supersample=k, edge_supersample=r, **given)
 
 
 def check_crease_angle(crease_angle_deg: float) -> float:
@@ -145,27 +182,14 @@ def corner_shading(scene: Scene, crease_angle_deg: float = 60.0, vnormals: np.nd
     """(corner (F, 3) node of each face corner, normals (N, 3) unit node normals, gram (F, 3)
     n_a.n_b, n_b.n_c, n_c.n_a of each face's corner normals) for smooth shading.
 
-    The nodes and normals are `scene.tables.split_normals(scene, crease_angle_deg)`, the ones smooth
-    contours use (angle-weighted, Blender's auto smooth rule): corners share a normal only across
-    edges flatter than the crease angle, so a face next to a sharp edge keeps its own normal
-    there. Cached per scene and angle in `contours.scene_cache`. With `vnormals` (V, 3) those
-    vertex normals are interpolated instead, unsplit (not cached)."""
+    The nodes and normals are `scene.split_normals(crease_angle_deg)`, the ones smooth contours
+    use (angle-weighted, Blender's auto smooth rule): corners share a normal only across edges
+    flatter than the crease angle, so a face next to a sharp edge keeps its own normal there.
+    With `vnormals` (V, 3) those vertex normals are interpolated instead, unsplit."""
     if vnormals is not None:
-        return _with_gram(scene.faces, np.asarray(vnormals, float))
-
-    key = ("raster_corner_shading", float(crease_angle_deg))
-    c = scene_cache(scene)
-    if key not in c:
-        sn = split_normals(scene, crease_angle_deg)
-        c[key] = _with_gram(sn.corner, sn.normals)
-    return c[key]
-
-
-def _with_gram(corner: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    N = normals[corner]  # (F, 3, 3)
-    gram = np.stack([np.einsum("ij,ij->i", N[:, k], N[:, (k + 1) % 3]) for k in range(3)], axis=1)
-    return corner, normals, gram
-
+        return scene.faces, np.asarray(vnormals, float), corner_gram(scene.faces, np.asarray(vnormals, float))
+    sn = scene.split_normals(crease_angle_deg)
+    return sn.corner, sn.normals, sn.corner_gram
 
 
 def quantize_bands(ndl: np.ndarray, bands: int, thresholds: tuple[float, ...] = ()) -> np.ndarray:
@@ -283,66 +307,22 @@ def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np
         coef = np.column_stack([la, lb, lc, gram, sign])
     label = np.zeros(len(lo) + 1, np.uint8)
     label[:-1] = np.where(lo == hi, lo, _PER_SAMPLE)
-    region, rmat, robj = _regions(scene)
+    region, rmat, robj = scene.regions
     return FaceShading(label=label, lo=lo, hi=hi, back=back, coef=coef, region=region, region_material=rmat,
                        region_object=robj, bands=N, thresholds=th)
 
 
-def _regions(scene: Scene) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
-    """(region (F,) int32 or None for a single one, material (G,), object (G,) of each region): the
-    scene's distinct (material, object) pairs. Cached per scene."""
-    c = scene_cache(scene)
-    if "raster_regions" not in c:
-        fm = np.asarray(scene.face_material, np.int64)
-        fo = np.asarray(scene.face_object, np.int64)
-        pairs, region = np.unique(np.column_stack([fm, fo]), axis=0, return_inverse=True)
-        pairs = pairs.reshape(-1, 2)
-        if len(pairs) == 0:
-            pairs = np.zeros((1, 2), np.int64)
-        c["raster_regions"] = (region.reshape(-1).astype(np.int32) if len(pairs) > 1 else None,
-                               pairs[:, 0], pairs[:, 1])
-    return c["raster_regions"]
-
-
 def _min_norm(scene: Scene, crease_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
     """(F,) a lower bound of |w_a n_a + w_b n_b + w_c n_c| over each face (weights >= 0 summing
-    to 1) for smooth shading's corner normals: sqrt of the smallest pairwise dot product,
-    floored at 1e-3 (see face_shading). Cached per scene and angle like corner_shading."""
-
-    key = ("raster_min_norm", float(crease_angle_deg))
-    c = scene_cache(scene) if vnormals is None else {}
-    if key not in c:
-        gram = corner_shading(scene, crease_angle_deg, vnormals)[2]
-        c[key] = np.sqrt(np.clip(np.minimum(np.minimum(gram[:, 0], gram[:, 1]), gram[:, 2]), 1e-6, 1.0))
-    return c[key]
-
-
-
-
-def _face_neighbours(scene: Scene) -> np.ndarray:
-    """(F, 3) int64 the faces across each face's manifold edges, -1 for a border or non-manifold
-    edge (order not by edge). Cached per scene."""
-
-    c = scene_cache(scene)
-    if "raster_face_neighbours" not in c:
-        ef = scene.edge_faces[scene.edge_face_count == 2]
-        src, dst = np.concatenate([ef[:, 0], ef[:, 1]]), np.concatenate([ef[:, 1], ef[:, 0]])
-        order = np.argsort(src, kind="stable")
-        src, dst = src[order], dst[order]
-        first = np.searchsorted(src, src)
-        rank = np.arange(len(src)) - first
-        nb = np.full((len(scene.faces), 3), -1, np.int64)
-        keep = rank < 3
-        nb[src[keep], rank[keep]] = dst[keep]
-        c["raster_face_neighbours"] = nb
-    return c["raster_face_neighbours"]
+    to 1) for smooth shading's corner normals (`tables.min_interpolated_norm`)."""
+    if vnormals is None:
+        return scene.split_normals(crease_angle_deg).min_corner_norm
+    return min_interpolated_norm(corner_shading(scene, crease_angle_deg, vnormals)[2])
 
 
 #: Relative depth slack of the thin-triangle occlusion test (float32 depths, curvature between
 #: samples).
 THIN_DEPTH_SLACK = 1e-3
-
-
 
 
 # --- a frame's samples -> output images -----------------------------------------------------------
@@ -789,8 +769,8 @@ def _thin_face_pixels(frame: RasterFrame, src, out: np.ndarray) -> None:
     xy, z = src.vertices_px
     reg = sh.region if sh.region is not None else np.zeros(len(scene.faces), np.int32)
     compiled().thin_face_pixels(np.ascontiguousarray(xy, np.float64), np.ascontiguousarray(z, np.float64),
-                                scene_faces32(scene), cam.near_distance(scene.radius), int(cam.width), int(cam.height),
-                                frame.K, sh.lo, sh.hi, sh.back, reg, _face_neighbours(scene), sh.bands + 1,
+                                scene.faces_int32, cam.near_distance(scene.radius), int(cam.width), int(cam.height),
+                                frame.K, sh.lo, sh.hi, sh.back, reg, scene.face_neighbours, sh.bands + 1,
                                 hits.depth, frame.keys_ss, cam.is_ortho, THIN_DEPTH_SLACK, out)
 
 

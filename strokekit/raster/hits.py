@@ -24,7 +24,6 @@ from strokekit.camera.view import Camera
 from strokekit.numba_cache import KernelGroup, LazyKernels
 from strokekit.raster.rays import cast_pixels, cast_samples
 from strokekit.scene.load import Scene
-from strokekit.scene.tables import scene_cache
 
 #: The z-buffer and the raster pass's own loops.
 ZBUFFER, PASS = LazyKernels("strokekit.raster.zbuffer"), LazyKernels("strokekit.raster.compiled")
@@ -41,14 +40,6 @@ ensure_kernels = RASTER.ensure
 
 
 # --- sample sources ------------------------------------------------------------------------------
-
-def scene_faces32(scene: Scene) -> np.ndarray:
-    """(F, 3) int32 C-contiguous faces, converted once per scene (the kernels' face array)."""
-    c = scene_cache(scene)
-    if "raster_faces32" not in c:
-        c["raster_faces32"] = np.ascontiguousarray(scene.faces, dtype=np.int32).reshape(-1, 3)
-    return c["raster_faces32"]
-
 
 class ZBufferHits:
     """The z-buffer's first hits of one frame: vertices projected once, faces set up once (the
@@ -70,7 +61,7 @@ class ZBufferHits:
             kx, ky = camera.shear
             z = (v - camera.eye_array) @ fwd
             v = v + z[:, None] * (kx * right + ky * up)
-        self.proj = zb.project(v, scene_faces32(scene), zb.view_from_camera(camera, self.near))
+        self.proj = zb.project(v, scene.faces_int32, zb.view_from_camera(camera, self.near))
         self._zb = zb
         self.work = work
 

@@ -17,10 +17,10 @@ import numpy as np
 from strokekit.cryptomatte import ranked_matte
 from strokekit.errors import UsageError
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
+from strokekit.options import option
 from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.hits import compiled
 from strokekit.raster.strokes import stroke_coverage
-from strokekit.scene.tables import split_normals
 
 #: The passes an EXR can hold, in the order they are written.
 PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
@@ -38,9 +38,14 @@ class PassOptions:
     """Which compositing passes to compute (PASSES), the stroke width of the lines pass (px), and
     the EXR's compression (CODECS)."""
 
-    passes: tuple[str, ...] = PASSES
-    stroke_width_px: float = 1.5
-    codec: str = "zip"
+    passes: tuple[str, ...] = option(
+        PASSES, "--exr-layers", "The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all].",
+        text="names", needs="exr")
+    stroke_width_px: float = 1.5  # (the SVG's: --stroke-width)
+    codec: str = option(
+        "zip", "--exr-codec", "The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at "
+        "about twice their size, rle in about half zip's time at four to eight times the size.", choices=CODECS,
+        show_default=True, needs="exr")
 
     def __post_init__(self):
         unknown = [p for p in self.passes if p not in PASSES]
@@ -61,7 +66,7 @@ def view_normals(frame: RasterFrame, crease_angle_deg: float = 60.0) -> np.ndarr
     hits, cam, scene = frame.hits, frame.camera, frame.scene
     H, W = frame.height, frame.width
     if frame.options.shading == "smooth":
-        sn = split_normals(scene, crease_angle_deg)
+        sn = scene.split_normals(crease_angle_deg)
         corner, normals = np.ascontiguousarray(sn.corner, np.int64), np.ascontiguousarray(sn.normals, np.float64)
     else:
         corner, normals = np.zeros((0, 3), np.int64), np.zeros((0, 3))

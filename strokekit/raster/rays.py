@@ -146,7 +146,7 @@ def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndar
             + (np.asarray(ay, float) - ky * near)[:, None] * up + near * fwd
         rays[:, :3] = o
         rays[:, 3:] = d
-        hits = _cast(occluder, rays)
+        hits = occluder.cast_rays(rays)
         fw = hits["primitive_ids"]
         depth = np.where(fw >= 0, hits["t_hit"] + np.float32(near), np.float32(np.inf)).astype(np.float32)
         return {"face": fw, "bary": hits["primitive_uvs"], "depth": depth}
@@ -160,7 +160,7 @@ def cast_samples(camera: Camera, occluder: Occluder, ax: np.ndarray, ay: np.ndar
             # distance is the view depth; the ray starts on the near plane.
             rays[:, 3 + c] = np.float32(fwd[c]) + ayr * np.float32(up[c]) + axc * np.float32(right[c])
             rays[:, c] = base[c] + np.float32(near) * rays[:, 3 + c]
-    hits = _cast(occluder, rays)
+    hits = occluder.cast_rays(rays)
     fw = hits["primitive_ids"]
     depth = np.where(fw >= 0, hits["t_hit"] + np.float32(near), np.float32(np.inf)).astype(np.float32)
     return {"face": fw, "bary": hits["primitive_uvs"], "depth": depth}
@@ -213,21 +213,6 @@ def _candidate_samples(camera: Camera, scene, K: int, near: float) -> np.ndarray
     blocks = diff.cumsum(axis=0).cumsum(axis=1)[:nby, :nbx] > 0.5
     mask = np.repeat(np.repeat(blocks, BLOCK, axis=0), BLOCK, axis=1)[:H, :W]
     return np.flatnonzero(mask)
-
-
-def _cast(occluder: Occluder, rays_local: np.ndarray) -> dict:
-    """First hits of (N, 6) float32 rays given in the occluder's centred, unit-radius frame.
-
-    Occluder.first_hits takes world origins; passing them through it would cost two (N, 3)
-    float64 temporaries per frame, so the centred rays go to the same RaycastingScene here."""
-    rs = getattr(occluder, "_rs", None)
-    if rs is None:
-        o = rays_local[:, :3].astype(np.float64) / occluder.inv_scale + occluder.origin
-        return occluder.first_hits(o, rays_local[:, 3:].astype(np.float64) / occluder.inv_scale)
-    r = rs.cast_rays(occluder._o3c.Tensor.from_numpy(np.ascontiguousarray(rays_local)))
-    # uint32 "no hit" (0xFFFFFFFF) reads as -1 in int32.
-    ids = r["primitive_ids"].numpy().view(np.int32)
-    return {"t_hit": r["t_hit"].numpy(), "primitive_ids": ids, "primitive_uvs": r["primitive_uvs"].numpy()}
 
 
 # --- the raster pass's memory estimate ------------------------------------------------------------

@@ -38,6 +38,14 @@ than head + tail); in between the body repeats once per unit of the stroke's own
 are inserted where a region starts and wherever u crosses an integer, and every segment owns its
 vertices, so the texture seams are exact and no texel is stretched across a repeat.
 
+Joins between strokes (`stroke_joins`): where a stroke's end meets the end of another stroke of its
+kind (or its own other end: a loop) within `join_px`, the line running on through it (tangents
+within `join_angle_deg`), the two are one line drawn as two strokes (a brush path cut where its id
+changes, a loop's seam). There the ribbons neither taper nor show the brush's head or tail (whose
+alpha fades to its tip): the body runs to the joint, both ends move to the middle of the two and
+share one end edge across the line's bisecting direction, so the two ribbons meet with neither a
+pinch nor a hole, nor an overlap. The ends left are free ends: tapered, head and tail.
+
 Second texture set (TEXCOORD_1 in the glTF): (level, level_weight) of the stroke's self-similar
 octave, constant along the stroke (`RibbonMesh.level_uv`).
 """
@@ -47,6 +55,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from strokekit.camera.view import MAX_IMAGE_PX, Camera
 from strokekit.errors import UsageError
@@ -64,6 +73,8 @@ class RibbonOptions:
     head_px / tail_px: length on screen of the brush texture's head and tail regions;
       tex_head / tex_tail: the share of the texture width those regions occupy.
     miter_limit: largest miter length / half width before the outer join is bevelled (SVG's 4).
+    join_px, join_angle_deg: two stroke ends this close whose line runs on through them, turning at
+      most join_angle_deg, are joined (module doc; join_px 0: every end is a free end).
     space: "world" (ribbons placed in the scene, facing the camera) or "image" (x, H - y, 0 in px).
     pull: world mode, fraction of its depth by which each vertex is moved toward the camera
       along its own view ray (keeps the pixel, avoids z-fighting with the surface)."""
@@ -78,6 +89,8 @@ class RibbonOptions:
     tex_head: float = 0.25
     tex_tail: float = 0.25
     miter_limit: float = 4.0
+    join_px: float = 2.5
+    join_angle_deg: float = 45.0
     space: str = "world"
     pull: float = 0.003
 
@@ -94,6 +107,10 @@ class RibbonOptions:
             raise UsageError("brush head and tail must leave part of the texture to the body")
         if not self.miter_limit >= 1:
             raise UsageError(f"miter limit must be >= 1, got {self.miter_limit}")
+        if not (np.isfinite(self.join_px) and self.join_px >= 0):
+            raise UsageError(f"join-px must be a finite number >= 0, got {self.join_px}")
+        if not 0 <= self.join_angle_deg < 90:
+            raise UsageError(f"join angle must be in [0, 90) degrees, got {self.join_angle_deg}")
         if self.space not in ("world", "image"):
             raise UsageError(f"ribbon space must be 'world' or 'image', got {self.space!r}")
         if not 0 <= self.pull < 1:
@@ -212,6 +229,94 @@ def _arc(p: np.ndarray, sid: np.ndarray) -> np.ndarray:
     return c - base
 
 
+#: A stroke's direction at an end: from its point this many px along it (at most half its length)
+#: to the end (a last segment a fraction of a pixel long says little of where the line goes).
+_END_REACH_PX = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class StrokeJoins:
+    """The joined stroke ends of one frame (module doc). joined (S, 2): the start (0) and the end
+    (1) of each stroke; point (S, 2, 2) px: where a joined end goes, the middle of the two ends;
+    normal (S, 2, 2): the end edge both ribbons share, across the bisector of the two strokes'
+    directions, oriented as the stroke's own normal at that end and scaled by the miter factor
+    (each ribbon keeps its width square to itself); partner (S, 2): the end joined to, as
+    2 x stroke + (0: start, 1: end), -1 where none."""
+
+    joined: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    partner: np.ndarray
+
+
+def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.ndarray, join_px: float,
+                 join_angle_deg: float) -> StrokeJoins:
+    """Which ends of the strokes (points (N, 2) px grouped by stroke index sid (N,), kind (S,)) are
+    joins: the end of another stroke of the same kind, or the stroke's other end (a loop at least
+    4 join_px long), within join_px, the line running on through both (their directions turning by
+    at most join_angle_deg; a stair-step, where a scanned mesh's contour moves from one shingle to
+    the next, is one too), and moving both to their middle keeps each ahead of its stroke's next
+    point. Each end joins one other, the nearest first (then the straightest)."""
+    S = n_strokes
+    joined = np.zeros((S, 2), bool)
+    point = np.zeros((S, 2, 2))
+    normal = np.zeros((S, 2, 2))
+    partner = np.full((S, 2), -1, np.int64)
+    out = StrokeJoins(joined, point, normal, partner)
+    starts, ends = _stroke_bounds(sid, S)
+    arc = _arc(points, sid)
+    L = np.where(ends - starts >= 2, arc[np.maximum(ends - 1, 0)] if len(arc) else 0.0, 0.0)
+    ok = np.flatnonzero(L > 0)
+    if len(ok) < 1 or join_px <= 0:
+        return out
+    # Each end's position and outward direction (away from its stroke), from the point
+    # _END_REACH_PX along it.
+    span = float(L.max()) + 1.0
+    g = arc + sid * span
+    reach = np.minimum(_END_REACH_PX, 0.5 * L[ok])
+    j0 = np.clip(np.searchsorted(g, ok * span + reach, side="left"), starts[ok] + 1, ends[ok] - 1)
+    j1 = np.clip(np.searchsorted(g, ok * span + L[ok] - reach, side="right") - 1, starts[ok], ends[ok] - 2)
+    pos = np.stack([points[starts[ok]], points[ends[ok] - 1]], 1)  # (K, 2 ends, 2)
+    nxt = np.stack([points[starts[ok] + 1], points[ends[ok] - 2]], 1)  # the neighbour of each end
+    d = np.stack([pos[:, 0] - points[j0], pos[:, 1] - points[j1]], 1)
+    d /= np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-300)
+    E, D, NX = pos.reshape(-1, 2), d.reshape(-1, 2), nxt.reshape(-1, 2)
+    owner = np.repeat(ok, 2)
+    pr = cKDTree(E).query_pairs(join_px, output_type="ndarray")
+    if len(pr) == 0:
+        return out
+    a, b = pr[:, 0], pr[:, 1]
+    sa, sb = owner[a], owner[b]
+    dot = np.einsum("ij,ij->i", D[a], D[b])
+    thru = D[a] - D[b]  # the line's direction through the joint, from a's stroke into b's
+    thru /= np.maximum(np.linalg.norm(thru, axis=1, keepdims=True), 1e-300)
+    mid = 0.5 * (E[a] + E[b])
+    ahead = (np.einsum("ij,ij->i", mid - NX[a], D[a]) > 0) & (np.einsum("ij,ij->i", mid - NX[b], D[b]) > 0)
+    keep = ((np.asarray(kind)[sa] == np.asarray(kind)[sb]) & (dot <= -np.cos(np.radians(join_angle_deg)))
+            & ahead & ((sa != sb) | (L[sa] >= 4.0 * join_px)))
+    a, b, dot, thru, mid = a[keep], b[keep], dot[keep], thru[keep], mid[keep]
+    dist = np.linalg.norm(E[b] - E[a], axis=1)
+    used = np.zeros(len(E), bool)
+    take = []
+    for k in np.lexsort((b, a, np.round(dot, 9), np.round(dist, 9))):
+        if not (used[a[k]] or used[b[k]]):
+            used[a[k]] = used[b[k]] = True
+            take.append(k)
+    take = np.asarray(take, np.int64)
+    miter = 1.0 / np.maximum(np.einsum("ij,ij->i", thru[take], D[a[take]]), 1e-3)
+    for e, f in ((a[take], b[take]), (b[take], a[take])):
+        s_e, w_e = owner[e], e % 2
+        # the shared edge across the line, turned to the stroke's own normal: its direction of
+        # travel at the end is D (an end) or -D (a start), the line's is +-thru
+        travel = np.where((w_e == 1)[:, None], D[e], -D[e])
+        t = np.where((np.einsum("ij,ij->i", thru[take], travel) >= 0)[:, None], thru[take], -thru[take])
+        joined[s_e, w_e] = True
+        point[s_e, w_e] = mid[take]
+        normal[s_e, w_e] = np.stack([-t[:, 1], t[:, 0]], 1) * miter[:, None]
+        partner[s_e, w_e] = 2 * owner[f] + f % 2
+    return out
+
+
 def _ease(x: np.ndarray) -> np.ndarray:
     """0 -> 0, 1 -> 1 with zero slope at 1: the brush reaches full width smoothly."""
     x = np.clip(x, 0.0, 1.0)
@@ -252,6 +357,17 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
         # linear there under perspective (z itself under orthographic)
         arr["z"] = z if cam.is_ortho else 1.0 / z
     arr, sid = _drop_short(arr, sid)
+    # Joined ends move to their joint (module doc).
+    joins = stroke_joins(arr["p"], sid, n_s, strokes.kind, o.join_px, o.join_angle_deg)
+    if joins.joined.any():
+        starts, ends = _stroke_bounds(sid, n_s)
+        p = arr["p"].copy()
+        for w, at in ((0, starts), (1, ends - 1)):
+            js = np.flatnonzero(joins.joined[:, w])
+            p[at[js]] = joins.point[js, w]
+        arr["p"] = p
+        arr, sid = _drop_short(arr, sid)
+    free = ~joins.joined
 
     # --- per-stroke lengths, head/tail and taper regions
     s = _arc(arr["p"], sid)
@@ -260,8 +376,10 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     L = np.where(has, s[np.maximum(ends - 1, 0)] if len(s) else 0.0, 0.0)
 
     def _fit(a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
-        # two end regions of a and b px, shrunk together on strokes shorter than a + b
-        k = np.minimum(1.0, L / max(a + b, 1e-300)) if a + b > 0 else np.ones_like(L)
+        # two end regions of a and b px at the free ends (none at a joined one), shrunk together
+        # on strokes shorter than both
+        a, b = a * free[:, 0], b * free[:, 1]
+        k = np.minimum(1.0, L / np.where(a + b > 0, a + b, 1.0))
         return a * k, b * k
 
     head, tail = _fit(o.head_px, o.tail_px)
@@ -353,6 +471,18 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     pt[:, :3] = seg_j[:, None]
     pt[:, 3:] = (seg_j + 1)[:, None]
 
+    # joined ends: the end edge both ribbons share (StrokeJoins.normal), at full width
+    k_first = np.searchsorted(sk, np.arange(n_s), side="left")
+    k_last = np.searchsorted(sk, np.arange(n_s), side="right") - 1
+    shared = []
+    for w, ks, (plus, at, minus), nxt in ((0, k_first, (0, 1, 2), 0), (1, k_last, (3, 4, 5), 1)):
+        js = np.flatnonzero(joins.joined[:, w] & (k_last >= k_first))
+        k = ks[js]
+        h = half[seg_j[k] + nxt][:, None]
+        vpix[k, plus] = vpix[k, at] + joins.normal[js, w] * h
+        vpix[k, minus] = vpix[k, at] - joins.normal[js, w] * h
+        shared.append(k)
+
     tris = np.full((K, 6, 3), -1, np.int64)  # four quad triangles, then two join triangles
     base = 7 * np.arange(K)[:, None, None]
     tris[:, :4] = base + np.array([[1, 4, 3], [1, 3, 0], [2, 5, 4], [2, 4, 1]])[None]
@@ -420,6 +550,8 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     maybe[jk, 4:] = True
     maybe[ki, :4] = True
     maybe[ki + 1, :4] = True
+    for k in shared:  # (a short end segment whose end edge turned)
+        maybe[k, :4] = True
     maybe = maybe.ravel()
     mt = tris[maybe]
     a, b, c = pix[mt[:, 0]], pix[mt[:, 1]], pix[mt[:, 2]]

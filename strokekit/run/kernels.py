@@ -24,14 +24,15 @@ def kernels_needed(spec: RunSpec, frames_here: bool) -> list[KernelGroup]:
     frame order (brush paths, the tracker), and those of the frames' own work (hidden lines, the
     raster pass) where `frames_here` (this process draws frames, or its workers share this
     machine's cache)."""
+    plan = spec.plan
     out = []
-    if spec.paths is not None:
+    if plan.paths is not None:
         out.append(BRUSH_PATHS)
-    elif spec.tracking is not None and spec.tracking.method == "kalnins" and len(spec.cameras) > 1:
+    elif plan.tracking is not None and plan.tracking.method == "kalnins" and len(spec.cameras) > 1:
         out.append(TRACKING)
     if frames_here and spec.lines.occlusion is not None:
         out.append(HIDDEN_LINES)
-    if frames_here and spec.outputs.raster_options is not None:
+    if frames_here and spec.raster is not None:
         out.append(RASTER)
     return out
 

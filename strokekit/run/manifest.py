@@ -20,14 +20,14 @@ from strokekit.scene.load import Scene
 RUN_MANIFEST = ".strokekit-run.json"
 
 
-def _canon(v):
+def canonical(v):
     """`v` as plain JSON values, deterministically (dataclasses field by field, tuples as lists)."""
     if is_dataclass(v) and not isinstance(v, type):
-        return {f.name: _canon(getattr(v, f.name)) for f in fields(v)}
+        return {f.name: canonical(getattr(v, f.name)) for f in fields(v)}
     if isinstance(v, (list, tuple)):
-        return [_canon(x) for x in v]
+        return [canonical(x) for x in v]
     if isinstance(v, dict):
-        return {str(k): _canon(x) for k, x in v.items()}
+        return {str(k): canonical(x) for k, x in v.items()}
     if isinstance(v, Path):
         return str(v)
     if v is None or isinstance(v, (bool, int, float, str)):
@@ -38,22 +38,27 @@ def _canon(v):
 
 
 def _digest(v) -> str:
-    text = json.dumps(_canon(v), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    text = json.dumps(canonical(v), sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def run_manifest(spec: RunSpec, scene: Scene, tracking_on: bool) -> dict:
+def run_manifest(spec: RunSpec, scene: Scene) -> dict:
     """What determines the bytes of the run's frame files: `scene` and `options` digests (the
-    set of frames aside) and per frame a digest of its camera. With tracking a frame's lines
-    also depend on every frame tracked before it in the run, so its digest chains theirs: a
-    longer range of the same path (1-10, then 1-20) keeps the digests of the frames they share."""
+    set of frames aside) and per frame a digest of its camera. When strokes carry over from
+    frame to frame a frame's lines also depend on every frame before it in the run, so its
+    digest chains theirs: a longer range of the same path (1-10, then 1-20) keeps the digests
+    of the frames they share."""
+    plan = spec.plan
     scene_d = _digest({"content_hash": scene.content_hash, "objects": len(scene.objects),
                        "materials": [m.base_color for m in scene.materials]})
     o = spec.outputs
+    # An option at its default that a later option added is left out of the digest, so that the
+    # digests of runs made before it stay: the dashes, the EXR codec.
     outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
-               and not (f.name == "hidden_dashes" and o.hidden_dashes is None)  # (digested as before them)
+               and not (f.name == "hidden_dashes" and o.hidden_dashes is None)
                and not (f.name == "dash_paths" and not o.dash_paths)}
-    if o.exr is not None and o.exr.codec == "zip":  # (the default codec: digested as before --exr-codec)
+    outputs["raster_options"] = plan.raster  # (the raster pass is digested with the outputs)
+    if o.exr is not None and o.exr.codec == "zip":
         outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr) if f.name != "codec"}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
     if o.gltf and brush is not None:
@@ -62,14 +67,14 @@ def run_manifest(spec: RunSpec, scene: Scene, tracking_on: bool) -> dict:
                 outputs["brush_sha256"] = hashlib.sha256(Path(brush).read_bytes()).hexdigest()
             except OSError:
                 pass  # the run reports it
-    opts = {"lines": spec.lines.to_json(), "outputs": outputs, "tracking": spec.tracking if tracking_on else None}
-    if spec.paths is not None:  # (only then: a lines run keeps its digest)
-        opts["paths"] = spec.paths
+    opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking}
+    if plan.paths is not None:  # (brush runs only: a lines run's digest has no paths)
+        opts["paths"] = plan.paths
     options_d = _digest(opts)
     frames, chain = {}, ""
     for f, cam in spec.cameras:
         d = _digest(cam.to_json())
-        if tracking_on:
+        if plan.carried:
             d = chain = _digest([chain, f, d])
         frames[f] = d
     return {"strokekit_run": 1, "run": _digest([scene_d, options_d]), "scene": scene_d, "options": options_d,
@@ -105,7 +110,7 @@ def _frame_ranges(frames) -> str:
     return ", ".join(str(a) if a == b else f"{a}-{b}" for a, b in out)
 
 
-def _not_a_resume(out_dir: Path, old: dict | None, new: dict, present: set[int]) -> str:
+def not_a_resume(out_dir: Path, old: dict | None, new: dict, present: set[int]) -> str:
     """The one line saying why --skip-existing cannot skip the frames `present` in `out_dir`."""
     where = f"{out_dir}/"
     fix = "remove them or render without --skip-existing"

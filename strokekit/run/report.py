@@ -8,15 +8,8 @@ import platform
 from dataclasses import fields
 from pathlib import Path
 
-from strokekit.run.manifest import _canon
+from strokekit.run.manifest import canonical
 from strokekit.run.spec import RunResult, RunSpec
-
-
-def _add_timings(stage: dict, timings: dict) -> None:
-    """Stage times are the sum of the work done in all workers (CPU time spent per stage)."""
-    for name, sec in timings.items():
-        if name in stage:
-            stage[name].seconds += sec
 
 
 def run_report(spec: RunSpec, res: RunResult) -> dict:
@@ -33,6 +26,7 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
                 out[dist] = None
         return out
 
+    plan = spec.plan
     with open(spec.scene_path, "rb") as fh:
         file_hash = hashlib.sha256(fh.read()).hexdigest()
     cameras = {"source": spec.camera_source or None, "frames": len(spec.cameras),
@@ -44,9 +38,9 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
             pass
     # Each frame's camera as the run used it (with the scene and options above, enough to
     # render any frame again).
-    cams = {f: _canon(c.to_json()) for f, c in spec.cameras}
+    cams = {f: canonical(c.to_json()) for f, c in spec.cameras}
     o = spec.outputs
-    outputs = _canon({f.name: getattr(o, f.name) for f in fields(o)})
+    outputs = canonical({**{f.name: getattr(o, f.name) for f in fields(o)}, "raster_options": spec.raster})
     frames = {}
     for f, _ in spec.cameras:
         if f in res.failures:
@@ -65,10 +59,10 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
         "scene": {"path": spec.scene_path, "sha256": file_hash, "content_hash": res.scene_hash, **res.scene_summary},
         "cameras": cameras,
         "options": {"lines": spec.lines.to_json(), "workers": spec.workers, "scheduler": spec.scheduler,
-                    "strokes": "brush" if spec.paths is not None else "lines",
-                    "tracking": spec.tracking.method if spec.tracking is not None else "none",
-                    "tracking_options": _canon(spec.tracking) if spec.tracking is not None else None,
-                    "paths_options": _canon(spec.paths) if spec.paths is not None else None,
+                    "strokes": "brush" if plan.paths is not None else "lines",
+                    "tracking": plan.tracking.method if plan.tracking is not None else "none",
+                    "tracking_options": canonical(plan.tracking) if plan.tracking is not None else None,
+                    "paths_options": canonical(plan.paths) if plan.paths is not None else None,
                     "contours": spec.lines.contours, "outputs": outputs},
         "ray_tracer": ", ".join(sorted(res.ray_tracers)) or None,
         "stages": [{"stage": s.name, "ran": s.ran, "why": s.why, "seconds": round(s.seconds, 6)} for s in res.stages],
@@ -76,7 +70,7 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
         "failures": {str(k): v for k, v in sorted(res.failures.items())},
         "write_error": res.write_error,
         "outputs": res.outputs,
-        "passes": {"png": [f"{p}/{spec.outputs.pattern}.png" for p in spec.outputs.pass_folders()],
+        "passes": {"png": [f"{p}/{spec.outputs.pattern}.png" for p in spec.pass_folders()],
                    "exr": list(spec.outputs.exr.passes) if spec.outputs.exr is not None else []},
         "wall_seconds": round(res.wall_seconds, 4),
         "exit_code": res.exit_code,

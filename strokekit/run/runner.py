@@ -11,37 +11,28 @@ from __future__ import annotations
 import os
 import time
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
-from strokekit.model import BrushPaths, Strokes
-from strokekit.paths.stage import PathTracker
 from strokekit.raster.rays import check_raster_fits
+from strokekit.run.frame import Frame, StrokeCarry, objects_and_materials
 from strokekit.run.kernels import RunKernels
-from strokekit.run.manifest import (
-    RUN_MANIFEST,
-    _not_a_resume,
-    read_run_manifest,
-    run_manifest,
-    write_run_manifest,
-)
-from strokekit.run.report import _add_timings
+from strokekit.run.manifest import RUN_MANIFEST, not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.spec import (
     RunInterrupted,
     RunResult,
     RunSpec,
     RunWriteError,
-    carries_history,
+    add_timings,
     plan_stages,
 )
-from strokekit.run.tasks import _surface_depth, drawn_strokes, frame_task, objects_and_materials, write_task
-from strokekit.run.workers import Workers, _keep_renderer, make_executor
+from strokekit.run.tasks import FrameResult, FrameTask, WriteResult, WriteTask, surface_depth, write_task
+from strokekit.run.workers import SceneRef, Workers, make_executor
 from strokekit.scene.load import Scene, load_scene
-from strokekit.tracking.tracker import Tracker
 from strokekit.writers.gltf import glb_for_sequence
 
 
@@ -53,7 +44,7 @@ def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, lo
     res.scene_hash = scene.content_hash
     res.scene_summary = {"faces": int(len(scene.faces)), "objects": len(scene.objects),
                          "materials": len(scene.materials)}
-    if spec.outputs.raster_options is not None:  # the ids the object-id PNGs and Cryptomatte use
+    if spec.raster is not None:  # the ids the object-id PNGs and Cryptomatte use
         res.scene_summary["ids"] = objects_and_materials(scene)
     res.stages = plan_stages(scene, spec)
     res.stages[0].seconds = time.perf_counter() - t
@@ -65,7 +56,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         started_at: float | None = None, notice: Callable[[str], None] | None = None,
         kernels: RunKernels | None = None) -> RunResult:
     """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
-    `workers`: make_executor(spec.workers, spec.scheduler, (spec.scene_path, spec.lines)) started
+    `workers`: make_executor(spec.workers, spec.scheduler, SceneRef(spec.scene_path, "", spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
     `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
     load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
@@ -88,9 +79,9 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     write_error: OSError | None = None
     # Workers start first: their imports and scene load overlap the main process's own load.
     own = workers is None
-    raster = spec.outputs.raster_options is not None
+    raster = spec.raster is not None
     if own:
-        workers = make_executor(spec.workers, spec.scheduler, warm=(spec.scene_path, spec.lines))
+        workers = make_executor(spec.workers, spec.scheduler, warm=SceneRef(spec.scene_path, "", spec.lines))
     # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
     if kernels is None:
         kernels = RunKernels(notice, raster=raster and workers.main_helps)
@@ -98,7 +89,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
         stage = {s.name: s for s in res.stages}
-        resume = plan_resume(spec, scene, carries_history(spec))
+        resume = plan_resume(spec, scene)
         res.frames_skipped = sorted(resume.done_before)
         try:
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
@@ -139,7 +130,7 @@ def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, res
         # Frames rendered here use this load; building the renderer (open3d, the BVH) is part
         # of the load stage.
         t = time.perf_counter()
-        _keep_renderer(spec.scene_path, scene, spec.lines)
+        SceneRef(spec.scene_path, scene.content_hash, spec.lines).keep(scene)
         stage["load scene + BVH"].seconds += time.perf_counter() - t
     stream = FrameStream(spec, scene, res, stage, resume, progress)
     try:
@@ -164,7 +155,7 @@ def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, res
 def run_files(spec: RunSpec) -> list[Path]:
     """Every file the run may write: each frame's files, sequence.glb, the run manifest."""
     out = spec.outputs
-    files = [p for f, _ in spec.cameras for p in out.frame_files(f)] + [out.out_dir / RUN_MANIFEST]
+    files = [p for f, _ in spec.cameras for p in spec.frame_files(f)] + [out.out_dir / RUN_MANIFEST]
     if out.gltf and out.gltf_sequence:
         files.append(out.out_dir / "sequence.glb")
     return files
@@ -187,11 +178,11 @@ def check_run(spec: RunSpec) -> None:
     """UsageError before any work: a file pattern that names two frames alike, an output over
     an input, a raster pass larger than the machine's memory."""
     check_pattern(spec.outputs.pattern)
-    spec.outputs.check_names(f for f, _ in spec.cameras)
+    spec.outputs.check_names((f for f, _ in spec.cameras), spec.raster)
     check_files_apart(spec)
-    if spec.outputs.raster_options is not None:
+    if spec.raster is not None:
         for w, h in sorted({(c.width, c.height) for _, c in spec.cameras}):
-            check_raster_fits(w, h, spec.outputs.raster_options.supersample, spec.outputs.raster_options.fill)
+            check_raster_fits(w, h, spec.raster.supersample, spec.raster.fill)
 
 
 @dataclass
@@ -209,32 +200,32 @@ class ResumePlan:
     done_before: set[int]
     entries: dict
     enter_later: set[int]
-    tracking_on: bool
 
 
-def plan_resume(spec: RunSpec, scene: Scene, tracking_on: bool) -> ResumePlan:
+def plan_resume(spec: RunSpec, scene: Scene) -> ResumePlan:
     """Take stock of the output folder. Frames whose every file exists, rendered by this run's
     scene and options with this frame's camera (the manifest says so), are not written again
-    with spec.skip_existing (with tracking their lines are still computed: the tracker's state
-    depends on every earlier frame, so a resumed run gives the same bytes as an uninterrupted one).
+    with spec.skip_existing (when strokes carry over their lines are still computed: a frame's
+    strokes depend on every earlier frame, so a resumed run gives the same bytes as an
+    uninterrupted one).
     Frame files there with a manifest of another scene or options, or none, raise UsageError."""
     out = spec.outputs
     out.out_dir.mkdir(parents=True, exist_ok=True)
     # Temporary files of an interrupted earlier run are ours to remove (their final names never existed).
-    for folder in [out.out_dir, *(out.out_dir / p for p in out.pass_folders())]:
+    for folder in [out.out_dir, *(out.out_dir / p for p in spec.pass_folders())]:
         for stale in folder.glob(".*.part"):
             stale.unlink(missing_ok=True)
     frames = [f for f, _ in spec.cameras]
-    manifest = run_manifest(spec, scene, tracking_on)
+    manifest = run_manifest(spec, scene)
     old = read_run_manifest(out.out_dir)
     same_run = old is not None and old["run"] == manifest["run"]
-    before = _file_states(p for f in frames for p in out.frame_files(f))
-    on_disk = {f: [str(p) in before for p in out.frame_files(f)] for f in frames}
+    before = _file_states(p for f in frames for p in spec.frame_files(f))
+    on_disk = {f: [str(p) in before for p in spec.frame_files(f)] for f in frames}
     done_before = set()
     if spec.skip_existing:
         present = {f for f in frames if all(on_disk[f])}
         if present and not same_run:
-            raise UsageError(_not_a_resume(out.out_dir, old, manifest, present))
+            raise UsageError(not_a_resume(out.out_dir, old, manifest, present))
         done_before = {f for f in present if old["frames"].get(f) == manifest["frames"][f]}
     # The manifest is written before any frame file: the same run's entries are kept (merged),
     # another run's replaced. A frame of this run is entered now unless files of it from
@@ -249,7 +240,7 @@ def plan_resume(spec: RunSpec, scene: Scene, tracking_on: bool) -> ResumePlan:
         else:
             entries.pop(f, None)
             enter_later.add(f)
-    return ResumePlan(manifest, before, done_before, entries, enter_later, tracking_on)
+    return ResumePlan(manifest, before, done_before, entries, enter_later)
 
 
 def lines_needed(spec: RunSpec, resume: ResumePlan) -> list[int]:
@@ -261,7 +252,7 @@ def lines_needed(spec: RunSpec, resume: ResumePlan) -> list[int]:
     done = resume.done_before
     if spec.outputs.gltf and spec.outputs.gltf_sequence:
         return frames
-    if not resume.tracking_on:
+    if not spec.plan.carried:
         return [f for f in frames if f not in done]
     todo = [i for i, f in enumerate(frames) if f not in done]
     # (The tracker's state at a frame depends only on the frames before it.)
@@ -269,65 +260,53 @@ def lines_needed(spec: RunSpec, resume: ResumePlan) -> list[int]:
 
 
 class FrameStream:
-    """The frames of a run on their way through line work (in any process), tracking (here, in
-    frame order) and writing. `pending` is the queue of tasks the workers take from; `handle`
-    takes each task's result. Frames go on in frame order as soon as every earlier one is done:
-    the tracking pass (the only sequential stage) runs beside the workers' line work, and each
-    tracked frame's write task goes first in line, so output appears from the start and no stage
-    waits for all frames."""
+    """The frames of a run on their way: drawn (`render_frame`, in any process), carried over
+    (`StrokeCarry`, here, in frame order) and written. `pending` is the queue of tasks the workers
+    take from; `handle` takes each task's result. Frames go on in frame order as soon as every
+    earlier one is drawn: the carry (the only sequential step) runs beside the workers' drawing,
+    and each carried frame's write task goes first in line, so output appears from the start and
+    no stage waits for all frames."""
 
     def __init__(self, spec: RunSpec, scene: Scene, res: RunResult, stage: dict, resume: ResumePlan,
                  progress: Callable[[str, int, int], None] | None):
         self.spec, self.res, self.stage, self.resume, self.progress = spec, res, stage, resume, progress
-        out = spec.outputs
+        out, plan = spec.outputs, spec.plan
         self.frames = [f for f, _ in spec.cameras]
         cams = dict(spec.cameras)
         done_before = resume.done_before
-        tracking_on = resume.tracking_on
         self.need_lines = lines_needed(spec, resume)
         self.to_write = [f for f in self.need_lines if f not in done_before]
-        if spec.paths is not None:
-            # (Keys that say what the strokes are: only brush frames have them, a lines frame's
-            # bytes stay what they were.)
-            self.extra = {"contours": spec.lines.contours, "tracking": "brush" if tracking_on else "none",
-                          "strokes_are": "brush"}
-        else:
-            self.extra = {"contours": spec.lines.contours, "tracking": spec.tracking.method if tracking_on else "none"}
-        if spec.lines.occlusion is not None:  # (the strokes then carry their levels: writers.strokes_json)
-            self.extra["occlusion"] = list(spec.lines.occlusion)
-        self.keep_strokes = out.gltf and out.gltf_sequence
-        self.scene_key = (spec.scene_path, scene.content_hash, spec.lines)
-        # Without tracking a frame needs no other: it is written where its lines are computed
-        # (brush paths are made here, in frame order, even one frame at a time).
-        self.write_in_task = None if tracking_on or spec.paths is not None else (
-            spec.lines.layers, self.extra, self.keep_strokes)
-        self.pending = deque((frame_task, spec.scene_path, scene.content_hash, spec.lines, f, cams[f],
-                              out if f not in done_before else replace(out, raster_options=None), True,
-                              self.write_in_task if f not in done_before else None) for f in self.need_lines)
+        self.keep_frames = out.gltf and out.gltf_sequence
+        self.scene = SceneRef(spec.scene_path, scene.content_hash, spec.lines)
+        self.carry = StrokeCarry(plan)
+        # A frame that carries nothing over is written where it is drawn (brush paths are made
+        # here, in frame order, even one frame at a time).
+        self.write_in_task = not self.carry.needed
+        self.pending = deque(FrameTask(self.scene, plan, f, cams[f], out if f not in done_before else None,
+                                       write=self.write_in_task, keep_frame=self.keep_frames)
+                             for f in self.need_lines)
         self.n_lines = len(self.pending)
-        self.tracker = Tracker(spec.tracking) if tracking_on and spec.tracking is not None else None
-        self.paths = PathTracker(spec.paths) if spec.paths is not None else None
-        self.lines_results: dict[int, Strokes | BrushPaths] = {}
-        self.underlays: dict[int, list | None] = {}
-        self.json_extra: dict[int, dict] = {}  # per frame: what the frame JSON says of its raster passes
+        self.drawn: dict[int, Frame | None] = {}  # frames drawn, then carried over, until written
         self.finished: set[int] = set()  # frames whose lines are done or failed
         self.lines_failed: set[int] = set()
-        self.ordered: list[int] = []  # frames with lines, in frame order, tracked when tracking is on
+        self.ordered: list[int] = []  # frames drawn, in frame order, carried over
         self.n_done = self.n_written = 0
         self.cursor = 0
         #: The first file that could not be written (an OSError naming it): the run stops there.
         self.write_error: OSError | None = None
 
-    def handle(self, r: dict) -> bool:
+    def handle(self, r: FrameResult | WriteResult) -> bool:
         """Take one task result; False stops the run (a file that cannot be written, or
         --fail-fast after a failure)."""
-        if r.get("stage") == "write":
+        if isinstance(r, WriteResult):
             self.written(r)
         else:
             self.lines_done(r)
         if self.write_error is not None:
             return False
-        return not (self.spec.fail_fast and ("error" in r or "error" in r.get("written", ())))
+        failed = r.error is not None or (isinstance(r, FrameResult) and r.written is not None
+                                         and r.written.error is not None)
+        return not (self.spec.fail_fast and failed)
 
     def write_failed(self, frame: int | None, error: OSError) -> None:
         """A write failed (of `frame`'s files, or of a file of the run): the first one is kept
@@ -337,74 +316,66 @@ class FrameStream:
         if frame is not None:
             self.res.failures.setdefault(frame, f"{error.filename}: {error.strerror}")
 
-    def lines_done(self, r: dict) -> None:
+    def lines_done(self, r: FrameResult) -> None:
         res = self.res
         self.n_done += 1
-        f = r["frame"]
+        f = r.number
         self.finished.add(f)
-        if "write_error" in r:  # a raster PNG: the run stops, nothing more is tracked
-            self.write_failed(f, OSError(*r["write_error"]))
+        if r.write_error is not None:  # a raster PNG: the run stops, nothing more is carried
+            self.write_failed(f, r.write_error.error())
             return
-        if "error" in r:
-            res.failures[f] = r["error"]
+        if r.error is not None:
+            res.failures[f] = r.error
             self.lines_failed.add(f)
         else:
-            self.lines_results[f] = r["strokes"]
-            self.underlays[f] = r.get("underlays")
-            self.json_extra[f] = r.get("json_extra") or {}
-            res.ray_tracers.add(r["ray_tracer"])
-            res.frame_seconds[f] = r["seconds"]
-            res.outputs += r["files"]
-            _add_timings(self.stage, r["timings"])
+            self.drawn[f] = r.frame
+            res.ray_tracers.add(r.ray_tracer)
+            res.frame_seconds[f] = r.seconds
+            res.outputs += r.files
+            add_timings(self.stage, r.timings)
         if self.progress:
             self.progress("lines", self.n_done, self.n_lines)
-        if "written" in r:
-            self.written(r["written"])
+        if r.written is not None:
+            self.written(r.written)
         self.advance()
 
     def advance(self) -> None:
-        """Track and queue for writing every frame whose earlier frames are all done."""
+        """Carry over and queue for writing every frame whose earlier frames are all drawn."""
         need, done_before = self.need_lines, self.resume.done_before
         while self.cursor < len(need) and need[self.cursor] in self.finished and self.write_error is None:
             f = need[self.cursor]
             if f in self.lines_failed and self.spec.fail_fast:
-                return  # --fail-fast: no frame after a failed one is tracked or written
+                return  # --fail-fast: no frame after a failed one is carried over or written
             self.cursor += 1
-            if f not in self.lines_results:
+            if f not in self.drawn:
                 continue
-            if self.tracker is not None:
-                t = time.perf_counter()
-                self.lines_results[f] = self.tracker.step(self.lines_results[f])
-                self.stage["tracking"].seconds += time.perf_counter() - t
-            if self.paths is not None:
-                t = time.perf_counter()
-                self.lines_results[f] = self.paths.step(self.lines_results[f])
-                self.stage["brush paths"].seconds += time.perf_counter() - t
             self.ordered.append(f)
-            if self.write_in_task is not None:
+            if self.write_in_task:
                 continue  # written by its frame task
+            frame = self.drawn[f] = self.carry.step(self.drawn[f])
+            for name in ("tracking", "brush paths"):
+                if name in frame.timings:
+                    self.stage[name].seconds += frame.timings[name]
             if f not in done_before:
-                self.pending.appendleft((write_task, self.lines_results[f], f, self.spec.outputs,
-                                         self.spec.lines.layers, {**self.extra, **self.json_extra.pop(f, {})},
-                                         self.underlays.pop(f, None), self.scene_key))
-            if not self.keep_strokes and f in done_before:
-                self.lines_results.pop(f)
+                self.pending.appendleft(WriteTask(frame, self.spec.outputs, self.scene))
+            elif not self.keep_frames:
+                self.drawn.pop(f)
 
-    def written(self, r: dict) -> None:
+    def written(self, r: WriteResult) -> None:
         res = self.res
         self.n_written += 1
-        f = r["frame"]
-        if "write_error" in r:
-            self.write_failed(f, OSError(*r["write_error"]))
-        elif "error" in r:
-            res.failures[f] = r["error"]
+        f = r.number
+        if r.write_error is not None:
+            self.write_failed(f, r.write_error.error())
+        elif r.error is not None:
+            res.failures[f] = r.error
         else:
-            res.outputs += r["files"]
+            res.outputs += r.files
             res.frames_ok.append(f)
-            res.frame_seconds[f] = res.frame_seconds.get(f, 0.0) + r["seconds"]
-            _add_timings(self.stage, r["timings"])
-        if not self.keep_strokes:
-            self.lines_results.pop(f, None)
+            res.frame_seconds[f] = res.frame_seconds.get(f, 0.0) + r.seconds
+            add_timings(self.stage, r.timings)
+        if not self.keep_frames:
+            self.drawn.pop(f, None)
         if self.progress:
             # Frames whose lines failed are never written: they leave the total.
             failed = len(self.lines_failed.intersection(self.to_write))
@@ -412,14 +383,15 @@ class FrameStream:
 
     def write_before_failure(self) -> None:
         """After a stop at a failure (--fail-fast): the frames before it whose lines are done are
-        tracked (advance) and written, here, in frame order (their write tasks were left in line)."""
+        carried over (advance) and written, here, in frame order (their write tasks were left in
+        line)."""
         order = {f: k for k, f in enumerate(self.frames)}
         stop_at = min((order[f] for f in self.res.failures), default=len(self.frames))
-        rest = sorted((item for item in self.pending if item[0] is write_task and order[item[2]] < stop_at),
-                      key=lambda item: order[item[2]])
+        rest = sorted((t for t in self.pending if isinstance(t, WriteTask) and order[t.frame.number] < stop_at),
+                      key=lambda t: order[t.frame.number])
         self.pending.clear()
-        for item in rest:
-            self.written(write_task(*item[1:]))
+        for task in rest:
+            self.written(write_task(task))
             if self.write_error is not None:
                 break
 
@@ -429,8 +401,8 @@ class FrameStream:
         done = resume.enter_later.intersection(self.res.frames_ok)
         resume.entries.update((f, resume.manifest["frames"][f]) for f in done)
         stale = []
-        if resume.tracking_on and self.lines_failed:
-            # The frames after a frame whose lines failed were tracked without it: they are
+        if self.spec.plan.carried and self.lines_failed:
+            # The frames after a frame whose lines failed were carried over without it: they are
             # not what a run with it gives, so they leave the manifest and a resume renders
             # them again (their digests chain through the failed frame).
             first = self.frames.index(min(self.lines_failed, key=self.frames.index))
@@ -440,13 +412,13 @@ class FrameStream:
 
 
 def write_sequence_glb(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, stream: FrameStream) -> None:
-    """sequence.glb (--gltf-sequence): every tracked frame of the run, one node per frame."""
+    """sequence.glb (--gltf-sequence): every carried frame of the run, one node per frame."""
     out = spec.outputs
     if not (out.gltf and out.gltf_sequence and stream.ordered):
         return
     t = time.perf_counter()
-    seq = [drawn_strokes(stream.lines_results[f]) for f in stream.ordered]
-    depth_at = _surface_depth(out, stream.scene_key)
+    seq = [stream.drawn[f].strokes for f in stream.ordered]
+    depth_at = surface_depth(out, stream.scene)
     res.outputs.append(str(atomic_write_bytes(out.out_dir / "sequence.glb",
                                               glb_for_sequence(seq, out.gltf_options, depth_at))))
     stage["ribbons + glTF"].seconds += time.perf_counter() - t
@@ -493,7 +465,7 @@ def _frames_found_whole(spec: RunSpec, res: RunResult, before: dict[str, tuple] 
     for f, _ in spec.cameras:
         if f in known:
             continue
-        paths = spec.outputs.frame_files(f)
+        paths = spec.frame_files(f)
         if paths and all(_written_by_run(p, before) for p in paths):
             res.frames_ok.append(f)
             res.outputs += [str(p) for p in paths if str(p) not in listed]
@@ -509,7 +481,7 @@ def _remove_partial_frames(spec: RunSpec, res: RunResult, before: dict[str, tupl
     for f, _ in spec.cameras:
         if f in keep:
             continue
-        paths = spec.outputs.frame_files(f)
+        paths = spec.frame_files(f)
         if not any(_written_by_run(p, before) for p in paths):
             continue  # untouched: an earlier run's frame stays as it was
         # Some of it is new: an earlier run's files of it would make a frame of two runs.
@@ -537,7 +509,7 @@ def remove_temp_files(spec: RunSpec) -> list[Path]:
     names = {str(p) for p in run_files(spec)} | {str(out.out_dir / "sequence.glb")}
     removed = []
     try:
-        temps = [t for folder in [out.out_dir, *(out.out_dir / p for p in out.pass_folders())]
+        temps = [t for folder in [out.out_dir, *(out.out_dir / p for p in spec.pass_folders())]
                  for t in folder.glob(".*.part")]
     except OSError:
         return removed

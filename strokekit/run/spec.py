@@ -1,20 +1,22 @@
-"""What a run is asked to do (`RunSpec`, `OutputOptions`: typed, picklable), which stages that
-needs (`plan_stages`), and what it did (`RunResult`)."""
+"""What a run is asked to do (`RunSpec`: a RenderRequest for some cameras, with
+`OutputOptions`: typed, picklable), which stages that needs (`plan_stages`), and what it did
+(`RunResult`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.fileio import TEMP_SUFFIX
-from strokekit.options import LineOptions
-from strokekit.paths.options import PathOptions
+from strokekit.options import LineOptions, option
 from strokekit.raster.bands import RasterOptions
 from strokekit.raster.passes import PassOptions
+from strokekit.run.request import RenderRequest, SequencePlan
+from strokekit.run.workers import MAX_WORKERS
 from strokekit.scene.load import Scene
-from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.gltf import GltfOptions
 
 #: The longest file name (bytes) of Linux, macOS and Windows file systems.
@@ -26,30 +28,35 @@ class OutputOptions:
     """What to write and where. `pattern` names a frame's files (without extension)."""
 
     out_dir: Path
-    pattern: str = "frame_{frame:04d}"
-    svg: bool = True
-    json: bool = True
-    gltf: bool = False
-    gltf_sequence: bool = False
-    decimals: int = 2
-    stroke_width_px: float = 1.5
+    pattern: str = option("frame_{frame:04d}", "--pattern", "File name pattern (no extension).", show_default=True)
+    svg: bool = option(True, "--svg", "Write frame_NNNN.svg (the drawing).", off="--no-svg", show_default=True)
+    json: bool = option(True, "--json", "Write frame_NNNN.json (strokes with ids, kinds and u, for tools).",
+                        off="--no-json", show_default=True)
+    gltf: bool = option(False, "--gltf", "Write textured ribbons as frame_NNNN.glb.", off="--no-gltf",
+                        show_default=True)
+    gltf_sequence: bool = option(False, "--gltf-sequence",
+                                 "One sequence.glb for all frames (a node per frame) instead.", switch=True)
+    decimals: int = option(2, "--decimals", "SVG coordinate decimals.", low=0, high=8, show_default=True, needs="svg")
+    stroke_width_px: float = option(1.5, "--stroke-width", "SVG stroke width in px.", show_default=True)
     gltf_options: GltfOptions | None = None  # None: GltfOptions()
-    raster_options: RasterOptions | None = None  # None: no raster pass
     # Hidden layers' dash pattern (px, on and off: writers.svg.svg_document); None: ISO 128's for
-    # the stroke width, (): solid.
+    # the stroke width, (): solid. On the command line: --dashes.
     hidden_dashes: tuple[float, ...] | None = None
-    dash_paths: bool = False  # the dashes as geometry (a subpath each), for plotters: svg_document
-    exr: PassOptions | None = None  # one multilayer EXR per frame with these passes; None: no EXR
-    lines_png: bool = False  # the strokes as an RGBA PNG (the EXR's lines layer)
+    dash_paths: bool = option(  # the dashes as geometry (a subpath each), for plotters: svg_document
+        False, "--dash-paths", "Write the hidden lines' dashes as geometry (a subpath per dash) instead of a dash "
+        "style: for plotters (vpype draws a styled dash pattern solid).", switch=True)
+    exr: PassOptions | None = None  # one multilayer EXR per frame with these passes; None: no EXR (--exr)
+    lines_png: bool = option(  # the strokes as an RGBA PNG (the EXR's lines layer)
+        False, "--lines-png", "Also lines/frame_NNNN.png: the visible strokes as an RGBA image.", switch=True)
 
     def stem(self, frame: int) -> str:
         return self.pattern.format(frame=frame)
 
-    def check_names(self, frames) -> None:
+    def check_names(self, frames, raster: RasterOptions | None) -> None:
         """UsageError when the pattern gives two of `frames` the same name (a pattern such as
         f_{frame:.0e} writes frames 10, 11 and 12 to one file: each would overwrite the last)."""
         seen: dict[str, int] = {}
-        longest = max((len(p.name) - len(self.stem(0)) for p in self.frame_files(0)), default=0)
+        longest = max((len(p.name) - len(self.stem(0)) for p in self.frame_files(0, raster)), default=0)
         for f in frames:
             name = self.stem(f)
             if name in seen:
@@ -66,8 +73,8 @@ class OutputOptions:
         name (a pattern like shot.{frame:04d} keeps its frame number)."""
         return self.out_dir / f"{self.stem(frame)}{suffix}"
 
-    def frame_files(self, frame: int) -> list[Path]:
-        """The files one frame produces with these options."""
+    def frame_files(self, frame: int, raster: RasterOptions | None) -> list[Path]:
+        """The files one frame produces with these options and the raster pass `raster`."""
         out = []
         if self.svg:
             out.append(self.frame_file(frame, ".svg"))
@@ -75,48 +82,65 @@ class OutputOptions:
             out.append(self.frame_file(frame, ".json"))
         if self.gltf and not self.gltf_sequence:
             out.append(self.frame_file(frame, ".glb"))
-        out += self.pass_files(frame)
+        out += self.pass_files(frame, raster)
         if self.exr is not None:
             out.append(self.frame_file(frame, ".exr"))
         return out
 
-    def pass_folders(self) -> list[str]:
-        """The image passes written as PNG, one folder each (OUT/<pass>/<pattern>.png), so that the
-        frame number is the last number of every file name and each folder is one image sequence."""
-        out = raster_file_suffixes(self.raster_options) if self.raster_options is not None else []
+    def pass_folders(self, raster: RasterOptions | None) -> list[str]:
+        """The image passes written as PNG with the raster pass `raster`, one folder each
+        (OUT/<pass>/<pattern>.png), so that the frame number is the last number of every file
+        name and each folder is one image sequence."""
+        out = raster_file_suffixes(raster) if raster is not None else []
         return out + (["lines"] if self.lines_png else [])
 
-    def pass_files(self, frame: int) -> list[Path]:
+    def pass_files(self, frame: int, raster: RasterOptions | None) -> list[Path]:
         """OUT/<pass>/<pattern>.png of one frame, for each pass in `pass_folders`."""
-        return [self.out_dir / p / f"{self.stem(frame)}.png" for p in self.pass_folders()]
+        return [self.out_dir / p / f"{self.stem(frame)}.png" for p in self.pass_folders(raster)]
 
 
 @dataclass(frozen=True)
 class RunSpec:
-    """Everything a run needs; cheap to pickle."""
+    """Everything a run needs: the scene file, the (frame number, camera) pairs, what they draw
+    and what is written."""
 
     scene_path: str
     cameras: tuple[tuple[int, Camera], ...]
-    lines: LineOptions
     outputs: OutputOptions
-    tracking: TrackingOptions | None = None  # None: the lines are not tracked
-    # Brush paths (`--strokes brush`): drawn instead of the lines, the lines kept in the JSON beside
-    # them; None: the lines are drawn (`--strokes lines`). A run draws one or the other: with
-    # paths, `tracking` is None (the paths carry their own ids).
-    paths: PathOptions | None = None
-    workers: int = 1
-    scheduler: str | None = None
-    skip_existing: bool = False  # resume: see run(); frames of another scene or options are a UsageError
-    fail_fast: bool = False
+    request: RenderRequest = field(default_factory=RenderRequest)
+    workers: int = option(
+        1, "--workers", "Processes rendering frames: this one and N-1 started beside it (default: the machine's "
+        "cores for 8 frames or more, 16 with a raster output, else 1; at most 4 per core, 8 on smaller machines).",
+        low=1, high=MAX_WORKERS, needs="no scheduler")
+    scheduler: str | None = option(None, "--scheduler", "dask.distributed scheduler address, e.g. tcp://host:8786.")
+    skip_existing: bool = option(  # resume: see run(); frames of another scene or options are a UsageError
+        False, "--skip-existing", "Resume: do not rewrite frames whose files all exist and were rendered from the "
+        "same scene, options and camera (OUT/.strokekit-run.json says so); frames of another scene or other options "
+        "are a usage error.", switch=True)
+    fail_fast: bool = option(False, "--fail-fast", "Stop at the first failed frame (frames already written stay; the "
+                             "run streams them out in order).", switch=True)
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
 
+    @cached_property
+    def plan(self) -> SequencePlan:
+        """The request settled for this run's frames."""
+        return self.request.plan(len(self.cameras))
 
-def carries_history(spec: RunSpec) -> bool:
-    """Whether a frame's strokes depend on the frames before it in the run: the lines are tracked,
-    or brush paths are carried from frame to frame (a run of two frames or more)."""
-    if len(spec.cameras) < 2:
-        return False
-    return spec.tracking is not None or (spec.paths is not None and spec.paths.history)
+    @property
+    def lines(self) -> LineOptions:
+        return self.request.lines
+
+    @property
+    def raster(self) -> RasterOptions | None:
+        return self.request.raster
+
+    def frame_files(self, frame: int) -> list[Path]:
+        """The files one frame of the run produces."""
+        return self.outputs.frame_files(frame, self.raster)
+
+    def pass_folders(self) -> list[str]:
+        """The folders of the run's PNG passes (OutputOptions.pass_folders)."""
+        return self.outputs.pass_folders(self.raster)
 
 
 @dataclass
@@ -125,6 +149,15 @@ class StageRecord:
     ran: bool
     why: str
     seconds: float = 0.0
+
+
+def add_timings(stages: dict[str, StageRecord], timings: dict) -> None:
+    """Add a task's seconds per stage (keys: stage names, or RASTER_STAGES' keys) to the run's
+    stages: a stage's time is the work done in all processes."""
+    for key, sec in timings.items():
+        name = RASTER_STAGES[key][0] if key in RASTER_STAGES else key
+        if name in stages:
+            stages[name].seconds += sec
 
 
 @dataclass
@@ -190,7 +223,7 @@ class RunInterrupted(KeyboardInterrupt):
 
 def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
     """Which stages run for this scene and these outputs, and why (for --explain and the report)."""
-    o, L = spec.outputs, spec.lines
+    o, L, plan = spec.outputs, spec.lines, spec.plan
     kinds = set(L.kinds)
     st = [StageRecord("load scene + BVH", True, "every run needs the scene and its occlusion BVH")]
 
@@ -225,17 +258,17 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
                               "geometry is clear, every other change of level bisected"))
     st.append(StageRecord("chaining", True, "visible runs linked into strokes"))
     n = len(spec.cameras)
-    add("tracking", spec.tracking is not None and n > 1,
+    add("tracking", plan.tracking is not None,
         f"{n} frames with coherence on", "brush paths drawn (--strokes brush: they carry their own ids)"
-        if spec.paths is not None else "single frame or --no-coherence")
-    add("brush paths", spec.paths is not None,
-        f"--strokes brush ({'carried from frame to frame' if carries_history(spec) else 'one frame at a time'})",
+        if plan.paths is not None else "single frame or --no-coherence")
+    add("brush paths", plan.paths is not None,
+        f"--strokes brush ({'carried from frame to frame' if plan.carried else 'one frame at a time'})",
         "--strokes lines: the lines are drawn")
     add("svg", o.svg, "SVG output requested", "--no-svg")
     add("json", o.json, "JSON output requested", "--no-json")
     add("ribbons + glTF", o.gltf, "glTF output requested", "no glTF output requested")
-    add("raster pass", o.raster_options is not None, "a raster output was requested", "no raster output requested")
-    if o.raster_options is not None:
+    add("raster pass", plan.raster is not None, "a raster output was requested", "no raster output requested")
+    if plan.raster is not None:
         for name, why in RASTER_STAGES.values():
             st.append(StageRecord(name, True, why))
     add("EXR", o.exr is not None, "--exr: " + ", ".join(o.exr.passes) if o.exr is not None else "", "no --exr")

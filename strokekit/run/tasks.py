@@ -1,33 +1,113 @@
-"""The tasks a worker runs: a frame's lines (and raster pass), and a tracked frame's writes
-(SVG, JSON, GLB, PNG), each file written atomically."""
+"""The tasks a worker runs: a frame's drawing and raster files (`FrameTask`), and a carried
+frame's files (`WriteTask`: SVG, JSON, GLB), each file written atomically. Tasks and results are
+dataclasses: picklable, for a process pool or a dask cluster."""
 
 from __future__ import annotations
 
 import time
 import traceback
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.colour import srgb_encode
-from strokekit.cryptomatte import name_to_hex
 from strokekit.errors import StrokekitError
 from strokekit.fileio import atomic_write_bytes
-from strokekit.model import BrushPaths, Strokes
-from strokekit.options import LineOptions
 from strokekit.raster.bands import band_regions, render_raster
-from strokekit.raster.hits import ensure_kernels, thread_workspace
+from strokekit.raster.hits import thread_workspace
 from strokekit.raster.passes import compositing_passes
 from strokekit.raster.rays import surface_depth_at
 from strokekit.raster.strokes import stroke_coverage
-from strokekit.run.spec import RASTER_STAGES, OutputOptions
-from strokekit.run.workers import _renderer
+from strokekit.run.frame import Frame, render_frame
+from strokekit.run.request import SequencePlan
+from strokekit.run.spec import OutputOptions
+from strokekit.run.workers import SceneRef
 from strokekit.scene.occluder import Occluder
 from strokekit.writers.exr import exr_bytes, lines_sparse
 from strokekit.writers.gltf import glb_for_frame
 from strokekit.writers.png import png_files
-from strokekit.writers.strokes_json import strokes_json
-from strokekit.writers.svg import bands_layer, svg_document
+from strokekit.writers.svg import bands_layer
+
+
+@dataclass(frozen=True)
+class WriteError:
+    """A file that could not be written (disk full, no permission): the OSError's parts, which
+    pickle where the error may not; the run raises it again (`error`) and stops."""
+
+    errno: int | None
+    strerror: str | None
+    filename: str | None
+
+    @classmethod
+    def of(cls, e: OSError) -> WriteError:
+        return cls(e.errno, e.strerror, e.filename)
+
+    def error(self) -> OSError:
+        return OSError(self.errno, self.strerror, self.filename)
+
+
+@dataclass(frozen=True)
+class WriteResult:
+    """What a frame's writes did: the files written and their seconds per stage, or the error
+    (`error`: the frame failed; `write_error`: a file could not be written, the run stops)."""
+
+    number: int
+    files: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    timings: dict = field(default_factory=dict)
+    error: str | None = None
+    write_error: WriteError | None = None
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """What a frame task did. frame: the drawn frame (its raster written and dropped); None
+    when it failed, or was written in the task and is not needed again. files: the raster
+    files written; written: the frame's own files, when the task wrote them; ray_tracer: the
+    occlusion backend that drew it. error / write_error: as WriteResult's."""
+
+    number: int
+    frame: Frame | None = None
+    files: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+    timings: dict = field(default_factory=dict)
+    ray_tracer: str = ""
+    written: WriteResult | None = None
+    error: str | None = None
+    write_error: WriteError | None = None
+    traceback: str | None = None
+
+
+@dataclass(frozen=True)
+class FrameTask:
+    """Draw one frame (`render_frame`) and write its raster files. outputs: where (None: the
+    frame was kept from an earlier run and is drawn only for the frames after it: nothing is
+    written). write: the frame needs no other frame (nothing is carried), so its own files are
+    written here too, and the strokes go back only when `keep_frame` (sequence.glb needs them)."""
+
+    scene: SceneRef
+    plan: SequencePlan
+    number: int
+    camera: Camera
+    outputs: OutputOptions | None
+    write: bool = False
+    keep_frame: bool = False
+
+    def __call__(self) -> FrameResult:
+        return frame_task(self)
+
+
+@dataclass(frozen=True)
+class WriteTask:
+    """Write one frame's SVG, JSON and GLB. scene: the GLB's world ribbons lie on its surface."""
+
+    frame: Frame
+    outputs: OutputOptions
+    scene: SceneRef
+
+    def __call__(self) -> WriteResult:
+        return write_task(self)
 
 
 class _WriteFailed(Exception):
@@ -46,137 +126,94 @@ def _write(path, data: bytes) -> str:
         raise _WriteFailed(e) from None
 
 
-def _write_error(e: OSError) -> tuple:
-    """(errno, strerror, filename) of a failed write: what a task result carries (picklable, and
-    the run raises it again as OSError(*...))."""
-    return (e.errno, e.strerror, e.filename)
-
-
-def frame_task(scene_path: str, scene_hash: str, lines: LineOptions, frame: int, camera: Camera,
-               outputs: OutputOptions, do_lines: bool = True, write: tuple | None = None) -> dict:
-    """Per-frame work that needs no other frame: lines, and the raster outputs (written here).
-    Returns {'frame', 'strokes', 'seconds', 'files'}; errors come back as {'error': message}, a
-    file that cannot be written (disk full, no permission) as {'write_error': (errno, strerror,
-    filename)}.
-    `write` = (kinds, extra, keep_strokes): the frame needs nothing from other frames (no
-    tracking), so its SVG/JSON/GLB are written here too, and the result carries the write
-    task's result under 'written' (and the strokes only when `keep_strokes`): strokes are not
-    shipped to the main process and back."""
+def frame_task(task: FrameTask) -> FrameResult:
+    """Run a FrameTask. Errors come back in the result, a failed frame must not lose the others."""
     t0 = time.perf_counter()
+    n = task.number
     try:
-        r = _renderer(scene_path, scene_hash, lines)
-        r.check_camera(camera, frame)
-        timings: dict = {}
-        strokes = r.render(camera, frame, timings) if do_lines else None
-        if outputs.raster_options is not None:
-            # The kernels' load (a worker's first frame) is the 'raster kernels' stage, not this frame's.
-            timings["kernels"] = ensure_kernels()
-        files, underlays, json_extra = raster_files(r.scene, camera, r.occluder, strokes, frame, outputs, timings,
-                                                    lines.crease_angle_deg)
-        res = {"frame": frame, "strokes": strokes, "seconds": time.perf_counter() - t0, "files": files,
-               "timings": timings, "underlays": underlays or None, "json_extra": json_extra,
-               "ray_tracer": r.occluder.backend}
-        if write is not None and strokes is not None:
-            kinds, extra, keep_strokes = write
-            res["written"] = write_task(strokes, frame, outputs, kinds, {**extra, **res.pop("json_extra")},
-                                        res.pop("underlays"), occluder=r.occluder)
-            if not keep_strokes:
-                res["strokes"] = None
-        return res
+        r = task.scene.renderer()
+        plan = task.plan if task.outputs is not None else replace(task.plan, raster=None)
+        frame = render_frame(r, n, task.camera, plan, work=thread_workspace() if plan.raster is not None else None)
+        timings = dict(frame.timings)
+        files = raster_files(frame, task.outputs, plan.lines.crease_angle_deg, timings) \
+            if task.outputs is not None else []
+        frame = replace(frame, raster=None)
+        written = None
+        if task.write and task.outputs is not None:
+            written = write_task(WriteTask(frame, task.outputs, task.scene), occluder=r.occluder)
+            if not task.keep_frame:
+                frame = None
+        return FrameResult(n, frame, files, time.perf_counter() - t0, timings, r.occluder.backend, written)
     except _WriteFailed as w:
-        return {"frame": frame, "write_error": _write_error(w.error)}
+        return FrameResult(n, write_error=WriteError.of(w.error))
     except StrokekitError as e:
-        return {"frame": frame, "error": str(e)}
-    except Exception as e:  # a failed frame must not lose the others
-        return {"frame": frame, "error": f"frame {frame}: {type(e).__name__}: {e}",
-                "traceback": traceback.format_exc()}
+        return FrameResult(n, error=str(e))
+    except Exception as e:
+        return FrameResult(n, error=f"frame {n}: {type(e).__name__}: {e}", traceback=traceback.format_exc())
 
 
-def drawn_strokes(frame: Strokes | BrushPaths) -> Strokes:
-    """What a frame draws: its brush paths, or its lines."""
-    return frame.strokes if isinstance(frame, BrushPaths) else frame
-
-
-def write_task(frame_strokes: Strokes | BrushPaths, frame: int, outputs: OutputOptions, kinds: tuple[str, ...],
-               extra: dict, underlays: list | None = None, scene_key: tuple | None = None, occluder=None) -> dict:
-    """Write one frame's SVG, JSON and GLB (atomic). Returns {'frame', 'files', 'seconds'}, or
-    {'frame', 'write_error': (errno, strerror, filename)} for a file that cannot be written.
-    `frame_strokes`: the frame's lines, or its brush paths (drawn; the JSON keeps the lines beside
-    them). The GLB's world ribbons lie on the scene's surface (raster.surface_depth_at):
-    `occluder`, or this process's renderer of `scene_key` = (scene path, scene hash, LineOptions)."""
+def write_task(task: WriteTask, occluder: Occluder | None = None) -> WriteResult:
+    """Write one frame's SVG, JSON and GLB (atomic). The GLB's world ribbons lie on the scene's
+    surface (raster.surface_depth_at): `occluder`, or this process's renderer of task.scene."""
     t0 = time.perf_counter()
+    frame, outputs = task.frame, task.outputs
     try:
-        paths = frame_strokes if isinstance(frame_strokes, BrushPaths) else None
-        strokes = drawn_strokes(frame_strokes)
-        cam = strokes.camera
         files = []
         timings: dict = {}
         if outputs.svg:
-            text = svg_document(strokes, cam.width, cam.height, kinds, decimals=outputs.decimals,
-                                stroke_width=outputs.stroke_width_px, underlays=underlays,
-                                dashes=outputs.hidden_dashes, dash_paths=outputs.dash_paths)
-            files.append(_write(outputs.frame_file(frame, ".svg"), text.encode()))
+            text = frame.to_svg(outputs.decimals, outputs.stroke_width_px, outputs.hidden_dashes, outputs.dash_paths)
+            files.append(_write(outputs.frame_file(frame.number, ".svg"), text.encode()))
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:
-            files.append(_write(outputs.frame_file(frame, ".json"),
-                                strokes_json(strokes, cam.width, cam.height, frame, extra=extra, paths=paths)))
+            files.append(_write(outputs.frame_file(frame.number, ".json"), frame.to_json()))
             timings["json"] = time.perf_counter() - t0 - sum(timings.values())
         if outputs.gltf and not outputs.gltf_sequence:
-            files.append(_write(outputs.frame_file(frame, ".glb"), glb_for_frame(
-                strokes, cam, outputs.gltf_options, _surface_depth(outputs, scene_key, occluder))))
+            files.append(_write(outputs.frame_file(frame.number, ".glb"), glb_for_frame(
+                frame.strokes, frame.strokes.camera, outputs.gltf_options,
+                surface_depth(outputs, task.scene, occluder))))
             timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())
-        return {"stage": "write", "frame": frame, "files": files, "seconds": time.perf_counter() - t0,
-                "timings": timings}
+        return WriteResult(frame.number, files, time.perf_counter() - t0, timings)
     except _WriteFailed as w:
-        return {"stage": "write", "frame": frame, "write_error": _write_error(w.error)}
+        return WriteResult(frame.number, write_error=WriteError.of(w.error))
     except Exception as e:
-        return {"stage": "write", "frame": frame, "error": f"frame {frame}: writing failed: {type(e).__name__}: {e}"}
+        return WriteResult(frame.number, error=f"frame {frame.number}: writing failed: {type(e).__name__}: {e}")
 
 
-def _surface_depth(outputs: OutputOptions, scene_key: tuple | None, occluder=None):
+def surface_depth(outputs: OutputOptions, scene: SceneRef | None, occluder: Occluder | None = None):
     """raster.surface_depth_at for world ribbons (None for image-space ones, or without a scene)."""
     if outputs.gltf_options is not None and outputs.gltf_options.space != "world":
         return None
     if occluder is None:
-        if scene_key is None:
+        if scene is None:
             return None
-        occluder = _renderer(*scene_key).occluder
-
+        occluder = scene.renderer().occluder
     return surface_depth_at(occluder)
 
 
-def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | None, frame: int,
-                 outputs: OutputOptions, timings: dict, crease_angle_deg: float = 60.0
-                 ) -> tuple[list[str], list[str], dict]:
-    """Write one frame's image passes (PNGs, one folder per pass) and EXR. Returns (files written,
-    the SVG's bands layer ([] unless band polygons), what the frame JSON says of them: the depth
-    PNG's range, and the objects and materials with their ids in the object-id PNG and their
-    Cryptomatte ids). `crease_angle_deg`: the line options' (smooth shading splits normals there)."""
+def raster_files(frame: Frame, outputs: OutputOptions, crease_angle_deg: float, timings: dict) -> list[str]:
+    """Write one frame's image passes (PNGs, one folder per pass: its raster pass's images, the
+    lines PNG) and EXR; returns the files written. The lines in them are the frame's as drawn,
+    before any carry. `crease_angle_deg`: the line options' (the EXR's smooth normals split
+    there). `timings` gets the seconds of each part."""
     files: list[str] = []
-    underlays: list[str] = []
-    info: dict = {}
-    o = outputs.raster_options
-    stem = outputs.stem(frame)
+    raster, strokes, camera = frame.raster, frame.lines, frame.camera
+    stem = outputs.stem(frame.number)
     covered: dict = {}
 
     def coverage(width_px: float) -> dict:
         """The strokes' coverage per kind, once for the lines PNG and the EXR's lines layer."""
         if width_px not in covered:
-            covered[width_px] = stroke_coverage(strokes, int(camera.width), int(camera.height), width_px) \
-                if strokes is not None else {}
+            covered[width_px] = stroke_coverage(strokes, int(camera.width), int(camera.height), width_px)
         return covered[width_px]
 
-    if o is not None:
+    if raster is not None:
         t1 = time.perf_counter()
-        raster = render_raster(scene, camera, occluder, o, crease_angle_deg, work=thread_workspace(), timings=timings)
-        t2 = time.perf_counter()
-        images = raster.images() if o.pngs else {}
-        timings["images"] = timings.get("images", 0.0) + (time.perf_counter() - t2)
+        images = raster.images() if raster.options.pngs else {}
+        timings["images"] = timings.get("images", 0.0) + (time.perf_counter() - t1)
         text = {}
         if "depth" in images:
             zn, zf = raster.depth_range()
             text["depth"] = {"near": repr(zn), "far": repr(zf)}
-            info["depth_range"] = [zn, zf]
         if outputs.lines_png:
             t2 = time.perf_counter()
             images["lines"] = _lines_image(coverage(outputs.stroke_width_px), camera)
@@ -186,26 +223,21 @@ def raster_files(scene, camera: Camera, occluder: Occluder, strokes: Strokes | N
         timings["png"] = timings.get("png", 0.0) + (time.perf_counter() - t2)
         for name, data in pngs.items():
             files.append(_write(outputs.out_dir / name / f"{stem}.png", data))
-        if o.band_polygons:
-            underlays = [bands_layer(band_regions(raster))]
-        timings["raster pass"] = time.perf_counter() - t1 - timings.get("lines PNG", 0.0)
-        for key, (name, _) in RASTER_STAGES.items():
-            if key in timings:
-                timings[name] = timings.pop(key)
+        timings["raster pass"] = timings.get("raster pass", 0.0) + time.perf_counter() - t1 \
+            - timings.get("lines PNG", 0.0)
         if outputs.exr is not None:
             t1 = time.perf_counter()
             passes = compositing_passes(raster, strokes, outputs.exr, crease_angle_deg,
                                         coverage(outputs.exr.stroke_width_px) if "lines" in outputs.exr.passes else None)
-            files.append(_write(outputs.frame_file(frame, ".exr"), exr_bytes(passes, outputs.exr.codec)))
+            files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec)))
             timings["EXR"] = time.perf_counter() - t1
-        info.update(objects_and_materials(scene))
     elif outputs.lines_png:
         t1 = time.perf_counter()
         images = {"lines": _lines_image(coverage(outputs.stroke_width_px), camera)}
         for name, data in png_files(images).items():
             files.append(_write(outputs.out_dir / name / f"{stem}.png", data))
         timings["lines PNG"] = time.perf_counter() - t1
-    return files, underlays, ({"raster": info} if info else {})
+    return files
 
 
 def _lines_image(cov: dict, camera: Camera) -> np.ndarray:
@@ -221,16 +253,6 @@ def _lines_image(cov: dict, camera: Camera) -> np.ndarray:
         px = np.concatenate([srgb_encode(np.clip(straight, 0, 1)), a], axis=1)
         out[pix] = np.round(np.clip(px, 0, 1) * 255.0).astype(np.uint8)
     return out.reshape(H, W, 4)
-
-
-def objects_and_materials(scene) -> dict:
-    """The scene's objects and materials for the frame JSON and the report: name, the value of
-    its pixels in the object-id PNG (objects: index + 1; 0 is background) and its Cryptomatte id
-    (8 hex digits of the float32 bits, as in the EXR's manifest)."""
-    return {"objects": [{"name": n, "objectid": i + 1, "cryptomatte": name_to_hex(n)}
-                        for i, n in enumerate(scene.objects)],
-            "materials": [{"name": m.name, "index": i, "cryptomatte": name_to_hex(m.name)}
-                          for i, m in enumerate(scene.materials)]}
 
 
 def raster_outputs(scene, camera: Camera, occluder: Occluder | None, options, crease_angle_deg: float = 60.0

@@ -20,35 +20,56 @@ from strokekit.scene.load import Scene, load_scene
 #: than a few per core only share the cores.
 MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
+def default_workers(n_frames: int, raster: bool) -> int:
+    """Processes for a run of `n_frames` when none is said: the machine's cores from 8 frames on,
+    from 16 with a raster output (each process also starts numba for the raster kernels), else 1."""
+    return (os.cpu_count() or 1) if n_frames >= (16 if raster else 8) else 1
+
+
 # --- worker side -----------------------------------------------------------------------------------
 
 _WORKER_CACHE: dict = {}
 
 
-def _renderer(scene_path: str, scene_hash: str, lines: LineOptions) -> LineRenderer:
-    """This process's renderer of the scene (loaded and its BVH built once per worker).
-    `scene_hash` (when given) must be the hash the run started with."""
-    key = (scene_path, lines)
-    r = _WORKER_CACHE.get(key)
-    if r is not None and scene_hash and r.scene.content_hash != scene_hash:
-        r = None  # kept from an earlier run (a dask worker lives on): the file has changed since
-    if r is None:
-        _WORKER_CACHE.clear()
-        r = LineRenderer(load_scene(scene_path), lines)
-        _WORKER_CACHE[key] = r
-    if scene_hash and r.scene.content_hash != scene_hash:
-        raise InputError("scene file changed during the run", scene_path)
-    return r
+@dataclass(frozen=True)
+class SceneRef:
+    """A run's scene as its tasks name it: the file, the content hash the run started with ("":
+    any) and the line options its renderer is built with."""
+
+    path: str
+    content_hash: str
+    lines: LineOptions
+
+    def renderer(self) -> LineRenderer:
+        """This process's renderer of the scene, loaded and its BVH built once per process."""
+        key = (self.path, self.lines)
+        r = _WORKER_CACHE.get(key)
+        if r is not None and self.content_hash and r.scene.content_hash != self.content_hash:
+            r = None  # kept from an earlier run (a dask worker lives on): the file has changed since
+        if r is None:
+            _WORKER_CACHE.clear()
+            r = LineRenderer(load_scene(self.path), self.lines)
+            _WORKER_CACHE[key] = r
+        if self.content_hash and r.scene.content_hash != self.content_hash:
+            raise InputError("scene file changed during the run", self.path)
+        return r
+
+    def keep(self, scene: Scene) -> None:
+        """Make `scene` (this file, already loaded here) this process's renderer of it."""
+        r = _WORKER_CACHE.get((self.path, self.lines))
+        if r is None or r.scene.content_hash != scene.content_hash:
+            _WORKER_CACHE.clear()
+            _WORKER_CACHE[(self.path, self.lines)] = LineRenderer(scene, self.lines)
 
 
-def _warm_worker(scene_path: str, lines: LineOptions, started) -> None:
+def _warm_worker(scene: SceneRef, started) -> None:
     """Pool initializer: import, load the scene and build its BVH while the main process loads
     its own copy, instead of after it, then count this worker in `started` (a shared integer).
     Errors are left to the frame tasks to report (an initializer that raises would break the
     whole pool). (The raster kernels load in the worker's first raster frame: loading them here
     would only move the same work earlier; a worker gets frames as soon as it has started.)"""
     try:
-        _renderer(scene_path, "", lines)
+        scene.renderer()
     except Exception:
         _WORKER_CACHE.clear()
     with started.get_lock():
@@ -57,14 +78,6 @@ def _warm_worker(scene_path: str, lines: LineOptions, started) -> None:
 
 def _noop() -> None:
     return None
-
-
-def _keep_renderer(scene_path: str, scene: Scene, lines: LineOptions) -> None:
-    """Make `scene` (already loaded here) this process's renderer for frame tasks."""
-    r = _WORKER_CACHE.get((scene_path, lines))
-    if r is None or r.scene.content_hash != scene.content_hash:
-        _WORKER_CACHE.clear()
-        _WORKER_CACHE[(scene_path, lines)] = LineRenderer(scene, lines)
 
 
 # --- executors ---------------------------------------------------------------------------------------
@@ -93,10 +106,11 @@ class Workers:
     def _capacity(self) -> int:
         return 2 * self.started.value if self.main_helps else 1 << 30
 
-    def map(self, tasks, handle: Callable[[dict], bool]) -> None:
-        """Run every (fn, *args) of `tasks`, calling `handle(result)` in this process as each
-        finishes (in any order); `handle` returning False stops the rest. `tasks` may be a deque
-        that `handle` adds to while the map runs (appendleft: next in line): those run too.
+    def map(self, tasks, handle: Callable[[object], bool]) -> None:
+        """Run every task of `tasks` (a picklable callable without arguments), calling
+        `handle(result)` in this process as each finishes (in any order); `handle` returning False
+        stops the rest. `tasks` may be a deque that `handle` adds to while the map runs
+        (appendleft: next in line): those run too.
 
         With main_helps, each pool worker that has started gets at most two tasks queued and
         this process runs the others one by one, so frames get done while the workers are
@@ -117,17 +131,15 @@ class Workers:
 
         while go and (pending or running):
             while pending and len(running) < self._capacity():
-                fn, *args = pending.popleft()
-                running.add(self.executor.submit(fn, *args))
+                running.add(self.executor.submit(pending.popleft()))
             if self.main_helps and pending:
-                fn, *args = pending.popleft()
-                go = handle(fn(*args)) and collect([f for f in running if f.done()])
+                go = handle(pending.popleft()()) and collect([f for f in running if f.done()])
             elif running:
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 go = collect(done)
         _stop(running, handle)
 
-    def _map_helping(self, tasks, handle: Callable[[dict], bool]) -> None:
+    def _map_helping(self, tasks, handle: Callable[[object], bool]) -> None:
         """map() beside a local pool that this process helps. A worker's next task is sent the
         moment its result arrives (by the pool's result thread, in a done-callback), not when
         this process has finished the frame it is rendering and handled the results (with
@@ -159,7 +171,7 @@ class Workers:
                 while not state["stop"] and pending and state["busy"] < capacity():
                     item = pending.popleft()
                     try:
-                        fut = self.executor.submit(item[0], *item[1:])
+                        fut = self.executor.submit(item)
                     except Exception:
                         pending.appendleft(item)  # the pool is closed or broken: this thread runs it
                         state["stop"] = True
@@ -182,7 +194,7 @@ class Workers:
                 if not state["feeding"]:
                     feed()
 
-        def handled(r: dict) -> bool:
+        def handled(r) -> bool:
             if handle(r):
                 return True
             with lock:
@@ -207,7 +219,7 @@ class Workers:
                     item = pending.popleft() if pending else None
                     waiting = list(running)
                 if item is not None:
-                    go = handled(item[0](*item[1:])) and collect()
+                    go = handled(item()) and collect()
                 elif waiting:
                     wait(waiting, return_when=FIRST_COMPLETED)
                     go = collect()
@@ -220,7 +232,7 @@ class Workers:
         _stop(left, handle)
 
 
-def _stop(running, handle: Callable[[dict], bool]) -> None:
+def _stop(running, handle: Callable[[object], bool]) -> None:
     """Stopped early (or done): tasks already running finish (they may be writing files) and
     their results are handled (the files they wrote are reported); queued ones are dropped."""
     for fut in running:
@@ -231,11 +243,10 @@ def _stop(running, handle: Callable[[dict], bool]) -> None:
             handle(fut.result())
 
 
-def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
+def make_executor(workers: int, scheduler: str | None, warm: SceneRef) -> Workers:
     """Where the run's tasks go. `scheduler` 'tcp://host:port': a dask.distributed cluster.
     Otherwise `workers` processes on this machine: this one, plus a spawn-started pool of
-    workers - 1 processes, started now; each loads the scene and builds its BVH right away
-    (`warm` = (scene_path, lines))."""
+    workers - 1 processes, started now; each loads the `warm` scene and builds its BVH right away."""
     if scheduler:
         try:
             from distributed import Client
@@ -256,7 +267,7 @@ def make_executor(workers: int, scheduler: str | None, warm: tuple) -> Workers:
     ctx = mp.get_context("spawn")
     started = ctx.Value("i", 0)
     ex = ProcessPoolExecutor(max_workers=workers - 1, mp_context=ctx, initializer=_warm_worker,
-                             initargs=(*warm, started))
+                             initargs=(warm, started))
     # A pool spawns its workers on demand: ask for all of them now. They inherit an ignored
     # SIGINT, so Ctrl-C reaches this process alone (one "aborted" line, no traceback from a
     # worker interrupted in its imports) and close() ends them.

@@ -23,6 +23,7 @@ import numpy as np
 
 from strokekit.errors import InputError, hold_interrupts
 from strokekit.fileio import atomic_write_bytes
+from strokekit.scene.tables import SceneTables
 
 SUPPORTED = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
 
@@ -34,9 +35,10 @@ class Material:
 
 
 @dataclass(frozen=True, eq=False)
-class Scene:
+class Scene(SceneTables):
     """World-space triangle scene. vertices (V, 3) float64, faces (F, 3) int64,
-    face_object (F,) int32 indices into `objects`, face_material (F,) int32 into `materials`."""
+    face_object (F,) int32 indices into `objects`, face_material (F,) int32 into `materials`.
+    Its derived tables (normals, topology, `SceneTables`) are built on first use and kept."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -779,16 +781,13 @@ def _gltf_missing_images(p: Path, doc: dict | None) -> tuple[str, ...]:
 
 
 # --- scene cache ----------------------------------------------------------------------------------
-# Parsing a mesh file costs the trimesh import (~0.8 s) and the parse (~0.3 s for the bunny) in
-# every process of a run (the main one and each worker), and again on every run. The parsed
+# Parsing a mesh file costs the trimesh import and the parse in every process of a run (the main
+# one and each worker), and again on every run. The parsed
 # arrays are kept in a cache folder under a key of the file's bytes and the versions of the
 # code that read them: the same bytes give the same arrays, so outputs do not change.
 
 #: Bump when the reading of files changes (naming, ordering, materials).
-_CACHE_FORMAT = 6  # 2: mirroring nodes reverse the winding; uint8 colours always / 255; 3: glTF fans refused;
-#   4: glTF node cycles and non-unit rotations refused; 5: warnings kept, truncated PLY and glTF accessors
-#   longer than their bufferView refused; 6: a missing OBJ material library warned, its usemtl groups kept,
-#   OBJ objects named by their o / g
+_CACHE_FORMAT = 6
 
 
 def _cache_dir() -> Path | None:
@@ -826,7 +825,7 @@ def _cache_file(p: Path) -> Path | None:
             if obj:  # mtllib lines, whole lines only (a block may end inside one)
                 text = carry + block
                 cut = text.rfind(b"\n") + 1
-                if b"mtllib" in text[:cut]:  # (a plain search first: the regex is 4x slower)
+                if b"mtllib" in text[:cut]:  # (a plain search first: cheaper than the regex)
                     names += _MTLLIB.findall(text[:cut])
                 carry = text[cut:]
     names += _MTLLIB.findall(carry) if obj else []

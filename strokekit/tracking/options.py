@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 from strokekit.errors import UsageError
+from strokekit.options import option
 
 METHODS = ("kalnins", "seed", "none")
 
@@ -16,7 +17,8 @@ class TrackingOptions:
 
     method: "kalnins" | "seed" | "none". The texture period P of u is the strokes' own
     (Strokes.period_px, from LineOptions.period_px).
-    search_radius_px, min_tangent_dot: correspondence of carried samples (BRIEF 3: 6 px, 0.65).
+    search_radius_px, min_tangent_dot: correspondence of carried samples (the coherence
+    metrics' matching).
     vote_spacing_px: spacing of the samples carried from frame to frame (kalnins).
     stretch_weight: weight of "slope close to 1/P" against "u close to the votes" (kalnins): a
     stroke of length L stretched by a factor (1 + d) costs stretch_weight L d^2, as much as votes
@@ -28,7 +30,8 @@ class TrackingOptions:
     runs shorter than this are absorbed by their neighbours (kalnins).
     dense_spacing_px: spacing of the new strokes' samples that votes land on (positions along
     the stroke are refined below it by projecting on the sample's tangent).
-    reverse_votes: new samples also look back for the nearest old sample (both ways, as BRIEF 3).
+    reverse_votes: new samples also look back for the nearest old sample (both ways, as the
+    coherence metrics match).
     join_tol_px, join_angle_deg: segments with the same carried id whose strokes end within
     join_tol_px of each other, turning by at most join_angle_deg, are healed into one stroke
     (0 disables; above 1e-3 the joint bridges the gap, which adds at most join_tol_px of line).
@@ -37,8 +40,9 @@ class TrackingOptions:
     votes (see the module doc); healing after the cut is then not needed.
     knot_spacing_px: u is piecewise linear with knots this far apart (0: one line per stroke);
     bend_weight: weight of even stretch between knots (kalnins).
-    max_growth_px, min_carry_px, seed_search_px, seed_angle_penalty_px: seed 000 strategies 3, 5,
-    the neighbourhood of strategy 1 and the direction penalty (px per radian) of strategy 2."""
+    max_growth_px, min_carry_px, seed_search_px, seed_angle_penalty_px (the seed method): the
+    most a stroke grows a frame, the shortest stroke carried over, the neighbourhood a stroke's
+    match is looked for in and the direction penalty of a match (px per radian)."""
 
     method: str = "kalnins"
     search_radius_px: float = 6.0
@@ -47,8 +51,11 @@ class TrackingOptions:
     stretch_weight: float = 3e-3
     outlier_px: float = 3.0
     min_id_px: float = 2.0
-    max_growth_px: float = 20.0
-    min_carry_px: float = 10.0
+    max_growth_px: float = option(20.0, "--max-growth", "With --coherence seed: a stroke grows at most N px per frame.",
+                                  show_default=True, needs="seed")
+    min_carry_px: float = option(
+        10.0, "--min-carry", "With --coherence seed: strokes shorter than N px are not carried to the next frame.",
+        show_default=True, needs="seed")
     seed_search_px: float = 12.0
     seed_angle_penalty_px: float = 10.0
     min_segment_px: float = 7.0

@@ -39,6 +39,7 @@ from strokekit.camera.view import Camera
 from strokekit.colour import srgb_decode
 from strokekit.errors import UsageError
 from strokekit.model import KINDS, N_KINDS, Strokes, layer_name
+from strokekit.options import option
 from strokekit.ribbons.brushes import Brush, get_brush
 from strokekit.ribbons.mesh import RibbonMesh, RibbonOptions, build_ribbons
 from strokekit.writers.svg import KIND_COLORS
@@ -53,12 +54,16 @@ class GltfOptions:
     colour for a user's brush) or "#rrggbb" for all; fps: sequence timing; pull: world mode,
     fraction of depth the ribbons move toward the camera."""
 
-    width_px: float = 3.0
-    taper: float = 1.0
-    brush: str = "ink"
-    alpha_mode: str = "BLEND"
+    width_px: float = option(3.0, "--ribbon-width", "Ribbon width in px.", show_default=True, needs="gltf")
+    taper: float = option(1.0, "--taper", "Head/tail taper (0: none).", show_default=True, needs="gltf")
+    brush: str = option("ink", "--brush", "plain, ink, dry, or a PNG of your own stroke.", show_default=True,
+                        needs="gltf")
+    alpha_mode: str = option("BLEND", "--alpha-mode", "glTF alpha of the ribbons: blended, or cut out (mask).",
+                             choices={"blend": "BLEND", "mask": "MASK"}, show_default=True, needs="gltf")
     alpha_cutoff: float = 0.5
-    space: str = "world"
+    space: str = option(
+        "world", "--ribbon-space", "Ribbons in the scene facing the camera, or flat in pixel units for 2D compositing.",
+        choices=("world", "image"), show_default=True, needs="gltf")
     color: str | None = None
     fps: float = 24.0
     miter_limit: float = 4.0

@@ -13,6 +13,7 @@ import numpy as np
 
 from strokekit.colour import srgb_encode
 from strokekit.model import KINDS, N_KINDS, BandRegion, Strokes
+from strokekit.sampling import locate
 
 
 def _ring_path(coords: np.ndarray, decimals: int) -> str:
@@ -165,24 +166,16 @@ def dash_path_data(strokes: Strokes, members: list[int], phase: np.ndarray, patt
     a, b = np.maximum(a, 0.0), np.minimum(b, L[m])
     keep = b > a
     m, a, b = m[keep], a[keep], b[keep]
-    base, G = strokes.global_arc
     st = np.asarray(members, np.int64)[m]
-    ga, gb = base[st] + a, base[st] + b
-    first, last = strokes.offsets[st], strokes.offsets[st + 1] - 1
-    i0 = np.clip(np.searchsorted(G, ga, side="right"), first + 1, last)  # segment (i0 - 1, i0) holds a
-    i1 = np.clip(np.searchsorted(G, gb, side="left"), first + 1, last)  # segment (i1 - 1, i1) holds b
+    h0, i0, t0 = locate(strokes, st, a)  # segment h0 -> i0 holds the dash's start
+    h1, i1, t1 = locate(strokes, st, b, side="left")  # and h1 -> i1 its end
     P = strokes.points
-
-    def at(g, i):
-        t = np.where(G[i] > G[i - 1], (g - G[i - 1]) / np.where(G[i] > G[i - 1], G[i] - G[i - 1], 1.0), 0.0)
-        return P[i - 1] + t[:, None] * (P[i] - P[i - 1])
-
     inner = np.maximum(i1 - i0, 0)  # stroke points strictly inside the dash
     counts = inner + 2
     off = np.concatenate([[0], np.cumsum(counts)])
     pts = np.empty((int(off[-1]), 2))
-    pts[off[:-1]] = at(ga, i0)
-    pts[off[1:] - 1] = at(gb, i1)
+    pts[off[:-1]] = P[h0] + t0[:, None] * (P[i0] - P[h0])
+    pts[off[1:] - 1] = P[h1] + t1[:, None] * (P[i1] - P[h1])
     r = np.repeat(np.arange(len(m)), inner)
     q = np.arange(int(inner.sum())) - np.repeat(np.cumsum(inner) - inner, inner)
     pts[off[:-1][r] + 1 + q] = P[i0[r] + q]
