@@ -1,21 +1,35 @@
-"""Where numba keeps strokekit's compiled kernels (the raster pass's, hidden lines', brush
-paths'), whether loading them will compile them, `LazyKernels`, which imports a module of
-kernels on first use, and `keyboard_interrupts`, which keeps a Ctrl-C in a compiled loop a
-KeyboardInterrupt. Imports numba only inside its functions: the modules that load kernels call
-them on first use, so runs that need none never import numba.
+"""strokekit's numba kernels: declared once, compiled once per machine, loaded on first use.
 
-Kernels are compiled once per machine and cached on disk by numba (`cache=True`): numba writes
-them to the `__pycache__` next to their module when that folder is writable (an editable or a
-root install), else to its user-wide cache (`~/.cache/numba`, `$XDG_CACHE_HOME/numba`), or
-`$NUMBA_CACHE_DIR` when set; when none of these is writable, `choose_cache_dir` points numba at
-strokekit's own cache folder (`$STROKEKIT_CACHE_DIR/numba`, else `~/.cache/strokekit/numba`,
-else a folder in the temporary directory)."""
+A kernel module (numba and numpy only) declares each kernel that Python calls with `kernel`,
+giving the argument types it is called with; helpers that only kernels call are plain
+`numba.njit(cache=True)` functions (compiled, and cached, with their callers). The warm-up
+compiles, or loads from numba's disk cache, exactly the declared signatures: nothing to keep
+in step by hand, and a test runs the pipelines with compiling turned off after the warm-up.
+
+`LazyKernels(module)` imports a kernel module on first use (`kernels()`), so runs that need no
+kernel never import numba. `KernelGroup` is what one stage needs (its modules, the label of its
+compile notice); `Warmup` warms groups in a background thread, before a run's frames. A compile
+is done by one process of the machine at a time (a file lock): the others, a dask cluster's
+workers or concurrent runs, then load what it cached. A Ctrl-C in a compiled loop stays a
+KeyboardInterrupt (`keyboard_interrupts`).
+
+numba's cache of a kernel is keyed by the kernel's own source file: a kernel that calls a
+kernel of another module is compiled again when that module's source changes (a stamp of the
+modules it calls is kept beside its cache).
+
+Where the cache lives: numba writes it to the `__pycache__` next to the module when that folder
+is writable (an editable or a root install), else to its user-wide cache (`~/.cache/numba`,
+`$XDG_CACHE_HOME/numba`), or `$NUMBA_CACHE_DIR` when set; when none of these is writable,
+`choose_cache_dir` points numba at strokekit's own folder (`$STROKEKIT_CACHE_DIR/numba`, else
+`~/.cache/strokekit/numba`, else a folder in the temporary directory)."""
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import importlib.util
 import os
+import sys
 import tempfile
 import threading
 import time
@@ -28,6 +42,131 @@ try:
 except ImportError:  # not POSIX: no lock among processes
     fcntl = None
 
+
+# --- declaring kernels ---------------------------------------------------------------------------
+
+def kernel(*signatures: str, **options):
+    """A numba kernel called from Python (njit, cache=True, no fastmath: the same results on
+    every run and in every process), compiled for each of `signatures`: numba type strings of
+    its arguments, e.g. "(f8[:, ::1], i8[::1], f8)". `options`: more njit options
+    (parallel=True kernels are compiled on their first use, not by the warm-up)."""
+    def declare(f):
+        import numba
+
+        d = numba.njit(cache=True, **options)(f)
+        d.declared_signatures = tuple(signatures)
+        return d
+
+    return declare
+
+
+def _dispatchers(mod):
+    """The numba functions defined in module `mod` (not those it imports)."""
+    return [v for v in vars(mod).values() if hasattr(v, "py_func") and v.py_func.__module__ == mod.__name__]
+
+
+def declared(mod):
+    """(dispatcher, argument types) of every declared signature of module `mod`'s kernels that
+    the warm-up compiles (parallel kernels left out)."""
+    from numba.core import sigutils
+
+    out = []
+    for d in _dispatchers(mod):
+        if d.targetoptions.get("parallel"):
+            continue
+        for s in getattr(d, "declared_signatures", ()):
+            out.append((d, sigutils.normalize_signature(s)[0]))
+    return out
+
+
+def _callees(mod) -> list[str]:
+    """The modules (by name, transitively) whose kernels the kernels of `mod` may call: those of
+    the numba functions it imports."""
+    seen: list[str] = []
+    todo = [mod]
+    while todo:
+        m = todo.pop()
+        for v in vars(m).values():
+            name = getattr(getattr(v, "py_func", None), "__module__", None)
+            if name and name != mod.__name__ and name not in seen and name in sys.modules:
+                seen.append(name)
+                todo.append(sys.modules[name])
+    return sorted(seen)
+
+
+def _callee_stamp(mod) -> str | None:
+    """A digest of the source of the modules whose kernels `mod`'s kernels call (None: none)."""
+    names = _callees(mod)
+    if not names:
+        return None
+    h = hashlib.sha256()
+    for name in names:
+        h.update(name.encode() + b"\0" + Path(sys.modules[name].__file__).read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def _stamp_file(mod) -> Path | None:
+    ds = _dispatchers(mod)
+    if not ds or getattr(ds[0], "_cache", None) is None:
+        return None
+    return Path(ds[0]._cache.cache_path) / (Path(mod.__file__).stem + ".callees")
+
+
+def _drop_stale(mod) -> bool:
+    """Empty the cache of `mod`'s kernels when a module they call changed since they were
+    cached (numba would load them as they were). Returns whether it did."""
+    stamp = _callee_stamp(mod)
+    path = _stamp_file(mod)
+    if stamp is None or path is None:
+        return False
+    try:
+        if path.read_text() == stamp:
+            return False
+    except OSError:
+        pass
+    for d in _dispatchers(mod):
+        d._cache.flush()
+    return True
+
+
+def _keep_stamp(mod) -> None:
+    stamp, path = _callee_stamp(mod), _stamp_file(mod)
+    if stamp is not None and path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".tmp{os.getpid()}")
+            tmp.write_text(stamp)
+            os.replace(tmp, path)
+        except OSError:  # (an unwritable cache: numba says so when it compiles)
+            pass
+
+
+def compile_needed(mod) -> bool | None:
+    """Whether compiling `mod`'s declared signatures will compile any (False: each is in this
+    process or has a fresh entry in numba's disk cache, and they only load), or None when numba
+    does not tell (its cache internals changed)."""
+    try:
+        if _drop_stale(mod):
+            return True
+        for d, sig in declared(mod):
+            if sig in d.overloads:
+                continue
+            key = d._cache._index_key(sig, d.targetctx.codegen())
+            if key not in d._cache._cache_file._load_index():
+                return True
+        return False
+    except Exception:  # private numba API: any change means "cannot tell"
+        return None
+
+
+def _compile_declared(mod) -> None:
+    with keyboard_interrupts():
+        for d, sig in declared(mod):
+            d.compile(sig)
+    _keep_stamp(mod)
+
+
+# --- where the cache lives -----------------------------------------------------------------------
 
 def _writable(path: Path) -> bool:
     try:
@@ -68,23 +207,7 @@ def choose_cache_dir(package: Path) -> str | None:
     return None  # nowhere to write: numba will say so when it compiles
 
 
-def compile_needed(modules) -> bool | None:
-    """Whether warming the serial kernels of `modules` up will compile them: False when every one
-    is already in this process or has a fresh entry in numba's on-disk cache (the warm-up only
-    loads them), True when one has neither, None when numba does not tell (its cache internals
-    changed). Parallel kernels (`parallel=True`) are not counted: they are not warmed up."""
-    try:
-        disps = [v for m in modules for v in vars(m).values()
-                 if hasattr(v, "py_func") and getattr(v, "_cache", None) is not None
-                 and not v.targetoptions.get("parallel")]
-        if not disps:
-            return None
-        if all(d.signatures for d in disps):
-            return False
-        return not all(d.signatures or d._cache._cache_file._load_index() for d in disps)
-    except Exception:  # private numba API: any change means "cannot tell"
-        return None
-
+# --- interrupts and locks ------------------------------------------------------------------------
 
 @contextmanager
 def keyboard_interrupts():
@@ -126,19 +249,26 @@ def machine_lock(name: str):
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
+# --- loading -------------------------------------------------------------------------------------
+
 class LazyKernels:
-    """A module of numba kernels (`module`, by name), imported on first use (`kernels()`) after
-    `choose_cache_dir`, so runs that never call it never import numba. For `warm`: `label` names
-    the kernels in the compile notice, `compile_seconds` is about how long their first compile
-    takes (s), `also` are other LazyKernels warmed up (and counted) with these."""
+    """A kernel module (`module`, by name), imported on first use (`kernels()`) after
+    `choose_cache_dir`. One object per module name: the kernels of a module load once per
+    process whoever asks."""
 
-    def __init__(self, module: str, label: str = "", compile_seconds: float = 0,
-                 also: tuple["LazyKernels", ...] = ()):
-        self.module, self.label, self.compile_seconds, self.also = module, label, compile_seconds, also
-        self._module = self._raw = None
-        self._lock = threading.RLock()
+    _made: dict[str, "LazyKernels"] = {}
+    _made_lock = threading.Lock()
 
-    def _imported(self):
+    def __new__(cls, module: str):
+        with cls._made_lock:
+            made = cls._made.get(module)
+            if made is None:
+                made = cls._made[module] = super().__new__(cls)
+                made.module, made._module, made._raw = module, None, None
+                made._lock = threading.RLock()
+        return made
+
+    def imported(self):
         """The module, imported (after `choose_cache_dir`), its kernels not yet loaded."""
         if self._raw is None:
             with self._lock:
@@ -148,32 +278,118 @@ class LazyKernels:
         return self._raw
 
     def kernels(self):
-        """The module, imported on first use. When its kernels are not in numba's disk cache, they
-        are compiled then, by one process of the machine at a time: a dask cluster's workers or
-        concurrent runs on one machine wait for the first, then load what it cached."""
+        """The module, its kernels compiled on first use where numba's disk cache lacks them (by
+        one process of the machine at a time), else loaded from it as they are called."""
         if self._module is None:
-            mod = self._imported()
-            with self._lock:  # (two threads asking at once compile once)
-                if self._module is None:
-                    if compile_needed([mod]) is not False:
-                        with machine_lock(self.module):
-                            if compile_needed([mod]) is not False:
-                                with keyboard_interrupts():
-                                    mod.warmup()
-                    self._module = mod
+            self.load(every=False)
         return self._module
 
-    def warm(self, notify: Callable[[str], None] | None = None) -> tuple[float, bool]:
-        """Load the kernels (and those of `also`), or compile them (the first such run on a
-        machine), before any frame: (seconds, compiled). `notify(line)` is told once, before the
-        wait, when they compile."""
+    def load(self, every: bool = True):
+        """Compile, or load from the cache, the module's declared kernels (`every`: load those
+        that are cached too, before they are called). Returns the module."""
+        mod = self.imported()
+        with self._lock:  # (two threads asking at once compile once)
+            if compile_needed(mod) is not False:
+                with machine_lock(self.module):
+                    if compile_needed(mod) is not False:
+                        _compile_declared(mod)
+            elif every:
+                _compile_declared(mod)
+            self._module = mod
+        return mod
+
+
+class KernelGroup:
+    """The kernel modules one stage needs, warmed up together before a run's frames. `label`
+    names them in the compile notice, `compile_seconds` is about how long their first compile
+    takes (s, on a 2-core machine)."""
+
+    def __init__(self, label: str, modules: tuple[LazyKernels, ...], compile_seconds: float):
+        self.label, self.modules, self.compile_seconds = label, tuple(modules), compile_seconds
+        self._ready = False
+        self._warming: Warmup | None = None
+
+    def compile_needed(self) -> bool | None:
+        """Whether warming the group up compiles (True), only loads (False), or cannot tell (None)."""
+        said = [compile_needed(m.imported()) for m in self.modules]
+        return True if True in said else (None if None in said else False)
+
+    def warm(self, notify: Callable[[str], None] | None = None, compiles=None) -> tuple[float, bool]:
+        """Compile (the first run on a machine) or load the group's kernels: (seconds,
+        compiled). `notify(line)` is told once, before the wait, when they compile (where numba
+        does not tell beforehand: when the warm-up takes over 2 s). `compiles`: what
+        compile_needed said, when the caller asked already."""
         t = time.perf_counter()
-        lazy = (self, *self.also)
-        compiles = compile_needed([k._imported() for k in lazy])
-        if compiles and notify is not None:
-            notify(f"compiling the {self.label} kernels (first run on this machine, about {self.compile_seconds} s)")
-        mods = [k.kernels() for k in lazy]
-        with keyboard_interrupts():
-            for mod in mods:
-                mod.warmup()
+        if compiles is None:
+            compiles = self.compile_needed()
+        msg = f"compiling the {self.label} kernels (first run on this machine, about {self.compile_seconds:g} s)"
+        timer = None
+        if notify is not None:
+            if compiles:
+                notify(msg)
+            elif compiles is None:
+                timer = threading.Timer(2.0, notify, (msg,))
+                timer.daemon = True
+                timer.start()
+        try:
+            for m in self.modules:
+                m.load()
+        finally:
+            if timer is not None:
+                timer.cancel()
+        self._ready = True
         return time.perf_counter() - t, bool(compiles)
+
+    def ensure(self) -> float:
+        """Make sure this process has the kernels (before a frame's clock starts): wait for the
+        warm-up thread loading them, else load them. Returns the seconds this call loaded them
+        for (0 when a warm-up thread did, or they were there)."""
+        if self._ready:
+            return 0.0
+        w = self._warming
+        if w is not None:
+            w.join()
+            if w.error is None:
+                return 0.0
+        return self.warm()[0]
+
+
+class Warmup:
+    """`KernelGroup.warm` of `groups` in a background thread, started as early as possible:
+    loading kernels from the cache (numba's import and set-up: about a second a process) overlaps
+    the process's other work. `compiles()` says, once known, whether any group compiles (a
+    machine's first run: the caller then waits for `join()` before any worker starts a frame, so
+    that the workers load the kernels from the cache instead of each compiling them)."""
+
+    def __init__(self, groups, notify: Callable[[str], None] | None = None):
+        self.groups = tuple(groups)
+        self._notify = notify
+        self._decided = threading.Event()
+        self._compiles: bool | None = False
+        self.seconds: dict[str, float] = {}
+        self.error: BaseException | None = None
+        for g in self.groups:
+            g._warming = self
+        self._thread = threading.Thread(target=self._run, name="strokekit-kernels", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            said = [g.compile_needed() for g in self.groups]
+            self._compiles = True if True in said else (None if None in said else False)
+            self._decided.set()
+            for g, c in zip(self.groups, said):
+                self.seconds[g.label] = g.warm(self._notify, compiles=c)[0]
+        except BaseException as e:  # said by the frames that need the kernels
+            self.error = e
+        finally:
+            self._decided.set()
+
+    def compiles(self) -> bool | None:
+        self._decided.wait()
+        return self._compiles
+
+    def join(self) -> dict[str, float]:
+        """Wait for the warm-up: the seconds it took per group (by label)."""
+        self._thread.join()
+        return self.seconds

@@ -29,19 +29,14 @@ def models_dir() -> Path:
 
 
 @pytest.fixture(scope="session", autouse=True)
-def raster_kernels():
-    """The raster pass's numba kernels, compiled (a machine's first run: about 20 s) or loaded
-    once for the session, before any test: a test that checks a run's stderr line by line must
-    not see the one-line compile notice of whichever test happens to run first."""
-    from strokekit.raster.hits import warm_kernels
+def kernels():
+    """The numba kernels, compiled (a machine's first run) or loaded once for the session, before
+    any test: a test that checks a run's stderr line by line must not see the one-line compile
+    notice of whichever test happens to run first."""
+    from strokekit.lines.kernels import HIDDEN_LINES
+    from strokekit.paths.kernels import BRUSH_PATHS
+    from strokekit.raster.hits import RASTER
+    from strokekit.tracking.kernels import TRACKING
 
-    warm_kernels()
-
-
-@pytest.fixture(scope="session", autouse=True)
-def path_kernels():
-    """The brush path stage's numba kernels, compiled (a machine's first run: about 50 s) or loaded
-    once for the session, before any test (see raster_kernels)."""
-    from strokekit.paths.kernels import warm_kernels
-
-    warm_kernels()
+    for group in (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING):
+        group.warm()

@@ -539,19 +539,6 @@ def test_compiled_level_rays_count_as_the_numpy_path(torus_and_box):
     assert np.array_equal(compiled, plain) and plain.max() >= 2
 
 
-def test_hidden_line_kernels_say_once_when_they_compile(monkeypatch):
-    """The warm-up says one line when the kernels compile, nothing when they load."""
-    from strokekit import numba_cache
-    from strokekit.lines import kernels as lk
-
-    said = []
-    monkeypatch.setattr(numba_cache, "compile_needed", lambda mods: True)
-    assert lk.warm_kernels(said.append)[1] and len(said) == 1 and said[0].startswith("compiling the hidden-line")
-    monkeypatch.setattr(numba_cache, "compile_needed", lambda mods: False)
-    said.clear()
-    assert lk.warm_kernels(said.append)[1] is False and said == []
-
-
 def test_a_ctrl_c_in_a_hidden_line_compiled_loop_stays_a_keyboard_interrupt():
     """A KeyboardInterrupt that lands as a compiled loop hands back its arrays (a SystemError
     caused by it) comes out of LineRenderer.render as the KeyboardInterrupt."""
@@ -590,43 +577,3 @@ def test_outline_crossings_kernel_finds_the_same_crossings_when_outlines_lie_far
     assert len(near[0]) > 100  # (random segments cross often)
     for a, b in zip(near, spread):
         assert np.array_equal(a, b)
-
-
-def test_kernels_compile_under_a_machine_lock_and_only_when_needed(monkeypatch, tmp_path):
-    """First use of a LazyKernels module whose kernels are not cached compiles them (warmup) while
-    holding the machine-wide lock of that module, so a dask cluster's workers on one machine
-    compile once; when they are cached, first use neither compiles nor waits for the lock."""
-    import sys
-    import threading
-
-    from strokekit import numba_cache
-
-    (tmp_path / "sk_tiny_kernels.py").write_text("CALLS = []\n\ndef warmup():\n    CALLS.append(1)\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(numba_cache, "compile_needed", lambda mods: not mods[0].CALLS)
-    name = "sk_tiny_kernels"
-    held, release, got = threading.Event(), threading.Event(), []
-
-    def holder():
-        with numba_cache.machine_lock(name):
-            held.set()
-            release.wait(10)
-
-    t = threading.Thread(target=holder)
-    t.start()
-    held.wait(10)
-    user = threading.Thread(target=lambda: got.append(numba_cache.LazyKernels(name).kernels()))
-    user.start()
-    user.join(0.5)
-    assert user.is_alive() and not got  # waiting for the lock, not compiling beside its holder
-    release.set()
-    t.join()
-    user.join(10)
-    assert got and got[0].CALLS == [1]
-    # Cached now (compile_needed is False): a new loader neither compiles nor takes the lock.
-    with numba_cache.machine_lock(name):
-        again = threading.Thread(target=lambda: got.append(numba_cache.LazyKernels(name).kernels()))
-        again.start()
-        again.join(5)
-        assert not again.is_alive() and got[1].CALLS == [1]
-    sys.modules.pop(name, None)

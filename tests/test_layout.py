@@ -1,4 +1,5 @@
-"""The package layout: one subpackage per pipeline stage, imports pointing one way (issue 16)."""
+"""The package layout: one subpackage per pipeline stage, imports pointing one way, modules a
+reader can follow."""
 
 from __future__ import annotations
 
@@ -194,3 +195,13 @@ def test_each_stage_is_a_subpackage_with_a_public_entry_point(stage):
     names = [n for n in tree.body if isinstance(n, ast.Assign) and any(
         isinstance(t, ast.Name) and t.id == "__all__" for t in n.targets)]
     assert names, f"{stage}/__init__.py lists its public names in __all__"
+
+
+#: The longest a module may be: past it, a reader no longer finds the algorithm it holds.
+MAX_MODULE_LINES = 1200
+
+
+def test_no_module_is_longer_than_a_reader_can_follow():
+    long = {str(p.relative_to(PKG.parent)): n for p in sorted(PKG.rglob("*.py"))
+            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"

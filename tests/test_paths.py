@@ -14,7 +14,8 @@ from strokekit.metrics.coherence import sequence_metrics
 from strokekit.model import KIND_INDEX, Strokes
 from strokekit.options import LineOptions
 from strokekit.paths import PathOptions, PathTracker, brush_frames
-from strokekit.paths.stage import _one_label_per_path, held_back, on_drawing
+from strokekit.paths.cover import held_back, on_drawing
+from strokekit.paths.pieces import one_label_per_path
 from strokekit.sampling import resample_strokes, segment_samples
 from strokekit.scene.load import build_scene
 
@@ -191,10 +192,10 @@ def test_one_label_per_path_cuts_where_the_label_changes():
     group = np.zeros(5, np.int64)
     pos = np.arange(5)
     label = np.array([3, -1, -1, 4, 4])
-    g = _one_label_per_path(group, pos, label)
+    g = one_label_per_path(group, pos, label)
     assert g.tolist() == [0, 0, 0, 1, 1]
     # Leading unlabelled pieces go with the first label; one label: unchanged.
-    assert _one_label_per_path(group, pos, np.array([-1, 2, 2, -1, 2])).tolist() == [0, 0, 0, 0, 0]
+    assert one_label_per_path(group, pos, np.array([-1, 2, 2, -1, 2])).tolist() == [0, 0, 0, 0, 0]
 
 
 def test_options_are_checked():
@@ -273,7 +274,6 @@ def test_a_brush_resume_computes_only_up_to_its_last_missing_frame(tmp_path, cap
     nothing missing, no frame is computed and the brush path kernels are not loaded."""
     from helpers import SAMPLES
 
-    import strokekit.run.runner as runner
     import strokekit.run.tasks as tasks
 
     base = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "-q", "--frames", "1-4",
@@ -293,13 +293,13 @@ def test_a_brush_resume_computes_only_up_to_its_last_missing_frame(tmp_path, cap
     assert sorted(seen) == [1, 2]
     assert {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")} == ref
 
-    def no_kernels(*a, **k):
-        raise AssertionError("kernels loaded with nothing to render")
+    from strokekit.paths.kernels import BRUSH_PATHS
 
+    warmed = []
+    monkeypatch.setattr(BRUSH_PATHS, "warm", lambda *a, **k: warmed.append(a) or (0.0, False))
     seen.clear()
-    monkeypatch.setattr(runner, "warm_path_kernels", no_kernels)
     assert _cli([*base, "--skip-existing"], capsys)[0] == 0
-    assert seen == []
+    assert seen == [] and warmed == []
     assert {f.name: f.read_bytes() for f in (tmp_path / "a").glob("frame_*")} == ref
 
 

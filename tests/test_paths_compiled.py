@@ -1,40 +1,37 @@
-"""The brush path stage's compiled loops (strokekit.paths.compiled) give what the numpy and k-d
-tree steps they stand in for give, to the bit, on inputs made to tie: points on a lattice (equal
-distances everywhere), repeated points, pairs exactly at the cover radius."""
+"""The compiled steps of the tracker and the brush paths (the kernels of strokekit.tracking and
+strokekit.paths) give what the numpy and k-d tree steps they stand in for give (tests/oracles.py,
+the line pass's numpy operations, scipy's cKDTree), to the bit, on inputs made to tie: points on
+a lattice (equal distances everywhere), repeated points, pairs exactly at the cover radius."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
+import oracles
 import pytest
 
 from strokekit.camera.view import Camera
-from strokekit.lines.strokeops import drop_hairpins, query_tree
+from strokekit.lines.strokeops import query_tree
 from strokekit.model import N_KINDS, Strokes
-from strokekit.paths.grid import SampleGrid
-from strokekit.paths.kernels import kernels
-from strokekit.paths.stage import (
-    _CONTOUR,
-    Votes,
-    _arcs,
-    _assign_ids,
-    _cut_pieces,
-    _drop_hairpins,
-    _FitKernels,
-    _insert_points,
-    _kind_class,
-    _labels,
-    _link_pieces,
-    _lookback,
-    _resample,
-    _trend,
-    covering_samples,
-    on_drawing,
-)
+from strokekit.paths import cover_kernels, pieces_kernels
+from strokekit.paths import votes_kernels as path_votes_kernels
+from strokekit.paths.cover import covering_samples, on_drawing
+from strokekit.paths.pieces import link_pieces, one_label_per_path
+from strokekit.paths.votes import CONTOUR, kind_class
 from strokekit.sampling import Samples, match_samples, resample_strokes
-from strokekit.tracking.joins import _touching_paths
-from strokekit.tracking.ufit import PiecewiseU
+from strokekit.tracking import grid_kernels, joins_kernels, sort_kernels, strokeops_kernels, ufit_kernels, votes_kernels
+from strokekit.tracking.grid import SampleGrid, match_pieces
+from strokekit.tracking.joins import gather_paths, touching_paths
+from strokekit.tracking.strokeops import cut_pieces, drop_hairpins, insert_points, resample, select, with_arcs
+from strokekit.tracking.ufit import fit_u
 from strokekit.tracking.votes import assign_ids, sample_labels, segment_by_votes, u_trend
 
+#: Every kernel by name.
+K = SimpleNamespace(**{n: getattr(m, n) for m in (sort_kernels, grid_kernels, strokeops_kernels, votes_kernels,
+                                                  ufit_kernels, joins_kernels, path_votes_kernels, cover_kernels,
+                                                  pieces_kernels)
+                       for n in dir(m) if hasattr(getattr(m, n), "py_func")})
 
 def _points(rng, n, lattice):
     """n points in a 40 px square: on a half-pixel lattice (ties everywhere, repeats) or not."""
@@ -69,19 +66,19 @@ def _strokes(pts, counts, surface=None, face=None, ids=None, u=None) -> Strokes:
 
 
 def test_arcs_are_the_strokes_own():
-    """_arcs (the kernel arcs): Strokes' segment_lengths, arc_length, lengths and global_arc, to
-    the bit; strokes with an empty one are left to the properties."""
+    """with_arcs (the kernel arcs): Strokes' segment_lengths, arc_length, lengths and global_arc,
+    to the bit; strokes with an empty one are left to the properties."""
     rng = np.random.default_rng(3)
     for _ in range(20):
         counts = rng.integers(1, 9, int(rng.integers(1, 12)))
         pts = rng.random((int(counts.sum()), 2)) * rng.choice([1.0, 1e3])
-        mine, ref = _arcs(_strokes(pts, counts)), _strokes(pts, counts)
+        mine, ref = with_arcs(_strokes(pts, counts)), _strokes(pts, counts)
         assert "global_arc" in mine.__dict__
         for k in ("segment_lengths", "arc_length", "lengths"):
             np.testing.assert_array_equal(getattr(mine, k), getattr(ref, k))
         for a, b in zip(mine.global_arc, ref.global_arc):
             np.testing.assert_array_equal(a, b)
-    empty = _arcs(_strokes(np.zeros((2, 2)), np.array([2, 0])))
+    empty = with_arcs(_strokes(np.zeros((2, 2)), np.array([2, 0])))
     assert "segment_lengths" not in empty.__dict__
 
 
@@ -92,7 +89,7 @@ def test_grid_cells_hold_their_points_in_index_order(lattice):
     rng = np.random.default_rng(7)
     for cell in (0.5, 2.0, 3.0):
         p = _points(rng, 500, lattice).astype(float)
-        x0, y0, c, nx, ny, start, order, ps = kernels().grid_index(p, cell)
+        x0, y0, c, nx, ny, start, order, ps = K.grid_index(p, cell)
         cx = np.minimum(((p[:, 0] - x0) / c).astype(np.int64), nx - 1)
         cy = np.minimum(((p[:, 1] - y0) / c).astype(np.int64), ny - 1)
         key = cy * nx + cx
@@ -144,7 +141,7 @@ def test_grid_cover_bridges_and_lookback_are_the_trees(lattice):
         cam = _Flat()
         m0, q0 = match_samples(src, cam, D, tree, radius_px=6.0, min_tangent_dot=0.65, k=2, return_projected=True,
                                piece_distance=True)
-        m1, q1 = _lookback(src, cam, D, 6.0, 0.65)
+        m1, q1 = match_pieces(src, cam, D, 6.0, 0.65, k=2)
         assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
 
 
@@ -157,7 +154,7 @@ def test_lookback_in_crowded_windows_is_the_trees():
         cam = _Flat()
         m0, q0 = match_samples(src, cam, D, query_tree(D.p), radius_px=6.0, min_tangent_dot=0.65, k=2,
                                return_projected=True, piece_distance=True)
-        m1, q1 = _lookback(src, cam, D, 6.0, 0.65)
+        m1, q1 = match_pieces(src, cam, D, 6.0, 0.65, k=2)
         assert np.array_equal(m0, m1) and np.array_equal(q0, q1)
 
 
@@ -188,23 +185,22 @@ def test_segment_runs_are_segment_by_votes():
         V = int(rng.integers(0, 2 * n))
         vm, vid, vw = rng.integers(0, n, V), rng.integers(0, 6, V), rng.random(V).round(1)
         vw = np.where(rng.random(V) < 0.5, vw, rng.random(V))  # (sums that round to ties, and not)
-        assert np.array_equal(sample_labels(n, vm, vid, vw), _labels(n, Votes(vm, vid, np.zeros(V), vw, np.zeros(V))))
+        assert np.array_equal(oracles.sample_labels(n, vm, vid, vw), sample_labels(n, vm, vid, vw))
         for min_px in (1.5, 6.0):
-            a = segment_by_votes(dense, lengths, vm, vid, vw, min_px)
-            b = kernels().segment_runs(sample_labels(n, vm, vid, vw), stroke, s, w, lengths, min_px)
+            a = oracles.segment_by_votes(dense, lengths, vm, vid, vw, min_px)
+            b = segment_by_votes(dense, lengths, vm, vid, vw, min_px)
             assert all(np.array_equal(x, y) for x, y in zip(a, b))
 
 
 def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
     rng = np.random.default_rng(7)
-    K = kernels()
     for trial in range(200):
         n = int(rng.integers(1, 300))
         a, b = rng.integers(0, rng.integers(1, 6), n), rng.integers(0, rng.integers(1, 5), n)
         s = np.round(rng.random(n) * 10, int(rng.integers(0, 3)))
         s = (np.sort(s), -np.sort(-s), s)[trial % 3]  # in order, reversed, mixed; ties
         u, label = rng.random(n).round(1), rng.integers(0, 4, a.max() + 1)
-        assert np.array_equal(u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+        assert np.array_equal(oracles.u_trend(a, b, label, s, u, a.max() + 2), u_trend(a, b, label, s, u, a.max() + 2))
     for trial in range(100):
         S = int(rng.integers(1, 12))
         counts = rng.integers(1, 8, S)
@@ -216,26 +212,29 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
         st = _strokes(pts, counts)
         label = rng.integers(-1, 3, S)
         for lab in (None, label):
-            ref = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5)
-            got = _touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5, link=K.link_paths)
+            ref = oracles.touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5)
+            got = oracles.touching_paths(st, 2.0, 120.0, label=lab, other_tol_px=1.5, link=K.link_paths)
             assert all(np.array_equal(x, y) for x, y in zip(ref, got))
+        got = touching_paths(st, 2.0, 120.0)  # (chain_touching's: no labels)
+        assert all(np.array_equal(x, y) for x, y in zip(oracles.touching_paths(st, 2.0, 120.0), got))
         # the brush paths' linking, its candidates compiled (bridges refused by a rule of their own)
         kinded = st.replace(kind=rng.integers(0, 2, S).astype(np.int8)) if trial % 3 == 0 else st
         for tol, other, free in ((2.0, 1.5, 0.5), (1.5, 2.5, 1.0)):
             def bridge_ok(pa, pb):
                 return np.floor(pa[:, 0] * 3 + pb[:, 1] * 7) % 3 != 0
-            ref = _touching_paths(kinded, tol, 120.0, label=label, other_tol_px=other, bridge_ok=bridge_ok,
-                                  free_px=free, link=K.link_paths)
-            got = _link_pieces(kinded, tol, 120.0, label, other, bridge_ok, free_px=free)
+            ref = oracles.touching_paths(kinded, tol, 120.0, label=label, other_tol_px=other, bridge_ok=bridge_ok,
+                                         free_px=free, link=K.link_paths)
+            got = link_pieces(kinded, tol, 120.0, label, other, bridge_ok, free_px=free)
             assert all(np.array_equal(x, y) for x, y in zip(ref, got))
         at = rng.integers(0, N, int(rng.integers(0, N + 1)))
-        ref, kept = drop_hairpins(st, 90.0, 1.0, at=at, return_kept=True)
         full = st.replace(surface=rng.random((N, 3)), face=rng.integers(0, 99, N), u=rng.random(N))
-        ref, kept = drop_hairpins(full, 90.0, 1.0, at=at, return_kept=True)
-        got, kept2 = _drop_hairpins(full, 90.0, 1.0, at)
-        assert np.array_equal(kept, kept2)
-        for f in ("points", "surface", "face", "u", "offsets"):
-            assert np.array_equal(getattr(ref, f), getattr(got, f)), f
+        for strokes, where in ((full, at), (full, None), (full.replace(u=None), at)):
+            ref, kept = oracles.drop_hairpins(strokes, 90.0, 1.0, at=where, return_kept=True)
+            got, kept2 = drop_hairpins(strokes, 90.0, 1.0, at=where, return_kept=True)
+            assert np.array_equal(kept, kept2) and (got is strokes) == (ref is strokes)
+            for f in ("points", "surface", "face", "u", "offsets"):
+                x, y = getattr(ref, f), getattr(got, f)
+                assert (x is None and y is None) or np.array_equal(x, y), f
 
 
 def test_resampling_is_resample_strokes():
@@ -254,7 +253,7 @@ def test_resampling_is_resample_strokes():
         seen = st.replace(surface=X, camera=cam)
         for step in (1.0, 4.0, 0.3):
             for strokes in (st, seen):
-                a, b = resample_strokes(strokes, step), _resample(strokes, step)
+                a, b = resample_strokes(strokes, step), resample(strokes, step)
                 for f in ("p", "X", "u", "t", "ids", "stroke", "s", "w"):
                     assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
@@ -266,13 +265,14 @@ def test_id_assignment_is_assign_ids():
         S = int(rng.integers(1, 12))
         cs, ci = rng.integers(0, S, n), rng.integers(0, 15, n)
         cw = np.where(rng.random(n) < 0.3, 0.0, rng.integers(1, 5, n) * 0.5)  # (ties, and weightless pairs)
-        a = assign_ids(S, cs, ci, cw, 20)
-        b = _assign_ids(S, cs, ci, cw, 20)
-        assert np.array_equal(a[0], b[0]) and a[1] == b[1]
+        for min_w in (0.0, 1.0):
+            a = oracles.assign_ids(S, cs, ci, cw, 20, min_w)
+            b = assign_ids(S, cs, ci, cw, 20, min_w)
+            assert np.array_equal(a[0], b[0]) and a[1] == b[1]
 
 
 def _id_claims_numpy(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k, oid, ow, known, S):
-    """paths.stage._path_ids' claims as numpy steps (the code id_claims replaced)."""
+    """paths.votes.path_ids' claims as numpy steps (the code id_claims replaced)."""
     lk = np.flatnonzero(p_label >= 0)
     cs = np.concatenate([path_of[lk], path_of[vk], path_of[ok_k]]).astype(np.int64)
     ci = np.concatenate([p_label[lk], vid, oid[ok]]).astype(np.int64)
@@ -287,7 +287,6 @@ def _id_claims_numpy(path_of, p_label, plen, label_weight, vk, vid, vw, ok, ok_k
 
 def test_id_claims_are_the_numpy_sums():
     rng = np.random.default_rng(43)
-    K = kernels()
     for trial in range(300):
         S = int(rng.integers(1, 15))
         known = np.unique(rng.integers(0, 60, int(rng.integers(1, 20))))
@@ -313,10 +312,10 @@ def test_id_claims_are_the_numpy_sums():
 
 def _carried_numpy(rm, rq, sub, kind_d, Dstroke, kind_v, Vp, Vt, Vw, Vu, Vs, Vstroke, Vids, Dw, Dt, step):
     """carried's votes and other matches as numpy steps: the kind classes per stroke then per
-    sample (_kind_class), the other matches as carried_votes took them (the code carried's own
+    sample (kind_class), the other matches as carried_votes took them (the code carried's own
     classes and other matches replaced), the votes one by one in the kernel's arithmetic."""
-    cls_v = _kind_class(kind_v).astype(np.int64).take(Vstroke)
-    cls_d = _kind_class(kind_d).astype(np.int64).take(Dstroke)
+    cls_v = kind_class(kind_v).astype(np.int64).take(Vstroke)
+    cls_d = kind_class(kind_d).astype(np.int64).take(Dstroke)
     votes = []
     for i in np.flatnonzero(rm >= 0):
         j, h = rm[i], sub[i]
@@ -339,7 +338,6 @@ def _carried_numpy(rm, rq, sub, kind_d, Dstroke, kind_v, Vp, Vt, Vw, Vu, Vs, Vst
 
 def test_carried_votes_are_the_numpy_ones():
     rng = np.random.default_rng(47)
-    K = kernels()
     for trial in range(100):
         V = _samples(rng, int(rng.integers(1, 80)), trial % 2 == 1)
         D = _samples(rng, int(rng.integers(1, 80)), trial % 2 == 0)
@@ -354,19 +352,18 @@ def test_carried_votes_are_the_numpy_ones():
         args = (rm, rq, sub, kind_d, D.stroke, kind_v)
         rest = (V.p, V.t, V.w, V.u, Vs, V.stroke, V.ids, D.w, D.t, step)
         a = _carried_numpy(*args, *rest)
-        b = K.carried(*args, _CONTOUR, N_KINDS, *rest)
+        b = K.carried(*args, CONTOUR, N_KINDS, *rest)
         for x, y in zip(a, b):
             assert x.dtype == y.dtype and x.tobytes() == y.tobytes()
 
 
 def test_inner_knots_are_piecewise_us():
     rng = np.random.default_rng(53)
-    K = kernels()
     for _ in range(100):
         S = int(rng.integers(0, 12))
         # (lengths of whole knot spacings, shorter than one, zero: every count of inner knots)
         L = np.where(rng.random(S) < 0.3, rng.integers(0, 5, S) * 16.0, rng.random(S) * 90.0)
-        pw = PiecewiseU(L, 16.0)
+        pw = oracles.PiecewiseU(L, 16.0)
         if S == 0:  # (PiecewiseU.inner_knot_s needs a stroke; the kernel gives none)
             assert all(len(x) == 0 for x in K.inner_knots(pw.n, pw.h))
             continue
@@ -380,13 +377,13 @@ def test_band_terms_are_piecewise_fits():
     for _ in range(50):
         S = int(rng.integers(1, 8))
         L = rng.random(S) * 80 + rng.integers(0, 2, S) * 0.5
-        pw = PiecewiseU(L, 16.0)
+        pw = oracles.PiecewiseU(L, 16.0)
         V = int(rng.integers(1, 200))
         st = rng.integers(0, S, V)
         s = rng.random(V) * L[st]
         u, w = rng.random(V) * 4, np.where(rng.random(V) < 0.2, 0.0, rng.random(V))
         args = (st, s, u, w, rng.random(S), rng.random(S) * 0.1, 0.1, 3e-4 * 100, 1e-3)
-        assert np.array_equal(pw.fit(*args), pw.fit(*args, band_terms=kernels().band_terms))
+        assert np.array_equal(pw.fit(*args), pw.fit(*args, band_terms=K.band_terms))
 
 
 def _pieces_numpy(cover, run, s, w, r_s0, r_s1, vm):
@@ -415,7 +412,6 @@ def _pieces_numpy(cover, run, s, w, r_s0, r_s1, vm):
 
 def test_pieces_and_vote_landing_are_the_numpy_steps():
     rng = np.random.default_rng(17)
-    K = kernels()
     for _ in range(200):
         N = int(rng.integers(1, 200))
         run = np.cumsum(rng.random(N) < 0.1)
@@ -460,7 +456,6 @@ def test_end_votes_and_continuing_links_are_the_numpy_ones():
     length) orders them (ties on a half-pixel lattice: the first, the last), and the slope between
     them; continuing_links: the links of one label whose ends' u differ by what the gap explains."""
     rng = np.random.default_rng(23)
-    K = kernels()
     for _ in range(300):
         npc, V = int(rng.integers(1, 12)), int(rng.integers(0, 60))
         plen = rng.integers(1, 24, npc) * 0.5
@@ -487,26 +482,32 @@ def test_end_votes_and_continuing_links_are_the_numpy_ones():
 
 
 def test_u_fit_is_the_numpy_one():
+    """fit_u (vote groups, shift, piecewise system and evaluation compiled) gives what its numpy
+    steps give, to the bit: strokes, u, slopes and the vote groups the ids are assigned from;
+    linear (no knots) too, votes of many ids on one stroke too."""
     from strokekit.paths.options import path_tracking
-    from strokekit.tracking.kalnins import fit_u
 
     rng = np.random.default_rng(19)
-    for _ in range(40):
+    for trial in range(100):
         S = int(rng.integers(1, 6))
         counts = rng.integers(2, 8, S)
         N = int(counts.sum())
-        pts = np.cumsum(rng.normal(0, 8.0, (N, 2)), axis=0)
+        pts = np.cumsum(rng.normal(0, 8.0 if trial % 3 else 40.0, (N, 2)), axis=0)
         cur = _strokes(pts, counts, surface=rng.random((N, 3)))
-        V = int(rng.integers(1, 150))
+        V = int(rng.integers(1, 300))
         st = rng.integers(0, S, V)
         s = rng.random(V) * cur.lengths[st]
-        u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, S, V), rng.random(V)
+        n_ids = 80 if trial % 4 == 0 else S + 2
+        u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, n_ids, V), rng.random(V)
         for o in (path_tracking(), path_tracking().__class__(knot_spacing_px=0.0)):
-            ref = fit_u(cur, cur, st, s, u, vid, w, o)
-            got = fit_u(cur, cur, st, s, u, vid, w, o, compiled=_FitKernels(kernels()))
-            assert np.array_equal(ref[0].points, got[0].points)
+            ref = oracles.fit_u(cur, cur, st, s, u, vid, w, o)
+            got = fit_u(cur, cur, st, s, u, vid, w, o)
+            assert np.array_equal(ref[0].points, got[0].points) and np.array_equal(ref[0].offsets, got[0].offsets)
             for x, y in zip((ref[1], ref[2], *ref[3]), (got[1], got[2], *got[3])):
                 assert np.array_equal(x, y)
+        none = fit_u(cur, cur, st[:0], s[:0], u[:0], vid[:0], w[:0], path_tracking())
+        ref = oracles.fit_u(cur, cur, st[:0], s[:0], u[:0], vid[:0], w[:0], path_tracking())
+        assert np.array_equal(ref[1], none[1]) and np.array_equal(ref[2], none[2])
 
 
 def test_cover_pair_by_pair_is_sample_by_sample():
@@ -514,7 +515,6 @@ def test_cover_pair_by_pair_is_sample_by_sample():
     window finds (dense samples, many runs, ranks and distances that tie); cells no wider than
     the radius are refused (the caller makes wider ones)."""
     rng = np.random.default_rng(31)
-    K = kernels()
     sure = 0
     for trial in range(60):
         n = int(rng.integers(2, 600))
@@ -580,10 +580,9 @@ def _cover_runs_numpy(cover, smp_piece, path_of, stroke, s, w):
 
 
 def test_covered_runs_and_selections_are_the_numpy_ones():
-    from strokekit.paths.stage import _concat_two, _select
+    from strokekit.paths.stage import concat_two
 
     rng = np.random.default_rng(41)
-    K = kernels()
     for _ in range(100):
         N = int(rng.integers(1, 300))
         stroke = np.sort(rng.integers(0, 6, N))
@@ -603,17 +602,17 @@ def test_covered_runs_and_selections_are_the_numpy_ones():
         st = _strokes(rng.random((M, 2)), counts, surface=rng.random((M, 3)), face=rng.integers(0, 9, M),
                       u=rng.random(M))
         mask = rng.random(S) < 0.5
-        a, b = st.select(mask), _select(st, mask)
+        a, b = st.select(mask), select(st, mask)
         for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
             assert np.array_equal(getattr(a, f), getattr(b, f)), f
-        a, b = Strokes.concat([st.select(mask), st.select(~mask)]), _concat_two(st.select(mask), st.select(~mask))
+        a, b = Strokes.concat([st.select(mask), st.select(~mask)]), concat_two(st.select(mask), st.select(~mask))
         for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
             x, y = getattr(a, f), getattr(b, f)
             assert np.array_equal(x, y) and x.dtype == y.dtype, f
 
 
 def _one_label_numpy(group: np.ndarray, pos: np.ndarray, label: np.ndarray) -> np.ndarray:
-    """paths.stage._one_label_per_path as numpy steps (the code one_label replaced)."""
+    """paths.pieces.one_label_per_path as numpy steps (the code one_label replaced)."""
     K = len(group)
     order = np.lexsort((pos, group))
     g, lab = group[order], label[order]
@@ -639,7 +638,6 @@ def test_cover_table_is_the_numpy_one():
     """_finish's covers: the drawn pieces and covered runs joined and ordered as np.lexsort orders
     them (many ties in path, line and start: the joined order decides)."""
     rng = np.random.default_rng(59)
-    K = kernels()
     for _ in range(200):
         S = int(rng.integers(0, 8))
         P, C = int(rng.integers(0, 30)), int(rng.integers(0, 30))
@@ -661,44 +659,38 @@ def test_cover_table_is_the_numpy_one():
 
 
 def test_one_label_per_path_is_the_numpy_one():
-    from strokekit.paths.stage import _one_label_per_path
-
     rng = np.random.default_rng(43)
     for _ in range(200):
         K = int(rng.integers(1, 60))
         group = rng.integers(0, int(rng.integers(1, 12)), K)
         pos = rng.permutation(K)
         label = np.where(rng.random(K) < 0.5, -1, rng.integers(0, 4, K))
-        assert np.array_equal(_one_label_numpy(group, pos, label), _one_label_per_path(group, pos, label))
+        assert np.array_equal(_one_label_numpy(group, pos, label), one_label_per_path(group, pos, label))
 
 
 def test_stable_sorts_are_numpys():
-    """_argsort (a natural merge sort) is numpy's stable argsort, in runs, against them, with ties;
-    _sorted_unique is np.unique; u_trend at a scale where its keys' runs could touch sorts all
-    keys at once (the same trend as tracking.votes._u_trend)."""
+    """argsort (a natural merge sort) is numpy's stable argsort, in runs, against them, with ties;
+    sorted_unique is np.unique; u_trend at a scale where its keys' runs could touch sorts all
+    keys at once (the same trend as the numpy one)."""
     rng = np.random.default_rng(47)
-    K = kernels()
     for _ in range(200):
         n = int(rng.integers(0, 300))
         x = np.round(rng.random(n) * 20, int(rng.integers(0, 3)))
         cut = np.sort(rng.integers(0, n + 1, int(rng.integers(0, 6))))
         for a, b in zip(cut[:-1], cut[1:]):  # (runs in order and against it)
             x[a:b] = np.sort(x[a:b])[:: 1 if rng.random() < 0.5 else -1]
-        assert np.array_equal(K._argsort(x), x.argsort(kind="stable"))
+        assert np.array_equal(K.argsort(x), x.argsort(kind="stable"))
         xi = rng.integers(-50, 50, n)
-        assert np.array_equal(K._sorted_unique(xi), np.unique(xi))
+        assert np.array_equal(K.sorted_unique(xi), np.unique(xi))
     for _ in range(20):
         n = int(rng.integers(2, 200))
         a, b = rng.integers(0, 4, n), rng.integers(0, 3, n)
         s = np.round(rng.random(n) * 10, 1) * 1e12  # (R * top beyond 2**40)
         u, label = rng.random(n).round(1), rng.integers(0, 3, a.max() + 1)
-        assert np.array_equal(u_trend(a, b, label, s, u, a.max() + 2), _trend(a, b, label, s, u, a.max() + 2))
+        assert np.array_equal(oracles.u_trend(a, b, label, s, u, a.max() + 2), u_trend(a, b, label, s, u, a.max() + 2))
 
 
 def test_gathered_paths_are_gather_paths():
-    from strokekit.paths.stage import _gather_paths
-    from strokekit.tracking.joins import gather_paths
-
     rng = np.random.default_rng(53)
     for _ in range(200):
         S = int(rng.integers(1, 12))
@@ -709,7 +701,7 @@ def test_gathered_paths_are_gather_paths():
         group = rng.integers(0, int(rng.integers(1, S + 1)), S)
         pos = rng.permutation(S)
         rev = rng.random(S) < 0.4
-        ref, got = gather_paths(st, group, rev, pos), _gather_paths(st, group, rev, pos)
+        ref, got = oracles.gather_paths(st, group, rev, pos), gather_paths(st, group, rev, pos)
         for f in ("order", "c0", "src", "new_g", "joint", "drop", "path_sorted", "first", "n_path"):
             x, y = getattr(ref, f), getattr(got, f)
             assert np.array_equal(x, y) and x.dtype == y.dtype, f
@@ -717,7 +709,6 @@ def test_gathered_paths_are_gather_paths():
 
 def test_jump_order_is_lexsort():
     rng = np.random.default_rng(59)
-    K = kernels()
     for trial in range(200):
         n = int(rng.integers(1, 300))
         st, vid = rng.integers(0, int(rng.integers(1, 6)), n), rng.integers(0, [2, 30, 10**6][trial % 3], n)
@@ -729,33 +720,6 @@ def test_jump_order_is_lexsort():
         same = (st[ref][1:] == st[ref][:-1]) & (vid[ref][1:] == vid[ref][:-1])
         step = np.diff(u[ref]) - np.diff(s[ref]) / 3.0
         assert jumps == bool((same & (np.abs(step) >= 2.0) & (np.round(step) != 0)).any())
-
-
-def test_compiled_u_fit_is_fit_u():
-    """paths.stage._fit_u (vote groups, shift, piecewise system and evaluation compiled) gives
-    what fit_u's numpy steps give, to the bit: strokes, u and slopes; votes of many ids on one
-    stroke too (vote_groups then sorts all of them at once)."""
-    from strokekit.paths.options import path_tracking
-    from strokekit.paths.stage import _fit_u
-    from strokekit.tracking.kalnins import fit_u
-
-    rng = np.random.default_rng(23)
-    for trial in range(60):
-        S = int(rng.integers(1, 6))
-        counts = rng.integers(2, 8, S)
-        N = int(counts.sum())
-        pts = np.cumsum(rng.normal(0, 8.0 if trial % 3 else 40.0, (N, 2)), axis=0)
-        cur = _strokes(pts, counts, surface=rng.random((N, 3)))
-        V = int(rng.integers(1, 300))
-        st = rng.integers(0, S, V)
-        s = rng.random(V) * cur.lengths[st]
-        n_ids = 80 if trial % 4 == 0 else S + 2
-        u, vid, w = s / 10.0 + rng.normal(0, 0.3, V) + rng.integers(0, 3, V), rng.integers(0, n_ids, V), rng.random(V)
-        for o in (path_tracking(), path_tracking().__class__(knot_spacing_px=0.0)):
-            ref = fit_u(cur, cur, st, s, u, vid, w, o)
-            got = _fit_u(cur, cur, st, s, u, vid, w, o)
-            assert np.array_equal(ref[0].points, got[0].points) and np.array_equal(ref[0].offsets, got[0].offsets)
-            assert np.array_equal(ref[1], got[1]) and np.array_equal(ref[2], got[2])
 
 
 def test_vote_groups_are_the_numpy_ones():
@@ -775,14 +739,12 @@ def test_vote_groups_are_the_numpy_ones():
         gw = np.bincount(ginv, weights=w)
         primary = np.zeros(len(gw), bool)
         primary[first_max_per_group(ukey // M, gw)] = True
-        gk, gi, gw2, p2 = kernels().vote_groups(st, vid, w)
+        gk, gi, gw2, p2 = K.vote_groups(st, vid, w)
         assert np.array_equal(gk, np.c_[ukey // M, ukey % M]) and np.array_equal(gi, ginv)
         assert np.array_equal(gw2, gw) and np.array_equal(p2, primary)
 
 
 def test_inserted_points_are_insert_points():
-    from strokekit.tracking.joins import insert_points
-
     rng = np.random.default_rng(23)
     for trial in range(100):
         S = int(rng.integers(1, 6))
@@ -798,13 +760,14 @@ def test_inserted_points_are_insert_points():
         if trial % 3:  # (in order along the strokes, as the knots come; else not)
             o = np.lexsort((s, stroke))
             stroke, s = stroke[o], s[o]
-        a, b = insert_points(st, stroke, s), _insert_points(st, stroke, s)
+        a, b = oracles.insert_points(st, stroke, s), insert_points(st, stroke, s)
         for f in ("points", "surface", "face", "u", "offsets"):
             assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
 
 def test_cut_pieces_are_cut_pieces():
-    from strokekit.lines.strokeops import cut_pieces
+    """The compiled cut_pieces is the line pass's (numpy) one: pieces, reversed ones too."""
+    from strokekit.lines import strokeops
 
     rng = np.random.default_rng(29)
     for _ in range(100):
@@ -819,9 +782,11 @@ def test_cut_pieces_are_cut_pieces():
         L = st.lengths[stroke]
         s0 = np.where(rng.random(K) < 0.3, 0.0, rng.random(K) * L * 0.5)
         s1 = np.where(rng.random(K) < 0.3, L, s0 + rng.random(K) * (L - s0))
-        a, b = cut_pieces(st, stroke, s0, s1), _cut_pieces(st, stroke, s0, s1)
-        for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
-            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+        rev = rng.random(K) < 0.5
+        for r in (None, rev):
+            a, b = strokeops.cut_pieces(st, stroke, s0, s1, r), cut_pieces(st, stroke, s0, s1, r)
+            for f in ("points", "surface", "face", "u", "offsets", "kind", "ids", "level", "level_weight"):
+                assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
 
 def test_a_ctrl_c_in_a_compiled_loop_stays_a_keyboard_interrupt():
@@ -857,8 +822,6 @@ def test_sample_grid_answers_as_the_tree_for_points_spread_beyond_what_cells_can
 
     from scipy.spatial import cKDTree
 
-    from strokekit.paths.grid import SampleGrid
-
     p = np.array(points)
     q = np.array([[1.0, 1.0], [4.0, 6.0]])
     with warnings.catch_warnings():
@@ -884,28 +847,6 @@ def test_brush_paths_refuse_lines_with_non_finite_points():
     lines = _strokes(np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 5.0], [np.nan, 5.0]]), [2, 2])
     with pytest.raises(ValueError, match="non-finite"):
         PathTracker(PathOptions()).step(lines)
-
-
-def test_the_warm_up_compiles_every_kernel():
-    """A kernel the warm-up leaves out compiles during a run's first frame, after the run said
-    nothing of a compile (or, with its cache index missing, makes every later run say it compiles
-    on a machine where all is cached): each module's warmup() compiles all its public kernels (the
-    private ones compile, and are cached, with their callers). Checked in a fresh interpreter (this
-    one's other tests call the kernels themselves). sort_within, called only by a test, made CI's
-    first run say "compiling the brush path kernels" in the middle of the tests."""
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    code = ("import importlib\n"
-            "for name in ('strokekit.paths.compiled', 'strokekit.lines.compiled', 'strokekit.scene.compiled'):\n"
-            "    mod = importlib.import_module(name)\n"
-            "    mod.warmup()\n"
-            "    print(name, sorted(n for n, v in vars(mod).items() if hasattr(v, 'py_func') and not v.signatures\n"
-            "                       and not n.startswith('_')))\n")
-    root = str(Path(__file__).resolve().parents[1])
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=root, check=True).stdout
-    assert [line.split(" ", 1)[1] for line in out.splitlines()] == ["[]"] * 3, out
 
 
 def _corner_cuts_numpy(strokes, p_line, p_s0, p_s1, smp, d_s, cos_min):
@@ -936,7 +877,6 @@ def _corner_cuts_numpy(strokes, p_line, p_s0, p_s1, smp, d_s, cos_min):
 
 def test_corner_cuts_are_the_numpy_ones():
     rng = np.random.default_rng(23)
-    K = kernels()
     cut = 0
     for _ in range(200):
         counts = rng.integers(1, 30, int(rng.integers(1, 6)))

@@ -884,38 +884,3 @@ def test_png_bytes_are_valid_deterministic_and_round_trip():
         assert png_bytes(a.copy()) == data
     with pytest.raises(ValueError):
         png_bytes(np.zeros((4, 4), np.float32))
-
-
-def test_the_first_compile_is_said_once_before_the_wait(monkeypatch):
-    """A run whose kernels are not in numba's cache says so in one line before it compiles; one
-    whose kernels are cached (or already loaded in the process) says nothing."""
-    from strokekit.raster import hits
-
-    said = []
-    monkeypatch.setattr(hits, "_compile_needed", lambda mods: True)
-    _, compiled = hits.warm_kernels(said.append)
-    assert compiled and len(said) == 1 and said[0].startswith("compiling the raster kernels (first run on this machine")
-    monkeypatch.setattr(hits, "_compile_needed", lambda mods: False)
-    said.clear()
-    assert hits.warm_kernels(said.append)[1] is False and said == []
-    monkeypatch.undo()
-    assert hits._compile_needed(hits._modules()) is False  # loaded in this process by now
-
-
-def test_numba_gets_a_writable_cache_folder(monkeypatch, tmp_path):
-    """When neither numba's in-tree __pycache__ nor its user-wide folder is writable, strokekit
-    points numba at its own cache folder (else a cache=True kernel refuses to compile)."""
-    import numba
-
-    from strokekit import numba_cache
-    from strokekit.raster import hits
-
-    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
-    monkeypatch.setenv("STROKEKIT_CACHE_DIR", str(tmp_path / "sk"))
-    real = numba_cache._writable
-    monkeypatch.setattr(numba_cache, "_writable", lambda p: str(p).startswith(str(tmp_path)) and real(p))
-    assert hits.choose_cache_dir() == str(tmp_path / "sk" / "numba")
-    assert numba.config.CACHE_DIR == str(tmp_path / "sk" / "numba")
-    monkeypatch.setattr(numba_cache, "_writable", real)
-    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
-    assert hits.choose_cache_dir() is None  # the in-tree folder is writable here

@@ -461,10 +461,10 @@ def test_metric_match_finds_the_nearest_agreeing_sample_behind_a_crowd():
 
 
 def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
-    """chain_touching's specialized linking (_touching_paths, _close_pairs) gives exactly what the
+    """chain_touching's specialized linking (touching_paths, _close_pairs) gives exactly what the
     general join_segments gives for its call, on random strokes with shared ends, rings, closed
     strokes and near-tolerance gaps."""
-    from strokekit.tracking.joins import _close_pairs, _touching_paths, join_segments
+    from strokekit.tracking.joins import _close_pairs, join_segments, touching_paths
 
     rng = np.random.default_rng(1)
     linked = 0
@@ -484,7 +484,7 @@ def test_chain_touching_paths_and_pair_sweep_match_the_general_join():
         for tol, ang in ((2.0, 90.0), (1.0, 170.0)):
             want = join_segments(f, np.arange(S), np.zeros(S), f.lengths, np.zeros(S, np.int64), np.ones(S),
                                   tol, ang, straightest_first=True)
-            got = _touching_paths(f, tol, ang)
+            got = touching_paths(f, tol, ang)
             for w, g in zip(want, got):
                 assert g.dtype == w.dtype and np.array_equal(g, w)
             linked += int((want[0] != np.arange(S)).sum())

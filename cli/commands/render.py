@@ -15,7 +15,7 @@ from strokekit.camera.paths import load_camera_path, orbit_path
 from strokekit.camera.view import MAX_IMAGE_PX, CameraPath
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
-from strokekit.raster.hits import KernelWarmup
+from strokekit.run.kernels import RunKernels
 from strokekit.run.report import run_report
 from strokekit.run.request import RenderRequest
 from strokekit.run.runner import check_files_apart, run
@@ -66,10 +66,9 @@ def command(scene, **o):
     if not Path(scene).is_file():
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
     notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
-    kernels = None
-    if wants_raster(o) and not o["scheduler"]:  # (on a dask cluster the workers draw every frame)
-        # The raster kernels load (or compile, on a machine's first run) beside the scene's load.
-        kernels = KernelWarmup(notice)
+    # The kernels load (or compile, on a machine's first run): the raster ones beside the scene's
+    # load (not beside a dask cluster: there the workers draw every frame).
+    kernels = RunKernels(notice, raster=wants_raster(o) and not o["scheduler"])
     t_start = time.perf_counter()
     pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines))
     spec = None

@@ -1,10 +1,7 @@
 """Compiled loops (numba) of hidden-line drawings (`LineOptions.occlusion`): the pair searches
-that numpy does with large temporaries. Imports numpy and numba only; loaded on first use by
-`kernels()` (numba's import is not paid by visible-only drawings), compiled once per machine
-and cached on disk like the raster kernels (`cache=True`, no fastmath: every float operation is
-the one numpy does, in the same order, so results are bit for bit numpy's). Self-contained:
-numba's disk cache is keyed by this file alone and would not see a change in a compiled helper
-imported from another module (so the insertion sort by run is also in `scene.compiled`).
+that numpy does with large temporaries. Imports numpy and numba only; loaded on first use
+(`lines.kernels`: drawings of visible lines only never import numba). Every float operation is
+the one numpy does, in the same order, so results are bit for bit numpy's.
 
 * `outline_crossings`: where segments' images cross the images of outline edges in front of
   them (`occlusion.outline_crossings`), candidates from a grid of GRID_PX cells.
@@ -19,6 +16,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from strokekit.numba_cache import kernel
 
 
 @njit(cache=True, error_model="numpy")
@@ -66,7 +65,8 @@ def _segment_cells(pa, pb, grid):
     return gx[:c], gy[:c], owner[:c]
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(("(f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[:, ::1], f8[:, ::1], f8[::1], "
+        "f8[::1], i8[::1], i8[::1], b1, f8)"), error_model="numpy")
 def outline_crossings(pa, pb, za, zb, va, vb, qa, qb, wa, wb, e0, e1, ortho, grid):
     """(segment (K,), s (K,), outline edge (K,), u (K,), depth gap (K,)), sorted by segment then
     s, each place once per outline edge: where segment f (pa -> pb, px; view depths za, zb; mesh vertices va,
@@ -190,7 +190,7 @@ def _grown(x, cap):
     return y
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(f8[:, ::1], i8[::1], i1[::1], f8, Omitted(16.0))", error_model="numpy")
 def close_pairs(p, stroke, code, radius, per_point=16.0):
     """(i (K,), j (K,)): the pairs of points p (M, 2) (px, finite) within `radius` of each other
     (dx dx + dy dy <= radius^2, the test of scipy's cKDTree.query_pairs) whose strokes `stroke`
@@ -262,7 +262,8 @@ def close_pairs(p, stroke, code, radius, per_point=16.0):
     return out_i[:n_out], out_j[:n_out]
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(("(i8[::1], f8[::1], f8[::1], f8[:, ::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], i8[::1], i8[:, ::1], "
+        "f8[:, ::1], f8[::1], b1, b1[::1], i8)"), error_model="numpy")
 def crossing_deltas(edge, end_px, gap, ab, own, edges, edge_faces, face_count, faces, V, view, ortho, kept,
                     no_delta):
     """`occlusion.crossing_deltas` (which see) in one pass: view is the projection rays' direction
@@ -307,20 +308,3 @@ def crossing_deltas(edge, end_px, gap, ab, own, edges, edge_faces, face_count, f
         if ok:
             delta[i] = d
     return delta
-
-
-def warmup() -> None:
-    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
-    p = np.array([[0.5, 0.5], [4.0, 3.0]])
-    z = np.ones(2)
-    v = np.array([0, 1], np.int64)
-    for ortho in (False, True):
-        outline_crossings(p, p[::-1].copy(), z, z, v, v, p, p, z, z, v, v, ortho, 8.0)
-    close_pairs(p, v, v.astype(np.int8), 1.0)
-    e2 = np.array([[0, 1]], np.int64)
-    F = np.array([[0, 1, 2]], np.int64)
-    V = np.eye(3)
-    for ortho in (False, True):
-        for kept in (np.zeros(0, np.bool_), np.ones(1, np.bool_)):
-            crossing_deltas(np.zeros(1, np.int64), z[:1], z[:1], V[:1], np.full((1, 2), -1, np.int64), e2,
-                            np.array([[0, -1]], np.int64), np.ones(1, np.int64), F, V, V[2], ortho, kept, -1)

@@ -81,84 +81,6 @@ def simplify(strokes: Strokes, tol_px: float) -> Strokes:
     return out
 
 
-def drop_hairpins(strokes: Strokes, angle_deg: float, max_px: float, at: np.ndarray | None = None,
-                  return_kept: bool = False):
-    """Strokes less the points where the line turns by more than `angle_deg` beside a segment of
-    at most `max_px` (px): the sub-pixel back-and-forth where two strands that overlap at their
-    ends were joined (one ends 0.1 px past where the next begins; a ribbon folds there). The
-    chaining splits at such turns, so only joints have them: `at` (point indices), when given,
-    are the only points looked at (the joints and their neighbours). Ends are kept; of two
-    neighbouring such points the first goes, then the rest are looked at again. The same object
-    when there is nothing to drop. return_kept: also the (N,) mask of the points kept."""
-    cos_max = np.cos(np.radians(angle_deg))
-    P = strokes.points
-    n = len(P)
-    if n < 3 or max_px <= 0:
-        return (strokes, np.ones(n, bool)) if return_kept else strokes
-    ends, i = hairpin_candidates(strokes, at)
-    alive = np.ones(n, bool)
-    live = None  # indices of the points still there, once some are dropped
-    for _ in range(8):
-        if len(i) == 0:
-            break
-        # Neighbours among the points still there (ends are never dropped: they stay in-stroke).
-        if live is None:  # (none dropped yet: the neighbours are the next points)
-            k, prv, nxt = i, P[i - 1], P[i + 1]
-        else:
-            k = np.searchsorted(live, i)
-            prv, nxt = P[live[k - 1]], P[live[k + 1]]
-        Pi = P[i]
-        a, b = Pi - prv, nxt - Pi
-        la, lb, dot = np.einsum("ij,ij->i", a, a), np.einsum("ij,ij->i", b, b), np.einsum("ij,ij->i", a, b)
-        bad = (np.minimum(la, lb) <= max_px * max_px) & (la > 0) & (lb > 0) & (dot < cos_max * np.sqrt(la * lb))
-        if not bad.any():
-            break
-        # Of neighbouring candidates (next to each other among the live points) the first goes.
-        kc = k[bad]
-        first = join_arrays(True, np.diff(kc) > 1)
-        cand, kc = i[bad][first], kc[first]
-        # The fold can move to a neighbour of a dropped point: look at those too.
-        if live is None:
-            near = np.concatenate([cand - 1, cand + 1])
-        else:
-            near = np.concatenate([live[kc - 1], live[np.minimum(kc + 1, len(live) - 1)]])
-        alive[cand] = False
-        live = np.flatnonzero(alive)
-        i = sorted_unique(np.concatenate([i[alive[i]], near[alive[near] & ~ends[near]]]))
-    out = strokes if alive.all() else keep_points(strokes, alive)
-    return (out, alive) if return_kept else out
-
-
-def hairpin_candidates(strokes: Strokes, at: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """drop_hairpins' (N,) stroke ends and the sorted interior points it looks at (all, or those
-    of `at`)."""
-    n = len(strokes.points)
-    ends = np.zeros(n, bool)
-    full = np.flatnonzero(np.diff(strokes.offsets) > 0)  # (an empty stroke has no ends)
-    ends[strokes.offsets[:-1][full]] = True
-    ends[strokes.offsets[1:][full] - 1] = True
-    i = np.arange(1, n - 1) if at is None else sorted_unique(np.asarray(at, np.int64))
-    i = i[(i > 0) & (i < n - 1)]
-    return ends, i[~ends[i]]  # interior points only (never a stroke's first or last)
-
-
-def keep_points(strokes: Strokes, alive: np.ndarray) -> Strokes:
-    """The strokes with only their points where `alive` (N,) is true (every stroke keeps one)."""
-    gone = np.flatnonzero(~alive)
-    counts = np.diff(strokes.offsets) - np.bincount(np.searchsorted(strokes.offsets, gone, side="right") - 1,
-                                                    minlength=len(strokes))
-    kept = np.flatnonzero(alive)  # (take: a boolean mask over (N, 2) rows is ~4x slower, same values)
-    return replace(strokes, points=strokes.points.take(kept, axis=0), surface=strokes.surface.take(kept, axis=0),
-                   face=strokes.face.take(kept), u=None if strokes.u is None else strokes.u.take(kept),
-                   offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
-
-
-def sorted_unique(x: np.ndarray) -> np.ndarray:
-    """np.unique of a small 1-D integer array by a sort (numpy's hash-based unique costs ~15 us)."""
-    x = np.sort(x)
-    return x[join_arrays(True, x[1:] != x[:-1])] if len(x) else x
-
-
 # --- pieces of strokes, doubled contours (the per-frame pass and the tracker use them) ---------
 
 #: Kinds whose strokes can double each other (see drop_doubled).
@@ -166,7 +88,7 @@ CONTOUR_KINDS = ("silhouette", "smooth_contour")
 
 
 def join_arrays(*parts) -> np.ndarray:
-    """np.r_ for scalars and arrays along the first axis (np.r_ costs ~10 us a call; the tracker
+    """np.r_ for scalars and arrays along the first axis, without np.r_'s overhead (the tracker
     makes dozens of these per frame on small arrays)."""
     for p in parts:
         if type(p) is not np.ndarray or not p.ndim:
@@ -175,7 +97,7 @@ def join_arrays(*parts) -> np.ndarray:
 
 
 def query_tree(points: np.ndarray):
-    """A k-d tree built for one query pass: unbalanced, not compacted (builds ~2x faster on a
+    """A k-d tree built for one query pass: unbalanced, not compacted (builds faster on a
     frame's samples; queries are exact either way)."""
     from scipy.spatial import cKDTree
 
@@ -242,7 +164,7 @@ def cut_pieces(strokes: Strokes, stroke: np.ndarray, s0: np.ndarray, s1: np.ndar
     else:
         order = t
     src = order + (lo - 1 - start).repeat(counts)
-    # take(axis=0) for row gathers: numpy's fancy indexing of (N, 2) / (N, 3) rows is ~8x slower
+    # take(axis=0) for row gathers: numpy's fancy indexing of (N, 2) / (N, 3) rows is slower
     # on arrays of a frame's size (same values).
     points = strokes.points.take(src, axis=0, mode="clip")
     surface = strokes.surface.take(src, axis=0, mode="clip")
@@ -273,7 +195,7 @@ def drop_overlaps(strokes: Strokes, retraced_px: float = 0.5, doubled_px: float 
 
     1. Retraced strokes (`retraced_px` > 0): a stroke that lies entirely within `retraced_px` of
        a longer stroke (ties: lower index) of the same kind is dropped whole: the back-and-forth
-       spurs of mesh contours (seed 000 Fig 3.5/3.6), the edges of coincident copies of a mesh.
+       spurs of mesh contours, the edges of coincident copies of a mesh.
        A stroke's samples are half a step from any of its points, so "within" is tested as a
        sample within hypot(retraced_px, step_px / 2) of a sample of the longer stroke.
     2. Doubled parts (`doubled_px` > 0), among the strokes left: a part of a stroke is dropped

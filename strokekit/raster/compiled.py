@@ -1,8 +1,6 @@
 """The raster pass's own compiled loops (numba), beside the z-buffer (`zbuffer.py`): what would
 otherwise be several full-image numpy passes with temporaries. Imports numpy and numba only;
-loaded on first use by `raster.hits.kernels()` (numba's import is not paid by lines-only runs),
-compiled once per machine and cached on disk like the z-buffer (`cache=True`, no fastmath:
-results are the same on every run and in every process).
+loaded on first use (`raster.hits.compiled()`: lines-only runs never import numba).
 
 * `label_samples`: band label and key (label, material, object) of every sample, from the
   per-face tables of `bands.FaceShading` (smooth n.l interpolated only where a face spans bands).
@@ -19,6 +17,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from strokekit.numba_cache import kernel
 
 
 @njit(cache=True, error_model="numpy")
@@ -39,7 +39,7 @@ def _quantize(x, bands, thresholds):
     return int(v) + 1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(i4[::1], f4[:, ::1], u1[::1], f8[:, ::1], i8, f8[::1], i4[::1], u1[::1], i4[::1])", error_model="numpy")
 def label_samples(face, bary, label, coef, bands, thresholds, region, out_label, out_key):
     """Labels and keys of M samples (flat arrays): face (M,) int32 (-1: background), bary (M, 2)
     float32; label (F + 1,) uint8 the per-face label or 255 (interpolate), label[F] = 0; coef
@@ -69,7 +69,8 @@ def label_samples(face, bary, label, coef, bands, thresholds, region, out_label,
         out_key[i] = lab if one else lab + step * region[f]
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(("(f8[:, ::1], f8[::1], i4[:, ::1], f8, i8, i8, i8, u1[::1], u1[::1], b1[::1], i4[::1], i8[:, ::1], "
+        "i8, f4[:, ::1], i4[:, ::1], b1, f8, b1[:, ::1])"), error_model="numpy")
 def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step, depth, keys, ortho, slack, out):
     """Mark in out (H, W) bool the pixels where a thin triangle may show a key its pixel's K x K
     samples do not have (see bands._thin_face_pixels): xy (V, 2), z (V,) the vertices' pixel
@@ -182,7 +183,7 @@ def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step
     return marked
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(u1[:, ::1], i4[:, ::1], f8[:, ::1], i8, i4[:, ::1], f8[:, ::1])", error_model="numpy")
 def mixed_sums(labels, keys, colours, n_labels, counts, rgb):
     """Per mixed pixel (rows of labels, keys (P, S)): counts (P, n_labels) int32 its samples of
     each label; rgb (P, 3) float64 the sum of the linear colours (colours (keys, 3), by key) of
@@ -205,7 +206,8 @@ def mixed_sums(labels, keys, colours, n_labels, counts, rgb):
         rgb[p, 2] = b
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(("(i4[:, ::1], f4[:, :, ::1], i8, i8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f8[::1], "
+        "f8[::1], f8[::1], f8[::1], f4[:, ::1])"), error_model="numpy")
 def view_normals(face, bary, K, corner, normals, face_normals, right, up, fwd, ray_x, ray_y, ortho_dir, out):
     """View-space unit normals (x right, y up, z toward the camera) of each output pixel's sample
     nearest its centre: face (H K, W K) int32 (-1 background), bary (H K, W K, 2) float32; corner
@@ -259,30 +261,3 @@ def view_normals(face, bary, K, corner, normals, face_normals, right, up, fwd, r
             out[0, i] = nx * right[0] + ny * right[1] + nz * right[2]
             out[1, i] = nx * up[0] + ny * up[1] + nz * up[2]
             out[2, i] = -(nx * fwd[0] + ny * fwd[1] + nz * fwd[2])
-
-
-def warmup() -> None:
-    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
-    face = np.array([0, -1], np.int32)
-    bary = np.zeros((2, 2), np.float32)
-    label = np.array([255, 0], np.uint8)
-    coef = np.zeros((1, 7))
-    lab = np.zeros(2, np.uint8)
-    key = np.zeros(2, np.int32)
-    for th in (np.zeros(0), np.array([0.5])):
-        for region in (np.zeros(0, np.int32), np.zeros(1, np.int32)):
-            label_samples(face, bary, label, coef, 2, th, region, lab, key)
-    xy = np.array([[0.5, 0.5], [1.5, 0.5], [0.5, 0.52]])
-    z = np.ones(3)
-    faces = np.array([[0, 1, 2]], np.int32)
-    u8 = np.array([1], np.uint8)
-    out = np.zeros((2, 2), np.bool_)
-    for ortho in (False, True):
-        thin_face_pixels(xy, z, faces, 1e-3, 2, 2, 1, u8, u8 + 1, np.zeros(1, np.bool_), np.zeros(1, np.int32),
-                         np.full((1, 3), -1, np.int64), 4, np.ones((2, 2), np.float32), np.zeros((2, 2), np.int32),
-                         ortho, 1e-3, out)
-    mixed_sums(np.zeros((1, 4), np.uint8), np.zeros((1, 4), np.int32), np.zeros((4, 3)), 4,
-               np.zeros((1, 4), np.int32), np.zeros((1, 3)))
-    basis = np.eye(3)
-    view_normals(np.zeros((2, 2), np.int32), np.zeros((2, 2, 2), np.float32), 1, np.zeros((1, 3), np.int64), basis,
-                 basis, basis[0], basis[1], basis[2], np.zeros(2), np.zeros(2), np.zeros(0), np.zeros((3, 4), np.float32))

@@ -56,25 +56,23 @@ Projected sets up every face once (clipping, screen planes), and later calls on 
 Projected (other sample counts, the edge pixels) reuse that. threads=1 (default) runs serial
 kernels and never starts numba's thread pool; threads=n > 1 runs the parallel ones.
 
-First use compiles the kernels (numba, cached on disk in __pycache__ next to this file,
-`cache=True`; numba falls back to a user cache directory when that is not writable): measured on
-the 2-core machine under load, ~19 s for the serial kernels and ~30 s with the parallel ones;
-later processes load them from the cache in ~0.6 s (plus ~0.5 s to import numba). `warmup()`
-does it on a tiny scene and returns the seconds it took.
+The kernels are compiled once per machine and cached on disk (`strokekit.numba_cache`; the
+parallel ones on their first threaded use).
 """
 
 from __future__ import annotations
 
 import math
-import time
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit, prange
 
+from strokekit.numba_cache import kernel
+
 __all__ = ["View", "Projected", "ZHits", "Workspace", "view_from_camera", "project", "rasterize_grid",
-           "rasterize_pixels", "sample_offsets", "warmup", "TILE"]
+           "rasterize_pixels", "sample_offsets", "TILE"]
 
 #: Side of the square tiles the sample grid is drawn in, in samples: a tile's depth buffer
 #: (TILE^2 float64 + int32) stays in cache, and tiles are what threads share out.
@@ -268,21 +266,6 @@ def rasterize_pixels(proj: Projected, pixels: np.ndarray, R: int, *, threads: in
     return ZHits(face=face, depth=depth, bary=bary)
 
 
-def warmup(parallel: bool = True) -> float:
-    """Compile (first use on a machine) or load (from numba's on-disk cache) the kernels, serial
-    ones and with `parallel` the threaded ones, on a tiny scene; returns the seconds it took."""
-
-    t = time.perf_counter()
-    for ortho in (False, True):
-        view = View(eye=np.array([0.0, 0.0, -3.0]), right=np.array([1.0, 0.0, 0.0]),
-                    up=np.array([0.0, 1.0, 0.0]), fwd=np.array([0.0, 0.0, 1.0]), focal_px=4.0, width=4, height=4,
-                    ortho=ortho, near=1e-3)
-        verts = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, -3.5]])  # crosses the near plane
-        for threads in ((1, 2) if parallel else (1,)):
-            p = project(verts, np.array([[0, 1, 2]]), view)
-            rasterize_grid(p, 1, threads=threads)
-            rasterize_pixels(p, np.array([5]), 2, threads=threads)
-    return time.perf_counter() - t
 
 
 # --- driver -----------------------------------------------------------------------------------
@@ -528,12 +511,14 @@ def _setup_range(f0, f1, vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri
         fn[fi] = m - 2
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(f8[:, ::1], i4[:, ::1], i8, i8, f8, f8, f8, b1, f8, f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1])",
+        error_model="numpy")
 def _setup_serial(vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane):
     _setup_range(0, faces.shape[0], vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane)
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@kernel("(f8[:, ::1], i4[:, ::1], i8, i8, f8, f8, f8, b1, f8, f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1])",
+        parallel=True, error_model="numpy")
 def _setup_parallel(vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane):
     F = faces.shape[0]
     CH = 4096
@@ -541,7 +526,7 @@ def _setup_parallel(vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fpl
         _setup_range(c * CH, min(F, (c + 1) * CH), vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(i4[:, ::1], i4[:, ::1])", error_model="numpy")
 def _slot_table(slots, sat):
     """sat (H + 1, W + 1): summed-area table of slots >= 0 (sat[r, c]: listed pixels above row
     r and left of column c). Returns the number of listed pixels."""
@@ -581,7 +566,7 @@ def _sample_box(xmin, xmax, ymin, ymax, S, WS, HS):
     return X0, X1, Y0, Y1
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(f8[:, ::1], i1[::1], i8, i8, i8, i8, i4[:, ::1], b1[::1])", error_model="numpy")
 def _plan(fbox, fn, S, WS, HS, T, sat, keep):
     """(active (ntiles,) bool, off (ntiles + 1,) int64): the tiles to draw (all for the full grid,
     sat empty; those with a listed pixel otherwise) and the offsets of each tile's records.
@@ -904,7 +889,8 @@ def _do_tile(t, ntx, T, Si, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, fac
                        bary)
 
 
-@njit(cache=True, error_model="numpy")
+@kernel(("(f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1], b1[::1], i8, i8, i8, i8, b1, i4[:, ::1], b1[::1], "
+        "i8[::1], f8[:, ::1], i4[::1], i4[::1], f4[::1], f4[:, ::1])"), error_model="numpy")
 def _draw_serial(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, active, off, rec, rid, face, depth,
                  bary):
     _fill(fbox, fn, ftri, fplane, keep, S, WS, HS, T, active, off, rec, rid)
@@ -916,7 +902,8 @@ def _draw_serial(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, activ
             _do_tile(t, ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
+@kernel(("(f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1], b1[::1], i8, i8, i8, i8, b1, i4[:, ::1], b1[::1], "
+        "i8[::1], f8[:, ::1], i4[::1], i4[::1], f4[::1], f4[:, ::1])"), parallel=True, error_model="numpy")
 def _draw_parallel(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, active, off, rec, rid, face, depth,
                    bary):
     _fill(fbox, fn, ftri, fplane, keep, S, WS, HS, T, active, off, rec, rid)

@@ -18,14 +18,11 @@ from typing import Callable
 from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
-from strokekit.lines.kernels import warm_kernels as warm_line_kernels
-from strokekit.paths.kernels import warm_kernels as warm_path_kernels
-from strokekit.raster.hits import KernelWarmup
 from strokekit.raster.rays import check_raster_fits
 from strokekit.run.frame import Frame, StrokeCarry, objects_and_materials
+from strokekit.run.kernels import RunKernels
 from strokekit.run.manifest import RUN_MANIFEST, not_a_resume, read_run_manifest, run_manifest, write_run_manifest
 from strokekit.run.spec import (
-    RASTER_STAGES,
     RunInterrupted,
     RunResult,
     RunSpec,
@@ -57,7 +54,7 @@ def _load_and_plan(spec: RunSpec, res: RunResult, scene: Scene | None = None, lo
 def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, *,
         workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
         started_at: float | None = None, notice: Callable[[str], None] | None = None,
-        kernels: KernelWarmup | None = None) -> RunResult:
+        kernels: RunKernels | None = None) -> RunResult:
     """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
     `workers`: make_executor(spec.workers, spec.scheduler, SceneRef(spec.scene_path, "", spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
@@ -65,8 +62,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     load stage); `started_at`: the caller's time.perf_counter() when the run began for the user
     (the report's wall time counts from there: the pool start and the load are part of it);
     `notice(line)`: told when the run has to wait for something the user may wonder about (the
-    first compile of the raster kernels on a machine); `kernels`: a raster.hits.KernelWarmup the
-    caller started (earlier: beside its scene load), else the run starts one when it needs it.
+    first compile of the kernels on a machine); `kernels`: a run.kernels.RunKernels the caller
+    started (earlier: beside its scene load), else the run starts one.
 
     The steps: check the request, start the workers, load and plan the stages, plan the resume
     (`plan_resume`), stream the frames through line work, tracking and writing (`FrameStream`),
@@ -85,13 +82,9 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     raster = spec.raster is not None
     if own:
         workers = make_executor(spec.workers, spec.scheduler, warm=SceneRef(spec.scene_path, "", spec.lines))
-    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work,
-    # when this process draws frames (not beside a dask cluster: there each worker loads them, and
-    # compiles them on its machine's first run).
-    if not (raster and workers.main_helps):
-        kernels = None
-    elif kernels is None:
-        kernels = KernelWarmup(notice)
+    # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
+    if kernels is None:
+        kernels = RunKernels(notice, raster=raster and workers.main_helps)
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
@@ -102,27 +95,11 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
             res.outputs.append(str(write_run_manifest(spec.outputs.out_dir, resume.manifest, resume.entries)))
         except OSError as e:
             write_error = e
-        work = bool(lines_needed(spec, resume))
-        if write_error is None and work and spec.plan.paths is not None:
-            # Brush path kernels (this process draws the paths): loaded, or compiled on a
-            # machine's first run (said), before any frame.
-            t = time.perf_counter()
-            warm_path_kernels(notice)
-            stage["brush paths"].seconds += time.perf_counter() - t
-        if write_error is None and kernels is not None and kernels.compiles() is not False:
-            # Compiled here, once, before any frame: the workers then load them from numba's disk
-            # cache instead of each compiling them.
-            kernels.join()
-        if write_error is None and work and spec.lines.occlusion is not None and spec.scheduler is None:
-            # Hidden lines' kernels: compiled here on a machine's first run, before any frame (the
-            # workers then load them from numba's disk cache instead of each compiling them).
-            t = time.perf_counter()
-            warm_line_kernels(notice)
-            stage["occlusion levels"].seconds += time.perf_counter() - t
         if write_error is None:
+            kernels.ready(spec, workers.main_helps, work=bool(lines_needed(spec, resume)))
             write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
-        if kernels is not None:
-            stage[RASTER_STAGES["kernels"][0]].seconds += kernels.join()
+        for name, seconds in kernels.seconds().items():
+            stage[name].seconds += seconds
     except KeyboardInterrupt:
         # Ctrl-C: the frames in progress are abandoned. The workers stop now (also the caller's:
         # their tasks belong to this run), then the temporary files of the writes they were in

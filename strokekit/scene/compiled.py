@@ -18,10 +18,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from strokekit.numba_cache import kernel
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f8[::1], f8, f8, f8)", error_model="numpy")
 def level_rays(P, lift, scale, eye, origin, k, offset, eye_tail):
     """For points P (N, 3) on mesh edges, with lifts (N, 3) and local sizes scale (N,): the open
     segment toward the eye (eye (3,), world), started offset x max(|P - origin|, scale) along and
@@ -59,7 +60,7 @@ def level_rays(P, lift, scale, eye, origin, k, offset, eye_tail):
     return rays, targets, d_local, length, reach
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(f4[::1], u4[::1], u4[::1], i8[::1], f8[::1], f8, i8[:, ::1], f8[::1])", error_model="numpy")
 def listed_hits(t, ray, prim, face_index, length, k, skip, reach):
     """The hits of list_intersections (t (K,) float32 along each ray's segment, ray (K,), prim
     (K,) Embree primitives; face_index (F',) their scene faces, (0,): the same numbers) that lie
@@ -114,7 +115,7 @@ def listed_hits(t, ray, prim, face_index, length, k, skip, reach):
     return True, out_t[:n], out_r[:n], out_f[:n], close[:n]
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(f8[:, ::1], f8[:, ::1], i8[::1], i8[:, ::1], f8[:, ::1])", error_model="numpy")
 def crosses(a, b, face, faces, V):
     """Occluder._crosses (which see) of the open segments a -> b (M, 3) and scene faces `face`
     (M,), the numpy version's operations in its order, bit for bit."""
@@ -139,14 +140,3 @@ def crosses(a, b, face, faces, V):
         t = ((e20 * qv0 + e22 * qv2) + e21 * qv1) * inv
         out[i] = abs(det) > 1e-12 * scale and u >= 0 and v >= 0 and u + v <= 1 and t > 0 and t < 1
     return out
-
-
-def warmup() -> None:
-    """Compile (first use on a machine) or load the kernels on tiny inputs of the real types."""
-    P = np.zeros((1, 3))
-    rays, targets, d_local, length, reach = level_rays(P, P, np.ones(1), np.ones(3), np.zeros(3), 1.0, 1e-5, 1e-5)
-    skip = np.full((1, 2), -1, np.int64)
-    for face_index in (np.zeros(0, np.int64), np.zeros(1, np.int64)):
-        listed_hits(np.zeros(1, np.float32), np.zeros(1, np.uint32), np.zeros(1, np.uint32), face_index, length, 1.0,
-                    skip, reach)
-    crosses(P, P + 1.0, np.zeros(1, np.int64), np.array([[0, 0, 0]], np.int64), P)

@@ -1,5 +1,6 @@
-"""Stroke surgery for tracking: points inserted, closed strokes rotated to their seams, pieces
-joined where they touch end to end (`chain_touching`), segments of one chain joined in order."""
+"""Strokes joined for tracking: pieces that touch end to end chained into paths
+(`chain_touching`, the links walked by a compiled pass, `joins_kernels`), segments of one chain
+joined in order, closed strokes rotated to their seams."""
 
 from __future__ import annotations
 
@@ -7,43 +8,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from strokekit.lines.strokeops import cut_pieces, drop_hairpins, join_arrays
-from strokekit.model import Strokes, bracket, row_norm
-from strokekit.sampling import Samples, surface_between
+from strokekit.lines.strokeops import join_arrays
+from strokekit.model import Strokes, row_norm
+from strokekit.numba_cache import LazyKernels
+from strokekit.sampling import Samples
+from strokekit.tracking.strokeops import cut_pieces, drop_hairpins
 
-
-def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
-    """Strokes with extra points at arc lengths s (px) of strokes `stroke` (same polylines; the
-    new points interpolate position and surface point). Points closer than 1e-6 px to an existing
-    point are not added."""
-    if len(stroke) == 0:
-        return strokes
-    offsets = strokes.offsets
-    base, G = strokes.global_arc
-    g = base[stroke] + np.asarray(s, float)
-    first = offsets[:-1][stroke]
-    last = offsets[1:][stroke] - 1
-    i, j = bracket(G, G.searchsorted(g, side="right"), first, last)
-    Gi, Gj = G[i], G[j]
-    keep = ((Gj - Gi > 0) & (g - Gi > 1e-6) & (Gj - g > 1e-6)).nonzero()[0]
-    i, j, g, stroke, Gi, Gj = i[keep], j[keep], g[keep], stroke[keep], Gi[keep], Gj[keep]
-    if len(i) == 0:
-        return strokes
-    a = ((g - Gi) / (Gj - Gi))[:, None]
-    # take(axis=0) for row gathers: numpy's fancy indexing of (N, 2) / (N, 3) rows is ~8x slower
-    # on arrays of a frame's size (same values).
-    P = np.concatenate([strokes.points, strokes.points.take(i, axis=0) * (1 - a) + strokes.points.take(j, axis=0) * a])
-    X = np.concatenate([strokes.surface, surface_between(strokes, i, j, a[:, 0])])
-    F = np.concatenate([strokes.face, np.where(a[:, 0] < 0.5, strokes.face[i], strokes.face[j])])
-    U = np.concatenate([strokes.u, strokes.u[i] * (1 - a[:, 0]) + strokes.u[j] * a[:, 0]])
-    # Sort by (stroke, arc); an old point precedes a new point at the same place. The global arc
-    # coordinate alone orders the strokes (a 1 px gap between them), and old points come first in
-    # allg: a stable sort of allg is that order (~4x cheaper than the 3-key lexsort it replaces).
-    order = np.concatenate((G, g)).argsort(kind="stable")
-    # Points per stroke: the old counts plus the new points of each stroke.
-    counts = (offsets[1:] - offsets[:-1]) + np.bincount(stroke, minlength=len(strokes))
-    return strokes.replace(points=P.take(order, axis=0), surface=X.take(order, axis=0), face=F[order], u=U[order],
-                   offsets=np.concatenate(((0,), counts.cumsum())).astype(np.int64))
+kernels = LazyKernels("strokekit.tracking.joins_kernels").kernels
 
 
 def rotate_closed(strokes: Strokes, which: np.ndarray, s_start: np.ndarray) -> Strokes:
@@ -176,7 +147,7 @@ def join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: f
         return group, rev, pos
     # Deterministic links, each run end in one link at most. Run ends are the entries of the
     # e_* arrays (nodes); partner[node] is the node it is linked to (-1: free). Plain Python on
-    # int lists: a greedy pass in a fixed order over ~100-200 candidate links a frame.
+    # int lists: a greedy pass in a fixed order over the few candidate links of a frame.
     # Where three ends meet, the straightest continuation is linked first (straightest_first).
     keys = (e_run[b], e_run[a], -np.round(straight, 9)) if straightest_first else (e_run[b], e_run[a])
     o = np.lexsort(keys)
@@ -225,7 +196,7 @@ def join_segments(cur: Strokes, r_stroke, r_s0, r_s1, r_label, r_sign, tol_px: f
 def _close_pairs(pt: np.ndarray, r: float) -> np.ndarray:
     """(K, 2) index pairs i < j of the points pt (N, 2) at most r apart: the pairs of
     cKDTree(pt).query_pairs(r) (same test, dx * dx + dy * dy <= r * r), in another order. For a
-    few hundred stroke ends a sweep along x is ~4x cheaper than building a tree: neighbours in x
+    few hundred stroke ends a sweep along x is cheaper than building a tree: neighbours in x
     order within r (plus a margin, the test decides) are the candidates."""
     lo, hi = _close_pair_arrays(pt, r)
     return np.stack([lo, hi], axis=1)
@@ -263,26 +234,13 @@ def _straightest_order(straight: np.ndarray, ra: np.ndarray, rb: np.ndarray, S: 
     return ((t * S + ra) * S + rb).argsort(kind="stable")
 
 
-def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np.ndarray | None = None,
-                    other_tol_px: float | None = None, bridge_ok=None, free_px: float = 2.0,
-                    weight: np.ndarray | None = None, link=None):
-    """join_segments(strokes, arange(S), zeros(S), lengths, zeros(S), ones(S), tol_px, angle_deg,
-    straightest_first=True), the call chain_touching makes, specialized (same group, rev, pos): every
-    run is a whole stroke, all labels agree and all signs are +1, so the label healing is moot, the
-    ends are the open strokes' first and last points and a path is reversed when most of its
-    strokes are entered at their end. The tracker runs it on every frame (~200 strokes): the
-    per-member bookkeeping of the walk is done with numpy after a bare Python walk.
-
-    `label` (S,) (the brush paths): strokes of two different labels >= 0 never join; two of one
-    label join within tol_px, a stroke of label -1 (no label) joins any within `other_tol_px`
-    (default tol_px); links within one label are taken first, then those to an unlabelled stroke,
-    then between unlabelled strokes; within each, the cheapest first (the gap plus 10 px per radian
-    of turn), then of the heaviest stroke (the larger `weight` (S,) of the two, default their
-    lengths): at a junction of shingles the straight continuation wins over a turn onto a longer
-    piece (120-frame orbits, M1: bunny +0.0004, rocker-arm +0.0015). `bridge_ok(pa, pb) -> (K,) bool`: where two ends are more
-    than `free_px` apart, they join only where it says the bridge between them may be drawn.
-    `link(a, b, e_run, n, S) -> (group, rev, pos)`: the links taken and walked into paths by
-    another implementation of the steps below (the brush path stage's compiled one)."""
+def touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
+    """The paths chain_touching makes: join_segments(strokes, arange(S), zeros(S), lengths,
+    zeros(S), ones(S), tol_px, angle_deg, straightest_first=True) specialized (same group, rev,
+    pos): every run is a whole stroke, all labels agree and all signs are +1, so the ends are the
+    open strokes' first and last points, the straightest continuation is linked first where three
+    ends meet, and a path is reversed when most of its strokes are entered at their end. Returns
+    group (S,) (the lowest stroke of each path), rev (S,) and pos (S,)."""
     S = len(strokes)
     group = np.arange(S)
     rev = np.zeros(S, bool)
@@ -302,114 +260,30 @@ def _touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, label: np
     pt = P.take(e_pt, axis=0)
     d = P.take(nb, axis=0) - pt  # direction away from the end, into the stroke
     d = d / np.maximum(row_norm(d), 1e-12)[:, None]
-    a, b = _close_pair_arrays(pt, tol_px if label is None or other_tol_px is None else max(tol_px, other_tol_px))
+    a, b = _close_pair_arrays(pt, tol_px)
     if len(a) == 0:
         return group, rev, pos
     ok = (e_run[a] != e_run[b]) & (strokes.kind[e_run[a]] == strokes.kind[e_run[b]])
     dx, dy = d[:, 0], d[:, 1]
     straight = -(dx[a] * dx[b] + dy[a] * dy[b])  # cosine of the turn at the joint
-    tier = None
-    if label is None:
-        ok &= straight >= np.cos(np.radians(angle_deg))
-    else:
-        la, lb = label[e_run[a]], label[e_run[b]]
-        same = (la == lb) & (la >= 0)
-        ok &= straight >= np.cos(np.radians(angle_deg))
-        gap = row_norm(pt.take(a, axis=0) - pt.take(b, axis=0))
-        other = tol_px if other_tol_px is None else other_tol_px
-        ok &= (same & (gap <= tol_px)) | (((la < 0) | (lb < 0)) & (gap <= other))
-        if bridge_ok is not None:
-            far = np.flatnonzero(ok & (gap > free_px))
-            if len(far):
-                ok[far] = bridge_ok(pt.take(a[far], axis=0), pt.take(b[far], axis=0))
-        tier = 2 * same + ((la < 0) != (lb < 0))
+    ok &= straight >= np.cos(np.radians(angle_deg))
     if not ok.any():
         return group, rev, pos
     a, b, straight = a[ok], b[ok], straight[ok]
     # Greedy links in the order of join_segments (straightest first; the pairs come in another
-    # order than the k-d tree's, the sort decides). A node's code is 2 * stroke + end.
-    if tier is None:
-        o = _straightest_order(straight, e_run[a], e_run[b], S)
-    else:
-        wt = strokes.lengths if weight is None else weight
-        heavy = np.maximum(wt[e_run[a]], wt[e_run[b]])
-        # The cost of a link: its gap plus 10 px per radian of turn (seed 000's rule).
-        cost = gap[ok] + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))
-        o = np.lexsort((e_run[b], e_run[a], -np.round(heavy, 6), np.round(cost, 6), -tier[ok]))
-    a, b = a[o], b[o]
-    if link is not None:
-        return link(a, b, e_run, n, S)
-    code = 2 * e_run + (np.arange(2 * n) >= n)
-    partner = np.full(2 * n, -1, np.int64)
-    # A link whose two ends are in no other candidate link is taken whatever the order (most of
-    # them): set at once; only links at junctions of 3+ ends go through the greedy pass.
-    deg = np.bincount(join_arrays(a, b), minlength=2 * n)
-    solo = (deg[a] == 1) & (deg[b] == 1)
-    partner[a[solo]] = code[b[solo]]
-    partner[b[solo]] = code[a[solo]]
-    if not solo.all():
-        # (The ends of these links are in no solo link: a set of the ends taken so far is all
-        # the greedy pass needs.)
-        taken, xs, ys = set(), [], []
-        for x, y in zip(a[~solo].tolist(), b[~solo].tolist()):
-            if x in taken or y in taken:
-                continue
-            taken.add(x)
-            taken.add(y)
-            xs.append(x)
-            ys.append(y)
-        partner[xs] = code[ys]
-        partner[ys] = code[xs]
-    # nxt[c]: code of the end linked to end c (-1: free); entering at c, one leaves at c ^ 1.
-    nxt = np.full(2 * S, -1, np.int64)
-    nxt[code] = partner
-    linked = (nxt >= 0).reshape(S, 2)
-    l0, l1 = linked[:, 0], linked[:, 1]
-    runs = np.flatnonzero(l0 | l1)
-    one = runs[l0[runs] != l1[runs]]
-    nxt = nxt.tolist()
-    walk, heads = [], []
-    # Path starts: strokes with one linked end, entered through the free end, in stroke order. A
-    # path (the links make paths and rings) runs from its start to its other end stroke, which
-    # is the one start left to skip.
-    done = set()
-    for c in (2 * one + l0[one]).tolist():
-        if c >> 1 in done:
-            continue
-        heads.append(len(walk))
-        while True:
-            walk.append(c)
-            nc = nxt[c ^ 1]
-            if nc < 0:
-                break
-            c = nc
-        done.add(c >> 1)
-    if len(walk) < len(runs):
-        # Rings (linked strokes no path reached), entered through their start.
-        seen = [False] * S
-        for c in walk:
-            seen[c >> 1] = True
-        for c in (2 * runs).tolist():
-            if seen[c >> 1]:
-                continue
-            heads.append(len(walk))
-            while not seen[c >> 1]:
-                seen[c >> 1] = True
-                walk.append(c)
-                c = nxt[c ^ 1]
-                if c < 0:
-                    break
-    walk, heads = np.array(walk, np.int64), np.array(heads, np.int64)
-    lens = np.diff(join_arrays(heads, len(walk)))
-    path = np.repeat(np.arange(len(heads)), lens)
-    k = np.arange(len(walk)) - heads[path]
-    r, back = walk >> 1, (walk & 1).astype(bool)
-    # A path goes backwards when more of its strokes are entered at their end (sum of signs < 0).
-    flip = (2 * np.add.reduceat(walk & 1, heads) > lens)[path]
-    group[r] = np.minimum.reduceat(r, heads)[path]
-    rev[r] = back ^ flip
-    pos[r] = np.where(flip, lens[path] - 1 - k, k)
-    return group, rev, pos
+    # order than the k-d tree's, the sort decides), each end in one link at most.
+    o = _straightest_order(straight, e_run[a], e_run[b], S)
+    return walk_links(a[o], b[o], e_run, n, S)
+
+
+def walk_links(a: np.ndarray, b: np.ndarray, e_run: np.ndarray, n: int, S: int):
+    """Candidate links a, b (L,) between stroke ends (node i < n: the start of stroke e_run[i],
+    else its end), in the order they are taken (each end in one link at most), walked into
+    paths: group (S,) (the lowest stroke of each path), rev (S,) (traversed backwards), pos (S,)
+    (its place in the path). A path starts at a stroke with one linked end, entered through the
+    free end, in stroke order (then rings, entered through their lowest stroke's start), and
+    goes backwards when more of its strokes are entered at their end."""
+    return kernels().link_paths(a, b, e_run, n, S)
 
 
 @dataclass(frozen=True)
@@ -433,34 +307,14 @@ class GatheredPaths:
 
 
 def gather_paths(strokes: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray) -> GatheredPaths:
-    """The points of each path (group, rev, pos of _touching_paths) in order, reversed strokes
+    """The points of each path (group, rev, pos of touching_paths) in order, reversed strokes
     backwards; a joint point that repeats the previous one is dropped (a bridge, when the ends
     were apart, is kept)."""
     S = len(strokes)
     # (group, pos) pairs are distinct: one stable sort of group * S + pos is lexsort((pos, group)).
     order = (group * S + pos).argsort(kind="stable")
-    offs = strokes.offsets
-    start, counts = offs[:-1][order], (offs[1:] - offs[:-1])[order]
-    csum = counts.cumsum()
-    c0 = csum - counts  # where each stroke's points start in the gathered order
-    # Point t of the gathered order: start + (t - c0), or start + count - 1 - (t - c0) reversed.
-    t = np.arange(int(csum[-1]))
-    ro = rev[order]
-    src = np.where(ro.repeat(counts), (start + counts - 1 + c0).repeat(counts) - t, t + (start - c0).repeat(counts))
-    g = group[order]
-    new_g = np.concatenate(((True,), g[1:] != g[:-1]))
-    joint = c0[~new_g]
-    P = strokes.points
-    drop = joint[row_norm(P.take(src[joint], axis=0) - P.take(src[joint - 1], axis=0)) < 1e-9]
-    path = new_g.cumsum() - 1
-    first = order[new_g]
-    # Points per path: its strokes' points less the dropped joint points.
-    n_path = np.bincount(path, weights=counts, minlength=len(first)).astype(np.int64) - np.bincount(
-        path[c0.searchsorted(drop, side="right") - 1], minlength=len(first))
-    if len(drop):
-        keep = np.ones(len(src), bool)
-        keep[drop] = False
-        src = src[keep]
+    c0, src, new_g, joint, drop, path, first, n_path = kernels().gather(
+        strokes.offsets, order, np.asarray(rev, bool), np.asarray(group, np.int64), strokes.points)
     return GatheredPaths(order, c0, src, new_g, joint, drop, path, first, n_path)
 
 
@@ -472,7 +326,7 @@ def chain_touching(strokes: Strokes, tol_px: float, angle_deg: float) -> Strokes
     S = len(strokes)
     if S < 2 or tol_px <= 0:
         return strokes
-    group, rev, pos = _touching_paths(strokes, tol_px, angle_deg)
+    group, rev, pos = touching_paths(strokes, tol_px, angle_deg)
     if np.array_equal(group, np.arange(S)):
         return strokes
     g = gather_paths(strokes, group, rev, pos)

@@ -65,6 +65,7 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.model import Strokes
+from strokekit.numba_cache import keyboard_interrupts
 from strokekit.tracking.kalnins import Kalnins
 from strokekit.tracking.options import TrackingOptions
 from strokekit.tracking.seed import Seed
@@ -115,7 +116,8 @@ class Tracker:
         if no_history and o.method != "none":
             out, self.next_id = fresh(strokes, strokes.period_px, self.next_id)
         else:
-            out, self.next_id = self.method.track(self.prev, strokes, o, self.next_id)
+            with keyboard_interrupts():  # (a Ctrl-C in a compiled loop stays a KeyboardInterrupt)
+                out, self.next_id = self.method.track(self.prev, strokes, o, self.next_id)
         self.prev = out
         return out
 

@@ -1,6 +1,7 @@
-"""The per-stroke fit of u: a piecewise-linear function of arc length fitted to the carried
-votes, with a prior on its slope (1/P) and on bending, solved as one banded system per frame;
-and the self-similar octave level that follows from its slope."""
+"""The per-stroke fit of u (`fit_u`): a piecewise-linear function of arc length fitted to the
+carried votes, with a prior on its slope (1/P) and on bending, solved as one banded system per
+frame; and the self-similar octave level that follows from its slope. Its sums and evaluations
+are compiled (`ufit_kernels`); the tracker and the brush paths share it."""
 
 from __future__ import annotations
 
@@ -8,14 +9,19 @@ import numpy as np
 from numpy.linalg import LinAlgError
 
 from strokekit.lines.strokeops import join_arrays
-from strokekit.model import uclip
+from strokekit.model import Strokes
+from strokekit.numba_cache import LazyKernels
 from strokekit.sampling import Samples
+from strokekit.tracking.strokeops import insert_points, with_arcs
+from strokekit.tracking.votes import unwrap_loop_votes
+
+kernels = LazyKernels("strokekit.tracking.ufit_kernels").kernels
 
 
 class PiecewiseU:
-    """u along every stroke as a piecewise-linear function of arc length, knots every ~`knot_px`
-    px (n_s = ceil(L_s / knot_px) equal intervals per stroke), solved for all strokes at once as
-    one sparse least-squares problem (block diagonal)."""
+    """The knots of u along every stroke: a piecewise-linear function of arc length, n_s =
+    ceil(L_s / knot_px) equal intervals of h_s px per stroke, knots base_s .. base_s + n_s, all
+    strokes solved at once as one sparse least-squares problem (block diagonal)."""
 
     def __init__(self, lengths: np.ndarray, knot_px: float):
         self.L = np.asarray(lengths, float)
@@ -23,144 +29,61 @@ class PiecewiseU:
         self.h = self.L / self.n
         self.base = join_arrays(0, np.cumsum(self.n + 1)).astype(np.int64)  # first knot of each stroke
 
-    def inner_knot_stroke(self) -> np.ndarray:
-        return np.repeat(np.arange(len(self.L)), self.n - 1)
 
-    def inner_knot_s(self) -> np.ndarray:
-        st = self.inner_knot_stroke()
-        j = np.arange(len(st)) - np.repeat(join_arrays(0, np.cumsum(self.n - 1)[:-1]), self.n - 1) + 1
-        return j * self.h[st]
-
-    def _interval(self, st, s):
-        # Cached for the last (st, s) pair: the fit and the evaluation at the votes share it.
-        c = self.__dict__.get("_iv")
-        if c is not None and c[0] is st and c[1] is s:
-            return c[2], c[3]
-        h = self.h[st]
-        hp = h > 0
-        x = np.where(hp, s / np.where(hp, h, 1.0), 0.0)
-        j = uclip(np.floor(x), 0, self.n[st] - 1).astype(np.int64)
-        k, a = self.base[st] + j, uclip(x - j, 0.0, 1.0)
-        self._iv = (st, s, k, a)
-        return k, a
-
-    def eval(self, knots: np.ndarray, st: np.ndarray, s: np.ndarray) -> np.ndarray:
-        k, a = self._interval(st, s)
-        return knots[k] * (1 - a) + knots[k + 1] * a
-
-    @staticmethod
-    def _terms(nk, cols, vals, y, rows):
-        """Normal-equation terms of residuals sum_a vals[a] x[cols[a]] - y (weights already in
-        vals and y), appended to rows[band row] (rows[3]: the right-hand side) in the order they
-        are added; y None: a zero right-hand side (its terms are +0.0 everywhere: adding them
-        changes nothing, they are left out)."""
-        m = len(cols)
-        for a_ in range(m):
-            rows[0].append(np.bincount(cols[a_], vals[a_] * vals[a_], minlength=nk))
-            if y is not None:
-                rows[3].append(np.bincount(cols[a_], vals[a_] * y, minlength=nk))
-            for b_ in range(a_ + 1, m):
-                rows[b_ - a_].append(np.bincount(cols[a_], vals[a_] * vals[b_], minlength=nk))
-        return rows
-
-    #: Terms the votes add to each band row (0, 1, 2) and to the right-hand side (3), first.
-    _VOTE_TERMS = (2, 1, 0, 2)
-
-    def _fixed_terms(self, prior_a, prior_b, b0, stretch_weight, bend_weight):
-        """The terms that do not depend on the votes (stretch, bend, anchor), cached for the
-        same arguments (the tracker fits twice with the same prior, dropping outliers): per band
-        row and right-hand side a (vote terms + fixed terms, nk) buffer whose first rows the
-        fit fills with its vote terms (see fit)."""
-        key = (prior_a, prior_b, b0, stretch_weight, bend_weight)
-        c = self.__dict__.get("_fixed")
-        if c is not None and all(x is y or (not isinstance(x, np.ndarray) and x == y) for x, y in zip(c[0], key)):
-            return c[1]
-        nk = int(self.base[-1])
-        S = len(self.L)
-        # Each term adds at distinct knots (the intervals, inner knots and knots are distinct):
-        # its np.bincount is its values set at those knots over zeros (the one difference, a
-        # -0.0 product, adds to a sum that never is -0.0, as it starts with a vote term:
-        # nothing changes). Written straight into the buffers, in _terms' order:
-        # row 0: stretch aa, bb, bend aa, bb, cc, anchor; row 1: stretch ab, bend ab, bc;
-        # row 2: bend ac; right-hand side: stretch ay, by, anchor (bend: zero, left out).
-        nv0, nv1, nv2, nv3 = self._VOTE_TERMS
-        b0_, b1_, b2_, b3_ = (np.zeros((nv0 + 6, nk)), np.zeros((nv1 + 3, nk)), np.zeros((nv2 + 1, nk)),
-                              np.zeros((nv3 + 3, nk)))
-        # stretch, per interval
-        js = np.arange(S).repeat(self.n)
-        cn = self.n.cumsum()
-        kk = self.base[js] + (np.arange(cn[-1] if S else 0) - (cn - self.n).repeat(self.n))
-        hs = self.h[js]
-        hh = np.maximum(hs, 1.0)
-        ws = np.sqrt(stretch_weight / hh)
-        va, vb, y = -ws, ws, ws * hs * b0
-        b0_[nv0, kk] = va * va
-        b3_[nv3, kk] = va * y
-        b1_[nv1, kk] = va * vb
-        b0_[nv0 + 1, kk + 1] = vb * vb
-        b3_[nv3 + 1, kk + 1] = vb * y
-        # bend, per inner knot (strokes with >= 2 intervals)
-        inner = np.flatnonzero(self.n[js] >= 2)
-        jb = kk[inner]
-        last_interval = jb + 1 >= self.base[js[inner]] + self.n[js[inner]]
-        jb, sb = jb[~last_interval], js[inner][~last_interval]
-        wb = np.sqrt(bend_weight * np.maximum(self.L[sb], 1.0))
-        va, vb, vc = wb, -2 * wb, wb
-        b0_[nv0 + 2, jb] = va * va
-        b1_[nv1 + 1, jb] = va * vb
-        b2_[nv2, jb] = va * vc
-        b0_[nv0 + 3, jb + 1] = vb * vb
-        b1_[nv1 + 2, jb + 1] = vb * vc
-        b0_[nv0 + 4, jb + 2] = vc * vc
-        # weak anchor to the line fit
-        ks = np.arange(S).repeat(self.n + 1)
-        sk = (np.arange(nk) - self.base[ks]) * self.h[ks]
-        we = np.full(nk, 1e-3)
-        b0_[nv0 + 5] = we * we
-        b3_[nv3 + 2] = we * (1e-3 * (prior_a[ks] + prior_b[ks] * sk))
-        bufs = [b0_, b1_, b2_, b3_]
-        self._fixed = (key, bufs)
-        return bufs
-
-    def fit(self, st, s, u, w, prior_a, prior_b, b0, stretch_weight, bend_weight, band_terms=None) -> np.ndarray:
-        """Knot values minimizing sum w (u(s) - u)^2 (votes) + stretch_weight / h (du - h b0)^2
-        per interval (slope close to the nominal b0 = 1/P) +
-        bend_weight L (second difference)^2 per inner knot (even stretch) + 1e-6 (knot - prior)^2
-        (the line fit a + b s; fixes strokes without votes). `band_terms(k, a, w, u, f0, f1, f2,
-        f3) -> (band, rhs)`: the normal equations summed by another implementation of the steps
-        below (the brush path stage's compiled one; f_r: the fixed terms' rows)."""
-        nk = int(self.base[-1])
-        # Normal equations accumulated straight into the 3 lower bands of a symmetric banded
-        # matrix (every residual touches at most 3 consecutive knots of one stroke), in a fixed
-        # order: votes, stretch, bend, anchor. Each band row is the sum of its terms in that
-        # order: the terms stacked in one buffer and summed along it (np.add.reduce over the
-        # first axis adds the rows one after the other, elementwise: the same sums as adding
-        # the terms one by one into zeros, whose first addition is exact).
-        k, a = self._interval(st, s)
-        bufs = self._fixed_terms(prior_a, prior_b, b0, stretch_weight, bend_weight)
-        if band_terms is not None and nk > 0:
-            band, rhs = band_terms(k, a, w, u, *(b[n:] for b, n in zip(bufs, self._VOTE_TERMS)))
-        else:
-            sw = np.sqrt(w)
-            votes = self._terms(nk, [k, k + 1], [sw * (1 - a), sw * a], sw * u, ([], [], [], []))
-            band = np.empty((3, nk))
-            for r in range(3):  # (every buffer holds 1+ terms: each term is added for every stroke)
-                np.add.reduce(_fill_rows(bufs[r], votes[r]), axis=0, out=band[r])
-            rhs = np.add.reduce(_fill_rows(bufs[3], votes[3]), axis=0)
-        band[1, -1:] = 0.0
-        band[2, -2:] = 0.0
-        if nk == 0:
-            from scipy.linalg import solveh_banded
-
-            return solveh_banded(band, rhs, lower=True, check_finite=False)
-        return solve_banded(band, rhs)
-
-
-def _fill_rows(buf: np.ndarray, rows: list) -> np.ndarray:
-    """buf with its first len(rows) rows set to `rows`."""
-    for i, t in enumerate(rows):
-        buf[i] = t
-    return buf
+def fit_u(prev: Strokes, cur: Strokes, st: np.ndarray, s: np.ndarray, u: np.ndarray, vid: np.ndarray,
+          w: np.ndarray, o):
+    """u along the strokes `cur` fitted to the votes carried from `prev`: vote k lands on stroke
+    st[k] at arc length s[k] (px) with u[k] (periods), carried id vid[k] and weight w[k]. Per
+    stroke the votes of its primary id (most weight, ties: the lower id) set the fit, those of
+    other ids join it shifted by whole periods (the texture is periodic); u is piecewise linear
+    (knots every o.knot_spacing_px, inserted as points: u is interpolated linearly downstream)
+    or linear, votes farther than o.outlier_px from the fit dropped and the fit redone: close to
+    the votes (no sliding), slope close to 1/P (no stretch, o.stretch_weight), even stretch
+    between knots (o.bend_weight); strokes without votes get u = s / P. Returns (cur with the
+    knots inserted, u at its points, the slope du/ds per stroke, and the vote groups (stroke, id,
+    inlier weight) that assign_ids takes)."""
+    P = cur.period_px
+    S = len(cur)
+    b0 = 1.0 / P
+    if len(st) == 0:
+        z = np.zeros(0, np.int64)
+        a, b = np.zeros(S), np.full(S, b0)
+        sop = cur.stroke_of_point
+        return cur, a[sop] + b[sop] * cur.arc_length, b, (z, z, np.zeros(0))
+    K = kernels()
+    st = np.asarray(st, np.int64)
+    L = with_arcs(cur).lengths
+    gkeys, ginv, gw, primary = K.vote_groups(st, np.asarray(vid, np.int64), w)
+    u = unwrap_loop_votes(prev, u, vid, s, ginv, w, P, o.vote_spacing_px)
+    lam = o.stretch_weight * P * P * L  # see TrackingOptions.stretch_weight
+    a, b, ok = K.line_fit(st, s, u, w, primary[ginv].astype(float), lam, b0)
+    u = K.to_primary(st, s, u, w, ginv, gw, primary, a, b)
+    a, b, ok = K.line_fit(st, s, u, w, np.ones(len(st)), lam, b0)
+    if o.knot_spacing_px > 0:
+        # Piecewise-linear u: follows uneven stretch (perspective, edges of a loop growing at
+        # different rates) without sliding.
+        pw = PiecewiseU(L, o.knot_spacing_px)
+        k, f = K.knot_intervals(pw.n, pw.h, pw.base, st, s)
+        inlier = np.ones(len(st))
+        for _ in range(2):
+            band, rhs = K.piecewise_system(k, f, w, inlier, u, pw.n, pw.h, pw.base, L, a, b, b0,
+                                           o.stretch_weight * P * P, o.bend_weight)
+            knots = solve_banded(band, rhs)
+            inlier = K.piecewise_inliers(knots, k, f, u, P, o.outlier_px)
+    else:
+        inlier = (np.abs(u - (a[st] + b[st] * s)) * P <= o.outlier_px).astype(float)
+        a2, b2, ok2 = K.line_fit(st, s, u, w, inlier, lam, b0)
+        a, b, ok = np.where(ok2, a2, a), np.where(ok2, b2, b), ok | ok2
+    groups = (gkeys[:, 0], gkeys[:, 1], np.bincount(ginv, weights=w * inlier, minlength=len(gw)))
+    b = np.where(ok, np.maximum(b, 1e-3 * b0), b0)  # never fold the texture back
+    if o.knot_spacing_px > 0:
+        cur = insert_points(cur, *K.inner_knots(pw.n, pw.h))
+        u_new = K.piecewise_at(knots, pw.n, pw.h, pw.base, cur.offsets, with_arcs(cur).arc_length)
+        b = np.where((L > 0) & ok, (knots[pw.base[1:] - 1] - knots[pw.base[:-1]]) / np.maximum(L, 1e-9), b)
+    else:
+        sop = cur.stroke_of_point
+        u_new = a[sop] + b[sop] * cur.arc_length
+    return cur, u_new, b, groups
 
 
 def local_slope(smp: Samples) -> np.ndarray:

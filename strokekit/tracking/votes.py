@@ -1,5 +1,7 @@
-"""Votes carried from the previous frame: ids assigned by matched length, chains cut where
-the carried ids change (`segment_by_votes`), boundaries snapped to the previous strokes' ends."""
+"""Votes carried from the previous frame: ids assigned by matched length (`assign_ids`), chains
+cut where the carried ids change (`segment_by_votes`), boundaries snapped to the previous
+strokes' ends. The labels, runs, id assignment and u trend are compiled (`votes_kernels`); the
+tracker and the brush paths share them."""
 
 from __future__ import annotations
 
@@ -7,11 +9,14 @@ import numpy as np
 
 from strokekit.lines.strokeops import join_arrays
 from strokekit.model import Strokes, row_norm
+from strokekit.numba_cache import LazyKernels
 from strokekit.sampling import Samples, match_samples
+
+kernels = LazyKernels("strokekit.tracking.votes_kernels").kernels
 
 
 def u_trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarray, u: np.ndarray,
-             R: int) -> np.ndarray:
+            R: int) -> np.ndarray:
     """(R,) px of every run along which the carried u increases, less the px along which it
     decreases: the votes that carry the run's own id (`label`), in order of their position `pos`
     (px along the new stroke), each step counted by its length with the sign of its du. A step
@@ -19,13 +24,8 @@ def u_trend(run: np.ndarray, vid: np.ndarray, label: np.ndarray, pos: np.ndarray
     keep = np.flatnonzero(vid == label.take(run))
     if len(keep) < 2:
         return np.zeros(R)
-    rk, pk = run.take(keep), pos.take(keep)
-    pk = pk - pk.min()
-    o = np.argsort(rk * (pk.max() + 1.0) + pk, kind="stable")  # by run, then position
-    rq = rk.take(o)
-    same = rq[1:] == rq[:-1]
-    step = np.where(same, np.sign(np.diff(u.take(keep).take(o))) * np.diff(pk.take(o)), 0.0)
-    return np.bincount(rq[1:], weights=step, minlength=R)
+    pk = pos.take(keep)
+    return kernels().u_trend(np.asarray(run.take(keep), np.int64), pk - pk.min(), u.take(keep), R)
 
 
 def unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndarray, group: np.ndarray,
@@ -35,7 +35,7 @@ def unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndarr
     A closed stroke's u runs from u0 at its start to u0 + U at its end, the same point (U: its
     length in periods), so its votes jump by U where the old seam lies. A new stroke that runs
     across that point (an open piece of the old loop, or a loop the chaining started elsewhere
-    and _turn_loops_to_seams could not turn) would fit u through the jump and fold it backwards.
+    and turn_loops_to_seams could not turn) would fit u through the jump and fold it backwards.
     Within each vote group (`group`: a new stroke and the carried id `vid`), votes sorted by
     their arc length `s` (px) along the new stroke; a step between two that arc length does not
     explain (du - ds / P, a whole number of U away from 0) is undone, and the group keeps the
@@ -82,13 +82,9 @@ def unwrap_loop_votes(prev: Strokes, u: np.ndarray, vid: np.ndarray, s: np.ndarr
     return out
 
 
-def segment_sums(idx: np.ndarray, n: int, *weights) -> list[np.ndarray]:
-    return [np.bincount(idx, weights=w, minlength=n) for w in weights]
-
-
 def unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """np.unique(x, return_inverse=True) of a 1-D integer array (same sort, same results) without
-    np.unique's generic wrapping (~10 us a call; the tracker makes three a frame)."""
+    np.unique's generic wrapping (the tracker makes several a frame)."""
     perm = x.argsort(kind="stable")  # (any order of equal keys gives the same result; timsort is
     aux = x[perm]                    # cheaper on these partly ordered keys)
     mask = np.empty(len(aux), bool)
@@ -109,46 +105,17 @@ def first_max_per_group(group: np.ndarray, weight: np.ndarray) -> np.ndarray:
     return cand[join_arrays(True, group[cand][1:] != group[cand][:-1])]
 
 
-_INT64_MAX = int(np.iinfo(np.int64).max)  # (np.iinfo costs ~5 us a call)
-
-
 def assign_ids(n_strokes: int, cand_stroke: np.ndarray, cand_id: np.ndarray, cand_w: np.ndarray,
                next_id: int, min_w: float = 0.0) -> tuple[np.ndarray, int]:
     """Greedy one-to-one assignment of previous ids to new strokes by matched length: the
-    heaviest (stroke, id) pair first (ties: lower stroke index, then lower id); each id and each
-    stroke used once. Strokes left without an id get fresh ids next_id, next_id+1, ... in stroke
-    order. Returns (ids (S,), new next_id)."""
-    ids = np.full(n_strokes, -1, np.int64)
+    heaviest (stroke, id) pair first (weights rounded to 9 decimals; ties: lower stroke index,
+    then lower id); each id and each stroke used once. Strokes left without an id get fresh ids
+    next_id, next_id+1, ... in stroke order. Returns (ids (S,), new next_id)."""
     keep = cand_w >= max(min_w, 1e-12)
-    cs, ci, cw = cand_stroke[keep], cand_id[keep], cand_w[keep]
-    # Rank of every pair in the greedy order (heaviest first; ties: lower stroke, lower id).
+    cs, ci, cw = cand_stroke[keep].astype(np.int64), cand_id[keep].astype(np.int64), cand_w[keep]
     order = np.lexsort((ci, cs, -np.round(cw, 9)))
-    rank = np.empty(len(order), np.int64)
-    rank[order] = np.arange(len(order))
-    alive = np.ones(len(cs), bool)
-    # Ids as 0..n_ids-1 (so that both sides index flat arrays).
-    _, cinv = unique_inverse(ci)
-    n_ids = int(cinv.max()) + 1 if len(cinv) else 0
-    used_s = np.zeros(n_strokes, bool)
-    used_i = np.zeros(n_ids, bool)
-    big = _INT64_MAX
-    # Pairs that come first for both their stroke and their id are exactly the ones the greedy
-    # pass takes; take them all, drop what they exclude, repeat (a few rounds, all vectorized).
-    while alive.any():
-        idx = np.flatnonzero(alive)
-        ri, si, ii = rank[idx], cs[idx], cinv[idx]
-        best_s = np.full(n_strokes, big)
-        np.minimum.at(best_s, si, ri)
-        best_i = np.full(n_ids, big)
-        np.minimum.at(best_i, ii, ri)
-        take = idx[(best_s[si] == ri) & (best_i[ii] == ri)]
-        ids[cs[take]] = ci[take]
-        used_s[cs[take]] = True
-        used_i[cinv[take]] = True
-        alive &= ~used_s[cs] & ~used_i[cinv]
-    fresh = np.flatnonzero(ids < 0)
-    ids[fresh] = next_id + np.arange(len(fresh))
-    return ids, next_id + len(fresh)
+    ids, next_id = kernels().greedy_ids(order, cs, ci, n_strokes, next_id)
+    return ids, int(next_id)
 
 
 def end_samples(prev: Strokes) -> Samples:
@@ -226,79 +193,25 @@ def snap_boundaries(prev: Strokes, camera, dense: Samples, r_stroke, r_s0, r_s1,
 
 def sample_labels(D: int, vm: np.ndarray, vid: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(D,) the carried id of every one of D samples (-1: no vote on it): the id of most vote
-    weight (votes: vm (V,) the sample each lands on, vid (V,) its id, w (V,) its weight)."""
-    label = np.full(D, -1, np.int64)
-    if len(vm):
-        # The id with the most vote weight on a sample wins it (ties: the lower id). Summed, not
-        # the single heaviest vote: where parallel contour pieces run 1-3 px apart, a sample gets
-        # votes of its own line and a stray one of the neighbour line.
-        M = int(vid.max()) + 1
-        key, inv = unique_inverse(vm.astype(np.int64) * M + vid)
-        # Rounded: a sum's last bits depend on the order of the votes, a tie must not.
-        kw = np.round(np.bincount(inv.ravel(), weights=w), 9)
-        ks, ki = key // M, key % M
-        # Per sample the most weight, ties to the lower id: keys come sorted by (sample, id), so
-        # that is the first key of its sample holding the sample's maximum (no sort needed; a
-        # 3-key lexsort of ~1000 keys cost ~50 us).
-        win = first_max_per_group(ks, kw)
-        label[ks[win]] = ki[win]
-    return label
+    weight (votes: vm (V,) the sample each lands on, vid (V,) its id, w (V,) its weight; ties:
+    the lower id). Summed, not the single heaviest vote: where parallel contour pieces run 1-3 px
+    apart, a sample gets votes of its own line and a stray one of the neighbour line. (Sums
+    rounded to 9 decimals: their last bits depend on the order of the votes, a tie must not.)"""
+    if len(vm) == 0:
+        return np.full(D, -1, np.int64)
+    M = int(vid.max()) + 1
+    key = np.asarray(vm, np.int64) * M + vid
+    return kernels().vote_labels(D, key.argsort(kind="stable"), key, M, np.asarray(w, float))
 
 
 def segment_by_votes(dense: Samples, lengths: np.ndarray, vm: np.ndarray, vid: np.ndarray, w: np.ndarray,
                      min_segment_px: float):
-    """Cut the strokes sampled by `dense` (1 px samples, in stroke order; lengths (S,) px) into runs of the same
+    """Cut the strokes sampled by `dense` (in stroke order; lengths (S,) px) into runs of the same
     carried id. vm (V,) dense sample hit by each vote, vid (V,) its carried id, w (V,) its weight.
-    A sample is labelled with the id of most vote weight on it; samples without a vote take the
-    label of the nearest voted sample of their stroke; runs shorter than `min_segment_px` (except
-    the longest of a stroke) are absorbed by neighbours.
+    A sample is labelled with the id of most vote weight on it (sample_labels); samples without a
+    vote take the label of the nearest voted sample of their stroke; runs shorter than
+    `min_segment_px` (except the longest of a stroke) are absorbed by neighbours.
     Returns run (D,) run of each dense sample, and per run: stroke, s0, s1 (px), label (carried
     id, -1 where the stroke had no vote)."""
-    D = len(dense)
-    label = sample_labels(D, vm, vid, w)
-    idx = np.arange(D)
-    stroke, s = dense.stroke, dense.s
-
-    def fill(lab):
-        known = lab >= 0
-        f = np.maximum.accumulate(np.where(known, idx, -1))
-        b = np.minimum.accumulate(np.where(known, idx, D)[::-1])[::-1]
-        f0, b0 = np.maximum(f, 0), np.minimum(b, D - 1)  # clamped once, used thrice
-        fok = (f >= 0) & (stroke[f0] == stroke)
-        bok = (b < D) & (stroke[b0] == stroke)
-        df = np.where(fok, s - s[f0], np.inf)
-        db = np.where(bok, s[b0] - s, np.inf)
-        out = np.where(df <= db, lab[f0], lab[b0])
-        return np.where(fok | bok, out, -1)
-
-    def runs(lab):
-        start = join_arrays(True, (lab[1:] != lab[:-1]) | (stroke[1:] != stroke[:-1])) if D else np.zeros(0, bool)
-        r = np.cumsum(start) - 1
-        return r, np.bincount(r, weights=dense.w) if D else np.zeros(0)
-
-    lab = fill(label)
-    done = None  # (r, rl) of the final labels when the loop already has them
-    for _ in range(4):
-        r, rl = runs(lab)
-        if len(rl) == 0:
-            break
-        rfirst = np.flatnonzero(join_arrays(True, r[1:] != r[:-1]))
-        rs = stroke[rfirst]
-        longest = np.zeros(len(rl), bool)
-        o = np.lexsort((-rl, rs))
-        longest[o[join_arrays(True, rs[o][1:] != rs[o][:-1])]] = True
-        short = (rl < min_segment_px) & ~longest & (lab[rfirst] >= 0)
-        if not short.any():
-            done = r, rl
-            break
-        lab = fill(np.where(short[r], -1, lab))
-    r, rl = done if done is not None else runs(lab)
-    first = np.flatnonzero(join_arrays(True, r[1:] != r[:-1])) if D else np.zeros(0, np.int64)
-    last = join_arrays(first[1:] - 1, D - 1) if D else np.zeros(0, np.int64)
-    rs = stroke[first]
-    head = join_arrays(True, rs[1:] != rs[:-1]) if D else np.zeros(0, bool)
-    tail = join_arrays(rs[1:] != rs[:-1], True) if D else np.zeros(0, bool)
-    # Runs meet halfway between their samples; strokes are covered from 0 to their length.
-    s0 = np.where(head, 0.0, 0.5 * (s[first] + s[np.maximum(first - 1, 0)]))
-    s1 = np.where(tail, lengths[rs], 0.5 * (s[last] + s[np.minimum(last + 1, D - 1)]))
-    return r, rs, s0, s1, lab[first]
+    return kernels().segment_runs(sample_labels(len(dense), vm, vid, w), dense.stroke, dense.s, dense.w,
+                                  np.asarray(lengths, float), float(min_segment_px))

@@ -1,13 +1,18 @@
 """Neighbours among a frame's samples on a uniform grid (`SampleGrid`): the k-d tree queries the
-brush path stage makes every frame, with the same answers, from compiled loops
-(`strokekit.paths.compiled`, see `strokekit.paths.kernels`)."""
+tracker and the brush paths make every frame, with the same answers, from compiled loops
+(`grid_kernels`); and the match of one frame's samples to another's (`match_pieces`). Where the
+tree's answer depends on its own traversal (neighbours tied at the distance that decides), the
+tree is built and asked."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from strokekit.lines.strokeops import query_tree
-from strokekit.paths.kernels import kernels
+from strokekit.numba_cache import LazyKernels
+from strokekit.sampling import Samples, match_samples
+
+kernels = LazyKernels("strokekit.tracking.grid_kernels").kernels
 
 
 class SampleGrid:
@@ -54,7 +59,7 @@ class SampleGrid:
     def bridges(self, pa: np.ndarray, pb: np.ndarray, step_px: float, t: np.ndarray, w: np.ndarray, k: int,
                 bound: float, limit: float) -> tuple[np.ndarray, np.ndarray]:
         """(ok, unsure), (K,) each: whether every point of the segments pa -> pb (K, 2), tested
-        every `step_px` (see paths.stage.on_drawing), passes its test (paths.compiled._near_one); `unsure` where the
+        every `step_px` (see paths.cover.on_drawing), passes its test (grid_kernels._near_one); `unsure` where the
         tree's choice among points at equal distances decides for one of them (ok is then False:
         the caller asks the tree)."""
         ok = np.zeros(len(pa), bool)
@@ -64,3 +69,36 @@ class SampleGrid:
                           np.ascontiguousarray(w, dtype=np.float64), *self.index, k, float(bound), float(limit), ok,
                           unsure)
         return ok, unsure
+
+
+def match_pieces(src: Samples, camera, V: Samples, radius_px: float, min_tangent_dot: float,
+                 k: int) -> tuple[np.ndarray, np.ndarray]:
+    """For every sample of `src` (its surface point projected with `camera`): the sample of V
+    whose piece of line passes nearest, among its k nearest within `radius_px` whose tangent
+    agrees, or -1; and the (M, 2) projected points. match_samples(src, camera, V, query_tree(V.p),
+    radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=k, return_projected=True,
+    piece_distance=True), searched on a grid of V's samples."""
+    out = np.full(len(src), -1, np.int64)
+    if len(src) == 0 or len(V) == 0:
+        return out, np.full((len(src), 2), np.nan)
+    q, z = camera.project(src.X)
+    fin = np.isfinite(q)
+    ok = fin[:, 0] & fin[:, 1] & ((z > 0) | camera.is_ortho)
+    if not ok.any():
+        return out, q
+    grid = SampleGrid(V.p, radius_px)
+    if grid.ok:
+        every = ok.all()
+        qq = q if every else q[ok]
+        st = src.t if every else src.t[ok]
+        m = np.empty(len(qq), np.int64)
+        unsure = np.zeros(len(qq), bool)
+        kernels().match_pieces(np.ascontiguousarray(qq), np.ascontiguousarray(st, dtype=np.float64), grid.data,
+                               np.ascontiguousarray(V.t, dtype=np.float64), V.w * 0.5, *grid.index, min(k, len(V)),
+                               float(radius_px), float(min_tangent_dot), m, unsure)
+        if not unsure.any():
+            out[ok] = m
+            return out, q
+    # (Samples tied at the distance that decides: as the tree orders them.)
+    return match_samples(src, camera, V, grid.tree(), radius_px=radius_px, min_tangent_dot=min_tangent_dot, k=k,
+                         return_projected=True, piece_distance=True)
