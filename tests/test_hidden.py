@@ -80,6 +80,26 @@ def test_visible_part_of_a_hidden_drawing_is_the_visible_drawing(torus_and_box):
     assert acc.precision[1.0] >= 0.999 and acc.recall[1.0] >= 0.999
 
 
+@pytest.fixture(scope="module")
+def torus_and_box_hidden(torus_and_box):
+    """The torus and box's drawing at every level, from the first camera."""
+    return LineRenderer(torus_and_box, HIDDEN).render(_cameras()[0])
+
+
+@pytest.mark.parametrize("levels", [(1, 1), (2, 15), (1, 2)], ids=["1", "2-", "1-2"])
+def test_an_occlusion_range_draws_those_levels_and_only_them(torus_and_box, torus_and_box_hidden, levels):
+    """`--occlusion A-B` (Line Art's range): the strokes drawn are the full drawing's strokes of
+    levels A to B, the same length at each level, and none of another level (a range that let
+    the levels below A through drew the visible lines under `--occlusion 1`)."""
+    full = torus_and_box_hidden
+    part = LineRenderer(torus_and_box, LineOptions(occlusion=levels)).render(_cameras()[0])
+    lo, hi = levels
+    assert len(part.lengths) and set(part.occlusion.tolist()) <= set(range(lo, hi + 1))
+    for lv in range(0, 16):
+        want = full.lengths[full.occlusion == lv].sum() if lo <= lv <= hi else 0.0
+        assert part.lengths[part.occlusion == lv].sum() == pytest.approx(want, rel=1e-9, abs=1e-9), lv
+
+
 def test_a_bracket_holding_two_changes_gives_both():
     """Bisection of a bracket whose middle has a third level splits it: levels 0 | 1 | 2 at
     s = 0.3 and 0.7 between two samples at 0 and 1 come out as two changes within tolerance."""
@@ -365,6 +385,30 @@ def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path,
     assert {s["occlusion"] for s in doc["strokes"]} == {0, 1}  # the cube: its far corner's edges behind one face
     svg = (tmp_path / "o" / "frame_0001.svg").read_text()
     assert 'inkscape:label="hidden-crease"' in svg and "stroke-dasharray" in svg
+
+
+def test_render_cli_occlusion_1_draws_only_the_lines_behind_one_surface(tmp_path, capsys):
+    """`render --occlusion 1` on a cube seen from a corner: the three edges of the far corner,
+    each behind one face, and no visible edge (levels 0 and 1 were 7 strokes)."""
+    v, f = box_mesh((0, 0, 0), (1, 1, 1))
+    obj = tmp_path / "c.obj"
+    trimesh.Trimesh(v, f).export(obj)
+    cam = tmp_path / "iso.json"
+    with pytest.raises(SystemExit) as e:
+        main(["camera", "parallel", str(obj), "--width", "200", "--height", "200", "-o", str(cam)])
+    assert e.value.code == 0
+    docs = {}
+    for value in ("1", "0", "0-1"):
+        with pytest.raises(SystemExit) as e:
+            main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / value), "--occlusion", value, "-q"])
+        assert e.value.code == 0
+        docs[value] = json.loads((tmp_path / value / "frame_0001.json").read_text())
+    assert [s["occlusion"] for s in docs["1"]["strokes"]] == [1, 1, 1]
+    assert [s["occlusion"] for s in docs["0"]["strokes"]] == [0] * 4  # the outline, the near corner's 3 edges
+    both = sorted(json.dumps(s["points"]) for s in docs["0-1"]["strokes"])
+    assert both == sorted(json.dumps(s["points"]) for v in ("0", "1") for s in docs[v]["strokes"])
+    svg = (tmp_path / "1" / "frame_0001.svg").read_text()
+    assert "hidden-crease" in svg and 'inkscape:label="crease"' not in svg
 
 
 @pytest.mark.slow
