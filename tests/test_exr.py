@@ -12,7 +12,17 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from strokekit.cryptomatte import header_attributes, layer_key, manifest_json, name_to_bits, name_to_hex, name_to_id
+from strokekit.cryptomatte import (
+    header_attributes,
+    layer_key,
+    manifest_json,
+    name_to_bits,
+    name_to_hex,
+    name_to_id,
+    rank_coverage,
+    rank_samples,
+    ranked_matte,
+)
 from strokekit.model import BACKGROUND_DEPTH
 from strokekit.options import QUALITY_PRESETS
 from strokekit.writers.exr import read_exr
@@ -48,6 +58,27 @@ def test_cryptomatte_ids_are_the_specifications():
     assert h == {"cryptomatte/3ae39a5/name": "CryptoObject", "cryptomatte/3ae39a5/hash": "MurmurHash3_32",
                  "cryptomatte/3ae39a5/conversion": "uint32_to_float32",
                  "cryptomatte/3ae39a5/manifest": '{"box":"%s"}' % name_to_hex("box")}
+
+
+def test_cryptomatte_rank_0_holds_the_highest_coverage():
+    """The specification ranks the ids of a pixel by coverage, highest first (compositors read rank
+    0 first, and a keyer that stops early keeps the main object); equal coverages go by ascending
+    id bits; unused ranks hold id 0 and coverage 0. Checked on per-sample ranking, on per-name
+    coverage maps and on a raster pass whose edge pixels have samples of their own."""
+    names = ["ball", "box", "vase"]
+    ball, box, vase = (np.float32(name_to_id(n)) for n in names)
+    low, high = sorted((ball, box), key=lambda x: int(x.view(np.uint32)))
+    # pixel 0: ball 3 of 4 samples, box 1; pixel 1: box 2, vase 1, background 1; pixel 2: a tie
+    samples = np.array([[[0, 1, 0, 0], [1, -1, 2, 1], [1, 0, 0, 1]]])
+    m = rank_samples(samples, names, ranks=4)
+    assert m.ids[0, 0].tolist() == [ball, box, 0, 0] and m.coverage[0, 0].tolist() == [0.75, 0.25, 0, 0]
+    assert m.ids[0, 1].tolist() == [box, vase, 0, 0] and m.coverage[0, 1].tolist() == [0.5, 0.25, 0, 0]
+    assert m.ids[0, 2].tolist() == [low, high, 0, 0] and m.coverage[0, 2].tolist() == [0.5, 0.5, 0, 0]
+    c = rank_coverage({"ball": np.array([[0.2]]), "box": np.array([[0.7]]), "vase": np.array([[0.1]])}, ranks=2)
+    assert c.ids[0, 0].tolist() == [box, ball] and c.coverage[0, 0].tolist() == pytest.approx([0.7, 0.2])
+    r = ranked_matte(np.array([[2, -1]]), names, ranks=2, edge_pixels=np.array([1]),
+                     edge_samples=np.array([[2, 1, 1, -1]]))
+    assert r.ids[0].tolist() == [[vase, 0], [box, vase]] and r.coverage[0].tolist() == [[1, 0], [0.5, 0.25]]
 
 
 # --- the EXR -----------------------------------------------------------------------------------------
@@ -91,6 +122,19 @@ def test_cryptomatte_coverage_sums_to_alpha_and_picks_objects(exr_run):
         if full.any():
             assert (matte[full] > 0).all(), name
     assert not any((i.view(np.uint32) == np.float32(name_to_id("nothing")).view(np.uint32)).any() for i in ids)
+
+
+def test_cryptomatte_ranks_in_the_exr_go_by_descending_coverage(exr_run):
+    """In the file a compositor reads: at every pixel the coverage of rank 0 (CryptoObject00.G) is
+    the highest, each further rank's no higher than the one before, and a rank without coverage
+    has id 0; on the frame's object edges pixels hold two ranks or more."""
+    ch, _ = read_exr(exr_run / "frame_0001.exr")
+    for t in ("CryptoObject", "CryptoMaterial"):
+        cov = np.stack([ch[f"{t}{i:02d}.{c}"] for i in range(2) for c in "GA"])
+        ids = np.stack([ch[f"{t}{i:02d}.{c}"] for i in range(2) for c in "RB"])
+        assert (cov[1] > 0).sum() > 50, t  # the frame has mixed pixels
+        assert (np.diff(cov, axis=0) <= 0).all(), t
+        assert (ids[cov == 0].view(np.uint32) == 0).all(), t
 
 
 def test_exr_depth_is_the_ray_cast_view_depth(exr_run):
