@@ -4,7 +4,6 @@ killed, and gives the same bytes in a process pool, inline or on a dask cluster.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -14,7 +13,7 @@ from functools import partial
 from pathlib import Path
 
 import pytest
-from helpers import SAMPLES, model_path
+from helpers import SAMPLES, cli_env, model_path
 
 from strokekit.metrics.svg_reader import read_svg
 from strokekit.scene.load import load_scene
@@ -120,7 +119,7 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
     scene = SAMPLES / "still_life.glb"
     base = [sys.executable, "-m", "strokekit_cli.main", "render", str(scene), "--orbit", "40", "--size", "640x480", "-q",
             "--workers", "1"]
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    env = cli_env()
     full = tmp_path / "full"
     subprocess.run(base + ["--out", str(full)], check=True, env=env)
     part = tmp_path / "part"
@@ -143,6 +142,32 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
     # Frames that were complete were not rewritten.
     complete = [n for n in before if n.endswith(".svg") and n.replace(".svg", ".json") in before]
     assert complete and all(before[n] == (part / n).stat().st_mtime_ns for n in complete)
+
+
+def test_the_next_run_removes_the_temporaries_an_interrupted_one_left(tmp_path, capsys):
+    """A run killed mid-write leaves `.<name>.<random>.part` files (in the output folder and in
+    the pass folders); the next run into the folder removes them, also a resume with nothing
+    left to write, and keeps the frames it skips as they were."""
+    args = ["render", SAMPLES / "still_life.glb", "--orbit", "2", "--size", "64x48", "--bands", "3", "-q",
+            "--out", tmp_path / "o"]
+    out = tmp_path / "o"
+    leftovers = [out / ".frame_0001.svg.k2j4h5g6.part", out / ".frame_0002.json.a1b2c3d4.part",
+                 out / "bands" / ".frame_0001.png.q9w8e7r6.part", out / ".sequence.glb.z1x2c3v4.part"]
+
+    def plant():
+        for p in leftovers:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_bytes(b"half a file")
+
+    plant()
+    assert run_cli(args, capsys)[0] == 0
+    assert not [p for p in leftovers if p.exists()]
+    assert (out / "bands" / "frame_0001.png").exists() and not list(out.glob("**/.*.part"))
+    kept = {p: p.stat().st_mtime_ns for p in out.glob("**/frame_*")}
+    plant()
+    assert run_cli(args + ["--skip-existing"], capsys)[0] == 0
+    assert not list(out.glob("**/.*.part"))
+    assert {p: p.stat().st_mtime_ns for p in out.glob("**/frame_*")} == kept
 
 
 class CountingPool:
@@ -462,7 +487,7 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
 
     psutil = pytest.importorskip("psutil")
     out, report = tmp_path / "o", tmp_path / "run.json"
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    env = cli_env()
     env.pop("STROKEKIT_DEBUG", None)
     cmd = [sys.executable, "-m", "strokekit_cli.main", "render", str(SAMPLES / "still_life.glb"), "--orbit", "1000",
            "--size", "200x150", "--workers", "2", "--out", str(out), "--report", str(report)]
