@@ -157,7 +157,29 @@ def test_coherence_with_no_strokes_to_compare_is_an_error_not_a_perfect_score(cu
     code, _, err = run_cli(["coherence", tmp_path / "o", "--occlusion", "1-"], capsys)
     assert code == 1 and "hold no strokes at occlusion levels 1-" in err and len(err.strip().splitlines()) == 1
     code, out, _ = run_cli(["coherence", tmp_path / "o", "--json"], capsys)
-    assert code == 0 and 0 <= json.loads(out)["overall"]["M1"] <= 1
+    doc = json.loads(out)
+    assert code == 0 and len(doc["pairs"]) == 2
+    # Overall M1 is same-id length over matched length of every pair: their matched-length mean.
+    pairs = doc["pairs"]
+    mean = sum(p["M1"] * p["matched_px"] for p in pairs) / sum(p["matched_px"] for p in pairs)
+    assert 0 < doc["overall"]["M1"] < 1 and doc["overall"]["M1"] == pytest.approx(mean, rel=1e-12)
+
+
+def test_coherence_of_a_still_camera_is_perfect(cube, tmp_path, capsys):
+    """Three frames of tracked lines from one camera: every stroke matches itself with its id and
+    its u, so M1 is 1, nothing pops (M2 0), nothing slides (M4 0 but for the JSON's rounding of u)
+    and no stroke grows (M7 0)."""
+    cam = write_camera(tmp_path / "still.json", [{"eye": [3, 2, 4], "target": [0, 0, 0]}] * 3)
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--strokes", "lines", "--out", tmp_path / "o", "-q"],
+                           capsys)
+    assert code == 0, err
+    code, out, _ = run_cli(["coherence", tmp_path / "o", "--json"], capsys)
+    doc = json.loads(out)
+    assert code == 0 and [p["frame"] for p in doc["pairs"]] == [2, 3]
+    for p in doc["pairs"]:
+        assert p["matched_px"] == p["total_px"] > 100
+        assert (p["M1"], p["M2"]) == (1.0, 0.0) and p["M4_max"] < 0.05 and p["M7_max"] < 1e-6, p
+    assert doc["overall"]["M1"] == 1.0
 
 
 def test_shared_empty_obj_is_a_clear_error(capsys):
