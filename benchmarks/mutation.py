@@ -1,0 +1,237 @@
+"""Mutation testing of the modules whose mistakes users cannot see at a glance (mutmut 3).
+
+    .venv/bin/python -m pip install mutmut      # into the venv that runs the tests
+    nice -n 15 .venv/bin/python benchmarks/mutation.py                 # every module below
+    nice -n 15 .venv/bin/python benchmarks/mutation.py cryptomatte     # some of them
+
+Not CI: a module takes minutes to an hour. Each module runs in a scratch copy of the project
+(`--work`, default $TMPDIR/strokekit-mutation/<module>: mutmut writes its `mutants/` tree
+there, and a rerun only tests the mutants of functions that changed), against the tests that
+cover it, one mutant at a time. Prints, per module, the mutants killed, the equivalent ones
+(EQUIVALENT below: a change no input can tell apart, with the reason) and the others that
+survived, with their diffs; the score is killed / (all - equivalent).
+
+When a module moves or its covering tests change, edit MODULES; when a function changes, the
+equivalent mutants listed for it may no longer be (their lines are shown when they survive).
+"""
+
+from __future__ import annotations
+
+import argparse
+import fnmatch
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: Tests left out of every module's run: a second cluster, and tests whose subprocess is
+#: stopped on a timer (a slower mutant makes them fail for no fault of its own).
+NOT_FOR_MUTANTS = "not dask and not killed_run and not ctrl_c_during_render and not open3d"
+
+#: name: (files to mutate, the functions of them to mutate (mutmut's mutant names, globs; empty:
+#: all), the tests that cover them: pytest arguments from the project root).
+MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
+    "occlusion": (("strokekit/lines/occlusion.py",), (), ("tests/test_hidden.py", "-m", "not slow")),
+    "cryptomatte": (("strokekit/cryptomatte.py",), (), ("tests/test_exr.py",)),
+    "atomic-files": (("strokekit/fileio.py",), (), ("tests/test_faults_units.py", "tests/test_faults.py",
+                                                    "tests/test_pipeline.py", "tests/test_cli.py")),
+    "resume": (("strokekit/run/runner.py", "strokekit/run/manifest.py"),
+               tuple(f"strokekit.run.runner.{f}__mutmut_*" for f in (
+                   "x_plan_resume", "x_lines_needed", "x_run_files", "x_check_files_apart", "x_clean_up",
+                   "x__file_states", "x__written_by_run", "x__frames_found_whole", "x__remove_partial_frames",
+                   "x_remove_temp_files", "xǁFrameStreamǁenter_written")) + ("strokekit.run.manifest.*",),
+               ("tests/test_pipeline.py", "tests/test_faults.py", "tests/test_faults_units.py")),
+    "camera-file": (("strokekit/camera/paths.py",), (), ("tests/test_camera_path.py", "tests/test_gltf_camera.py")),
+    "svg-writer": (("strokekit/writers/svg.py",), (), ("tests/test_golden.py", "tests/test_hidden.py", "-m",
+                                                        "not slow")),
+    "diff": (("strokekit/metrics/diff.py",), (), ("tests/test_diff.py",)),
+}
+
+#: Mutants that behave as the original on every input, by module: (function, the mutated line
+#: as mutmut shows it, stripped) -> why. Not counted in the score.
+EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
+    "occlusion": {},
+    "cryptomatte": {
+        ("murmur3_32_py", 'k = int.from_bytes(data[4 * i:5 * i + 4], "little")'):
+            "the longer slice adds high-order bytes (little-endian), and (k * c1) & mask keeps only the low 32 bits",
+        ("murmur3_32_py", 'k = int.from_bytes(data[4 * i:4 * i + 5], "little")'):
+            "the longer slice adds high-order bytes (little-endian), and (k * c1) & mask keeps only the low 32 bits",
+        ("murmur3_32_py", "k = tail[2] << 16"): "k is 0 just before: ^= and = give the same",
+        ("rank_coverage", "acc = np.zeros(shape + (len(uniq),), None)"): "numpy's default dtype is float64",
+        ("rank_coverage", "acc = np.zeros(shape + (len(uniq),), )"): "numpy's default dtype is float64",
+        ("rank_coverage", "a = np.asarray(coverage[n], dtype=None)"):
+            "the map is added into a float64 array, which casts it exactly (ints, bools, float32)",
+        ("rank_coverage", "a = np.asarray(coverage[n], )"):
+            "the map is added into a float64 array, which casts it exactly (ints, bools, float32)",
+        ("rank_coverage", "flat = acc.reshape(-2, len(uniq))"): "numpy reads any negative size as the unknown one",
+        ("rank_coverage", "cand = np.where(flat >= 0, cand, -1)"):
+            "a zero-coverage candidate has weight 0, and _top_ranks keeps only weights > 0",
+        ("rank_coverage", "cand = np.where(flat > 0, cand, +1)"):
+            "a zero-coverage candidate has weight 0, and _top_ranks keeps only weights > 0",
+        ("rank_coverage", "cand = np.where(flat > 0, cand, -2)"): "_top_ranks reads every slot below 0 as none",
+    },
+    "atomic-files": {},
+    "resume": {},
+    "camera-file": {},
+    "svg-writer": {},
+    "diff": {},
+}
+
+KILLED = {"killed", "timeout", "segfault"}  # a crash or a hang is noticed too
+
+
+def status_of(code) -> str:
+    from mutmut.stats import status_by_exit_code
+
+    return status_by_exit_code[code]
+
+
+def prepare(work: Path, files: tuple[str, ...], tests: tuple[str, ...]) -> None:
+    """A copy of the project's tracked files in `work` (kept between runs: mutmut's results
+    are reused where the code did not change), shared/ beside it as the tests expect, and the
+    mutmut configuration appended to its pyproject.toml."""
+    tracked = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, check=True, capture_output=True).stdout
+    work.mkdir(parents=True, exist_ok=True)
+    for name in filter(None, tracked.decode().split("\0")):
+        src, dst = ROOT / name, work / name
+        if not src.is_file():
+            continue
+        if dst.exists() and dst.read_bytes() == src.read_bytes():
+            continue
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(src, dst)
+        stale = work / "mutants" / name  # mutmut regenerates a source it finds changed
+        if stale.exists():
+            stale.unlink()
+    shared = ROOT.parent / "shared"
+    # The tests look for ../shared from the copy they run in (work/mutants).
+    if shared.exists() and not (work / "shared").exists():
+        (work / "shared").symlink_to(shared)
+    config = ("\n[tool.mutmut]\n" f"source_paths = [\"strokekit\"]\nonly_mutate = {json.dumps(list(files))}\n"
+              f"also_copy = [\"samples\", \"cli\"]\npytest_add_cli_args_test_selection = {json.dumps(list(tests))}\n"
+              "pytest_add_cli_args = [\"-p\", \"no:cacheprovider\"]\n"
+              # (a hung mutant is stopped at 4 x its tests' time, CPU seconds, not mutmut's 30 x)
+              "timeout_multiplier = 2.0\n")
+    (work / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text() + config)
+    # mutmut copies pyproject.toml into mutants/ once: keep that copy's configuration current too.
+    if (work / "mutants").exists():
+        shutil.copy2(work / "pyproject.toml", work / "mutants" / "pyproject.toml")
+
+
+def mutant_diffs(work: Path, names: dict[str, str]) -> dict[str, str]:
+    """{mutant: its diff} of the mutants `names` ({mutant: source path}), read by mutmut in one
+    process (`mutmut show` is one process each)."""
+    if not names:
+        return {}
+    code = ("import json, sys\nfrom mutmut.mutation.diff_apply import get_diff_for_mutant\n"
+            "names = json.loads(sys.stdin.read())\n"
+            "print(json.dumps({k: get_diff_for_mutant(k, path=p) for k, p in names.items()}))\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=work, input=json.dumps(names), capture_output=True,
+                         text=True, check=True).stdout
+    return json.loads(out)
+
+
+def added_line(diff: str) -> str:
+    """The first line a mutant's diff adds, stripped: with its function, what EQUIVALENT names."""
+    added = [ln[1:].strip() for ln in diff.splitlines() if ln.startswith("+") and not ln.startswith("+++")]
+    return added[0] if added else ""
+
+
+def function_of(name: str) -> str:
+    """strokekit.cryptomatte.x__top_ranks__mutmut_5 -> _top_ranks; methods: Class.method."""
+    base = name.rpartition("__mutmut_")[0].rpartition(".")[2]
+    if base.startswith("xǁ"):
+        return ".".join(base[2:].split("ǁ"))
+    return base[2:] if base.startswith("x_") else base
+
+
+def run_module(name: str, work: Path, mutmut: str, show: bool) -> dict:
+    files, functions, tests = MODULES[name]
+    prepare(work, files, (*tests, "-k", NOT_FOR_MUTANTS))
+    # Mutants that survived an earlier run are tried again (the tests may have changed since);
+    # mutmut itself keeps every result whose function did not change.
+    for path in files:
+        meta = work / "mutants" / (path + ".meta")
+        if meta.exists():
+            data = json.loads(meta.read_text())
+            codes = data["exit_code_by_key"]
+            data["exit_code_by_key"] = {k: c if c is None or status_of(c) in KILLED else None for k, c in codes.items()}
+            meta.write_text(json.dumps(data))
+    t = time.time()
+    log = work / "mutmut.log"
+    with open(log, "w") as f:
+        proc = subprocess.run([mutmut, "run", "--max-children", "1", *functions], cwd=work, stdout=f, stderr=subprocess.STDOUT,
+                              env=dict(os.environ, PYTHONHASHSEED="0"))
+    seconds = time.time() - t
+    counts: dict[str, int] = {}
+    survivors, equivalent = [], []
+    open_ = {}
+    for path in files:
+        meta = work / "mutants" / (path + ".meta")
+        if not meta.exists():
+            raise SystemExit(f"{name}: mutmut wrote no results for {path} (exit {proc.returncode}); see {log}")
+        for key, code in json.loads(meta.read_text())["exit_code_by_key"].items():
+            if functions and not any(fnmatch.fnmatch(key, f) for f in functions):
+                continue
+            status = status_of(code)
+            if status in KILLED:
+                counts["killed"] = counts.get("killed", 0) + 1
+            else:
+                open_[key] = (path, status)
+    diffs = mutant_diffs(work, {k: p for k, (p, _) in open_.items()})
+    for key, (_, status) in sorted(open_.items()):
+        line = added_line(diffs[key])
+        why = EQUIVALENT.get(name, {}).get((function_of(key), line))
+        if why is not None:
+            equivalent.append((key, line, why))
+        else:
+            counts[status] = counts.get(status, 0) + 1
+            survivors.append((key, status, diffs[key]))
+    total = sum(counts.values()) + len(equivalent)
+    counted = total - len(equivalent)
+    score = counts.get("killed", 0) / counted if counted else 1.0
+    print(f"\n== {name}: {', '.join(files)}  (tests: {' '.join(tests)}; {seconds:.0f} s)")
+    print(f"   {total} mutants, {len(equivalent)} equivalent, {counts.get('killed', 0)} of {counted} killed: "
+          f"score {100 * score:.1f}%  ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))})")
+    for key, line, why in equivalent:
+        print(f"   equivalent {key}: {line}  -- {why}")
+    for key, status, diff in survivors:
+        print(f"   {status} {key}")
+        if show:
+            print("      " + "\n      ".join(diff.splitlines()[2:]))
+    return {"module": name, "files": files, "mutants": total, "equivalent": len(equivalent),
+            "killed": counts.get("killed", 0), "score": score, "seconds": seconds,
+            "survived": [k for k, _, _ in survivors]}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("modules", nargs="*", help=f"modules to test: {', '.join(MODULES)} (default: all)")
+    ap.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "strokekit-mutation",
+                    help="folder of the scratch copies (one per module)")
+    ap.add_argument("--no-diffs", action="store_true", help="name the surviving mutants without their diffs")
+    ap.add_argument("--json", type=Path, help="also write the scores to this file")
+    args = ap.parse_args(argv)
+    unknown = [m for m in args.modules if m not in MODULES]
+    if unknown:
+        ap.error(f"unknown module(s) {', '.join(unknown)}: choose from {', '.join(MODULES)}")
+    mutmut = shutil.which("mutmut", path=str(Path(sys.executable).parent)) or shutil.which("mutmut")
+    if mutmut is None:
+        raise SystemExit("mutmut is not installed: python -m pip install mutmut")
+    results = [run_module(m, args.work / m, mutmut, not args.no_diffs) for m in (args.modules or MODULES)]
+    print("\nmodule         mutants  equivalent  killed  score")
+    for r in results:
+        print(f"{r['module']:<14} {r['mutants']:>7}  {r['equivalent']:>10}  {r['killed']:>6}  {100 * r['score']:5.1f}%")
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
