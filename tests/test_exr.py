@@ -111,7 +111,7 @@ def test_ranked_coverage_maps_sum_colliding_names_and_say_bad_input():
     assert m.ids[1, 2].tolist() == [box, merged] and m.coverage[1, 2].tolist() == [1.0, 0.75]
     one = rank_coverage({"box": np.array([[0.5, 0.0]])}, ranks=1)
     assert one.ids.tolist() == [[[box], [0]]] and one.coverage.tolist() == [[[0.5], [0]]]
-    with pytest.raises(ValueError, match="coverage is empty"):
+    with pytest.raises(ValueError, match="^coverage is empty: give the frame size with at least one name$"):
         rank_coverage({})
     with pytest.raises(ValueError, match=r"coverage of 'vase' has shape \(1, 2\), expected \(2, 3\)"):
         rank_coverage({"box": np.zeros((2, 3)), "vase": np.zeros((1, 2))})
@@ -119,10 +119,10 @@ def test_ranked_coverage_maps_sum_colliding_names_and_say_bad_input():
 
 def test_a_ranked_matte_gives_the_exr_channels_and_each_names_matte():
     """RankedMatte.channels: {type}00.R/G/B/A = ids and coverages of ranks 0 and 1, {type}01 of
-    ranks 2 and 3, an odd rank count padded with an empty rank; matte(name or id) sums the
-    coverage of that id over the ranks, as a compositor's decoder does."""
-    ids = np.array([[[1.5, 2.5, 3.5], [2.5, 0, 0]]], np.float32)
-    cov = np.array([[[0.5, 0.3, 0.2], [1.0, 0, 0]]], np.float32)
+    ranks 2 and 3, an odd rank count padded with an empty rank, float32 whatever it was given;
+    matte(name or id) sums the coverage of that id over the ranks, as a compositor's decoder does."""
+    ids = np.array([[[1.5, 2.5, 3.5], [2.5, 0, 0]]], np.float64)
+    cov = np.array([[[0.5, 0.3, 0.2], [1.0, 0, 0]]], np.float64)
     ch = RankedMatte(ids, cov).channels("CryptoObject")
     assert sorted(ch) == sorted(f"CryptoObject{i:02d}.{c}" for i in range(2) for c in "RGBA")
     assert all(v.dtype == np.float32 and v.shape == (1, 2) and v.flags.c_contiguous for v in ch.values())
