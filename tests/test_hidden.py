@@ -100,6 +100,38 @@ def test_an_occlusion_range_draws_those_levels_and_only_them(torus_and_box, toru
         assert part.lengths[part.occlusion == lv].sum() == pytest.approx(want, rel=1e-9, abs=1e-9), lv
 
 
+@pytest.mark.parametrize("quality", ["default", "draft"])
+def test_a_level_change_inside_an_edge_lies_where_the_edge_pierces_the_surface(quality):
+    """A stick through a plate: each of its long edges changes level where it pierces the plate,
+    a place no outline crosses (found by samples): there the level goes up by one, located to
+    bisection_tol_px by the default preset and, by the draft preset (no bisection), to half a
+    sample spacing, the middle of its bracket."""
+    plate = np.array([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], float)
+    sv, sf = box_mesh((-0.1, -0.1, -1.0), (0.1, 0.1, 1.0))
+    scene = build_scene(np.vstack([plate, sv]), np.vstack([[[0, 1, 2], [0, 2, 3]], sf + 4]))
+    cam = Camera(eye=(2.5, 1.8, 3.0), target=(0, 0, 0), up=(0, 0, 1), fov_y=40, width=600, height=600)
+    options = LineOptions.preset(quality, occlusion=(0, 15))
+    tol_px = options.bisection_tol_px if options.bisect_changes else options.sample_spacing_px / 2
+    st = LineRenderer(scene, options).render(cam)
+    # Every drawn segment (two consecutive points of a stroke): its ends' world points and level.
+    first = np.zeros(len(st.surface), bool)
+    first[st.offsets[:-1]] = True
+    seg = np.flatnonzero(~first)
+    A, B = st.surface[seg - 1], st.surface[seg]
+    level = np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+    for sx in (-0.1, 0.1):
+        for sy in (-0.1, 0.1):
+            on = (np.abs(np.c_[A[:, :2], B[:, :2]] - [sx, sy, sx, sy]).max(axis=1) < 1e-9) & (A[:, 2] != B[:, 2])
+            lo, hi, lv = np.minimum(A[on, 2], B[on, 2]), np.maximum(A[on, 2], B[on, 2]), level[on]
+            above, below = set(lv[hi > 0.2].tolist()), set(lv[lo < -0.2].tolist())
+            assert len(above) == 1 and below == {min(above) + 1}, (sx, sy, sorted(zip(lo, hi, lv)))
+            # tol_px as a length along the edge at the plate
+            p0, p1 = cam.project(np.array([[sx, sy, 0.0], [sx, sy, 0.01]]))[0]
+            tol = (tol_px + 1e-3) * 0.01 / np.linalg.norm(p1 - p0)
+            up_end, down_end = lo[lv == min(above)].min(), hi[lv == min(below)].max()
+            assert abs(up_end) <= tol and abs(down_end) <= tol, (sx, sy, up_end, down_end, tol)
+
+
 def test_a_bracket_holding_two_changes_gives_both():
     """Bisection of a bracket whose middle has a third level splits it: levels 0 | 1 | 2 at
     s = 0.3 and 0.7 between two samples at 0 and 1 come out as two changes within tolerance."""
