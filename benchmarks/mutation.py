@@ -39,14 +39,18 @@ NOT_FOR_MUTANTS = "not dask and not killed_run and not ctrl_c_during_render and 
 MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
     "occlusion": (("strokekit/lines/occlusion.py",), (), ("tests/test_hidden.py", "-m", "not slow")),
     "cryptomatte": (("strokekit/cryptomatte.py",), (), ("tests/test_exr.py",)),
-    "atomic-files": (("strokekit/fileio.py",), (), ("tests/test_faults_units.py", "tests/test_faults.py",
-                                                    "tests/test_pipeline.py", "tests/test_cli.py")),
+    "atomic-files": (("strokekit/fileio.py",), (), ("tests/test_cli.py", "tests/test_faults.py", "tests/test_pipeline.py",
+                                                    "-k", "readable or pattern or unwritable or report_where or "
+                                                    "read_only or atomic or empty_output or failed_write or "
+                                                    "small_filesystem or temporaries or interrupted or removes")),
     "resume": (("strokekit/run/runner.py", "strokekit/run/manifest.py"),
                tuple(f"strokekit.run.runner.{f}__mutmut_*" for f in (
                    "x_plan_resume", "x_lines_needed", "x_run_files", "x_check_files_apart", "x_clean_up",
                    "x__file_states", "x__written_by_run", "x__frames_found_whole", "x__remove_partial_frames",
                    "x_remove_temp_files", "xǁFrameStreamǁenter_written")) + ("strokekit.run.manifest.*",),
-               ("tests/test_pipeline.py", "tests/test_faults.py", "tests/test_faults_units.py")),
+               ("tests/test_pipeline.py", "tests/test_faults_units.py", "-k",
+                "resume or skip or interrupt or ctrl or failed or partial or rewrite or temporaries or stopped or "
+                "fail_fast or write_error or two_runs or over_an_input or removes or manifest or whole")),
     "camera-file": (("strokekit/camera/paths.py",), (), ("tests/test_camera_path.py", "tests/test_gltf_camera.py",
                                                         "tests/test_faults.py", "-k", "camera or keyframe or up")),
     "svg-writer": (("strokekit/writers/svg.py",), (), ("tests/test_golden.py", "tests/test_hidden.py",
@@ -58,7 +62,102 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
 #: Mutants that behave as the original on every input, by module: (function, the mutated line
 #: as mutmut shows it, stripped) -> why. Not counted in the score.
 EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
-    "occlusion": {},
+    "occlusion": {
+        ('occlusion_runs', 'limit = min(hi_level, MAX_OCCLUSION) + 2  # counting further changes nothing kept'):
+            'counting past hi + 1 only splits pieces deeper than hi, which the range drops',
+        ('occlusion_runs', 'whole = L <= options.whole_edge_px'):
+            'differs only for an edge exactly whole_edge_px long',
+        ('occlusion_runs', 'if len(keep_cx) <= len(cx_seg):'):
+            'filtering with a mask that keeps everything keeps the same arrays',
+        ('occlusion_runs', 'cx_delta[ends[cx_seg, 1] < 0] = NO_DELTA'):
+            'more crossings without a known delta: their levels are counted by rays instead (the same levels)',
+        ('occlusion_runs', 'cx_delta[ends[cx_seg, 0] <= 0] = NO_DELTA'):
+            'more crossings without a known delta: their levels are counted by rays instead (the same levels)',
+        ('occlusion_runs', 'cx_delta[ends[cx_seg, 0] < 1] = NO_DELTA'):
+            'more crossings without a known delta: their levels are counted by rays instead (the same levels)',
+        ('occlusion_runs', 'last[-2:] = True'):
+            'last[-2] is overwritten by the np.not_equal on the next line',
+        ('occlusion_runs', 'assert np.array_equal(run_seg, e_seg[o_end]), "XXlevel changes must pair upXX"'):
+            'the message of an assertion that holds',
+        ('occlusion_runs', 'assert np.array_equal(run_seg, e_seg[o_end]), "LEVEL CHANGES MUST PAIR UP"'):
+            'the message of an assertion that holds',
+        ('occlusion_runs', 'code = runs.kind.astype(None) + N_KINDS * np.minimum(level, MAX_OCCLUSION)'):
+            'dtype only: the kind codes are the same integers, cast where they are used',
+        ('occlusion_runs', 'key1=runs.key1, kind=code.astype(None), face=runs.face)'):
+            'dtype only: the kind codes are the same integers, cast where they are used',
+        ('_by_segment_then_s', 'o = np.argsort(seg, kind=None)'):
+            'an unstable sort is caught by the order check (lexsort then); equal (segment, s) keys are runs of no length',
+        ('_by_segment_then_s', 'o = np.argsort(seg, )'):
+            'an unstable sort is caught by the order check (lexsort then); equal (segment, s) keys are runs of no length',
+        ('_by_segment_then_s', 'o = np.argsort(seg, kind="STABLE")'):
+            'numpy reads the sort kind case-insensitively',
+        ('_by_segment_then_s', 'if len(o) > 1 or not ((so[1:] != so[:-1]) | (ss[1:] >= ss[:-1])).all():'):
+            'a stricter order check: np.lexsort, the reference, more often',
+        ('_by_segment_then_s', 'if len(o) >= 1 and not ((so[1:] != so[:-1]) | (ss[1:] >= ss[:-1])).all():'):
+            'a stricter order check: np.lexsort, the reference, more often',
+        ('_by_segment_then_s', 'if len(o) > 1 and not ((so[1:] != so[:-1]) & (ss[1:] >= ss[:-1])).all():'):
+            'a stricter order check: np.lexsort, the reference, more often',
+        ('_by_segment_then_s', 'if len(o) > 1 and not ((so[1:] != so[:-1]) | (ss[1:] > ss[:-1])).all():'):
+            'a stricter order check: np.lexsort, the reference, more often',
+        ('_by_segment_then_s', 'if len(o) > 2 and not ((so[1:] != so[:-1]) | (ss[1:] >= ss[:-1])).all():'):
+            'two entries of one segment are its start (s 0) or end (s 1) and one change: in order either way',
+        ('own_faces', 'faces = np.full((len(idx), 2), -1, None)'):
+            'np.full infers int64 from the fill value -1',
+        ('own_faces', 'faces = np.full((len(idx), 2), -1, )'):
+            'np.full infers int64 from the fill value -1',
+        ('crossing_deltas', 'np.ascontiguousarray(edge, None), end_px, gap, np.ascontiguousarray(ab), np.ascontiguousarray(own),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'np.ascontiguousarray(edge, ), end_px, gap, np.ascontiguousarray(ab), np.ascontiguousarray(own),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.edges.astype(np.int64, copy=None), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=False),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.edges.astype(np.int64, ), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=False),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.edges.astype(np.int64, copy=True), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=False),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(None, copy=False),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=None),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(np.int64, ),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.edges.astype(np.int64, copy=False), scene.edge_faces, scene.edge_face_count.astype(np.int64, copy=True),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.faces.astype(np.int64, copy=None), scene.vertices, np.asarray(view, float), bool(camera.is_ortho),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.faces.astype(np.int64, ), scene.vertices, np.asarray(view, float), bool(camera.is_ortho),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.faces.astype(np.int64, copy=True), scene.vertices, np.asarray(view, float), bool(camera.is_ortho),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.faces.astype(np.int64, copy=False), scene.vertices, np.asarray(view, None), bool(camera.is_ortho),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'scene.faces.astype(np.int64, copy=False), scene.vertices, np.asarray(view, ), bool(camera.is_ortho),'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'np.zeros(0, None) if kept is None else kept, NO_DELTA)'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('crossing_deltas', 'np.zeros(0, ) if kept is None else kept, NO_DELTA)'):
+            'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
+        ('_kept_faces', 'kept = None'):
+            "the mask's cache missed: it is computed again, the same",
+        ('_kept_faces', 'kept = getattr(None, "_kept_mask", None)'):
+            "the mask's cache missed: it is computed again, the same",
+        ('_kept_faces', 'kept = getattr(occluder, "XX_kept_maskXX", None)'):
+            "the mask's cache missed: it is computed again, the same",
+        ('_kept_faces', 'kept = getattr(occluder, "_KEPT_MASK", None)'):
+            "the mask's cache missed: it is computed again, the same",
+        ('_kept_faces', 'occluder._kept_mask = None'):
+            "the mask's cache missed: it is computed again, the same",
+        ('_kept_faces', 'kept = np.zeros(len(occluder.scene.faces), None)'):
+            'the mask as 0.0 / 1.0 instead of False / True: read as truth values',
+        ('_kept_faces', 'kept = np.zeros(len(occluder.scene.faces), )'):
+            'the mask as 0.0 / 1.0 instead of False / True: read as truth values',
+        ('_kept_faces', 'kept[occluder.face_index] = None'):
+            'every face taken as left out: no crossing has a known delta, levels are counted (the same)',
+        ('_kept_faces', 'kept[occluder.face_index] = False'):
+            'every face taken as left out: no crossing has a known delta, levels are counted (the same)',
+        ('_bisect_levels', 'open_ = np.flatnonzero((hi - lo) * L.take(cs) >= tol_px)'):
+            'differs only for a bracket exactly tol_px wide, halved once more',
+    },
     "cryptomatte": {
         ("murmur3_32_py", 'k = int.from_bytes(data[4 * i:5 * i + 4], "little")'):
             "the longer slice adds high-order bytes (little-endian), and (k * c1) & mask keeps only the low 32 bits",
@@ -167,9 +266,15 @@ def with_deselection(tests: tuple[str, ...]) -> tuple[str, ...]:
     return (*args, "-k", NOT_FOR_MUTANTS)
 
 
-def run_module(name: str, work: Path, mutmut: str, show: bool) -> dict:
+def run_module(name: str, work: Path, mutmut: str, show: bool, run: bool = True) -> dict:
     files, functions, tests = MODULES[name]
-    prepare(work, files, with_deselection(tests))
+    if run:
+        test_mutants(work, files, functions, with_deselection(tests), mutmut)
+    return score_module(name, work, files, functions, tests, mutmut, show)
+
+
+def test_mutants(work: Path, files, functions, tests, mutmut: str) -> None:
+    prepare(work, files, tests)
     # Mutants that survived an earlier run are tried again (the tests may have changed since);
     # mutmut itself keeps every result whose function did not change.
     for path in files:
@@ -184,14 +289,21 @@ def run_module(name: str, work: Path, mutmut: str, show: bool) -> dict:
     with open(log, "w") as f:
         proc = subprocess.run([mutmut, "run", "--max-children", "1", *functions], cwd=work, stdout=f, stderr=subprocess.STDOUT,
                               env=dict(os.environ, PYTHONHASHSEED="0"))
-    seconds = time.time() - t
+    (work / "seconds").write_text(f"{time.time() - t:.0f}\n")
+    if proc.returncode != 0:
+        print(f"mutmut exited with {proc.returncode}: see {log}", file=sys.stderr)
+
+
+def score_module(name: str, work: Path, files, functions, tests, mutmut: str, show: bool) -> dict:
+    """Read mutmut's results of module `name` and print them (see the module docstring)."""
+    seconds = float((work / "seconds").read_text()) if (work / "seconds").exists() else 0.0
     counts: dict[str, int] = {}
     survivors, equivalent = [], []
     open_ = {}
     for path in files:
         meta = work / "mutants" / (path + ".meta")
         if not meta.exists():
-            raise SystemExit(f"{name}: mutmut wrote no results for {path} (exit {proc.returncode}); see {log}")
+            raise SystemExit(f"{name}: mutmut wrote no results for {path}; see {work / 'mutmut.log'}")
         for key, code in json.loads(meta.read_text())["exit_code_by_key"].items():
             if functions and not any(fnmatch.fnmatch(key, f) for f in functions):
                 continue
@@ -209,15 +321,19 @@ def run_module(name: str, work: Path, mutmut: str, show: bool) -> dict:
         else:
             counts[status] = counts.get(status, 0) + 1
             survivors.append((key, status, diffs[key]))
+    unchecked = counts.pop("not checked", 0)  # a run stopped early: neither killed nor survived
     total = sum(counts.values()) + len(equivalent)
     counted = total - len(equivalent)
     score = counts.get("killed", 0) / counted if counted else 1.0
     print(f"\n== {name}: {', '.join(files)}  (tests: {' '.join(tests)}; {seconds:.0f} s)")
     print(f"   {total} mutants, {len(equivalent)} equivalent, {counts.get('killed', 0)} of {counted} killed: "
-          f"score {100 * score:.1f}%  ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))})")
+          f"score {100 * score:.1f}%  ({', '.join(f'{k} {v}' for k, v in sorted(counts.items()))})"
+          + (f"; {unchecked} not run (the run was stopped)" if unchecked else ""))
     for key, line, why in equivalent:
         print(f"   equivalent {key}: {line}  -- {why}")
     for key, status, diff in survivors:
+        if status == "not checked":
+            continue
         print(f"   {status} {key}")
         if show:
             print("      " + "\n      ".join(diff.splitlines()[2:]))
@@ -233,6 +349,7 @@ def main(argv=None) -> int:
                     help="folder of the scratch copies (one per module)")
     ap.add_argument("--no-diffs", action="store_true", help="name the surviving mutants without their diffs")
     ap.add_argument("--json", type=Path, help="also write the scores to this file")
+    ap.add_argument("--report-only", action="store_true", help="print the results of the last run, run nothing")
     args = ap.parse_args(argv)
     unknown = [m for m in args.modules if m not in MODULES]
     if unknown:
@@ -240,7 +357,8 @@ def main(argv=None) -> int:
     mutmut = shutil.which("mutmut", path=str(Path(sys.executable).parent)) or shutil.which("mutmut")
     if mutmut is None:
         raise SystemExit("mutmut is not installed: python -m pip install mutmut")
-    results = [run_module(m, args.work / m, mutmut, not args.no_diffs) for m in (args.modules or MODULES)]
+    results = [run_module(m, args.work / m, mutmut, not args.no_diffs, run=not args.report_only)
+               for m in (args.modules or MODULES)]
     print("\nmodule         mutants  equivalent  killed  score")
     for r in results:
         print(f"{r['module']:<14} {r['mutants']:>7}  {r['equivalent']:>10}  {r['killed']:>6}  {100 * r['score']:5.1f}%")

@@ -69,6 +69,19 @@ def test_levels_match_the_exact_reference(torus_and_box, cam):
     assert acc.level_right >= 0.999
 
 
+def test_the_draft_preset_draws_the_levels_too(torus_and_box):
+    """The draft preset (edges shorter than 12 px get one level, no bisection) against the same
+    exact reference: precision and recall >= 0.99 at 1 px for the visible and the hidden lines,
+    the level right on >= 0.99 of the length."""
+    cam = _cameras()[0]
+    r = LineRenderer(torus_and_box, LineOptions.preset("draft", occlusion=(0, 15)))
+    ref = reference_drawing(torus_and_box, cam, HIDDEN, step_px=0.1, occluder=r.occluder)
+    acc = hidden_accuracy(torus_and_box, [r.render(cam)], [ref], tols=(1.0,), occluder=r.occluder)
+    assert acc.visible.precision[1.0] >= 0.99 and acc.visible.recall[1.0] >= 0.99, acc.visible
+    assert acc.hidden.precision[1.0] >= 0.99 and acc.hidden.recall[1.0] >= 0.99, acc.hidden
+    assert acc.level_right >= 0.99
+
+
 def test_visible_part_of_a_hidden_drawing_is_the_visible_drawing(torus_and_box):
     """Level 0 of --hidden draws what the visible-only run draws (same lines within 1 px both ways)."""
     from strokekit.metrics.accuracy import accuracy
@@ -130,6 +143,69 @@ def test_a_level_change_inside_an_edge_lies_where_the_edge_pierces_the_surface(q
             tol = (tol_px + 1e-3) * 0.01 / np.linalg.norm(p1 - p0)
             up_end, down_end = lo[lv == min(above)].min(), hi[lv == min(below)].max()
             assert abs(up_end) <= tol and abs(down_end) <= tol, (sx, sy, up_end, down_end, tol)
+
+
+def _wall_behind_plate():
+    """A square wall (z 0) and, in front of its left part, a plate (z 1) whose border x = 0.4
+    crosses the wall's border edges along x in the image."""
+    wall = [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]
+    plate = [[-2, -2, 1], [0.4, -2, 1], [0.4, 2, 1], [-2, 2, 1]]
+    return build_scene(np.array(wall + plate, float), np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]))
+
+
+def test_an_edge_shorter_than_whole_edge_px_has_one_level():
+    """`--whole-edge N`: an edge shorter than N px on screen gets one sample, so one level, also
+    where it passes behind an outline (the wall's edges, 150 px long, under N = 1000; with the
+    default N = 0 the same edges have two levels each)."""
+    cam = Camera(eye=(0.7, 0.4, 5.0), target=(0, 0, 0.5), up=(0, 1, 0), fov_y=45, width=500, height=500)
+    for whole, want in ((1000.0, {1}), (0.0, {2})):
+        st = LineRenderer(_wall_behind_plate(), LineOptions(occlusion=(0, 15), whole_edge_px=whole)).render(cam)
+        first = np.zeros(len(st.points), bool)
+        first[st.offsets[:-1]] = True
+        seg = np.flatnonzero(~first)
+        A, B = st.surface[seg - 1], st.surface[seg]
+        level = np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+        for y in (-1.0, 1.0):
+            on = (np.abs(np.c_[A[:, 1:], B[:, 1:]] - [y, 0, y, 0]).max(axis=1) < 1e-9) & (A[:, 0] != B[:, 0])
+            assert {len(set(level[on].tolist()))} == want, (whole, y)
+
+
+@pytest.mark.parametrize("projection", ["perspective", "isometric"])
+def test_an_edge_changes_level_exactly_where_it_passes_behind_an_outline(projection):
+    """A wall's border edge passing behind the border of a plate in front: its level goes from
+    0 to 1 at the point where the two edges cross in the image, to float64 rounding (the cut is
+    put at the crossing, not searched for), with a perspective and a parallel camera."""
+    scene = _wall_behind_plate()
+    if projection == "perspective":
+        cam = Camera(eye=(0.7, 0.4, 5.0), target=(0, 0, 0.5), up=(0, 1, 0), fov_y=45, width=500, height=500)
+    else:
+        cam = Camera.parallel("isometric", (0.0, 0.0, 0.5), 6.0, ortho_height=5.0, width=500, height=500)
+    st = LineRenderer(scene, LineOptions(occlusion=(0, 15))).render(cam)
+
+    def crossing(p, q, r, s):  # image point where lines p-q and r-s cross
+        (p, q), (r, s) = cam.project(np.array([p, q], float))[0], cam.project(np.array([r, s], float))[0]
+        t = np.linalg.solve(np.c_[q - p, r - s], r - p)[0]
+        return p + t * (q - p)
+
+    first = np.zeros(len(st.points), bool)
+    first[st.offsets[:-1]] = True
+    seg = np.flatnonzero(~first)
+    A, B = st.surface[seg - 1], st.surface[seg]
+    level = np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+    checked = 0
+    for y in (-1.0, 1.0):  # the wall's two edges along x, behind the plate's edge x = 0.4 (where seen so)
+        want = crossing((-1, y, 0), (1, y, 0), (0.4, -2, 1), (0.4, 2, 1))
+        on = (np.abs(np.c_[A[:, 1:], B[:, 1:]] - [y, 0, y, 0]).max(axis=1) < 1e-9) & (A[:, 0] != B[:, 0])
+        ends = {lv: [] for lv in (0, 1)}
+        for k in np.flatnonzero(on):
+            ends[int(level[k])] += [st.points[seg[k] - 1], st.points[seg[k]]]
+        if not ends[1]:
+            continue
+        checked += 1
+        assert ends[0] and set(level[on].tolist()) == {0, 1}, y
+        for lv in (0, 1):
+            assert np.linalg.norm(np.array(ends[lv]) - want, axis=1).min() < 1e-6, (y, lv, want, ends[lv])
+    assert checked, "no edge of the wall passes behind the plate"
 
 
 def test_a_bracket_holding_two_changes_gives_both():
