@@ -37,7 +37,8 @@ NOT_FOR_MUTANTS = "not dask and not killed_run and not ctrl_c_during_render and 
 #: name: (files to mutate, the functions of them to mutate (mutmut's mutant names, globs; empty:
 #: all), the tests that cover them: pytest arguments from the project root).
 MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
-    "occlusion": (("strokekit/lines/occlusion.py",), (), ("tests/test_hidden.py", "-m", "not slow")),
+    "occlusion": (("strokekit/lines/occlusion.py", "strokekit/lines/levels.py"), (),
+                  ("tests/test_hidden.py", "-m", "not slow")),
     "cryptomatte": (("strokekit/cryptomatte.py",), (), ("tests/test_exr.py",)),
     "atomic-files": (("strokekit/fileio.py",), (), ("tests/test_cli.py", "tests/test_faults.py", "tests/test_pipeline.py",
                                                     "-k", "readable or pattern or unwritable or report_where or "
@@ -137,24 +138,6 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
             'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
         ('crossing_deltas', 'np.zeros(0, ) if kept is None else kept, NO_DELTA)'):
             'dtype, copy or contiguity of an argument whose values stay the same (an empty mask has none)',
-        ('_kept_faces', 'kept = None'):
-            "the mask's cache missed: it is computed again, the same",
-        ('_kept_faces', 'kept = getattr(None, "_kept_mask", None)'):
-            "the mask's cache missed: it is computed again, the same",
-        ('_kept_faces', 'kept = getattr(occluder, "XX_kept_maskXX", None)'):
-            "the mask's cache missed: it is computed again, the same",
-        ('_kept_faces', 'kept = getattr(occluder, "_KEPT_MASK", None)'):
-            "the mask's cache missed: it is computed again, the same",
-        ('_kept_faces', 'occluder._kept_mask = None'):
-            "the mask's cache missed: it is computed again, the same",
-        ('_kept_faces', 'kept = np.zeros(len(occluder.scene.faces), None)'):
-            'the mask as 0.0 / 1.0 instead of False / True: read as truth values',
-        ('_kept_faces', 'kept = np.zeros(len(occluder.scene.faces), )'):
-            'the mask as 0.0 / 1.0 instead of False / True: read as truth values',
-        ('_kept_faces', 'kept[occluder.face_index] = None'):
-            'every face taken as left out: no crossing has a known delta, levels are counted (the same)',
-        ('_kept_faces', 'kept[occluder.face_index] = False'):
-            'every face taken as left out: no crossing has a known delta, levels are counted (the same)',
         ('_bisect_levels', 'open_ = np.flatnonzero((hi - lo) * L.take(cs) >= tol_px)'):
             'differs only for a bracket exactly tol_px wide, halved once more',
     },

@@ -113,6 +113,15 @@ def test_an_occlusion_range_draws_those_levels_and_only_them(torus_and_box, toru
         assert part.lengths[part.occlusion == lv].sum() == pytest.approx(want, rel=1e-9, abs=1e-9), lv
 
 
+def _drawn_segments(st: Strokes):
+    """Every drawn segment (two consecutive points of a stroke): the index of its second point,
+    the world points of its two ends (S, 3) and its stroke's occlusion level (S,)."""
+    first = np.zeros(len(st.points), bool)
+    first[st.offsets[:-1]] = True
+    seg = np.flatnonzero(~first)
+    return seg, st.surface[seg - 1], st.surface[seg], np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+
+
 @pytest.mark.parametrize("quality", ["default", "draft"])
 def test_a_level_change_inside_an_edge_lies_where_the_edge_pierces_the_surface(quality):
     """A stick through a plate: each of its long edges changes level where it pierces the plate,
@@ -126,12 +135,7 @@ def test_a_level_change_inside_an_edge_lies_where_the_edge_pierces_the_surface(q
     options = LineOptions.preset(quality, occlusion=(0, 15))
     tol_px = options.bisection_tol_px if options.bisect_changes else options.sample_spacing_px / 2
     st = LineRenderer(scene, options).render(cam)
-    # Every drawn segment (two consecutive points of a stroke): its ends' world points and level.
-    first = np.zeros(len(st.surface), bool)
-    first[st.offsets[:-1]] = True
-    seg = np.flatnonzero(~first)
-    A, B = st.surface[seg - 1], st.surface[seg]
-    level = np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+    _, A, B, level = _drawn_segments(st)
     for sx in (-0.1, 0.1):
         for sy in (-0.1, 0.1):
             on = (np.abs(np.c_[A[:, :2], B[:, :2]] - [sx, sy, sx, sy]).max(axis=1) < 1e-9) & (A[:, 2] != B[:, 2])
@@ -160,11 +164,7 @@ def test_an_edge_shorter_than_whole_edge_px_has_one_level():
     cam = Camera(eye=(0.7, 0.4, 5.0), target=(0, 0, 0.5), up=(0, 1, 0), fov_y=45, width=500, height=500)
     for whole, want in ((1000.0, {1}), (0.0, {2})):
         st = LineRenderer(_wall_behind_plate(), LineOptions(occlusion=(0, 15), whole_edge_px=whole)).render(cam)
-        first = np.zeros(len(st.points), bool)
-        first[st.offsets[:-1]] = True
-        seg = np.flatnonzero(~first)
-        A, B = st.surface[seg - 1], st.surface[seg]
-        level = np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+        _, A, B, level = _drawn_segments(st)
         for y in (-1.0, 1.0):
             on = (np.abs(np.c_[A[:, 1:], B[:, 1:]] - [y, 0, y, 0]).max(axis=1) < 1e-9) & (A[:, 0] != B[:, 0])
             assert {len(set(level[on].tolist()))} == want, (whole, y)
@@ -187,11 +187,7 @@ def test_an_edge_changes_level_exactly_where_it_passes_behind_an_outline(project
         t = np.linalg.solve(np.c_[q - p, r - s], r - p)[0]
         return p + t * (q - p)
 
-    first = np.zeros(len(st.points), bool)
-    first[st.offsets[:-1]] = True
-    seg = np.flatnonzero(~first)
-    A, B = st.surface[seg - 1], st.surface[seg]
-    level = np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+    seg, A, B, level = _drawn_segments(st)
     checked = 0
     for y in (-1.0, 1.0):  # the wall's two edges along x, behind the plate's edge x = 0.4 (where seen so)
         want = crossing((-1, y, 0), (1, y, 0), (0.4, -2, 1), (0.4, 2, 1))
@@ -476,7 +472,9 @@ def test_line_options_refuse_a_bad_range():
     assert LineOptions(occlusion=(1, 15)).layers == tuple("hidden-" + k for k in LineOptions().kinds)
 
 
-def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path, capsys):
+@pytest.fixture
+def cube_and_camera(tmp_path):
+    """A unit cube (OBJ) and its isometric camera file, 200 x 200."""
     v, f = box_mesh((0, 0, 0), (1, 1, 1))
     obj = tmp_path / "c.obj"
     trimesh.Trimesh(v, f).export(obj)
@@ -484,6 +482,11 @@ def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path,
     with pytest.raises(SystemExit) as e:
         main(["camera", "parallel", str(obj), "--width", "200", "--height", "200", "-o", str(cam)])
     assert e.value.code == 0
+    return obj, cam
+
+
+def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path, capsys, cube_and_camera):
+    obj, cam = cube_and_camera
     with pytest.raises(SystemExit) as e:
         main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / "o"), "--hidden", "--explain"])
     out = capsys.readouterr().out
@@ -495,16 +498,10 @@ def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path,
     assert 'inkscape:label="hidden-crease"' in svg and "stroke-dasharray" in svg
 
 
-def test_render_cli_occlusion_1_draws_only_the_lines_behind_one_surface(tmp_path, capsys):
+def test_render_cli_occlusion_1_draws_only_the_lines_behind_one_surface(tmp_path, capsys, cube_and_camera):
     """`render --occlusion 1` on a cube seen from a corner: the three edges of the far corner,
     each behind one face, and no visible edge (levels 0 and 1 were 7 strokes)."""
-    v, f = box_mesh((0, 0, 0), (1, 1, 1))
-    obj = tmp_path / "c.obj"
-    trimesh.Trimesh(v, f).export(obj)
-    cam = tmp_path / "iso.json"
-    with pytest.raises(SystemExit) as e:
-        main(["camera", "parallel", str(obj), "--width", "200", "--height", "200", "-o", str(cam)])
-    assert e.value.code == 0
+    obj, cam = cube_and_camera
     docs = {}
     for value in ("1", "0", "0-1"):
         with pytest.raises(SystemExit) as e:
