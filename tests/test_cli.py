@@ -601,9 +601,30 @@ def test_empty_output_names_are_usage_errors_in_the_library_too():
     from strokekit.errors import UsageError
     from strokekit.fileio import check_output_file, check_output_folder
 
-    for check in (check_output_folder, check_output_file):
-        with pytest.raises(UsageError):
+    for check, what in ((check_output_folder, "folder"), (check_output_file, "file")):
+        with pytest.raises(UsageError) as e:
             check("  ")
+        assert str(e.value) == f"an output {what} name is empty"
+
+
+def test_an_output_file_where_a_folder_is_says_so(tmp_path):
+    from strokekit.errors import InputError
+    from strokekit.fileio import check_output_file
+
+    with pytest.raises(InputError) as e:
+        check_output_file(tmp_path)
+    assert str(e.value) == f"{tmp_path}: cannot be written: it is a folder" and e.value.path == str(tmp_path)
+
+
+def test_temporary_files_are_told_from_other_dotfiles():
+    """A run removes only its own temporaries: ".<final name>.<random>.part"; a dotfile without the
+    suffix, a .part without the dot, or a name with no final name in it is not one of them."""
+    from strokekit.fileio import temp_file_target
+
+    assert temp_file_target(".frame_0001.svg.k2j4h5g6.part") == "frame_0001.svg"
+    assert temp_file_target("/out/bands/.frame.1.png.x.part") == "frame.1.png"
+    for name in (".frame_0001.svg.k2j4h5g6", "frame_0001.svg.k2j4h5g6.part", ".x.part", "..abc.part", ".part"):
+        assert temp_file_target(name) is None, name
 
 
 def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatch):
