@@ -50,8 +50,8 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
                    "x__file_states", "x__written_by_run", "x__frames_found_whole", "x__remove_partial_frames",
                    "x_remove_temp_files", "xǁFrameStreamǁenter_written")) + ("strokekit.run.manifest.*",),
                ("tests/test_pipeline.py", "tests/test_faults_units.py", "-k",
-                "resume or skip or interrupt or ctrl or failed or partial or rewrite or temporaries or stopped or "
-                "fail_fast or write_error or two_runs or over_an_input or removes or manifest or whole")),
+                "skip_existing or temporaries or failed_run_removes or two_runs or stopped_rerun or interrupted or "
+                "whole_just_before or resume_after or write_error or over_an_input or sequence_after")),
     "camera-file": (("strokekit/camera/paths.py",), (), ("tests/test_camera_path.py", "tests/test_gltf_camera.py",
                                                         "tests/test_faults.py", "-k", "camera or keyframe or up")),
     "svg-writer": (("strokekit/writers/svg.py",), (), ("tests/test_golden.py", "tests/test_hidden.py",
@@ -175,6 +175,16 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ("_read_umask", "mask = os.umask(1)"): "os.umask returns the mask before the call, whatever it sets",
         ("atomic_write_text", 'return atomic_write_bytes(path, text.encode("UTF-8"))'):
             "codec names are case-insensitive",
+        ("_try_create_in", 'fd, tmp = tempfile.mkstemp(prefix=".strokekit-check.", suffix=None, dir=folder)'):
+            "the name of the probe file, removed at once (never seen)",
+        ("_try_create_in", 'fd, tmp = tempfile.mkstemp(suffix=TEMP_SUFFIX, dir=folder)'):
+            "the name of the probe file, removed at once (never seen)",
+        ("_try_create_in", 'fd, tmp = tempfile.mkstemp(prefix=".strokekit-check.", dir=folder)'):
+            "the name of the probe file, removed at once (never seen)",
+        ("_try_create_in", 'fd, tmp = tempfile.mkstemp(prefix="XX.strokekit-check.XX", suffix=TEMP_SUFFIX, dir=folder)'):
+            "the name of the probe file, removed at once (never seen)",
+        ("_try_create_in", 'fd, tmp = tempfile.mkstemp(prefix=".STROKEKIT-CHECK.", suffix=TEMP_SUFFIX, dir=folder)'):
+            "the name of the probe file, removed at once (never seen)",
     },
     "resume": {},
     "camera-file": {},

@@ -616,6 +616,31 @@ def test_an_output_file_where_a_folder_is_says_so(tmp_path):
     assert str(e.value) == f"{tmp_path}: cannot be written: it is a folder" and e.value.path == str(tmp_path)
 
 
+def test_an_output_under_a_file_says_why_it_cannot_be_written(tmp_path):
+    """The folder checks name the path and say why: a file where the folder should be, or a file
+    among the folders to create; an output file's check says which folder."""
+    from strokekit.errors import InputError
+    from strokekit.fileio import check_output_file, check_output_folder
+
+    f = tmp_path / "f"
+    f.write_text("x")
+    for check, path, why in ((check_output_folder, f, "is a file, not a folder"),
+                             (check_output_folder, f / "sub", f"cannot be created: {f} is a file, not a folder"),
+                             (check_output_file, f / "r.json", f"cannot be written: its folder {f} is a file, not a folder")):
+        with pytest.raises(InputError) as e:
+            check(path)
+        assert str(e.value) == f"{path}: {why}", str(e.value)
+    assert [p.name for p in tmp_path.iterdir()] == ["f"]
+    if Path("/proc/self").is_dir():  # a folder where nothing can be created, even by root
+        for check, path, why in ((check_output_folder, "/proc", "cannot be written ("),
+                                 (check_output_folder, "/proc/strokekit-x", "cannot be created in /proc ("),
+                                 (check_output_file, "/proc/x.json", "cannot be written: its folder /proc cannot be "
+                                                                     "written (")):
+            with pytest.raises(InputError) as e:
+                check(path)
+            assert str(e.value).startswith(f"{path}: {why}"), str(e.value)
+
+
 def test_temporary_files_are_told_from_other_dotfiles():
     """A run removes only its own temporaries: ".<final name>.<random>.part"; a dotfile without the
     suffix, a .part without the dot, or a name with no final name in it is not one of them."""
