@@ -218,12 +218,16 @@ def prepare(work: Path, files: tuple[str, ...], tests: tuple[str, ...]) -> None:
         stale = work / "mutants" / name  # mutmut regenerates a source it finds changed
         if stale.exists():
             stale.unlink()
+    # The CLI is imported as strokekit_cli: a copy of cli/ under that name keeps the tests on this
+    # copy's code (the installed one may be another tree's).
+    if not (work / "strokekit_cli").exists():
+        (work / "strokekit_cli").symlink_to("cli")
     shared = ROOT.parent / "shared"
     # The tests look for ../shared from the copy they run in (work/mutants).
     if shared.exists() and not (work / "shared").exists():
         (work / "shared").symlink_to(shared)
     config = ("\n[tool.mutmut]\n" f"source_paths = [\"strokekit\"]\nonly_mutate = {json.dumps(list(files))}\n"
-              f"also_copy = [\"samples\", \"cli\"]\npytest_add_cli_args_test_selection = {json.dumps(list(tests))}\n"
+              f"also_copy = [\"samples\", \"strokekit_cli\"]\npytest_add_cli_args_test_selection = {json.dumps(list(tests))}\n"
               "pytest_add_cli_args = [\"-p\", \"no:cacheprovider\"]\n"
               # (a hung mutant is stopped at 4 x its tests' time, CPU seconds, not mutmut's 30 x)
               "timeout_multiplier = 2.0\n")
@@ -307,7 +311,8 @@ def score_module(name: str, work: Path, files, functions, tests, mutmut: str, sh
     for path in files:
         meta = work / "mutants" / (path + ".meta")
         if not meta.exists():
-            raise SystemExit(f"{name}: mutmut wrote no results for {path}; see {work / 'mutmut.log'}")
+            print(f"{name}: no results for {path} (not run yet; see {work / 'mutmut.log'})", file=sys.stderr)
+            continue
         for key, code in json.loads(meta.read_text())["exit_code_by_key"].items():
             if functions and not any(fnmatch.fnmatch(key, f) for f in functions):
                 continue
