@@ -186,7 +186,34 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ("_try_create_in", 'fd, tmp = tempfile.mkstemp(prefix=".STROKEKIT-CHECK.", suffix=TEMP_SUFFIX, dir=folder)'):
             "the name of the probe file, removed at once (never seen)",
     },
-    "resume": {},
+    "resume": {
+        ('plan_resume', 'stale.unlink(missing_ok=None)'):
+            'differs only when another process removes the file between the listing and the unlink',
+        ('plan_resume', 'stale.unlink(missing_ok=False)'):
+            'differs only when another process removes the file between the listing and the unlink',
+        ('remove_temp_files', 'tmp.unlink(missing_ok=None)'):
+            'differs only when another process removes the file between the listing and the unlink',
+        ('remove_temp_files', 'tmp.unlink(missing_ok=False)'):
+            'differs only when another process removes the file between the listing and the unlink',
+        ('_digest', 'text = json.dumps(canonical(v), sort_keys=None, separators=(",", ":"), allow_nan=False)'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('_digest', 'text = json.dumps(canonical(v), sort_keys=True, separators=None, allow_nan=False)'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('_digest', 'text = json.dumps(canonical(v), sort_keys=True, allow_nan=False)'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('_digest', 'text = json.dumps(canonical(v), sort_keys=False, separators=(",", ":"), allow_nan=False)'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('_digest', 'text = json.dumps(canonical(v), sort_keys=True, separators=("XX,XX", ":"), allow_nan=False)'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('_digest', 'text = json.dumps(canonical(v), sort_keys=True, separators=(",", "XX:XX"), allow_nan=False)'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('run_manifest', 'scene_d = _digest({"XXcontent_hashXX": scene.content_hash, "objects": len(scene.objects),'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('run_manifest', 'scene_d = _digest({"CONTENT_HASH": scene.content_hash, "objects": len(scene.objects),'):
+            "the digests' spelling: the same in every run of this code, which compares only digests it made",
+        ('FrameStream.enter_written', 'stale = None'):
+            'stale is only tested for truth, and [] and None are both false',
+    },
     "camera-file": {},
     "svg-writer": {},
     "diff": {},

@@ -568,6 +568,31 @@ def test_skip_existing_refuses_frames_of_another_run(tmp_path, capsys, change, p
     assert tree_bytes(out) != before
 
 
+def test_the_refused_resume_says_what_differs_in_one_line():
+    """not_a_resume, the line a refused --skip-existing prints: no manifest, another scene, other
+    options, both, or the cameras of some frames (as ranges, only frames present in both runs)."""
+    from strokekit.run.manifest import not_a_resume
+
+    out, fix = Path("out"), "remove them or render without --skip-existing"
+    new = {"scene": "s1", "options": "o1", "frames": {f: f"c{f}" for f in range(1, 10)}}
+
+    def said(**old):
+        return not_a_resume(out, {**new, **old}, new, {1, 2, 3, 5, 7, 9})
+
+    assert not_a_resume(out, None, new, {1}) == (
+        f"--skip-existing: out/ holds frames but no readable .strokekit-run.json to tell what they were rendered from; "
+        f"{fix}")
+    assert said(scene="s0") == f"--skip-existing: out/ holds frames of another scene (.strokekit-run.json differs: scene); {fix}"
+    assert said(options="o0") == (
+        f"--skip-existing: out/ holds frames of other options (.strokekit-run.json differs: options); {fix}")
+    assert said(scene="s0", options="o0") == (f"--skip-existing: out/ holds frames of another scene or other options "
+                                              f"(.strokekit-run.json differs: scene, options); {fix}")
+    moved = {**new["frames"], 1: "x", 2: "x", 3: "x", 7: "x", 8: "x"}
+    moved.pop(9)
+    assert said(frames=moved) == (f"--skip-existing: out/ holds frames of another run (.strokekit-run.json differs: "
+                                  f"cameras of frames 1-3, 7); {fix}")
+
+
 def test_skip_existing_refuses_frames_without_a_manifest(tmp_path, capsys):
     cube, _ = _scenes(tmp_path)
     out = tmp_path / "o"
