@@ -544,7 +544,8 @@ SMALL = ["--size", "64x64", "--workers", "1"]
 
 @pytest.mark.parametrize("change,part", [
     ("scene", "scene"), (["--kinds", "silhouette"], "options"), (["--stroke-width", "2"], "options"),
-    (["--quality", "draft"], "options"), (["--pattern", "f{frame:03d}", "--no-svg"], None)])
+    (["--quality", "draft"], "options"),
+    (["--pattern", "f{frame:03d}", "--no-svg"], None)])
 def test_skip_existing_refuses_frames_of_another_run(tmp_path, capsys, change, part):
     """The user trial: spot then cow into the same folder with --skip-existing said '4 already
     there, skipped' and left spot's frames. Now: exit 2, one line saying what differs, nothing
@@ -591,6 +592,21 @@ def test_the_refused_resume_says_what_differs_in_one_line():
     moved.pop(9)
     assert said(frames=moved) == (f"--skip-existing: out/ holds frames of another run (.strokekit-run.json differs: "
                                   f"cameras of frames 1-3, 7); {fix}")
+
+
+def test_skip_existing_sees_a_brush_image_whose_bytes_changed(tmp_path, capsys):
+    """A user's brush PNG goes into every GLB: the same file name with other pixels is another run."""
+    from PIL import Image
+
+    cube, _ = _scenes(tmp_path)
+    brush = tmp_path / "brush.png"
+    Image.new("RGBA", (8, 4), (0, 0, 0, 255)).save(brush)
+    args = ["render", cube, "--orbit", "2", "--out", tmp_path / "o", "--gltf", "--brush", brush, "-q"] + SMALL
+    assert run_cli(args, capsys)[0] == 0
+    assert run_cli(args + ["--skip-existing"], capsys)[0] == 0  # the same image: nothing to do
+    Image.new("RGBA", (8, 4), (0, 0, 0, 128)).save(brush)
+    code, _, err = run_cli(args + ["--skip-existing"], capsys)
+    assert code == 2 and ".strokekit-run.json differs: options" in err, err
 
 
 def test_skip_existing_refuses_frames_without_a_manifest(tmp_path, capsys):
