@@ -3,6 +3,7 @@ generated scenes that always exist. Import as `from helpers import ...`."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -37,3 +38,15 @@ def run_cli(args, capsys):
         main([str(a) for a in args])
     out = capsys.readouterr()
     return e.value.code, out.out, out.err
+
+
+def cli_env(**extra: str) -> dict[str, str]:
+    """The environment for a `python -m strokekit_cli.main` subprocess: this interpreter's own
+    (its venv, PYTHONPATH and all: the package may be installed in any of them), with the folder
+    of the strokekit this process imported first on PYTHONPATH, so that both run the same code."""
+    import strokekit
+
+    src = str(Path(strokekit.__file__).resolve().parent.parent)
+    env = dict(os.environ, **extra)
+    env["PYTHONPATH"] = os.pathsep.join([src, *filter(None, [os.environ.get("PYTHONPATH")])])
+    return env

@@ -157,7 +157,29 @@ def test_coherence_with_no_strokes_to_compare_is_an_error_not_a_perfect_score(cu
     code, _, err = run_cli(["coherence", tmp_path / "o", "--occlusion", "1-"], capsys)
     assert code == 1 and "hold no strokes at occlusion levels 1-" in err and len(err.strip().splitlines()) == 1
     code, out, _ = run_cli(["coherence", tmp_path / "o", "--json"], capsys)
-    assert code == 0 and 0 <= json.loads(out)["overall"]["M1"] <= 1
+    doc = json.loads(out)
+    assert code == 0 and len(doc["pairs"]) == 2
+    # Overall M1 is same-id length over matched length of every pair: their matched-length mean.
+    pairs = doc["pairs"]
+    mean = sum(p["M1"] * p["matched_px"] for p in pairs) / sum(p["matched_px"] for p in pairs)
+    assert 0 < doc["overall"]["M1"] < 1 and doc["overall"]["M1"] == pytest.approx(mean, rel=1e-12)
+
+
+def test_coherence_of_a_still_camera_is_perfect(cube, tmp_path, capsys):
+    """Three frames of tracked lines from one camera: every stroke matches itself with its id and
+    its u, so M1 is 1, nothing pops (M2 0), nothing slides (M4 0 but for the JSON's rounding of u)
+    and no stroke grows (M7 0)."""
+    cam = write_camera(tmp_path / "still.json", [{"eye": [3, 2, 4], "target": [0, 0, 0]}] * 3)
+    code, _, err = run_cli(["render", cube, "--camera", cam, "--strokes", "lines", "--out", tmp_path / "o", "-q"],
+                           capsys)
+    assert code == 0, err
+    code, out, _ = run_cli(["coherence", tmp_path / "o", "--json"], capsys)
+    doc = json.loads(out)
+    assert code == 0 and [p["frame"] for p in doc["pairs"]] == [2, 3]
+    for p in doc["pairs"]:
+        assert p["matched_px"] == p["total_px"] > 100
+        assert (p["M1"], p["M2"]) == (1.0, 0.0) and p["M4_max"] < 0.05 and p["M7_max"] < 1e-6, p
+    assert doc["overall"]["M1"] == 1.0
 
 
 def test_shared_empty_obj_is_a_clear_error(capsys):
@@ -579,9 +601,55 @@ def test_empty_output_names_are_usage_errors_in_the_library_too():
     from strokekit.errors import UsageError
     from strokekit.fileio import check_output_file, check_output_folder
 
-    for check in (check_output_folder, check_output_file):
-        with pytest.raises(UsageError):
+    for check, what in ((check_output_folder, "folder"), (check_output_file, "file")):
+        with pytest.raises(UsageError) as e:
             check("  ")
+        assert str(e.value) == f"an output {what} name is empty"
+
+
+def test_an_output_file_where_a_folder_is_says_so(tmp_path):
+    from strokekit.errors import InputError
+    from strokekit.fileio import check_output_file
+
+    with pytest.raises(InputError) as e:
+        check_output_file(tmp_path)
+    assert str(e.value) == f"{tmp_path}: cannot be written: it is a folder" and e.value.path == str(tmp_path)
+
+
+def test_an_output_under_a_file_says_why_it_cannot_be_written(tmp_path):
+    """The folder checks name the path and say why: a file where the folder should be, or a file
+    among the folders to create; an output file's check says which folder."""
+    from strokekit.errors import InputError
+    from strokekit.fileio import check_output_file, check_output_folder
+
+    f = tmp_path / "f"
+    f.write_text("x")
+    for check, path, why in ((check_output_folder, f, "is a file, not a folder"),
+                             (check_output_folder, f / "sub", f"cannot be created: {f} is a file, not a folder"),
+                             (check_output_file, f / "r.json", f"cannot be written: its folder {f} is a file, not a folder")):
+        with pytest.raises(InputError) as e:
+            check(path)
+        assert str(e.value) == f"{path}: {why}", str(e.value)
+    assert [p.name for p in tmp_path.iterdir()] == ["f"]
+    if Path("/proc/self").is_dir():  # a folder where nothing can be created, even by root
+        for check, path, why in ((check_output_folder, "/proc", "cannot be written ("),
+                                 (check_output_folder, "/proc/strokekit-x", "cannot be created in /proc ("),
+                                 (check_output_file, "/proc/x.json", "cannot be written: its folder /proc cannot be "
+                                                                     "written (")):
+            with pytest.raises(InputError) as e:
+                check(path)
+            assert str(e.value).startswith(f"{path}: {why}"), str(e.value)
+
+
+def test_temporary_files_are_told_from_other_dotfiles():
+    """A run removes only its own temporaries: ".<final name>.<random>.part"; a dotfile without the
+    suffix, a .part without the dot, or a name with no final name in it is not one of them."""
+    from strokekit.fileio import temp_file_target
+
+    assert temp_file_target(".frame_0001.svg.k2j4h5g6.part") == "frame_0001.svg"
+    assert temp_file_target("/out/bands/.frame.1.png.x.part") == "frame.1.png"
+    for name in (".frame_0001.svg.k2j4h5g6", "frame_0001.svg.k2j4h5g6.part", ".x.part", "..abc.part", ".part"):
+        assert temp_file_target(name) is None, name
 
 
 def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatch):

@@ -12,7 +12,20 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from strokekit.cryptomatte import header_attributes, layer_key, manifest_json, name_to_bits, name_to_hex, name_to_id
+from strokekit.cryptomatte import (
+    RankedMatte,
+    header_attributes,
+    layer_key,
+    manifest_json,
+    murmur3_32,
+    murmur3_32_py,
+    name_to_bits,
+    name_to_hex,
+    name_to_id,
+    rank_coverage,
+    rank_samples,
+    ranked_matte,
+)
 from strokekit.model import BACKGROUND_DEPTH
 from strokekit.options import QUALITY_PRESETS
 from strokekit.writers.exr import read_exr
@@ -48,6 +61,79 @@ def test_cryptomatte_ids_are_the_specifications():
     assert h == {"cryptomatte/3ae39a5/name": "CryptoObject", "cryptomatte/3ae39a5/hash": "MurmurHash3_32",
                  "cryptomatte/3ae39a5/conversion": "uint32_to_float32",
                  "cryptomatte/3ae39a5/manifest": '{"box":"%s"}' % name_to_hex("box")}
+
+
+def test_the_pure_python_hash_is_murmur3():
+    """The fallback when mmh3 is missing hashes as mmh3 does: every tail length (0 to 3 bytes
+    after the 4-byte blocks), other seeds, non-ASCII names, and the specification's values."""
+    mmh3 = pytest.importorskip("mmh3")
+    rng = np.random.default_rng(7)
+    for n in range(0, 41):
+        data = rng.integers(0, 256, n, dtype=np.uint8).tobytes()
+        for seed in (0, 1, 0x9747B28C, 0xFFFFFFFF):
+            assert murmur3_32_py(data, seed) == mmh3.hash(data, seed, signed=False), (n, seed)
+    assert murmur3_32_py("ümlaut".encode()) == murmur3_32("ümlaut")
+    assert murmur3_32_py(b"") == 0 and murmur3_32_py(b"", 1) == 0x514E28B7
+
+
+def test_cryptomatte_rank_0_holds_the_highest_coverage():
+    """The specification ranks the ids of a pixel by coverage, highest first (compositors read rank
+    0 first, and a keyer that stops early keeps the main object); equal coverages go by ascending
+    id bits; unused ranks hold id 0 and coverage 0. Checked on per-sample ranking, on per-name
+    coverage maps and on a raster pass whose edge pixels have samples of their own."""
+    names = ["ball", "box", "vase"]
+    ball, box, vase = (np.float32(name_to_id(n)) for n in names)
+    low, high = sorted((ball, box), key=lambda x: int(x.view(np.uint32)))
+    # pixel 0: ball 3 of 4 samples, box 1; pixel 1: box 2, vase 1, background 1; pixel 2: a tie
+    samples = np.array([[[0, 1, 0, 0], [1, -1, 2, 1], [1, 0, 0, 1]]])
+    m = rank_samples(samples, names, ranks=4)
+    assert m.ids[0, 0].tolist() == [ball, box, 0, 0] and m.coverage[0, 0].tolist() == [0.75, 0.25, 0, 0]
+    assert m.ids[0, 1].tolist() == [box, vase, 0, 0] and m.coverage[0, 1].tolist() == [0.5, 0.25, 0, 0]
+    assert m.ids[0, 2].tolist() == [low, high, 0, 0] and m.coverage[0, 2].tolist() == [0.5, 0.5, 0, 0]
+    c = rank_coverage({"ball": np.array([[0.2]]), "box": np.array([[0.7]]), "vase": np.array([[0.1]])}, ranks=2)
+    assert c.ids[0, 0].tolist() == [box, ball] and c.coverage[0, 0].tolist() == pytest.approx([0.7, 0.2])
+    r = ranked_matte(np.array([[2, -1]]), names, ranks=2, edge_pixels=np.array([1]),
+                     edge_samples=np.array([[2, 1, 1, -1]]))
+    assert r.ids[0].tolist() == [[vase, 0], [box, vase]] and r.coverage[0].tolist() == [[1, 0], [0.5, 0.25]]
+
+
+def test_ranked_coverage_maps_sum_colliding_names_and_say_bad_input():
+    """rank_coverage: per-pixel ranks of (H, W) maps of any shape, one name alone, the maps of
+    two names whose ids collide summed (the specification merges them), and a clear error for
+    no map or maps of different shapes."""
+    a, b = "object87560", "object154030"  # two names with one id
+    assert name_to_bits(a) == name_to_bits(b)
+    cov = {a: np.full((2, 3), 0.25), b: np.full((2, 3), 0.5), "box": np.linspace(0, 1, 6).reshape(2, 3)}
+    m = rank_coverage(cov, ranks=2)
+    assert m.ids.shape == (2, 3, 2) and m.ranks == 2
+    merged, box = np.float32(name_to_id(a)), np.float32(name_to_id("box"))
+    assert m.ids[0, 0].tolist() == [merged, 0] and m.coverage[0, 0].tolist() == [0.75, 0]  # box: 0 there
+    assert m.ids[1, 2].tolist() == [box, merged] and m.coverage[1, 2].tolist() == [1.0, 0.75]
+    one = rank_coverage({"box": np.array([[0.5, 0.0]])}, ranks=1)
+    assert one.ids.tolist() == [[[box], [0]]] and one.coverage.tolist() == [[[0.5], [0]]]
+    with pytest.raises(ValueError, match="^coverage is empty: give the frame size with at least one name$"):
+        rank_coverage({})
+    with pytest.raises(ValueError, match=r"coverage of 'vase' has shape \(1, 2\), expected \(2, 3\)"):
+        rank_coverage({"box": np.zeros((2, 3)), "vase": np.zeros((1, 2))})
+
+
+def test_a_ranked_matte_gives_the_exr_channels_and_each_names_matte():
+    """RankedMatte.channels: {type}00.R/G/B/A = ids and coverages of ranks 0 and 1, {type}01 of
+    ranks 2 and 3, an odd rank count padded with an empty rank, float32 whatever it was given;
+    matte(name or id) sums the coverage of that id over the ranks, as a compositor's decoder does."""
+    ids = np.array([[[1.5, 2.5, 3.5], [2.5, 0, 0]]], np.float64)
+    cov = np.array([[[0.5, 0.3, 0.2], [1.0, 0, 0]]], np.float64)
+    ch = RankedMatte(ids, cov).channels("CryptoObject")
+    assert sorted(ch) == sorted(f"CryptoObject{i:02d}.{c}" for i in range(2) for c in "RGBA")
+    assert all(v.dtype == np.float32 and v.shape == (1, 2) and v.flags.c_contiguous for v in ch.values())
+    assert ch["CryptoObject00.R"].tolist() == [[1.5, 2.5]] and ch["CryptoObject00.G"].tolist() == [[0.5, 1.0]]
+    assert ch["CryptoObject00.B"].tolist() == [[2.5, 0]] and ch["CryptoObject00.A"].tolist() == [[np.float32(0.3), 0]]
+    assert ch["CryptoObject01.R"].tolist() == [[3.5, 0]] and ch["CryptoObject01.G"].tolist() == [[np.float32(0.2), 0]]
+    assert ch["CryptoObject01.B"].tolist() == [[0, 0]] and ch["CryptoObject01.A"].tolist() == [[0, 0]]
+    m = rank_samples(np.array([[[0, 1, 1, -1], [1, 1, 1, 1]]]), ["ball", "box"], ranks=2)
+    box = m.matte("box")
+    assert box.dtype == np.float32 and box.tolist() == [[0.5, 1.0]]
+    assert m.matte(name_to_id("ball")).tolist() == [[0.25, 0]] and m.matte("vase").tolist() == [[0, 0]]
 
 
 # --- the EXR -----------------------------------------------------------------------------------------
@@ -91,6 +177,19 @@ def test_cryptomatte_coverage_sums_to_alpha_and_picks_objects(exr_run):
         if full.any():
             assert (matte[full] > 0).all(), name
     assert not any((i.view(np.uint32) == np.float32(name_to_id("nothing")).view(np.uint32)).any() for i in ids)
+
+
+def test_cryptomatte_ranks_in_the_exr_go_by_descending_coverage(exr_run):
+    """In the file a compositor reads: at every pixel the coverage of rank 0 (CryptoObject00.G) is
+    the highest, each further rank's no higher than the one before, and a rank without coverage
+    has id 0; on the frame's object edges pixels hold two ranks or more."""
+    ch, _ = read_exr(exr_run / "frame_0001.exr")
+    for t in ("CryptoObject", "CryptoMaterial"):
+        cov = np.stack([ch[f"{t}{i:02d}.{c}"] for i in range(2) for c in "GA"])
+        ids = np.stack([ch[f"{t}{i:02d}.{c}"] for i in range(2) for c in "RB"])
+        assert (cov[1] > 0).sum() > 50, t  # the frame has mixed pixels
+        assert (np.diff(cov, axis=0) <= 0).all(), t
+        assert (ids[cov == 0].view(np.uint32) == 0).all(), t
 
 
 def test_exr_depth_is_the_ray_cast_view_depth(exr_run):

@@ -69,6 +69,19 @@ def test_levels_match_the_exact_reference(torus_and_box, cam):
     assert acc.level_right >= 0.999
 
 
+def test_the_draft_preset_draws_the_levels_too(torus_and_box):
+    """The draft preset (edges shorter than 12 px get one level, no bisection) against the same
+    exact reference: precision and recall >= 0.99 at 1 px for the visible and the hidden lines,
+    the level right on >= 0.99 of the length."""
+    cam = _cameras()[0]
+    r = LineRenderer(torus_and_box, LineOptions.preset("draft", occlusion=(0, 15)))
+    ref = reference_drawing(torus_and_box, cam, HIDDEN, step_px=0.1, occluder=r.occluder)
+    acc = hidden_accuracy(torus_and_box, [r.render(cam)], [ref], tols=(1.0,), occluder=r.occluder)
+    assert acc.visible.precision[1.0] >= 0.99 and acc.visible.recall[1.0] >= 0.99, acc.visible
+    assert acc.hidden.precision[1.0] >= 0.99 and acc.hidden.recall[1.0] >= 0.99, acc.hidden
+    assert acc.level_right >= 0.99
+
+
 def test_visible_part_of_a_hidden_drawing_is_the_visible_drawing(torus_and_box):
     """Level 0 of --hidden draws what the visible-only run draws (same lines within 1 px both ways)."""
     from strokekit.metrics.accuracy import accuracy
@@ -78,6 +91,117 @@ def test_visible_part_of_a_hidden_drawing_is_the_visible_drawing(torus_and_box):
     visible = LineRenderer(torus_and_box, LineOptions()).render(cam)
     acc = accuracy([hidden.select(hidden.occlusion == 0)], [visible], tols=(1.0,))
     assert acc.precision[1.0] >= 0.999 and acc.recall[1.0] >= 0.999
+
+
+@pytest.fixture(scope="module")
+def torus_and_box_hidden(torus_and_box):
+    """The torus and box's drawing at every level, from the first camera."""
+    return LineRenderer(torus_and_box, HIDDEN).render(_cameras()[0])
+
+
+@pytest.mark.parametrize("levels", [(1, 1), (2, 15), (1, 2)], ids=["1", "2-", "1-2"])
+def test_an_occlusion_range_draws_those_levels_and_only_them(torus_and_box, torus_and_box_hidden, levels):
+    """`--occlusion A-B` (Line Art's range): the strokes drawn are the full drawing's strokes of
+    levels A to B, the same length at each level, and none of another level (a range that let
+    the levels below A through drew the visible lines under `--occlusion 1`)."""
+    full = torus_and_box_hidden
+    part = LineRenderer(torus_and_box, LineOptions(occlusion=levels)).render(_cameras()[0])
+    lo, hi = levels
+    assert len(part.lengths) and set(part.occlusion.tolist()) <= set(range(lo, hi + 1))
+    for lv in range(0, 16):
+        want = full.lengths[full.occlusion == lv].sum() if lo <= lv <= hi else 0.0
+        assert part.lengths[part.occlusion == lv].sum() == pytest.approx(want, rel=1e-9, abs=1e-9), lv
+
+
+def _drawn_segments(st: Strokes):
+    """Every drawn segment (two consecutive points of a stroke): the index of its second point,
+    the world points of its two ends (S, 3) and its stroke's occlusion level (S,)."""
+    first = np.zeros(len(st.points), bool)
+    first[st.offsets[:-1]] = True
+    seg = np.flatnonzero(~first)
+    return seg, st.surface[seg - 1], st.surface[seg], np.repeat(st.occlusion, np.diff(st.offsets))[seg]
+
+
+@pytest.mark.parametrize("quality", ["default", "draft"])
+def test_a_level_change_inside_an_edge_lies_where_the_edge_pierces_the_surface(quality):
+    """A stick through a plate: each of its long edges changes level where it pierces the plate,
+    a place no outline crosses (found by samples): there the level goes up by one, located to
+    bisection_tol_px by the default preset and, by the draft preset (no bisection), to half a
+    sample spacing, the middle of its bracket."""
+    plate = np.array([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], float)
+    sv, sf = box_mesh((-0.1, -0.1, -1.0), (0.1, 0.1, 1.0))
+    scene = build_scene(np.vstack([plate, sv]), np.vstack([[[0, 1, 2], [0, 2, 3]], sf + 4]))
+    cam = Camera(eye=(2.5, 1.8, 3.0), target=(0, 0, 0), up=(0, 0, 1), fov_y=40, width=600, height=600)
+    options = LineOptions.preset(quality, occlusion=(0, 15))
+    tol_px = options.bisection_tol_px if options.bisect_changes else options.sample_spacing_px / 2
+    st = LineRenderer(scene, options).render(cam)
+    _, A, B, level = _drawn_segments(st)
+    for sx in (-0.1, 0.1):
+        for sy in (-0.1, 0.1):
+            on = (np.abs(np.c_[A[:, :2], B[:, :2]] - [sx, sy, sx, sy]).max(axis=1) < 1e-9) & (A[:, 2] != B[:, 2])
+            lo, hi, lv = np.minimum(A[on, 2], B[on, 2]), np.maximum(A[on, 2], B[on, 2]), level[on]
+            above, below = set(lv[hi > 0.2].tolist()), set(lv[lo < -0.2].tolist())
+            assert len(above) == 1 and below == {min(above) + 1}, (sx, sy, sorted(zip(lo, hi, lv)))
+            # tol_px as a length along the edge at the plate
+            p0, p1 = cam.project(np.array([[sx, sy, 0.0], [sx, sy, 0.01]]))[0]
+            tol = (tol_px + 1e-3) * 0.01 / np.linalg.norm(p1 - p0)
+            up_end, down_end = lo[lv == min(above)].min(), hi[lv == min(below)].max()
+            assert abs(up_end) <= tol and abs(down_end) <= tol, (sx, sy, up_end, down_end, tol)
+
+
+def _wall_behind_plate():
+    """A square wall (z 0) and, in front of its left part, a plate (z 1) whose border x = 0.4
+    crosses the wall's border edges along x in the image."""
+    wall = [[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]]
+    plate = [[-2, -2, 1], [0.4, -2, 1], [0.4, 2, 1], [-2, 2, 1]]
+    return build_scene(np.array(wall + plate, float), np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]))
+
+
+def test_an_edge_shorter_than_whole_edge_px_has_one_level():
+    """`--whole-edge N`: an edge shorter than N px on screen gets one sample, so one level, also
+    where it passes behind an outline (the wall's edges, 150 px long, under N = 1000; with the
+    default N = 0 the same edges have two levels each)."""
+    cam = Camera(eye=(0.7, 0.4, 5.0), target=(0, 0, 0.5), up=(0, 1, 0), fov_y=45, width=500, height=500)
+    for whole, want in ((1000.0, {1}), (0.0, {2})):
+        st = LineRenderer(_wall_behind_plate(), LineOptions(occlusion=(0, 15), whole_edge_px=whole)).render(cam)
+        _, A, B, level = _drawn_segments(st)
+        for y in (-1.0, 1.0):
+            on = (np.abs(np.c_[A[:, 1:], B[:, 1:]] - [y, 0, y, 0]).max(axis=1) < 1e-9) & (A[:, 0] != B[:, 0])
+            assert {len(set(level[on].tolist()))} == want, (whole, y)
+
+
+@pytest.mark.parametrize("projection", ["perspective", "isometric"])
+def test_an_edge_changes_level_exactly_where_it_passes_behind_an_outline(projection):
+    """A wall's border edge passing behind the border of a plate in front: its level goes from
+    0 to 1 at the point where the two edges cross in the image, to float64 rounding (the cut is
+    put at the crossing, not searched for), with a perspective and a parallel camera."""
+    scene = _wall_behind_plate()
+    if projection == "perspective":
+        cam = Camera(eye=(0.7, 0.4, 5.0), target=(0, 0, 0.5), up=(0, 1, 0), fov_y=45, width=500, height=500)
+    else:
+        cam = Camera.parallel("isometric", (0.0, 0.0, 0.5), 6.0, ortho_height=5.0, width=500, height=500)
+    st = LineRenderer(scene, LineOptions(occlusion=(0, 15))).render(cam)
+
+    def crossing(p, q, r, s):  # image point where lines p-q and r-s cross
+        (p, q), (r, s) = cam.project(np.array([p, q], float))[0], cam.project(np.array([r, s], float))[0]
+        t = np.linalg.solve(np.c_[q - p, r - s], r - p)[0]
+        return p + t * (q - p)
+
+    seg, A, B, level = _drawn_segments(st)
+    checked = 0
+    for y in (-1.0, 1.0):  # the wall's two edges along x, behind the plate's edge x = 0.4 (where seen so)
+        want = crossing((-1, y, 0), (1, y, 0), (0.4, -2, 1), (0.4, 2, 1))
+        on = (np.abs(np.c_[A[:, 1:], B[:, 1:]] - [y, 0, y, 0]).max(axis=1) < 1e-9) & (A[:, 0] != B[:, 0])
+        ends = {lv: [] for lv in (0, 1)}
+        for k in np.flatnonzero(on):
+            ends[int(level[k])] += [st.points[seg[k] - 1], st.points[seg[k]]]
+        if not ends[1]:
+            continue
+        checked += 1
+        assert ends[0] and set(level[on].tolist()) == {0, 1}, y
+        for lv in (0, 1):
+            assert np.linalg.norm(np.array(ends[lv]) - want, axis=1).min() < 1e-6, (y, lv, want, ends[lv])
+    assert checked, "no edge of the wall passes behind the plate"
 
 
 def test_a_bracket_holding_two_changes_gives_both():
@@ -348,7 +472,9 @@ def test_line_options_refuse_a_bad_range():
     assert LineOptions(occlusion=(1, 15)).layers == tuple("hidden-" + k for k in LineOptions().kinds)
 
 
-def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path, capsys):
+@pytest.fixture
+def cube_and_camera(tmp_path):
+    """A unit cube (OBJ) and its isometric camera file, 200 x 200."""
     v, f = box_mesh((0, 0, 0), (1, 1, 1))
     obj = tmp_path / "c.obj"
     trimesh.Trimesh(v, f).export(obj)
@@ -356,6 +482,11 @@ def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path,
     with pytest.raises(SystemExit) as e:
         main(["camera", "parallel", str(obj), "--width", "200", "--height", "200", "-o", str(cam)])
     assert e.value.code == 0
+    return obj, cam
+
+
+def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path, capsys, cube_and_camera):
+    obj, cam = cube_and_camera
     with pytest.raises(SystemExit) as e:
         main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / "o"), "--hidden", "--explain"])
     out = capsys.readouterr().out
@@ -365,6 +496,24 @@ def test_render_cli_writes_hidden_layers_levels_and_explains_the_stage(tmp_path,
     assert {s["occlusion"] for s in doc["strokes"]} == {0, 1}  # the cube: its far corner's edges behind one face
     svg = (tmp_path / "o" / "frame_0001.svg").read_text()
     assert 'inkscape:label="hidden-crease"' in svg and "stroke-dasharray" in svg
+
+
+def test_render_cli_occlusion_1_draws_only_the_lines_behind_one_surface(tmp_path, capsys, cube_and_camera):
+    """`render --occlusion 1` on a cube seen from a corner: the three edges of the far corner,
+    each behind one face, and no visible edge (levels 0 and 1 were 7 strokes)."""
+    obj, cam = cube_and_camera
+    docs = {}
+    for value in ("1", "0", "0-1"):
+        with pytest.raises(SystemExit) as e:
+            main(["render", str(obj), "--camera", str(cam), "--out", str(tmp_path / value), "--occlusion", value, "-q"])
+        assert e.value.code == 0
+        docs[value] = json.loads((tmp_path / value / "frame_0001.json").read_text())
+    assert [s["occlusion"] for s in docs["1"]["strokes"]] == [1, 1, 1]
+    assert [s["occlusion"] for s in docs["0"]["strokes"]] == [0] * 4  # the outline, the near corner's 3 edges
+    both = sorted(json.dumps(s["points"]) for s in docs["0-1"]["strokes"])
+    assert both == sorted(json.dumps(s["points"]) for v in ("0", "1") for s in docs[v]["strokes"])
+    svg = (tmp_path / "1" / "frame_0001.svg").read_text()
+    assert "hidden-crease" in svg and 'inkscape:label="crease"' not in svg
 
 
 @pytest.mark.slow

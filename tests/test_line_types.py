@@ -511,8 +511,27 @@ def test_crease_threshold_splits_normals():
     cylinder's side edges turn by 5.6 degrees, so a threshold of 5 degrees splits every side
     edge too (the sides become flat facets: no smooth contour inside a face), 60 only the rims."""
     sc = cylinder_scene(sections=64)
-    assert sc.split_normals(60.0).split.sum() == 128
-    assert sc.split_normals(5.0).split.sum() == 128 + 64  # the rims and the vertical side edges
+    H = 2.0
+    ez = sc.vertices[sc.edges][:, :, 2]  # (E, 2) heights of each edge's ends
+    on_circle = (np.linalg.norm(sc.vertices[sc.edges][:, :, :2], axis=-1) > 0.25).all(axis=1)  # not a cap's spoke
+    rim = (ez[:, 0] == ez[:, 1]) & (np.abs(ez[:, 0]) == H / 2) & on_circle
+    side = ez[:, 0] == -ez[:, 1]  # from one rim to the other: vertical side edges and the diagonals
+    vertical = side & (np.abs(sc.vertices[sc.edges[:, 0], :2] - sc.vertices[sc.edges[:, 1], :2]).max(axis=1) < 1e-12)
+    assert rim.sum() == 128 and vertical.sum() == 64
+    fn = sc.face_normals
+    cap = np.abs(fn[:, 2]) > 0.5
+    smooth, facets = sc.split_normals(60.0), sc.split_normals(5.0)
+    assert np.array_equal(smooth.split, rim)
+    assert np.array_equal(facets.split, rim | vertical)  # the rims and the vertical side edges
+    # A corner's normal: a cap's is the cap's; a side corner's is radial at 60 degrees (the
+    # angle-weighted mean of the two side faces at it), its own face's at 5 degrees.
+    P = sc.vertices[sc.faces[~cap]]  # (side faces, 3, 3) corner positions
+    radial = P * [1, 1, 0] / np.linalg.norm(P[..., :2], axis=-1, keepdims=True)
+    for sn in (smooth, facets):
+        n = sn.normals[sn.corner]  # (F, 3, 3)
+        assert np.abs(n[cap] - fn[cap][:, None, :]).max() < 1e-12
+    assert np.abs(smooth.normals[smooth.corner][~cap] - radial).max() < 1e-9
+    assert np.abs(facets.normals[facets.corner][~cap] - fn[~cap][:, None, :]).max() < 1e-12
     cam = Camera(eye=(3.0, 1.5, 3.0), target=(0, 0, 0), up=(0, 0, 1))
     fe = smooth_contour_edges(FrameView(sc, cam), crease_angle_deg=5.0)
     V = len(sc.vertices)

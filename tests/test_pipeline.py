@@ -4,7 +4,6 @@ killed, and gives the same bytes in a process pool, inline or on a dask cluster.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -14,7 +13,7 @@ from functools import partial
 from pathlib import Path
 
 import pytest
-from helpers import SAMPLES, model_path
+from helpers import SAMPLES, cli_env, model_path
 
 from strokekit.metrics.svg_reader import read_svg
 from strokekit.scene.load import load_scene
@@ -120,7 +119,7 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
     scene = SAMPLES / "still_life.glb"
     base = [sys.executable, "-m", "strokekit_cli.main", "render", str(scene), "--orbit", "40", "--size", "640x480", "-q",
             "--workers", "1"]
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    env = cli_env()
     full = tmp_path / "full"
     subprocess.run(base + ["--out", str(full)], check=True, env=env)
     part = tmp_path / "part"
@@ -143,6 +142,32 @@ def test_killed_run_resumes_to_identical_output(tmp_path):
     # Frames that were complete were not rewritten.
     complete = [n for n in before if n.endswith(".svg") and n.replace(".svg", ".json") in before]
     assert complete and all(before[n] == (part / n).stat().st_mtime_ns for n in complete)
+
+
+def test_the_next_run_removes_the_temporaries_an_interrupted_one_left(tmp_path, capsys):
+    """A run killed mid-write leaves `.<name>.<random>.part` files (in the output folder and in
+    the pass folders); the next run into the folder removes them, also a resume with nothing
+    left to write, and keeps the frames it skips as they were."""
+    args = ["render", SAMPLES / "still_life.glb", "--orbit", "2", "--size", "64x48", "--bands", "3", "-q",
+            "--out", tmp_path / "o"]
+    out = tmp_path / "o"
+    leftovers = [out / ".frame_0001.svg.k2j4h5g6.part", out / ".frame_0002.json.a1b2c3d4.part",
+                 out / "bands" / ".frame_0001.png.q9w8e7r6.part", out / ".sequence.glb.z1x2c3v4.part"]
+
+    def plant():
+        for p in leftovers:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_bytes(b"half a file")
+
+    plant()
+    assert run_cli(args, capsys)[0] == 0
+    assert not [p for p in leftovers if p.exists()]
+    assert (out / "bands" / "frame_0001.png").exists() and not list(out.glob("**/.*.part"))
+    kept = {p: p.stat().st_mtime_ns for p in out.glob("**/frame_*")}
+    plant()
+    assert run_cli(args + ["--skip-existing"], capsys)[0] == 0
+    assert not list(out.glob("**/.*.part"))
+    assert {p: p.stat().st_mtime_ns for p in out.glob("**/frame_*")} == kept
 
 
 class CountingPool:
@@ -462,7 +487,7 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
 
     psutil = pytest.importorskip("psutil")
     out, report = tmp_path / "o", tmp_path / "run.json"
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    env = cli_env()
     env.pop("STROKEKIT_DEBUG", None)
     cmd = [sys.executable, "-m", "strokekit_cli.main", "render", str(SAMPLES / "still_life.glb"), "--orbit", "1000",
            "--size", "200x150", "--workers", "2", "--out", str(out), "--report", str(report)]
@@ -519,7 +544,8 @@ SMALL = ["--size", "64x64", "--workers", "1"]
 
 @pytest.mark.parametrize("change,part", [
     ("scene", "scene"), (["--kinds", "silhouette"], "options"), (["--stroke-width", "2"], "options"),
-    (["--quality", "draft"], "options"), (["--pattern", "f{frame:03d}", "--no-svg"], None)])
+    (["--quality", "draft"], "options"),
+    (["--pattern", "f{frame:03d}", "--no-svg"], None)])
 def test_skip_existing_refuses_frames_of_another_run(tmp_path, capsys, change, part):
     """The user trial: spot then cow into the same folder with --skip-existing said '4 already
     there, skipped' and left spot's frames. Now: exit 2, one line saying what differs, nothing
@@ -541,6 +567,46 @@ def test_skip_existing_refuses_frames_of_another_run(tmp_path, capsys, change, p
     # Without --skip-existing the run overwrites them and records itself.
     assert run_cli(args[:-len(SMALL) - 1] + SMALL + ([] if change == "scene" else change) + ["-q"], capsys)[0] == 0
     assert tree_bytes(out) != before
+
+
+def test_the_refused_resume_says_what_differs_in_one_line():
+    """not_a_resume, the line a refused --skip-existing prints: no manifest, another scene, other
+    options, both, or the cameras of some frames (as ranges, only frames present in both runs)."""
+    from strokekit.run.manifest import not_a_resume
+
+    out, fix = Path("out"), "remove them or render without --skip-existing"
+    new = {"scene": "s1", "options": "o1", "frames": {f: f"c{f}" for f in range(1, 10)}}
+
+    def said(**old):
+        return not_a_resume(out, {**new, **old}, new, {1, 2, 3, 5, 7, 9})
+
+    assert not_a_resume(out, None, new, {1}) == (
+        f"--skip-existing: out/ holds frames but no readable .strokekit-run.json to tell what they were rendered from; "
+        f"{fix}")
+    assert said(scene="s0") == f"--skip-existing: out/ holds frames of another scene (.strokekit-run.json differs: scene); {fix}"
+    assert said(options="o0") == (
+        f"--skip-existing: out/ holds frames of other options (.strokekit-run.json differs: options); {fix}")
+    assert said(scene="s0", options="o0") == (f"--skip-existing: out/ holds frames of another scene or other options "
+                                              f"(.strokekit-run.json differs: scene, options); {fix}")
+    moved = {**new["frames"], 1: "x", 2: "x", 3: "x", 7: "x", 8: "x"}
+    moved.pop(9)
+    assert said(frames=moved) == (f"--skip-existing: out/ holds frames of another run (.strokekit-run.json differs: "
+                                  f"cameras of frames 1-3, 7); {fix}")
+
+
+def test_skip_existing_sees_a_brush_image_whose_bytes_changed(tmp_path, capsys):
+    """A user's brush PNG goes into every GLB: the same file name with other pixels is another run."""
+    from PIL import Image
+
+    cube, _ = _scenes(tmp_path)
+    brush = tmp_path / "brush.png"
+    Image.new("RGBA", (8, 4), (0, 0, 0, 255)).save(brush)
+    args = ["render", cube, "--orbit", "2", "--out", tmp_path / "o", "--gltf", "--brush", brush, "-q"] + SMALL
+    assert run_cli(args, capsys)[0] == 0
+    assert run_cli(args + ["--skip-existing"], capsys)[0] == 0  # the same image: nothing to do
+    Image.new("RGBA", (8, 4), (0, 0, 0, 128)).save(brush)
+    code, _, err = run_cli(args + ["--skip-existing"], capsys)
+    assert code == 2 and ".strokekit-run.json differs: options" in err, err
 
 
 def test_skip_existing_refuses_frames_without_a_manifest(tmp_path, capsys):

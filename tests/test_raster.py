@@ -884,3 +884,37 @@ def test_png_bytes_are_valid_deterministic_and_round_trip():
         assert png_bytes(a.copy()) == data
     with pytest.raises(ValueError):
         png_bytes(np.zeros((4, 4), np.float32))
+
+
+def test_raster_passes_are_the_same_bytes_in_another_process(tmp_path, capsys):
+    """A user's rerun is another process (another hash seed, kernels loaded from numba's cache),
+    and a pool worker draws frames too: every pass file (bands, masks, shade, object ids, depth,
+    fill, lines, the EXR, the polygons' SVG) and the run manifest are the same bytes, here, in a
+    new interpreter and with a pool worker drawing one of the frames."""
+    import subprocess
+    import sys
+
+    from helpers import SAMPLES, cli_env
+
+    from strokekit_cli.main import main
+
+    args = ["render", str(SAMPLES / "still_life.glb"), "--orbit", "2", "--size", "96x72", "--bands", "3", "--masks",
+            "--objectid", "--depth", "--fill", "--band-polygons", "--exr", "--lines-png", "-q"]
+    with pytest.raises(SystemExit) as e:
+        main(args + ["--out", str(tmp_path / "here")])
+    assert e.value.code == 0, capsys.readouterr().err
+    for name, extra in (("rerun", ["--workers", "1"]), ("pool", ["--workers", "2"])):
+        subprocess.run([sys.executable, "-m", "strokekit_cli.main", *args, *extra, "--out", str(tmp_path / name)],
+                       check=True, env=cli_env(PYTHONHASHSEED=str(len(name))), cwd=tmp_path)
+
+    def files(d):
+        return {str(p.relative_to(d)): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+    here = files(tmp_path / "here")
+    assert {"bands/frame_0002.png", "mask1/frame_0001.png", "fill/frame_0001.png", "frame_0002.exr",
+            ".strokekit-run.json"} <= set(here), sorted(here)
+    for name in ("rerun", "pool"):
+        there = files(tmp_path / name)
+        assert sorted(there) == sorted(here), name
+        assert [k for k in here if here[k] != there[k]] == [], name
+
