@@ -203,3 +203,10 @@ def test_docs_name_real_options():
             if flag not in known and flag not in OTHER_TOOLS_FLAGS | benchmark_flags():
                 unknown.setdefault(flag, []).append(p.name)
     assert not unknown, unknown
+
+
+def test_every_docs_page_is_in_the_nav():
+    # mkdocs --strict (CI) refuses a page left out of the nav; this says so in seconds.
+    nav = set(re.findall(r":\s*([\w./-]+\.md)\s*$", (ROOT / "mkdocs.yml").read_text(), re.M))
+    pages = {p.relative_to(ROOT / "docs").as_posix() for p in (ROOT / "docs").rglob("*.md")}
+    assert pages - nav == set(), "add these pages to mkdocs.yml's nav"
