@@ -1,4 +1,4 @@
-"""The exact reference for hidden lines (issue 20 bars): every candidate mesh edge sampled finely
+"""The exact reference for hidden lines: every candidate mesh edge sampled finely
 on screen and the occlusion level of each sample counted by the definition (BRIEF 2: the
 triangles the open segment from the point to the eye crosses, the edge's own faces excluded),
 in float64; and the measures of a hidden-line drawing against it.

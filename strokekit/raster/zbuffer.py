@@ -1,4 +1,4 @@
-"""A z-buffer rasterizer for the raster pass (issue 17): face id, view depth and barycentrics of
+"""A z-buffer rasterizer for the raster pass: face id, view depth and barycentrics of
 the first surface behind the near plane, per sample, for perspective and orthographic cameras.
 
 Imports numpy and numba only. It returns what the ray-cast pass (strokekit's `cast_pixels` /
