@@ -378,6 +378,7 @@ class NodeTree:
     def __init__(self, g, data: GltfData):
         self.g, self.data = g, data
         self.nodes = g.nodes or []
+        self._fixed: dict[int, np.ndarray] = {}  # node -> its local matrix, where no channel drives it
         self.parent: dict[int, int] = {}
         for i, n in enumerate(self.nodes):
             for c in field_of(n, "children") or []:
@@ -401,12 +402,15 @@ class NodeTree:
         n, what = self.nodes[ni], f"node {ni}"
         frames = len(times)
         animated = {p for (node, p) in channels if node == ni and p in GLTF_TRS}
+        if not animated and ni in self._fixed:
+            return np.broadcast_to(self._fixed[ni], (frames, 4, 4))
         fixed = node_matrix(n, what, self.data)
         if fixed is not None:
             if animated:
                 raise self.data.error(f"animation targets {what}, which has a matrix (glTF allows only TRS there)")
             if not np.all(np.isfinite(fixed)):
                 raise self.data.error(f"{what} has a non-finite matrix")
+            self._fixed[ni] = fixed
             return np.broadcast_to(fixed, (frames, 4, 4))
         trs = {}
         for p in ("translation", "rotation", "scale"):
@@ -414,7 +418,10 @@ class NodeTree:
                 trs[p] = channels[(ni, p)].at(times, p == "rotation")
             else:
                 trs[p] = np.broadcast_to(rest_trs(n, p, what, self.data), (frames, GLTF_TRS[p]))
-        return trs_matrices(trs["translation"], trs["rotation"], trs["scale"])
+        m = trs_matrices(trs["translation"], trs["rotation"], trs["scale"])
+        if not animated:
+            self._fixed[ni] = m[0]
+        return m
 
     def world(self, node: int, channels: Channels, times: np.ndarray, cache: dict | None = None) -> np.ndarray:
         """(T, 4, 4) node's world matrix at `times`: L_root @ ... @ L_node. `cache` ({node:

@@ -13,6 +13,7 @@ import numpy as np
 
 if TYPE_CHECKING:  # the model holds a frame's Camera; the camera stage imports the model's KINDS nowhere
     from strokekit.camera.view import Camera
+    from strokekit.scene.motion import ScenePose
 
 #: Line kinds in layer order. The index is what `kind` arrays hold.
 KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmanifold",
@@ -144,7 +145,9 @@ class Strokes:
     points (N, 2) pixels; surface (N, 3) world points the 2D points came from; face (N,) the mesh
     face under each point (-1 unknown); u (N,) parametrization in texture periods; offsets (S+1,)
     so that stroke s is points[offsets[s]:offsets[s+1]]; kind (S,) int8 into KINDS; ids (S,)
-    persistent stroke ids; level, level_weight (S,) self-similar texture octave and blend weight."""
+    persistent stroke ids; level, level_weight (S,) self-similar texture octave and blend weight.
+    pose: where the scene's objects were in this frame (None: a still scene), so that a surface
+    point can be carried with its object (scene.motion.carry_points)."""
 
     points: np.ndarray
     surface: np.ndarray
@@ -158,6 +161,7 @@ class Strokes:
     camera: Camera | None = None
     frame: int = 0
     period_px: float = 30.0
+    pose: ScenePose | None = None
 
     def __len__(self) -> int:
         return len(self.offsets) - 1

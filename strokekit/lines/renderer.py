@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,24 +21,45 @@ from strokekit.model import Strokes
 from strokekit.numba_cache import keyboard_interrupts
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene
-from strokekit.scene.occluder import Occluder
+from strokekit.scene.occluder import Occluder, PosedRays
 
 
 @dataclass
 class LineRenderer:
-    """Holds what is built once per scene (BVH, static features) for many frames."""
+    """Holds what is built once per scene (BVH, static features) for many frames. `occluder`:
+    the scene's ray backend when built elsewhere (a posed scene's, see `at`)."""
 
     scene: Scene
     options: LineOptions
     backend: str | None = None
-    occluder: Occluder = field(init=False)
+    occluder: Occluder | None = None
 
     def __post_init__(self):
-        self.occluder = Occluder(self.scene, self.backend)
+        if self.occluder is None:
+            self.occluder = Occluder(self.scene, self.backend)
         self.static = static_features(self.scene, self.options)
         if not self.options.retest_front_hits and self.occluder.backend == "open3d":
             _ = self.scene.face_normal_rows  # built with the scene, not by the first frame
         self._edge_on: tuple[bytes, Occluder] | None = None
+        self._posed: dict = {}  # animation -> (PosedRays, the last posed scene's renderer)
+
+    def at(self, time: float, animation: str | None = None) -> LineRenderer:
+        """The renderer of the scene at `time` seconds of its animation `animation` (a name or
+        number; None: the first): this renderer for a still scene (or one the animation leaves
+        still), else one of the posed scene, whose objects keep their BVHs (PosedRays) from
+        frame to frame."""
+        motion = self.scene.motion
+        if motion is None or self.scene.pose is not None:
+            return self
+        index = motion.animation(animation)
+        if not motion.moves(index):
+            return self
+        rays, last = self._posed.get(index) or (PosedRays(self.scene, index, self.backend), None)
+        posed = self.scene.at(time, index)
+        if last is None or last.scene is not posed:
+            last = LineRenderer(posed, self.options, self.backend, rays.occluder(posed))
+        self._posed[index] = (rays, last)
+        return last
 
     def occluder_for(self, view: FrameView) -> Occluder:
         """The occluder of this frame's rays: the scene, less the faces the camera sees exactly
@@ -90,6 +111,8 @@ class LineRenderer:
         strokes = split_max_length(strokes, opts.max_length_px)
         strokes = drop_short(strokes, opts.min_length_px)
         strokes = simplify(strokes, opts.simplify_tol_px)
+        if self.scene.pose is not None:
+            strokes = strokes.replace(pose=self.scene.pose)
         clock.lap("chaining")
         return strokes
 
