@@ -62,6 +62,20 @@ class Scene(SceneTables):
     #: Where the objects are in this scene (None: at rest, as the file places them).
     pose: ScenePose | None = None
 
+    def framing(self, animation: str | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+        """(centre (3,), radius, points (N, 3)) that frame the scene for a camera: its own, or for
+        a moving scene those over its whole animation `animation` (a name or number; None: the
+        first), the points of its poses at SceneMotion.sample_times."""
+        m = self.motion
+        ai = m.animation(animation) if m is not None else None
+        if m is None or not m.moves(ai):
+            return self.center, self.radius, self.vertices
+        _, c, r = m.extent(ai)
+        times = m.sample_times(ai)
+        pick = times[np.unique(np.linspace(0, len(times) - 1, min(len(times), 64)).round().astype(int))]
+        used = m.rest.vertex_of >= 0
+        return c, r, np.concatenate([m.file_vertices_at(ai, float(t))[used] for t in pick])
+
     def at(self, time: float, animation: int | None = 0) -> Scene:
         """The scene at `time` seconds of its motion's animation `animation` (an index; None: no
         animation, the objects in their rest pose): the scene itself when nothing moves."""
@@ -206,6 +220,9 @@ class Scene(SceneTables):
             "crease_edges_60deg": int(self.crease_mask(60.0).sum()),
             "material_boundary_edges": int(self.is_material_boundary.sum()),
             "line_kinds": self.available_kinds(),
+            **({"animations": [{"index": a.index, "name": a.name, "start": a.start, "end": a.end,
+                                "seconds": a.end - a.start, "moves": self.motion.moves(a.index)}
+                               for a in self.motion.animations]} if self.motion is not None else {}),
         }
 
     def available_kinds(self, crease_deg: float = 60.0) -> list[str]:
