@@ -161,7 +161,7 @@ class Strokes:
     camera: Camera | None = None
     frame: int = 0
     period_px: float = 30.0
-    pose: ScenePose | None = None
+    pose: ScenePose | RecordedPose | None = None
 
     def __len__(self) -> int:
         return len(self.offsets) - 1
@@ -366,3 +366,42 @@ class RasterPasses:
 
 #: View depth of background pixels in depth passes: what Blender's Cycles and Eevee write there.
 BACKGROUND_DEPTH = 1e10
+
+
+@dataclass(frozen=True, eq=False)
+class RecordedPose:
+    """A frame's pose as its JSON recorded it (read back: writers.strokes_json; a posed scene's
+    own is strokekit.scene.motion.ScenePose, and carry_points takes either): each object's
+    world matrix (O, 4, 4) and whether it deforms, and the frame's own stroke points' objects
+    (N,) and object points (N, 3). It moves rigid objects' points only: a deforming object's
+    points need the scene (their world point is kept)."""
+
+    matrix: np.ndarray
+    deforms: np.ndarray
+    obj: np.ndarray
+    local: np.ndarray
+
+    @staticmethod
+    def from_json(head: dict, obj: np.ndarray, local: np.ndarray) -> "RecordedPose":
+        objects = head.get("objects") or []
+        m = np.array([o["matrix"] for o in objects], float).reshape(-1, 4, 4)
+        return RecordedPose(m, np.array([bool(o.get("deforms")) for o in objects]), obj, local)
+
+    def input_faces(self, face: np.ndarray) -> np.ndarray:
+        return np.asarray(face, np.int64)
+
+    def object_points(self, X: np.ndarray, face: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The recorded objects and object points of the frame's own points X."""
+        if len(X) != len(self.obj):
+            raise ValueError("a recorded pose knows the object points of its own frame's points only")
+        return self.obj, self.local
+
+    def world_points(self, obj: np.ndarray, local: np.ndarray, input_face: np.ndarray) -> np.ndarray:
+        """World points of object points; NaN where the object deforms or is unknown."""
+        obj = np.asarray(obj, np.int64)
+        out = np.full((len(obj), 3), np.nan)
+        rigid = (obj >= 0) & (obj < len(self.matrix))
+        rigid[rigid] = ~self.deforms[obj[rigid]]
+        M = self.matrix[obj[rigid]]
+        out[rigid] = np.einsum("nij,nj->ni", M[:, :3, :3], np.asarray(local, float)[rigid]) + M[:, :3, 3]
+        return out

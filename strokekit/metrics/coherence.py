@@ -38,6 +38,7 @@ from strokekit.errors import InputError
 from strokekit.fileio import check_pattern
 from strokekit.model import Strokes
 from strokekit.sampling import MATCH_RADIUS_PX, MIN_TANGENT_DOT, Samples, match_samples, resample_strokes
+from strokekit.scene.motion import carry_points
 from strokekit.writers.strokes_json import read_strokes_json
 
 
@@ -125,11 +126,17 @@ def pair_metrics(prev: Strokes, cur: Strokes, *, radius_px: float = MATCH_RADIUS
                  min_tangent_dot: float = MIN_TANGENT_DOT, prev_samples: Samples | None = None,
                  cur_samples: Samples | None = None) -> PairMetrics:
     """BRIEF 3 metrics between the strokes of frame f-1 (`prev`) and frame f (`cur`). Both need
-    their camera. The sliding uses cur.period_px."""
+    their camera. The sliding uses cur.period_px. In a moving scene (the strokes' pose) each
+    frame's surface points move with their objects to where they are in the other frame before
+    they are projected with its camera (so the samples given are not used)."""
     if prev.camera is None or cur.camera is None:
         raise InputError("coherence metrics need the camera of both frames")
-    a = prev_samples if prev_samples is not None else resample_strokes(prev, 1.0)
-    b = cur_samples if cur_samples is not None else resample_strokes(cur, 1.0)
+    if prev.pose is not None or cur.pose is not None:
+        a = resample_strokes(prev, 1.0, surface=carry_points(prev.surface, prev.face, prev.pose, cur.pose))
+        b = resample_strokes(cur, 1.0, surface=carry_points(cur.surface, cur.face, cur.pose, prev.pose))
+    else:
+        a = prev_samples if prev_samples is not None else resample_strokes(prev, 1.0)
+        b = cur_samples if cur_samples is not None else resample_strokes(cur, 1.0)
     P = cur.period_px
     ta = cKDTree(a.p) if len(a) else None
     tb = cKDTree(b.p) if len(b) else None

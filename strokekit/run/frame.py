@@ -54,6 +54,8 @@ class Frame:
     def to_json(self) -> bytes:
         """The frame JSON (writers.strokes_json), as the run writes it."""
         head = {**self.json_head, "raster": self.raster_info} if self.raster_info else self.json_head
+        if self.strokes.pose is not None:  # a moving scene: where its objects were
+            head = {**head, "animation": self.animation, **self.strokes.pose.to_json()}
         cam = self.strokes.camera
         return strokes_json(self.strokes, cam.width, cam.height, self.number, extra=head, paths=self.paths)
 
@@ -140,5 +142,8 @@ class StrokeCarry:
         if self.paths is not None:
             t = time.perf_counter()
             paths = self.paths.step(lines)
+            if lines.pose is not None:  # (the paths lie on the frame's posed scene too)
+                paths = replace(paths, strokes=paths.strokes.replace(pose=lines.pose),
+                                lines=paths.lines.replace(pose=lines.pose))
             timings["brush paths"] = time.perf_counter() - t
         return replace(frame, lines=lines, paths=paths, timings=timings)

@@ -98,6 +98,15 @@ class ScenePose:
     face_file: np.ndarray | None
     face_object: np.ndarray
     time: float = 0.0
+    names: tuple[str, ...] = ()
+
+    def to_json(self) -> dict:
+        """What a frame JSON says of the pose: the time (s), and each object's name, its world
+        matrix (4 rows) and whether its mesh deforms (its "local" points are then in its mesh's
+        bind pose)."""
+        return {"time": self.time, "objects": [
+            {"name": n, "matrix": np.round(m, 12).tolist(), "deforms": k in self.deforming}
+            for k, (n, m) in enumerate(zip(self.names, self.matrix))]}
 
     def input_faces(self, face: np.ndarray) -> np.ndarray:
         """The input face of scene faces `face` (-1 stays -1)."""
@@ -143,14 +152,18 @@ class ScenePose:
         return v[self.file_faces[input_face] - part.vertices.start]
 
 
-def carry_points(X: np.ndarray, face: np.ndarray, src: ScenePose | None, dst: ScenePose | None) -> np.ndarray:
-    """World points X (N, 3) on scene faces `face` of the scene posed by `src`, moved with their
-    objects to where they are in the scene posed by `dst`. A scene at rest (None) does not
-    move: X as it is."""
+def carry_points(X: np.ndarray, face: np.ndarray, src, dst) -> np.ndarray:
+    """World points X (N, 3) on scene faces `face` of the scene posed by `src` (a ScenePose or
+    RecordedPose), moved with their objects to where they are in the scene posed by `dst`. A
+    scene at rest (None) does not move: X as it is, as for a point whose move is not known."""
     if src is None or dst is None or src is dst:
         return X
     obj, local = src.object_points(X, face)
-    return dst.world_points(obj, local, src.input_faces(face))
+    out = dst.world_points(obj, local, src.input_faces(face))
+    unknown = ~np.isfinite(out).all(axis=1)
+    if unknown.any():
+        out[unknown] = np.asarray(X, float)[unknown]
+    return out
 
 
 def _carry_on_faces(X: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
@@ -415,7 +428,7 @@ class SceneMotion:
                             dropped_duplicate=w.dropped_duplicate)
         deforming = {k: V[p.vertices] for k, p in enumerate(self.parts) if self.kind(ai, k) == DEFORMING}
         pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, face_file,
-                         self.file_face_object, float(t))
+                         self.file_face_object, float(t), tuple(rest.objects))
         return replace(scene, pose=pose)
 
 

@@ -1,0 +1,303 @@
+"""Scenes that move: glTF node animation, skins and morph targets posed on the CPU, each frame the
+scene a static file of its posed vertices would give, drawn as that scene is drawn; the objects'
+surface points carried with them from frame to frame. The animated files are made here
+(tests/animated.py) or are the CesiumMilkTruck's own animation (its two wheels turning)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pygltflib
+import pytest
+from animated import (
+    Doc,
+    skinned_tube_glb,
+    skinned_tube_vertices,
+    turntable_glb,
+    yaw_matrix,
+)
+from helpers import model_path, run_cli
+from scipy.spatial.transform import Rotation, Slerp
+
+from strokekit.camera.paths import orbit_path
+from strokekit.camera.view import Camera
+from strokekit.errors import InputError
+from strokekit.lines.renderer import LineRenderer
+from strokekit.metrics.accuracy import frame_accuracy
+from strokekit.model import Strokes
+from strokekit.options import LineOptions
+from strokekit.run.request import RenderRequest
+from strokekit.run.sequence import render_sequence
+from strokekit.scene.load import build_scene, load_scene
+from strokekit.scene.motion import carry_points
+from strokekit.writers.svg import svg_document
+
+TRUCK = "CesiumMilkTruck.glb"
+
+
+def static_of(scene, t: float, animation: int = 0):
+    """The static scene a file of the scene's posed vertices at time t gives (no motion)."""
+    m = scene.motion
+    return build_scene(m.file_vertices_at(animation, t), m.file_faces, m.file_face_object, m.file_face_material,
+                       objects=scene.objects, materials=scene.materials, source=scene.source)
+
+
+def svg(strokes: Strokes, options: LineOptions) -> str:
+    cam = strokes.camera
+    return svg_document(strokes, cam.width, cam.height, options.layers)
+
+
+@pytest.fixture(scope="module")
+def truck():
+    return load_scene(model_path(TRUCK))
+
+
+@pytest.fixture(scope="module")
+def tube_file(tmp_path_factory):
+    return skinned_tube_glb(tmp_path_factory.mktemp("tube") / "tube.glb")
+
+
+# --- posing ----------------------------------------------------------------------------------------
+
+def test_the_truck_wheels_turn_as_their_keys_say(truck):
+    """The wheels' rows are the wheel mesh turned by the rotation slerped between the file's keys
+    (scipy's Slerp here) under the wheel node's parent matrix; the body's rows stay at rest."""
+    g = pygltflib.GLTF2().load(str(model_path(TRUCK)))
+    m = truck.motion
+    anim = g.animations[0]
+    moved = 0
+    for t in (0.1, 0.55, 1.2):
+        V = m.file_vertices_at(0, t)
+        for k, part in enumerate(m.parts):
+            rows = V[part.vertices]
+            ch = [c for c in anim.channels if c.target.node == part.node]
+            if not ch:
+                assert m.kind(0, k) == "static"
+                assert np.array_equal(rows, m.file_vertices[part.vertices])
+                continue
+            smp = anim.samplers[ch[0].sampler]
+            from strokekit.animation import GltfData
+
+            data = GltfData(g, model_path(TRUCK))
+            keys, quats = data.accessor(smp.input, "keys")[:, 0], data.accessor(smp.output, "values")
+            R = Slerp(keys, Rotation.from_quat(quats))([t]).as_matrix()[0]
+            parent = next(i for i, n in enumerate(g.nodes) if part.node in (n.children or []))
+            P = np.array(g.nodes[parent].matrix, float).reshape(4, 4).T
+            want = part.mesh_vertices @ (P[:3, :3] @ R).T + P[:3, 3]
+            assert np.allclose(rows, want, atol=1e-9)
+            moved += 1
+    assert moved == 6
+
+
+def test_a_skinned_tube_bends_as_its_joints_say(tube_file):
+    """Linear blend skinning of the tube's two joints, as computed here from the known bend."""
+    s = load_scene(tube_file)
+    for t in (0.0, 0.3, 0.75, 1.5):
+        assert np.allclose(s.motion.file_vertices_at(0, t), skinned_tube_vertices(t), atol=1e-6)
+    assert np.abs(s.motion.file_vertices_at(0, 1.0) - s.motion.file_vertices_at(0, 0.0)).max() > 0.5
+
+
+@pytest.mark.parametrize("which", ["truck", "tube"])
+def test_a_posed_scene_is_the_static_scene_of_its_posed_vertices(which, truck, tube_file):
+    """Same vertices (welded, in the weld's order), faces, objects, materials and topology as a
+    scene built from the posed vertices."""
+    scene = truck if which == "truck" else load_scene(tube_file)
+    for t in (0.0, 0.4, 0.9, 2.0):
+        posed, ref = scene.at(t, 0), static_of(scene, t)
+        for name in ("vertices", "faces", "face_object", "face_material"):
+            assert np.array_equal(getattr(posed, name), getattr(ref, name)), name
+        for a, b in zip(posed._topology, ref._topology):
+            assert np.array_equal(a, b)
+        assert posed.content_hash == ref.content_hash
+
+
+# --- lines of posed frames -------------------------------------------------------------------------
+
+def test_posed_truck_frames_draw_the_static_scenes_lines_byte_for_byte(truck):
+    """Every frame of the wheels' turn, from four sides: the SVG of the posed frame is the SVG of a
+    static scene of its posed vertices, and its lines are those within 1 px of the exact preset's
+    (P and R >= 0.999)."""
+    opts, exact = LineOptions(), LineOptions.preset("exact")
+    base = LineRenderer(truck, opts)
+    cams = orbit_path(*truck.framing()[:2], 4).cameras
+    for k in range(0, 31, 5):
+        t, cam = k / 24, cams[k % 4]
+        drawn = base.at(t).render(cam, k + 1)
+        ref = static_of(truck, t)
+        assert svg(drawn, opts) == svg(LineRenderer(ref, opts).render(cam, k + 1), opts)
+        if k % 10 == 0:
+            acc = frame_accuracy(drawn, LineRenderer(ref, exact).render(cam, k + 1), tols=(1.0,))
+            assert acc.precision[1.0] >= 0.999 and acc.recall[1.0] >= 0.999
+
+
+def test_posed_tube_frames_draw_the_static_scenes_lines_byte_for_byte(tube_file):
+    s = load_scene(tube_file)
+    opts, exact = LineOptions(), LineOptions.preset("exact")
+    base = LineRenderer(s, opts)
+    cam = orbit_path(*s.framing()[:2], 1).cameras[0]
+    for k in (0, 6, 12, 24):
+        t = k / 24
+        drawn = base.at(t).render(cam, k + 1)
+        ref = static_of(s, t)
+        assert svg(drawn, opts) == svg(LineRenderer(ref, opts).render(cam, k + 1), opts)
+        acc = frame_accuracy(drawn, LineRenderer(ref, exact).render(cam, k + 1), tols=(1.0,))
+        assert acc.precision[1.0] >= 0.999 and acc.recall[1.0] >= 0.999
+    # the bend moves the drawing
+    assert svg(base.at(0.0).render(cam), opts) != svg(base.at(1.0).render(cam), opts)
+
+
+# --- a turntable is an orbit ---------------------------------------------------------------------
+
+def spot_turntable(tmp_path, frames: int):
+    spot = load_scene(model_path("spot.obj"))
+    V = spot.vertices - spot.center
+    return (turntable_glb(tmp_path / "turn.glb", V, spot.faces, frames=frames),
+            turntable_glb(tmp_path / "still.glb", V, spot.faces, frames=frames, animated=False))
+
+
+def relative_orbit(still_camera: Camera, frames: int, deg_per_frame: float = 3.0) -> list[Camera]:
+    """The cameras that see the still object as the still camera sees it turned by deg_per_frame
+    a frame about +Y through the origin."""
+    out = []
+    for k in range(frames):
+        R = yaw_matrix(deg_per_frame * k).T
+        out.append(Camera(eye=tuple(R @ np.asarray(still_camera.eye)), target=tuple(R @ np.asarray(still_camera.target)),
+                          up=tuple(R @ np.asarray(still_camera.up)), fov_y=still_camera.fov_y,
+                          width=still_camera.width, height=still_camera.height))
+    return out
+
+
+def test_a_turntable_draws_what_the_orbit_of_the_same_relative_motion_draws(tmp_path):
+    """The object turned 3 degrees a frame before a still camera, and the still object seen from
+    the cameras of the same relative motion: every frame's lines within 0.05 px (P and R >=
+    0.999)."""
+    frames = 16
+    turn, still = spot_turntable(tmp_path, frames)
+    s = load_scene(turn)
+    cam = orbit_path(*s.framing()[:2], 1, elevation=20.0).cameras[0]
+    request = RenderRequest(strokes="lines", coherence="none")
+    a = [f.lines for f in render_sequence(turn, [cam] * frames, request)]
+    b = [f.lines for f in render_sequence(still, relative_orbit(cam, frames), request)]
+    for x, y in zip(a, b):
+        acc = frame_accuracy(x, y, tols=(0.05,))
+        assert acc.precision[0.05] >= 0.999 and acc.recall[0.05] >= 0.999
+    assert svg(a[0], request.lines) != svg(a[5], request.lines)
+
+
+def test_points_carried_with_a_turning_object_land_on_it_again(tmp_path):
+    """A frame's surface points carried to the next frame are the points turned by the frame's
+    3 degrees; carried back they are where they were."""
+    turn, _ = spot_turntable(tmp_path, 4)
+    s = load_scene(turn)
+    a, b = s.at(0.0, 0), s.at(1 / 24, 0)
+    face = np.arange(0, len(a.faces), 97)
+    X = a.vertices[a.faces[face]].mean(axis=1)
+    Y = carry_points(X, face, a.pose, b.pose)
+    assert np.allclose(Y, X @ yaw_matrix(3.0).T, atol=1e-6)
+    assert np.allclose(carry_points(Y, face, b.pose, a.pose), X, atol=1e-9)
+
+
+# --- the frame JSON ----------------------------------------------------------------------------------
+
+def test_a_moving_scenes_frame_json_gives_each_points_object_and_its_point_there(tmp_path, truck):
+    frames = list(render_sequence(model_path(TRUCK), [orbit_path(*truck.framing()[:2], 1).cameras[0]] * 3,
+                                  RenderRequest(strokes="lines", coherence="none")))
+    d = json.loads(frames[2].to_json())
+    assert d["time"] == pytest.approx(2 / 24) and len(d["objects"]) == len(truck.objects)
+    M = np.array([o["matrix"] for o in d["objects"]])
+    for st in d["strokes"]:
+        obj, local, X = np.array(st["object"]), np.array(st["local"]), np.array(st["surface"])
+        assert (obj >= 0).all()
+        back = np.einsum("nij,nj->ni", M[obj][:, :3, :3], local) + M[obj][:, :3, 3]
+        assert np.allclose(back, X, atol=1e-6)
+
+
+def test_a_still_scenes_frame_json_has_no_pose(tmp_path):
+    spot = load_scene(model_path("spot.obj"))
+    f = next(render_sequence(spot, orbit_path(spot.center, spot.radius, 1)))
+    d = json.loads(f.to_json())
+    assert "time" not in d and "objects" not in d and "local" not in d["strokes"][0]
+
+
+# --- info, framing, bad input ----------------------------------------------------------------------
+
+def test_info_lists_the_animations_and_their_length(capsys):
+    code, out, _ = run_cli(["info", model_path(TRUCK)], capsys)
+    assert code == 0 and "animations  0: 1.25 s" in out
+    code, out, _ = run_cli(["info", model_path(TRUCK), "--json"], capsys)
+    assert json.loads(out)["animations"] == [{"index": 0, "name": "", "start": 0.0, "end": 1.25, "seconds": 1.25,
+                                              "moves": True}]
+
+
+def test_camera_orbit_frames_the_scene_over_the_whole_animation(tmp_path, capsys):
+    """A box that slides 10 units away: the orbit keeps both ends of its way in view."""
+    d = Doc()
+    box = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    tris = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                     [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    n = d.node(mesh=d.mesh(box, tris))
+    d.animate([(n, "translation", [0.0, 2.0], [[0, 0, 0], [10, 0, 0]])])
+    p = d.save(tmp_path / "slide.glb")
+    code, out, _ = run_cli(["camera", "orbit", p, "--frames", "1"], capsys)
+    assert code == 0
+    c = Camera.from_json({**json.loads(out)["frames"][0], "width": 1024, "height": 1024})
+    for x in (-1.0, 11.0):
+        q, _ = c.project(np.array([[x, 0.0, 0.0]]))
+        assert 0 < q[0, 0] < 1024 and 0 < q[0, 1] < 1024
+    s = load_scene(p)
+    assert s.framing()[1] > 5.0 > s.radius
+
+
+def _broken(tmp_path, how: str):
+    d = Doc()
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float)
+    n = d.node(mesh=d.mesh(V, [[0, 1, 2]]))
+    d.animate([(n, "translation", [0.0, 1.0], [[0, 0, 0], [1, 0, 0]])], name="slide")
+    g = d.g
+    if how == "missing node":
+        g.animations[0].channels[0].target.node = 7
+    elif how == "counts":
+        g.accessors[g.animations[0].samplers[0].input].count = 1
+    elif how == "nan":
+        d.animate([(n, "translation", [0.0, float("nan")], [[0, 0, 0], [1, 0, 0]])], name="bad")
+        g.animations.pop(0)
+    elif how == "joints":
+        j = d.node(name="joint")
+        g.scenes[0].nodes.remove(j)  # a joint outside the scene
+        g.skins.append(pygltflib.Skin(joints=[j]))
+        g.nodes[n].skin = 0
+    return d.save(tmp_path / f"{how.replace(' ', '_')}.glb")
+
+
+@pytest.mark.parametrize("how,needle", [("missing node", "targets node 7, which does not exist"),
+                                        ("counts", "needs 1 VEC3 values for 1 LINEAR keys, got 2"),
+                                        ("nan", "non-finite"),
+                                        ("joints", "joint node 1 is not in the scene")])
+def test_a_broken_animation_is_one_line_naming_the_file_and_the_animation(tmp_path, capsys, how, needle):
+    p = _broken(tmp_path, how)
+    with pytest.raises(InputError) as e:
+        load_scene(p)
+    msg = str(e.value)
+    assert needle in msg and str(p) in msg and "\n" not in msg
+    if how in ("missing node", "counts"):
+        assert "animation 0 ('slide')" in msg
+    code, _, err = run_cli(["render", p, "--orbit", "2", "--out", tmp_path / "out", "-q"], capsys)
+    assert code == 1 and needle in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out" / "frame_0001.svg").exists()
+
+
+def test_an_unknown_animation_name_is_one_clear_error(tmp_path, capsys, truck):
+    code, _, err = run_cli(["render", model_path(TRUCK), "--orbit", "2", "--animation", "walk", "--out",
+                            tmp_path / "o", "-q"], capsys)
+    assert code == 1 and "has no animation 'walk' (it has 0)" in err
+
+
+def test_time_offset_moves_the_frames_along_the_animation(tmp_path, truck):
+    cam = orbit_path(*truck.framing()[:2], 1).cameras[0]
+    late = next(render_sequence(truck, [cam], RenderRequest(strokes="lines", time_offset=0.5)))
+    shifted = list(render_sequence(truck, [cam] * 13, RenderRequest(strokes="lines", coherence="none")))[12]
+    assert late.time == shifted.time == pytest.approx(0.5)
+    assert np.array_equal(late.lines.points, shifted.lines.points)
+    assert math.isclose(json.loads(late.to_json())["time"], 0.5)
