@@ -54,12 +54,24 @@ class LineRenderer:
         index = motion.animation(animation)
         if not motion.moves(index):
             return self
+        D = motion.carried(index, time)
+        if D is not None:
+            return CarriedRenderer(self, D, motion.pose(self.scene, index, time), lambda: self._posed_at(time, index))
+        return self._posed_at(time, index)
+
+    def _posed_at(self, time: float, index: int) -> LineRenderer:
+        """The renderer of the posed scene (scene.at) at `time` of animation `index`."""
         rays, last = self._posed.get(index) or (PosedRays(self.scene, index, self.backend), None)
         posed = self.scene.at(time, index)
         if last is None or last.scene is not posed:
             last = LineRenderer(posed, self.options, self.backend, rays.occluder(posed))
         self._posed[index] = (rays, last)
         return last
+
+    @property
+    def pose(self):
+        """Where the scene's objects are (scene.pose): None for a scene at rest."""
+        return self.scene.pose
 
     def occluder_for(self, view: FrameView) -> Occluder:
         """The occluder of this frame's rays: the scene, less the faces the camera sees exactly
@@ -115,6 +127,55 @@ class LineRenderer:
             strokes = strokes.replace(pose=self.scene.pose)
         clock.lap("chaining")
         return strokes
+
+
+class CarriedRenderer:
+    """The renderer of a scene that one node carries as a whole (SceneMotion.carrier): its objects
+    keep their rest BVH and tables, each frame's lines are the rest scene's seen by the camera
+    taken back by the carrier's similarity D (what the frame's camera sees of the scene moved by
+    D), their surface points moved by D. A camera that cannot be taken back so (an angled
+    parallel projection, whose angles hold to the world's axes), the raster pass and world
+    ribbons (`scene`, `occluder`) use the posed scene (`posed()`, built when first asked)."""
+
+    def __init__(self, rest: LineRenderer, D: np.ndarray, pose, posed):
+        self.rest, self.D, self.pose, self._posed, self._built = rest, D, pose, posed, None
+        self.options = rest.options
+        self.scale = float(np.cbrt(np.linalg.det(D[:3, :3])))
+        self.R = D[:3, :3] / self.scale
+
+    def posed(self) -> LineRenderer:
+        if self._built is None:
+            self._built = self._posed()
+        return self._built
+
+    @property
+    def scene(self):
+        return self.posed().scene
+
+    @property
+    def occluder(self):
+        return self.posed().occluder
+
+    def back(self, camera: Camera) -> Camera | None:
+        """The camera in the rest scene's frame (None for an angled parallel projection)."""
+        if camera.projection not in ("perspective", "orthographic"):
+            return None
+        s, R, t = self.scale, self.R, self.D[:3, 3]
+        eye, target = (np.asarray(camera.eye) - t) @ R / s, (np.asarray(camera.target) - t) @ R / s
+        return replace(camera, eye=tuple(eye), target=tuple(target), up=tuple(np.asarray(camera.up) @ R),
+                       ortho_height=camera.ortho_height / s, near=None if camera.near is None else camera.near / s)
+
+    def check_camera(self, camera: Camera, frame: int = 0) -> None:
+        back = self.back(camera)
+        (self.rest.check_camera(back, frame) if back is not None else self.posed().check_camera(camera, frame))
+
+    def render(self, camera: Camera, frame: int = 0, timings: dict | None = None) -> Strokes:
+        back = self.back(camera)
+        if back is None:
+            return self.posed().render(camera, frame, timings)
+        st = self.rest.render(back, frame, timings)
+        X = st.surface @ self.D[:3, :3].T + self.D[:3, 3]
+        return st.replace(surface=X, camera=camera, pose=self.pose)
 
 
 class _Clock:

@@ -93,7 +93,7 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
         if plan.raster.band_polygons:
             underlays = (bands_layer(band_regions(raster)),)
         timings["raster pass"] = time.perf_counter() - t
-    moving = renderer.scene.pose is not None
+    moving = renderer.pose is not None
     return Frame(number, camera, lines, plan.json_head(), plan.lines.layers, raster=raster, raster_info=info,
                  underlays=underlays, timings=timings, time=time_s if moving else None,
                  animation=clock.animation if moving else None)

@@ -332,6 +332,50 @@ class SceneMotion:
             self._kinds[key] = (np.stack([lo, hi]), c, r if r > 0 else 1.0)
         return self._kinds[key]
 
+    def carrier(self, ai: int | None) -> int | None:
+        """The node that carries the whole scene under animation ai, when there is one: every part
+        moves rigidly, and only by this node's motion (it is an ancestor of every part, and no
+        channel drives a node below it or elsewhere). None otherwise."""
+        key = ("carrier", ai)
+        if key not in self._kinds:
+            node = None
+            if self.parts and all(self.kind(ai, k) == RIGID for k in range(len(self.parts))):
+                driven = {n for (n, prop) in self._channels(ai) if prop in GLTF_TRS}
+                chains = [self.tree.chain(p.node) for p in self.parts]
+                # each part's driven ancestors, nearest the root last
+                tops = {tuple(n for n in c if n in driven) for c in chains}
+                if len(tops) == 1:
+                    (d,) = tops
+                    node = d[0] if len(d) == 1 else None
+            self._kinds[key] = node
+        return self._kinds[key]
+
+    def carried(self, ai: int | None, t: float) -> np.ndarray | None:
+        """(4, 4) the similarity that takes the rest scene to the scene at time t, when one node
+        carries the whole scene (`carrier`) and its motion is a similarity (rotation, uniform
+        scale, translation); None otherwise."""
+        node = self.carrier(ai)
+        if node is None:
+            return None
+        times = np.array([float(t)])
+        W = self.tree.world(node, self._channels(ai), times)[0]
+        W0 = self.tree.world(node, {}, times)[0]
+        with np.errstate(over="ignore", invalid="ignore"):
+            D = W @ np.linalg.inv(W0)
+        L = D[:3, :3]
+        G = L.T @ L
+        s2 = float(np.trace(G)) / 3.0
+        if not (np.all(np.isfinite(D)) and s2 > 0 and np.allclose(G, s2 * np.eye(3), rtol=0, atol=1e-9 * s2)
+                and np.linalg.det(L) > 0):
+            return None
+        return D
+
+    def pose(self, rest, ai: int | None, t: float) -> ScenePose:
+        """Where the objects are at time t (the ScenePose of `posed`, without posing the scene)
+        for a scene that moves only rigidly (faces as the rest scene's)."""
+        return ScenePose(self.object_matrices(ai, t), {}, self.parts, self.file_faces, self.rest.kept, None,
+                         self.file_face_object, float(t), tuple(rest.objects))
+
     def _moving(self, ai: int | None) -> tuple[np.ndarray, np.ndarray]:
         """(input vertices, input faces) of the parts animation ai poses away from rest (bool masks)."""
         key = ("moving", ai)
@@ -413,23 +457,22 @@ class SceneMotion:
             for p in flips:
                 faces[p.faces] = faces[p.faces][:, ::-1]
         fast = None if flips else _posed_weld(self, V, faces, self._moving(ai))
+        deforming = {k: V[p.vertices] for k, p in enumerate(self.parts) if self.kind(ai, k) == DEFORMING}
         if fast is not None:
             vertices, new = fast
-            scene = replace(rest, vertices=vertices, faces=new[rest.faces])
+            pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, None,
+                             self.file_face_object, float(t), tuple(rest.objects))
+            scene = replace(rest, vertices=vertices, faces=new[rest.faces], pose=pose)
             # The rest scene's topology with the vertices renumbered: the same edges and faces
             # of each edge, the edges sorted again (what Scene._topology makes of these faces).
             scene.__dict__["_topology"] = _renumbered_topology(rest, new)
-            face_file = None
-        else:
-            w = weld(V, faces, str(self.path))
-            face_file = w.kept
-            scene = replace(rest, vertices=w.vertices, faces=w.faces, face_object=self.file_face_object[w.kept],
-                            face_material=self.file_face_material[w.kept], dropped_degenerate=w.dropped_degenerate,
-                            dropped_duplicate=w.dropped_duplicate)
-        deforming = {k: V[p.vertices] for k, p in enumerate(self.parts) if self.kind(ai, k) == DEFORMING}
-        pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, face_file,
+            return scene
+        w = weld(V, faces, str(self.path))
+        pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, w.kept,
                          self.file_face_object, float(t), tuple(rest.objects))
-        return replace(scene, pose=pose)
+        return replace(rest, vertices=w.vertices, faces=w.faces, face_object=self.file_face_object[w.kept],
+                       face_material=self.file_face_material[w.kept], dropped_degenerate=w.dropped_degenerate,
+                       dropped_duplicate=w.dropped_duplicate, pose=pose)
 
 
 def _renumbered_topology(rest, new: np.ndarray) -> tuple:

@@ -378,30 +378,45 @@ def _has_embreex() -> bool:
         return False
 
 
+#: Faces below which a BVH is built again each frame rather than kept: building one of that many
+#: faces costs about what a frame's ray queries lose to one more BVH cast into (docs/animation.md).
+KEEP_FACES = 5000
+
+
 class PosedRays:
-    """The ray backend of a moving scene's frames. Rays run in one local frame for the whole
+    """The ray backend of a moving scene's frames (`occluder(posed)`: the frame's Occluder).
+
+    A scene of fewer than KEEP_FACES faces, or of deforming objects alone, gets the posed scene's
+    own BVH each frame (a still scene's). Otherwise rays run in one local frame for the whole
     animation (centred on the scene's box over the animation, unit radius: SceneMotion.extent);
-    each object that does not deform keeps one BVH for every frame, built once (the still
-    objects in that frame, each rigidly moving node's objects in its mesh's own frame, where
-    rays are taken); only the deforming objects get a BVH per frame. `occluder(posed)` is the
-    frame's Occluder. A scene of deforming objects alone, or a frame whose faces are not the rest
-    scene's, gets the posed scene's own Occluder (a still scene's, built now)."""
+    the still objects keep one BVH in that frame for every frame; each rigidly moving node whose
+    objects have KEEP_FACES faces or more keeps one in its mesh's own frame, where rays are taken
+    (those that may meet its box); the other moving objects (deforming, or small) share a BVH
+    built each frame."""
 
     def __init__(self, rest: Scene, animation: int | None, backend: str | None = None):
         self.rest, self.animation, self.backend = rest, animation, backend
         motion = rest.motion
-        self.groups: dict = {}  # "static", "deforming" or ("rigid", node) -> object ids
+        groups: dict = {}  # "static" or ("rigid", node) or "deforming" -> object ids
         for k in range(len(motion.parts)):
             kind = motion.kind(animation, k)
-            self.groups.setdefault(kind if kind != "rigid" else ("rigid", motion.parts[k].node), []).append(k)
+            groups.setdefault(kind if kind != "rigid" else ("rigid", motion.parts[k].node), []).append(k)
+        size = {key: int(np.isin(rest.face_object, objs).sum()) for key, objs in groups.items()}
+        self.groups: dict = {}  # "static", ("rigid", node) or "rebuilt" -> object ids
+        for key, objs in groups.items():  # the small moving ones and the deforming ones: rebuilt
+            if key != "static" and (key == "deforming" or size[key] < KEEP_FACES):
+                key = "rebuilt"
+            self.groups.setdefault(key, []).extend(objs)
         self.faces = {key: np.flatnonzero(np.isin(rest.face_object, objs)) for key, objs in self.groups.items()}
+        #: The whole scene's BVH each frame: the scene is small, or nothing in it keeps a BVH.
+        self.whole = len(rest.faces) < KEEP_FACES or set(self.groups) == {"rebuilt"}
         _, self.origin, self.radius = motion.extent(animation)
         self.inv_scale = 1.0 / self.radius
         self._kept: dict = {}
 
     def occluder(self, posed: Scene) -> Occluder:
         """The Occluder of frame scene `posed` (rest.at(...))."""
-        if (posed.pose is None or posed.pose.face_file is not None or set(self.groups) <= {"deforming"}
+        if (self.whole or posed.pose is None or posed.pose.face_file is not None
                 or self.backend not in (None, "open3d")):
             return Occluder(posed, self.backend)
         try:
@@ -414,18 +429,20 @@ class PosedRays:
             faces = self.faces[key]
             if len(faces) == 0:
                 continue
-            if key == "deforming":
+            if key == "rebuilt":
                 V = ((posed.vertices - c) * k).astype(np.float32)
                 tris = posed.faces[faces]
                 used = V[np.unique(tris)].astype(float)
-                parts.append(RayPart(_raycasting_scene(o3d, V, tris), faces, None, None, used.min(0), used.max(0),
-                                     lambda keep, V=V, tris=tris: _raycasting_scene(o3d, V, tris[keep]), cull=False))
+                lo, hi = used.min(axis=0), used.max(axis=0)
+                parts.append(RayPart(_raycasting_scene(o3d, V, tris), faces, None, None, lo, hi,
+                                     lambda keep, V=V, tris=tris: _raycasting_scene(o3d, V, tris[keep]),
+                                     cull=_small(lo, hi)))
                 continue
             if key not in self._kept:
                 self._kept[key] = self._build(o3d, key, objs, faces)
             rs, lo, hi, own_c, own_k, build = self._kept[key]
             if key == "static":
-                parts.append(RayPart(rs, faces, None, None, lo, hi, build, cull=False))
+                parts.append(RayPart(rs, faces, None, None, lo, hi, build, cull=_small(lo, hi)))
                 continue
             # local -> world (x / k + c) -> the node's mesh frame (M) -> its own local frame
             M = np.linalg.inv(posed.pose.matrix[objs[0]])
@@ -433,7 +450,8 @@ class PosedRays:
             b = own_k * (M[:3, :3] @ c + M[:3, 3] - own_c)
             corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
             back = np.linalg.solve(A, (corners - b).T).T
-            parts.append(RayPart(rs, faces, A, b, back.min(axis=0), back.max(axis=0), build, cull=True))
+            lo, hi = back.min(axis=0), back.max(axis=0)
+            parts.append(RayPart(rs, faces, A, b, lo, hi, build, cull=_small(lo, hi)))
         return Occluder.composed(posed, tuple(parts), self.origin, self.radius)
 
     def _build(self, o3d, key, objs: list[int], faces: np.ndarray):
@@ -461,6 +479,13 @@ class PosedRays:
         used = V[np.unique(tris)].astype(float)
         return (_raycasting_scene(o3d, V, tris), used.min(axis=0), used.max(axis=0), c, inv,
                 lambda keep, V=V, tris=tris: _raycasting_scene(o3d, V, tris[keep]))
+
+
+def _small(lo: np.ndarray, hi: np.ndarray) -> bool:
+    """Whether a part's box (in the animation's unit frame) is small enough for rays to be tested
+    against it before they are cast: under a quarter of the frame's cube of side 2 (one that
+    fills the scene would have nearly every ray cast anyway)."""
+    return float(np.prod(np.maximum(np.asarray(hi) - np.asarray(lo), 0.0))) < 0.25 * 8.0
 
 
 def _raycasting_scene(o3d, V: np.ndarray, tris: np.ndarray):
