@@ -176,3 +176,21 @@ def skinned_tube_vertices(t: float, fps: float = 24.0, frames: int = 24, max_ben
     pivot = np.array([0.0, length / 2, 0.0])
     bent = (V - pivot) @ R.T + pivot
     return W[:, :1] * V + W[:, 1:2] * bent
+
+
+def sphere_and_box_glb(path: Path, moving: str) -> Path:
+    """A still box beside an icosphere of 5120 faces; `moving` turns the sphere (a rigid object
+    that keeps its BVH) or the box (a small one, built again each frame, beside the sphere's kept
+    still BVH)."""
+    import trimesh
+
+    sph = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
+    box = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
+    d = Doc()
+    a = d.node(mesh=d.mesh(np.asarray(sph.vertices), np.asarray(sph.faces)), name="sphere")
+    b = d.node(mesh=d.mesh(np.asarray(box.vertices), np.asarray(box.faces)), name="box", translation=[1.6, 0.0, 0.3])
+    turned = a if moving == "sphere" else b
+    k = np.arange(13)
+    d.animate([(turned, "rotation", k / 24, [[0.0, math.sin(math.radians(5 * i)), 0.0, math.cos(math.radians(5 * i))]
+                                             for i in k])])
+    return d.save(path)

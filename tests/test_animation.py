@@ -15,6 +15,7 @@ from animated import (
     Doc,
     skinned_tube_glb,
     skinned_tube_vertices,
+    sphere_and_box_glb,
     turntable_glb,
     yaw_matrix,
 )
@@ -305,24 +306,6 @@ def test_time_offset_moves_the_frames_along_the_animation(tmp_path, truck):
 
 # --- objects that keep their BVH ---------------------------------------------------------------------
 
-def _sphere_and_box(tmp_path, moving: str):
-    """A still box beside an icosphere of 5120 faces; `moving` turns the sphere (a rigid object
-    that keeps its BVH) or the box (a small one, built again each frame, beside the sphere's kept
-    still BVH)."""
-    import trimesh
-
-    sph = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
-    box = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
-    d = Doc()
-    a = d.node(mesh=d.mesh(np.asarray(sph.vertices), np.asarray(sph.faces)), name="sphere")
-    b = d.node(mesh=d.mesh(np.asarray(box.vertices), np.asarray(box.faces)), name="box", translation=[1.6, 0.0, 0.3])
-    turned = a if moving == "sphere" else b
-    k = np.arange(13)
-    d.animate([(turned, "rotation", k / 24, [[0.0, math.sin(math.radians(5 * i)), 0.0, math.cos(math.radians(5 * i))]
-                                             for i in k])])
-    return d.save(tmp_path / f"{moving}.glb")
-
-
 @pytest.mark.parametrize("moving", ["sphere", "box"])
 def test_kept_bvhs_answer_as_the_posed_scenes_own(tmp_path, moving):
     """The frame's occluder of kept and rebuilt BVHs (rays taken into each one's frame) meets what
@@ -331,7 +314,7 @@ def test_kept_bvhs_answer_as_the_posed_scenes_own(tmp_path, moving):
     which amplifies it), and lines within 0.05 px of the static scene's."""
     from strokekit.scene.occluder import Occluder, PosedRays
 
-    s = load_scene(_sphere_and_box(tmp_path, moving))
+    s = load_scene(sphere_and_box_glb(tmp_path / f"{moving}.glb", moving))
     rays_of = PosedRays(s, 0)
     assert not rays_of.whole and len(rays_of.groups) == 2
     rng = np.random.default_rng(1)

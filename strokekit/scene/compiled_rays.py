@@ -1,15 +1,16 @@
 """Compiled loop (numba) of a moving scene's rays (`occluder.RayPart`): which rays of a query may
 meet one object's box, taken into that object's frame, in one pass instead of a few dozen numpy
 passes per object and query. Imports numpy and numba only; loaded on first use by
-`occluder.ray_kernels()`, cached on disk (`cache=True`, no fastmath)."""
+`occluder.ray_kernels()`."""
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from strokekit.numba_cache import kernel
 
 
-@njit(cache=True, error_model="numpy")
+@kernel("(f4[:, ::1], f8[::1], f8[::1], f8, f8[:, ::1], f8[::1], b1)", error_model="numpy")
 def rays_into(rays, lo, hi, tfar, A, b, cull):
     """The rays (N, 6) float32 (origin o, direction d; the ray o + t d, t in [0, tfar]) that may
     meet the box lo, hi (3,) (the slab test, in float64; every ray when not `cull`), taken into
@@ -41,8 +42,3 @@ def rays_into(rays, lo, hi, tfar, A, b, cull):
         idx[m] = i
         m += 1
     return idx[:m], out[:m]
-
-
-def warmup() -> None:
-    """Compile (first use on a machine) or load the kernel on tiny inputs of the real types."""
-    rays_into(np.zeros((1, 6), np.float32), np.zeros(3), np.ones(3), 1.0, np.eye(3), np.zeros(3), True)

@@ -12,7 +12,7 @@ from functools import cached_property
 import numpy as np
 
 from strokekit.errors import hold_interrupts
-from strokekit.numba_cache import LazyKernels
+from strokekit.numba_cache import KernelGroup, LazyKernels
 from strokekit.scene.load import Scene
 
 _IMPORT_LOCK = threading.Lock()
@@ -324,12 +324,9 @@ class Occluder:
 
 #: The compiled loop of a moving scene's rays (`strokekit.scene.compiled_rays`), imported on first
 #: use: still scenes never import numba for it.
-RAY_KERNELS = LazyKernels("strokekit.scene.compiled_rays", "moving-scene ray", 3.0)
-
-
-def ray_kernels():
-    """The module `strokekit.scene.compiled_rays`, its kernel loaded (or compiled) on first use."""
-    return RAY_KERNELS.kernels()
+RAYS = LazyKernels("strokekit.scene.compiled_rays")
+MOVING_SCENE = KernelGroup("moving-scene ray", (RAYS,), compile_seconds=3)
+ray_kernels = RAYS.kernels
 
 
 class RayPart:
