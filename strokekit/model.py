@@ -147,7 +147,7 @@ class Strokes:
     so that stroke s is points[offsets[s]:offsets[s+1]]; kind (S,) int8 into KINDS; ids (S,)
     persistent stroke ids; level, level_weight (S,) self-similar texture octave and blend weight.
     pose: where the scene's objects were in this frame (None: a still scene), so that a surface
-    point can be carried with its object (scene.motion.carry_points)."""
+    point can be carried with its object (carry_points)."""
 
     points: np.ndarray
     surface: np.ndarray
@@ -405,3 +405,17 @@ class RecordedPose:
         M = self.matrix[obj[rigid]]
         out[rigid] = np.einsum("nij,nj->ni", M[:, :3, :3], np.asarray(local, float)[rigid]) + M[:, :3, 3]
         return out
+
+
+def carry_points(X: np.ndarray, face: np.ndarray, src, dst) -> np.ndarray:
+    """World points X (N, 3) on scene faces `face` of the scene posed by `src` (a ScenePose or
+    RecordedPose), moved with their objects to where they are in the scene posed by `dst`. A
+    scene at rest (None) does not move: X as it is, as for a point whose move is not known."""
+    if src is None or dst is None or src is dst:
+        return X
+    obj, local = src.object_points(X, face)
+    out = dst.world_points(obj, local, src.input_faces(face))
+    unknown = ~np.isfinite(out).all(axis=1)
+    if unknown.any():
+        out[unknown] = np.asarray(X, float)[unknown]
+    return out

@@ -86,7 +86,7 @@ def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarra
     points are interpolated perspective-correctly (1/z is linear on screen), so that a point in
     the middle of a long receding segment is the world point actually drawn there. `values`
     (N, 3): interpolate these per-point values instead, with the same weights (the surface points
-    moved with their objects to another frame, scene.motion.carry_points)."""
+    moved with their objects to another frame, model.carry_points)."""
     X = strokes.surface
     cam = strokes.camera
     a = np.asarray(a, float)

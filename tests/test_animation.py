@@ -27,12 +27,11 @@ from strokekit.camera.view import Camera
 from strokekit.errors import InputError
 from strokekit.lines.renderer import LineRenderer
 from strokekit.metrics.accuracy import frame_accuracy
-from strokekit.model import Strokes
+from strokekit.model import Strokes, carry_points
 from strokekit.options import LineOptions
 from strokekit.run.request import RenderRequest
 from strokekit.run.sequence import render_sequence
 from strokekit.scene.load import build_scene, load_scene
-from strokekit.scene.motion import carry_points
 from strokekit.writers.svg import svg_document
 
 TRUCK = "CesiumMilkTruck.glb"
@@ -336,3 +335,30 @@ def test_kept_bvhs_answer_as_the_posed_scenes_own(tmp_path, moving):
         ref = LineRenderer(static_of(s, t), LineOptions()).render(cam)
         acc = frame_accuracy(drawn, ref, tols=(0.05,))
         assert acc.precision[0.05] >= 0.999 and acc.recall[0.05] >= 0.999
+
+
+@pytest.mark.parametrize("request_", [RenderRequest(), RenderRequest(strokes="lines", coherence="kalnins")],
+                         ids=["brush paths", "tracked lines"])
+def test_strokes_follow_a_turning_object_as_they_follow_the_orbit(tmp_path, request_):
+    """The tracker and the brush paths carry ids and u with the turning object: M1 of the
+    turntable's strokes (the metrics carry the points with the object too) within 0.005 of the
+    orbit's, and its paths' wholeness (M8) within 0.005 of the orbit's. Without the points carried
+    (a still scene's correspondence) the turntable's silhouettes would slide 3 degrees a frame
+    under their votes."""
+    from strokekit.metrics.coherence import sequence_metrics, wholeness
+
+    frames = 24
+    turn, still = spot_turntable(tmp_path, frames)
+    s = load_scene(turn)
+    cam = orbit_path(*s.framing()[:2], 1, elevation=20.0).cameras[0]
+    a = [f.strokes for f in render_sequence(turn, [cam] * frames, request_)]
+    b = [f.strokes for f in render_sequence(still, relative_orbit(cam, frames), request_)]
+    ma, mb = sequence_metrics(a)[1], sequence_metrics(b)[1]
+    assert mb["M1"] > 0.9 and abs(ma["M1"] - mb["M1"]) <= 0.005
+    assert abs(ma["M4_median"] - mb["M4_median"]) <= 0.05
+    if request_.strokes is None:
+        fresh = RenderRequest(strokes="brush", coherence="none")
+        fa = [f.strokes for f in render_sequence(turn, [cam] * frames, fresh)]
+        fb = [f.strokes for f in render_sequence(still, relative_orbit(cam, frames), fresh)]
+        wa, wb = wholeness(a, fa)[1], wholeness(b, fb)[1]
+        assert abs(wa["M8"] - wb["M8"]) <= 0.005 and abs(wa["M8_ratio"] - wb["M8_ratio"]) <= 0.005

@@ -36,9 +36,8 @@ from scipy.spatial import cKDTree
 
 from strokekit.errors import InputError
 from strokekit.fileio import check_pattern
-from strokekit.model import Strokes
+from strokekit.model import Strokes, carry_points
 from strokekit.sampling import MATCH_RADIUS_PX, MIN_TANGENT_DOT, Samples, match_samples, resample_strokes
-from strokekit.scene.motion import carry_points
 from strokekit.writers.strokes_json import read_strokes_json
 
 

@@ -152,20 +152,6 @@ class ScenePose:
         return v[self.file_faces[input_face] - part.vertices.start]
 
 
-def carry_points(X: np.ndarray, face: np.ndarray, src, dst) -> np.ndarray:
-    """World points X (N, 3) on scene faces `face` of the scene posed by `src` (a ScenePose or
-    RecordedPose), moved with their objects to where they are in the scene posed by `dst`. A
-    scene at rest (None) does not move: X as it is, as for a point whose move is not known."""
-    if src is None or dst is None or src is dst:
-        return X
-    obj, local = src.object_points(X, face)
-    out = dst.world_points(obj, local, src.input_faces(face))
-    unknown = ~np.isfinite(out).all(axis=1)
-    if unknown.any():
-        out[unknown] = np.asarray(X, float)[unknown]
-    return out
-
-
 def _carry_on_faces(X: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """Points X (N, 3) near triangles src (N, 3, 3) taken to triangles dst: the same barycentric
     coordinates and the same height over the face, in units of the face's size."""
