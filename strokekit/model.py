@@ -380,12 +380,14 @@ class RecordedPose:
     deforms: np.ndarray
     obj: np.ndarray
     local: np.ndarray
+    time: float | None = None
 
     @staticmethod
     def from_json(head: dict, obj: np.ndarray, local: np.ndarray) -> "RecordedPose":
         objects = head.get("objects") or []
         m = np.array([o["matrix"] for o in objects], float).reshape(-1, 4, 4)
-        return RecordedPose(m, np.array([bool(o.get("deforms")) for o in objects]), obj, local)
+        return RecordedPose(m, np.array([bool(o.get("deforms")) for o in objects], bool), obj, local,
+                            head.get("time"))
 
     def input_faces(self, face: np.ndarray) -> np.ndarray:
         return np.asarray(face, np.int64)

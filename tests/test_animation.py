@@ -362,3 +362,20 @@ def test_strokes_follow_a_turning_object_as_they_follow_the_orbit(tmp_path, requ
         fb = [f.strokes for f in render_sequence(still, relative_orbit(cam, frames), fresh)]
         wa, wb = wholeness(a, fa)[1], wholeness(b, fb)[1]
         assert abs(wa["M8"] - wb["M8"]) <= 0.005 and abs(wa["M8_ratio"] - wb["M8_ratio"]) <= 0.005
+
+
+def test_coherence_moves_a_deforming_objects_points_with_the_scene(tmp_path, capsys, tube_file):
+    """From the frame JSON alone the bending tube's points stay where they were (its object
+    deforms: its local points are in the mesh's bind pose); with --scene they move with the
+    mesh, and every previous sample finds its match again (M2 near 0)."""
+    cam = tmp_path / "still.json"
+    assert run_cli(["camera", "orbit", tube_file, "--frames", "13", "--degrees-per-frame", "0", "-o", cam], capsys)[0] == 0
+    out = tmp_path / "out"
+    assert run_cli(["render", tube_file, "--camera", cam, "--out", out, "-q"], capsys)[0] == 0
+    _, plain, _ = run_cli(["coherence", out, "--json"], capsys)
+    _, posed, _ = run_cli(["coherence", out, "--json", "--scene", tube_file], capsys)
+    plain, posed = json.loads(plain)["overall"], json.loads(posed)["overall"]
+    assert posed["M2_median"] < 0.01 < plain["M2_median"]
+    assert posed["M1"] >= plain["M1"]
+    code, _, err = run_cli(["coherence", out, "--scene", model_path("spot.obj")], capsys)
+    assert code == 1 and "not a moving scene" in err

@@ -261,6 +261,27 @@ def read_frames(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[in
     return frames
 
 
+def posed_frames(frames: list[Strokes], scene, animation: str | None = None, where=None) -> list[Strokes]:
+    """Frames read back from their JSON (read_frames) with the poses of the scene they were drawn
+    from, at each frame's time (its JSON's "time"): a deforming object's points then move with its
+    mesh too (the JSON alone moves the rigid objects'). InputError for a frame without a time, or
+    whose strokes do not lie on the scene so posed (another scene)."""
+    m = scene.motion
+    if m is None or not m.moves(m.animation(animation)):
+        raise InputError("is not a moving scene: the frames' points need no scene to move", scene.source or None)
+    ai = m.animation(animation)
+    out = []
+    for st in frames:
+        if st.pose is None or getattr(st.pose, "time", None) is None:
+            raise InputError(f"frame {st.frame} has no time: not a frame of a moving scene", where)
+        posed = scene.at(st.pose.time, ai)
+        if len(st.face) and (st.face.max() >= len(posed.faces)):
+            raise InputError(f"frame {st.frame}'s strokes lie on faces the scene does not have: another scene",
+                             where)
+        out.append(st.replace(pose=posed.pose))
+    return out
+
+
 def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[int, int] | None = None,
                    **kw) -> tuple[list[PairMetrics], dict]:
     """Read every frame JSON of `out_dir` named by `pattern` (read_frames) and return (per pair
