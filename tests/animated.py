@@ -179,7 +179,7 @@ def skinned_tube_vertices(t: float, fps: float = 24.0, frames: int = 24, max_ben
 
 
 def sphere_and_box_glb(path: Path, moving: str) -> Path:
-    """A still box beside an icosphere of 5120 faces; `moving` turns the sphere (a rigid object
+    """A still box over an icosphere of 5120 faces (their x ranges overlap); `moving` turns the sphere (a rigid object
     that keeps its BVH) or the box (a small one, built again each frame, beside the sphere's kept
     still BVH)."""
     import trimesh
@@ -188,7 +188,7 @@ def sphere_and_box_glb(path: Path, moving: str) -> Path:
     box = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
     d = Doc()
     a = d.node(mesh=d.mesh(np.asarray(sph.vertices), np.asarray(sph.faces)), name="sphere")
-    b = d.node(mesh=d.mesh(np.asarray(box.vertices), np.asarray(box.faces)), name="box", translation=[1.6, 0.0, 0.3])
+    b = d.node(mesh=d.mesh(np.asarray(box.vertices), np.asarray(box.faces)), name="box", translation=[0.2, 1.55, 0.3])
     turned = a if moving == "sphere" else b
     k = np.arange(13)
     d.animate([(turned, "rotation", k / 24, [[0.0, math.sin(math.radians(5 * i)), 0.0, math.cos(math.radians(5 * i))]

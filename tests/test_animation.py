@@ -99,18 +99,41 @@ def test_a_skinned_tube_bends_as_its_joints_say(tube_file):
     assert np.abs(s.motion.file_vertices_at(0, 1.0) - s.motion.file_vertices_at(0, 0.0)).max() > 0.5
 
 
-@pytest.mark.parametrize("which", ["truck", "tube"])
-def test_a_posed_scene_is_the_static_scene_of_its_posed_vertices(which, truck, tube_file):
-    """Same vertices (welded, in the weld's order), faces, objects, materials and topology as a
-    scene built from the posed vertices."""
-    scene = truck if which == "truck" else load_scene(tube_file)
-    for t in (0.0, 0.4, 0.9, 2.0):
+@pytest.mark.parametrize("which", ["truck", "tube", "box"])
+def test_a_posed_scene_is_the_static_scene_of_its_posed_vertices(which, truck, tube_file, tmp_path):
+    """Same vertices (welded, in the weld's order), faces, objects, materials, topology and face
+    tables as a scene built from the posed vertices: where most vertices move (the truck's wheels,
+    the tube) and where a few do (a box turning beside a still sphere: their rows merged into the
+    still ones' order)."""
+    scene = {"truck": lambda: truck, "tube": lambda: load_scene(tube_file),
+             "box": lambda: load_scene(sphere_and_box_glb(tmp_path / "box.glb", "box"))}[which]()
+    for t in (0.0, 0.1, 0.3, 0.4, 0.9, 2.0):
         posed, ref = scene.at(t, 0), static_of(scene, t)
         for name in ("vertices", "faces", "face_object", "face_material"):
             assert np.array_equal(getattr(posed, name), getattr(ref, name)), name
         for a, b in zip(posed._topology, ref._topology):
             assert np.array_equal(a, b)
+        for table in ("face_normals", "face_offsets", "dihedral_cos"):  # (carried where no face moved)
+            assert np.array_equal(getattr(posed, table), getattr(ref, table)), table
         assert posed.content_hash == ref.content_hash
+
+
+def test_moving_rows_merged_into_the_still_ones_sort_as_the_weld_sorts():
+    """Rows sharing x (and y) with still rows are placed by y, then z; a moving row landing on a
+    still one is a meeting of welded vertices (None)."""
+    from strokekit.scene.motion import _sorted_order
+    rng = np.random.default_rng(0)
+    for _ in range(100):
+        P = np.unique(rng.integers(0, 6, (200, 3)).astype(float), axis=0)
+        rng.shuffle(P)
+        moved = np.zeros(len(P), bool)
+        moved[rng.choice(len(P), size=len(P) // 10, replace=False)] = True
+        still = np.flatnonzero(~moved)
+        still = still[np.lexsort((P[still, 2], P[still, 1], P[still, 0]))]
+        order = _sorted_order(P, still, np.flatnonzero(moved))
+        assert np.array_equal(order, np.lexsort((P[:, 2], P[:, 1], P[:, 0])))
+        P[np.flatnonzero(moved)[0]] = P[still[0]]
+        assert _sorted_order(P, still, np.flatnonzero(moved)) is None
 
 
 # --- lines of posed frames -------------------------------------------------------------------------

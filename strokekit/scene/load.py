@@ -25,7 +25,7 @@ from strokekit.animation import GltfData, load_gltf
 from strokekit.errors import InputError, hold_interrupts
 from strokekit.fileio import atomic_write_bytes
 from strokekit.scene.motion import SceneMotion, ScenePose
-from strokekit.scene.tables import SceneTables
+from strokekit.scene.tables import SceneTables, dihedral_cos_of, face_normals_of, face_offsets_of
 from strokekit.scene.weld import Welded, weld
 
 SUPPORTED = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
@@ -102,11 +102,7 @@ class Scene(SceneTables):
     @cached_property
     def face_normals(self) -> np.ndarray:
         """(F, 3) unit normals from the winding, float64. Degenerate faces were dropped, so no NaN."""
-        v = self.vertices
-        # Relative to the first vertex for precision when the scene is far from the origin.
-        a = v[self.faces[:, 0]]
-        n = np.cross(v[self.faces[:, 1]] - a, v[self.faces[:, 2]] - a)
-        return n / np.linalg.norm(n, axis=1, keepdims=True)
+        return face_normals_of(self.vertices, self.faces)
 
     @cached_property
     def face_normal_rows(self) -> np.ndarray:
@@ -116,8 +112,7 @@ class Scene(SceneTables):
     @cached_property
     def face_offsets(self) -> np.ndarray:
         """(F,) plane offsets n.P for the face centroid: facing(eye) = sign(n.eye - offset)."""
-        c = self.vertices[self.faces].mean(axis=1)
-        return np.einsum("ij,ij->i", self.face_normals, c)
+        return face_offsets_of(self.vertices, self.faces, self.face_normals)
 
     @cached_property
     def face_areas(self) -> np.ndarray:
@@ -162,12 +157,7 @@ class Scene(SceneTables):
     @cached_property
     def dihedral_cos(self) -> np.ndarray:
         """(E,) cosine of the angle between the two face normals of each manifold edge (1 elsewhere)."""
-        ef = self.edge_faces
-        ok = ef[:, 1] >= 0
-        c = np.ones(len(ef))
-        n = self.face_normals
-        c[ok] = np.einsum("ij,ij->i", n[ef[ok, 0]], n[ef[ok, 1]])
-        return c
+        return dihedral_cos_of(self.edge_faces, self.face_normals)
 
     @cached_property
     def is_border(self) -> np.ndarray:

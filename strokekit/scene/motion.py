@@ -27,6 +27,7 @@ from strokekit.animation import (
     time_span,
 )
 from strokekit.errors import InputError
+from strokekit.scene.tables import dihedral_cos_of, face_normals_of, face_offsets_of
 from strokekit.scene.weld import Welded, weld
 
 #: How a part moves under an animation: not at all (its rest vertices), rigidly (its node's
@@ -375,6 +376,14 @@ class SceneMotion:
             self._kinds[key] = (rows, faces)
         return self._kinds[key]
 
+    def _moving_scene_faces(self, rest, ai: int | None) -> np.ndarray:
+        """(F,) the rest scene's faces that animation ai moves."""
+        key = ("moving faces", ai)
+        if key not in self._kinds:
+            moving = [k for k in range(len(self.parts)) if self.kind(ai, k) != STATIC]
+            self._kinds[key] = np.isin(rest.face_object, moving)
+        return self._kinds[key]
+
     def _channels(self, ai: int | None) -> Channels:
         return self.channels.get(ai, {}) if ai is not None else {}
 
@@ -450,8 +459,10 @@ class SceneMotion:
                              self.file_face_object, float(t), tuple(rest.objects))
             scene = replace(rest, vertices=vertices, faces=new[rest.faces], pose=pose)
             # The rest scene's topology with the vertices renumbered: the same edges and faces
-            # of each edge, the edges sorted again (what Scene._topology makes of these faces).
-            scene.__dict__["_topology"] = _renumbered_topology(rest, new)
+            # of each edge, the edges sorted again (what Scene._topology makes of these faces),
+            # and its face and edge tables, computed again where a face moved.
+            topology, order = _renumbered_topology(rest, new)
+            scene.__dict__.update(_carried_tables(rest, scene, topology, order, self._moving_scene_faces(rest, ai)))
             return scene
         w = weld(V, faces, str(self.path))
         pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, w.kept,
@@ -469,7 +480,24 @@ def _renumbered_topology(rest, new: np.ndarray) -> tuple:
     e = new[edges]
     e.sort(axis=1)
     order = np.argsort(e[:, 0] * (len(new) + 1) + e[:, 1], kind="stable")
-    return e[order], edge_faces[order], counts[order]
+    return (e[order], edge_faces[order], counts[order]), order
+
+
+def _carried_tables(rest, scene, topology: tuple, order: np.ndarray, moved: np.ndarray) -> dict:
+    """The posed `scene`'s cached tables from the rest scene's (its faces as the rest scene's,
+    the edges renumbered in `order`): face normals, plane offsets and dihedral cosines kept for
+    the faces that did not move and computed again, with Scene's formulas, for those that did
+    (`moved` (F,)) and the edges beside them: the same values as computed afresh."""
+    m = np.flatnonzero(moved)
+    n = rest.face_normals.copy()
+    n[m] = face_normals_of(scene.vertices, scene.faces[m])
+    off = rest.face_offsets.copy()
+    off[m] = face_offsets_of(scene.vertices, scene.faces[m], n[m])
+    ef = topology[1]
+    dc = rest.dihedral_cos[order]
+    touch = np.flatnonzero(moved[ef[:, 0]] | (moved[np.maximum(ef[:, 1], 0)] & (ef[:, 1] >= 0)))
+    dc[touch] = dihedral_cos_of(ef[touch], n)
+    return {"_topology": topology, "face_normals": n, "face_offsets": off, "dihedral_cos": dc}
 
 
 def _area2(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -509,10 +537,14 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: t
     check = np.flatnonzero(rows & (of >= 0))
     if not np.array_equal(V[check], P[of[check]]):
         return None
-    order = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))
-    S = P[order]
-    if len(S) > 1 and (S[1:] == S[:-1]).all(axis=1).any():
+    if "moving vertices" not in motion._kinds:
+        moved = np.zeros(n, bool)
+        moved[of[rows & (of >= 0)]] = True
+        motion._kinds["moving vertices"] = (np.flatnonzero(~moved), np.flatnonzero(moved))
+    order = _sorted_order(P, *motion._kinds["moving vertices"])
+    if order is None:
         return None  # two welded vertices meet
+    S = P[order]
     # (the weld's extent: of the vertices of every face, dropped ones included)
     E = V[motion.face_vertices]
     extent = float(np.max(E.max(axis=0) - E.min(axis=0))) or 1.0
@@ -527,6 +559,36 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: t
     new = np.empty(n, np.int64)
     new[order] = np.arange(n)
     return S, new
+
+
+def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray) -> np.ndarray | None:
+    """The order that sorts the rows of P (V, 3) by position (x, then y, then z, as the weld does),
+    given that the rows `still` (those that did not move: in sorted order already, the rest
+    scene's) and `moving` cover them: the moving rows sorted and merged in (a sort of all the rows
+    where most of them move). None where two rows are equal (welded vertices that meet)."""
+    if len(moving) * 8 > len(P):
+        order = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))
+        S = P[order]
+        return None if len(S) > 1 and (S[1:] == S[:-1]).all(axis=1).any() else order
+    mv = moving[np.lexsort((P[moving, 2], P[moving, 1], P[moving, 0]))]
+    M = P[mv]
+    if len(M) > 1 and (M[1:] == M[:-1]).all(axis=1).any():
+        return None
+    St = P[still]
+    lo = np.searchsorted(St[:, 0], M[:, 0], side="left")
+    hi = np.searchsorted(St[:, 0], M[:, 0], side="right")
+    ins = lo.copy()
+    for j in np.flatnonzero(hi > lo).tolist():  # the still rows of the same x: by y, then z
+        block = St[lo[j]:hi[j]]
+        y, z = M[j, 1], M[j, 2]
+        less = (block[:, 1] < y) | ((block[:, 1] == y) & (block[:, 2] < z))
+        if ((block[:, 1] == y) & (block[:, 2] == z)).any():
+            return None
+        ins[j] = lo[j] + int(less.sum())
+    order = np.empty(len(P), np.int64)
+    order[ins + np.arange(len(mv))] = mv
+    order[np.arange(len(still)) + np.searchsorted(ins, np.arange(len(still)), side="right")] = still
+    return order
 
 
 def _scene_nodes(g, tree: NodeTree) -> set[int]:
