@@ -151,7 +151,7 @@ class GltfData:
             if dtype.startswith("<i"):
                 out = np.maximum(out, -1.0)
         if not np.all(np.isfinite(out)):
-            raise self.error(f"{name} holds non-finite values")
+            raise self.error(f"{what}: {name} holds non-finite values")
         return out
 
 

@@ -286,6 +286,9 @@ def _broken(tmp_path, how: str):
     elif how == "nan":
         d.animate([(n, "translation", [0.0, float("nan")], [[0, 0, 0], [1, 0, 0]])], name="bad")
         g.animations.pop(0)
+    elif how == "order":
+        d.animate([(n, "translation", [1.0, 0.5], [[0, 0, 0], [1, 0, 0]])], name="bad")
+        g.animations.pop(0)
     elif how == "joints":
         j = d.node(name="joint")
         g.scenes[0].nodes.remove(j)  # a joint outside the scene
@@ -296,7 +299,8 @@ def _broken(tmp_path, how: str):
 
 @pytest.mark.parametrize("how,needle", [("missing node", "targets node 7, which does not exist"),
                                         ("counts", "needs 1 VEC3 values for 1 LINEAR keys, got 2"),
-                                        ("nan", "non-finite"),
+                                        ("nan", "sampler 0 input: accessor 4 holds non-finite values"),
+                                        ("order", "sampler 0: key times must increase strictly"),
                                         ("joints", "joint node 1 is not in the scene")])
 def test_a_broken_animation_is_one_line_naming_the_file_and_the_animation(tmp_path, capsys, how, needle):
     p = _broken(tmp_path, how)
@@ -304,8 +308,8 @@ def test_a_broken_animation_is_one_line_naming_the_file_and_the_animation(tmp_pa
         load_scene(p)
     msg = str(e.value)
     assert needle in msg and str(p) in msg and "\n" not in msg
-    if how in ("missing node", "counts"):
-        assert "animation 0 ('slide')" in msg
+    if how != "joints":  # (a skin is no animation's: the message names the skin)
+        assert ("animation 0 ('slide')" if how in ("missing node", "counts") else "animation 0 ('bad')") in msg
     code, _, err = run_cli(["render", p, "--orbit", "2", "--out", tmp_path / "out", "-q"], capsys)
     assert code == 1 and needle in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "out" / "frame_0001.svg").exists()
