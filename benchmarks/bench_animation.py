@@ -5,6 +5,8 @@
   cameras of the same relative motion: the lines of every frame within 0.05 px (P and R >=
   0.999, strokekit.metrics.accuracy), and M1 and M8 (tracked ends per 1000 px and the ratio to
   the fresh paths, BRIEF 3) of the default brush paths within 0.005 of the orbit's;
+- noise: the same orbit's M1 and M8 with its eyes moved by 1e-12 of their distance (how much
+  of the turntable's difference rounding alone makes);
 - exact: every frame of the CesiumMilkTruck's animation (its wheels, 31 frames, cameras of a
   31-frame orbit) and of a skinned tube (tests/animated.py) against the static scene of that
   frame's posed vertices: the same SVG bytes, and P and R >= 0.999 at 1 px against the exact
@@ -16,7 +18,7 @@
   turns (one frame of each, alternating), medians over the frames, best of --repeat; a deforming
   mesh's frame (the tube, and a finer tube of about 50 k faces): posing, its BVH and its lines.
 
-    python benchmarks/bench_animation.py [--frames 120] [--repeat 3] [--only turntable,exact,wheels,cost]
+    python benchmarks/bench_animation.py [--frames 120] [--repeat 3] [--only turntable,noise,exact,wheels,cost]
         [--json out.json]
 """
 
@@ -27,6 +29,7 @@ import json
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +91,20 @@ def turntable(folder: Path, frames: int) -> dict:
     d = {k: abs(mt[k] - mo[k]) for k in mt}
     ok = P >= 0.999 and R >= 0.999 and d["M1"] <= 0.005 and d["M8"] <= 0.005 and d["M8_ratio"] <= 0.005
     return {"frames": frames, "min_P@0.05": P, "min_R@0.05": R, "turntable": mt, "orbit": mo, "diff": d, "pass": ok}
+
+
+def orbit_noise(folder: Path, frames: int, runs: int = 3) -> dict:
+    """How far the relative orbit's own brush-path M1 and M8 move when its eyes move by j * 1e-12
+    of their distance (j = 1..runs): the rounding the turntable's cameras differ by."""
+    _, still = spot_files(folder, frames)
+    cam = orbit_path(*load_scene(still).framing()[:2], 1, elevation=20.0).cameras[0]
+    base = brush_metrics(still, relative_orbit(cam, frames))
+    out = []
+    for j in range(1, runs + 1):
+        cams = [replace(c, eye=tuple(np.asarray(c.eye) * (1 + 1e-12 * j))) for c in relative_orbit(cam, frames)]
+        m = brush_metrics(still, cams)
+        out.append({k: abs(m[k] - base[k]) for k in m})
+    return {"frames": frames, "orbit": base, "moved_by": out}
 
 
 def static_of(scene, t: float):
@@ -237,6 +254,9 @@ def main() -> None:
         if "turntable" in only:
             res["turntable"] = turntable(folder, a.frames)
             print("turntable", json.dumps(res["turntable"], indent=1), flush=True)
+        if "noise" in only:
+            res["noise"] = orbit_noise(folder, a.frames)
+            print("noise", json.dumps(res["noise"], indent=1), flush=True)
         if "exact" in only:
             res["exact"] = exact(folder)
             print("exact", json.dumps(res["exact"], indent=1), flush=True)

@@ -54,9 +54,11 @@ class LineRenderer:
         index = motion.animation(animation)
         if not motion.moves(index):
             return self
-        D = motion.carried(index, time)
+        nodes: dict = {}  # (the node matrices at this time, for both)
+        D = motion.carried(index, time, nodes)
         if D is not None:
-            return CarriedRenderer(self, D, motion.pose(self.scene, index, time), lambda: self._posed_at(time, index))
+            return CarriedRenderer(self, D, motion.pose(self.scene, index, time, nodes),
+                                   lambda: self._posed_at(time, index))
         return self._posed_at(time, index)
 
     def _posed_at(self, time: float, index: int) -> LineRenderer:

@@ -337,30 +337,31 @@ class SceneMotion:
             self._kinds[key] = node
         return self._kinds[key]
 
-    def carried(self, ai: int | None, t: float) -> np.ndarray | None:
+    def carried(self, ai: int | None, t: float, cache: dict | None = None) -> np.ndarray | None:
         """(4, 4) the similarity that takes the rest scene to the scene at time t, when one node
         carries the whole scene (`carrier`) and its motion is a similarity (rotation, uniform
-        scale, translation); None otherwise."""
+        scale, translation); None otherwise. `cache`: the node matrices at t (object_matrices')."""
         node = self.carrier(ai)
         if node is None:
             return None
-        times = np.array([float(t)])
-        W = self.tree.world(node, self._channels(ai), times)[0]
-        W0 = self.tree.world(node, {}, times)[0]
+        W = self.tree.world(node, self._channels(ai), np.array([float(t)]), cache)[0]
+        key = ("rest inverse", node)
+        if key not in self._kinds:
+            self._kinds[key] = np.linalg.inv(self.tree.world(node, {}, np.zeros(1))[0])
         with np.errstate(over="ignore", invalid="ignore"):
-            D = W @ np.linalg.inv(W0)
+            D = W @ self._kinds[key]
         L = D[:3, :3]
         G = L.T @ L
         s2 = float(np.trace(G)) / 3.0
-        if not (np.all(np.isfinite(D)) and s2 > 0 and np.allclose(G, s2 * np.eye(3), rtol=0, atol=1e-9 * s2)
+        if not (np.all(np.isfinite(D)) and s2 > 0 and np.abs(G - s2 * np.eye(3)).max() <= 1e-9 * s2
                 and np.linalg.det(L) > 0):
             return None
         return D
 
-    def pose(self, rest, ai: int | None, t: float) -> ScenePose:
+    def pose(self, rest, ai: int | None, t: float, cache: dict | None = None) -> ScenePose:
         """Where the objects are at time t (the ScenePose of `posed`, without posing the scene)
-        for a scene that moves only rigidly (faces as the rest scene's)."""
-        return ScenePose(self.object_matrices(ai, t), {}, self.parts, self.file_faces, self.rest.kept, None,
+        for a scene that moves only rigidly (faces as the rest scene's). `cache`: as carried's."""
+        return ScenePose(self.object_matrices(ai, t, cache), {}, self.parts, self.file_faces, self.rest.kept, None,
                          self.file_face_object, float(t), tuple(rest.objects))
 
     def _moving(self, ai: int | None) -> tuple[np.ndarray, np.ndarray]:
