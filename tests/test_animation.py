@@ -155,6 +155,24 @@ def test_posed_truck_frames_draw_the_static_scenes_lines_byte_for_byte(truck):
             assert acc.precision[1.0] >= 0.999 and acc.recall[1.0] >= 0.999
 
 
+def test_posed_truck_frames_rasterize_and_hide_as_the_static_scene(truck):
+    """Hidden lines and the raster pass (the EXR passes' and toon bands' samples) of a posed
+    frame are the static scene's of its posed vertices, not the rest scene's."""
+    from strokekit.raster.bands import RasterOptions
+
+    cam = orbit_path(*truck.framing()[:2], 8, elevation=25).cameras[1]
+    request = RenderRequest(lines=LineOptions(occlusion=(0, 3)), raster=RasterOptions())
+    for k in (1, 9, 17):
+        a = next(render_sequence(truck, [(k, cam)], request))
+        b, rest = (next(render_sequence(static_of(truck, t), [(k, cam)], request)) for t in ((k - 1) / 24, 0.0))
+        assert svg_document(a.strokes, 1024, 1024, a.layers) == svg_document(b.strokes, 1024, 1024, b.layers)
+        assert "hidden-" in svg_document(a.strokes, 1024, 1024, a.layers)
+        for name in ("face", "bary", "depth"):
+            assert np.array_equal(getattr(a.raster.hits, name), getattr(b.raster.hits, name)), name
+        assert np.array_equal(a.raster.labels_ss, b.raster.labels_ss)
+        assert k == 1 or not np.array_equal(a.raster.hits.depth, rest.raster.hits.depth)  # (the wheels turned)
+
+
 def test_posed_tube_frames_draw_the_static_scenes_lines_byte_for_byte(tube_file):
     s = load_scene(tube_file)
     opts, exact = LineOptions(), LineOptions.preset("exact")
