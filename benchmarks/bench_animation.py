@@ -14,7 +14,8 @@
 - wheels: the truck's own animation before a still camera (its side), default brush paths: M1
   of the strokes on the wheels (each stroke's object: that of most of its points) >= 0.97;
 - cost: a frame's lines (LineRenderer.at + render, process CPU) of the turntable against the
-  still spot from the relative orbit, and of the moving truck against the truck at rest, in
+  still spot from the relative orbit, of the moving truck against the truck at rest, and of a
+  box turning beside a still sphere (and the sphere turning) against the scene at rest, in
   turns (one frame of each, alternating), medians over the frames, best of --repeat; a deforming
   mesh's frame (the tube, and a finer tube of about 50 k faces): posing, its BVH and its lines.
 
@@ -35,7 +36,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from animated import Doc, skinned_tube_glb, tube, tube_weights, turntable_glb, yaw_matrix  # noqa: E402
+from animated import (  # noqa: E402
+    Doc,
+    skinned_tube_glb,
+    sphere_and_box_glb,
+    tube,
+    tube_weights,
+    turntable_glb,
+    yaw_matrix,
+)
 
 from strokekit.camera.paths import orbit_path  # noqa: E402
 from strokekit.camera.view import Camera  # noqa: E402
@@ -169,10 +178,12 @@ def cpu_frame(renderer: LineRenderer, t: float | None, cam: Camera) -> float:
 
 def in_turns(a: LineRenderer, b: LineRenderer, frames: list[tuple], repeat: int) -> tuple[float, float]:
     """Medians over the frames of a's and b's CPU seconds a frame (best of `repeat` each),
-    one frame of each in turn. frames: (time or None, camera of a, camera of b)."""
+    one frame of each in turn. frames: (time or None, camera of a, camera of b). Each repeat
+    of a moving frame is at a time of its own (t + 1e-4 s each), so that it poses its scene
+    again (a pose the same as the last one's is not posed again)."""
     ta, tb = [], []
     for t, ca, cb in frames:
-        ta.append(min(cpu_frame(a, t, ca) for _ in range(repeat)))
+        ta.append(min(cpu_frame(a, None if t is None else t + 1e-4 * r, ca) for r in range(repeat)))
         tb.append(min(cpu_frame(b, None, cb) for _ in range(repeat)))
     return float(np.median(ta)), float(np.median(tb))
 
@@ -220,6 +231,12 @@ def cost(folder: Path, frames: int, repeat: int) -> dict:
     a, b = in_turns(LineRenderer(truck, LineOptions()), LineRenderer(rest, LineOptions()),
                     [(k / 24, cams[k % 8], cams[k % 8]) for k in range(1, 31)], repeat)
     out["truck wheels"] = {"moving_ms": 1e3 * a, "still_ms": 1e3 * b, "added": a / b - 1}
+    for moving in ("box", "sphere"):  # a small object turning beside a still one of 5120 faces, and the other way
+        s = load_scene(sphere_and_box_glb(folder / f"{moving}.glb", moving))
+        cams = orbit_path(*s.framing()[:2], 8, elevation=20.0).cameras
+        a, b = in_turns(LineRenderer(s, LineOptions()), LineRenderer(static_of(s, 0.0), LineOptions()),
+                        [(k / 48, cams[k % 8], cams[k % 8]) for k in range(1, 24)], repeat)
+        out[f"{moving} turning"] = {"moving_ms": 1e3 * a, "still_ms": 1e3 * b, "added": a / b - 1}
     for name, path in (("skinned tube", skinned_tube_glb(folder / "tube.glb")), ("fine skinned tube", fine_tube(folder))):
         s = load_scene(path)
         r = LineRenderer(s, LineOptions())
