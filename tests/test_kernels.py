@@ -80,7 +80,8 @@ def test_every_kernel_python_calls_says_how_it_is_called(lazy):
 
 def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
     """After the warm-up, drawing frames compiles nothing more: brush paths, tracked lines,
-    hidden lines and the raster pass call their kernels with the declared types only (a kernel
+    hidden lines, the raster pass and a moving scene's rays call their kernels with the declared
+    types only (a kernel
     called with another type would compile during a run's first frame, after the run said
     nothing of a compile). Checked in a fresh interpreter (this one's other tests call the
     kernels themselves)."""
@@ -89,9 +90,14 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit.lines.kernels import HIDDEN_LINES
         from strokekit.paths.kernels import BRUSH_PATHS
         from strokekit.raster.hits import RASTER
+        from strokekit.scene.occluder import MOVING_SCENE
         from strokekit.tracking.kernels import TRACKING
         from strokekit_cli.main import cli
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING)
+        import sys
+        sys.path.insert(0, {str(ROOT / 'tests')!r})
+        from animated import sphere_and_box_glb
+        from pathlib import Path
+        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE)
         for g in groups:
             g.warm()
         warm = {{}}
@@ -103,7 +109,9 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         runs = [["render", S + "/still_life.glb", "--camera", S + "/orbit.json", "--frames", "1-3", "--gltf",
                  "--bands", "3", "--exr", "--masks", "--objectid", "--depth", "--fill", "--size", "160x120"],
                 ["render", M + "/fandisk.obj", "--orbit", "3", "--hidden", "--size", "240x200"],
-                ["render", M + "/spot.obj", "--orbit", "3", "--strokes", "lines", "--size", "240x200"]]
+                ["render", M + "/spot.obj", "--orbit", "3", "--strokes", "lines", "--size", "240x200"],
+                ["render", str(sphere_and_box_glb(Path(out) / "sphere.glb", "sphere")), "--orbit", "3",
+                 "--strokes", "lines", "--size", "240x200"]]
         for k, r in enumerate(runs):
             try:
                 cli.main(args=r + ["--workers", "1", "-q", "--out", out + "/r%d" % k], standalone_mode=False)

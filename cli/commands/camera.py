@@ -33,6 +33,8 @@ _common = [
     click.option("--height", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True),
     click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis."),
     click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout."),
+    click.option("--animation", default=None, help="A glTF scene's animation to frame the scene over, by name or "
+                 "number [the first]."),
 ]
 
 
@@ -52,11 +54,12 @@ def command():
 @click.option("--degrees-per-frame", type=FINITE, default=None, help="Default: a full turn over the frames.")
 @click.option("--fps", type=FiniteFloatRange(min=0, min_open=True), default=24.0, show_default=True,
               help="Frames per second (for glTF animation).")
-def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
-    """A turntable orbit around the scene that keeps it in view."""
+def orbit(scene, frames, elevation, fov, width, height, up, out, animation, degrees_per_frame, fps):
+    """A turntable orbit around the scene that keeps it in view (over its whole animation)."""
     s = load_scene(scene)
     say_warnings(s)
-    _emit(orbit_path(s.center, s.radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
+    center, radius, _ = s.framing(animation)
+    _emit(orbit_path(center, radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
                      fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
 
 
@@ -64,11 +67,12 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
 @_with_common
 @click.option("--start", type=FiniteFloatRange(min=0, min_open=True), default=1.0, show_default=True, help="Start distance factor.")
 @click.option("--end", type=FiniteFloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
-def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
+def dolly(scene, frames, elevation, fov, width, height, up, out, animation, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
     s = load_scene(scene)
     say_warnings(s)
-    _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
+    center, radius, _ = s.framing(animation)
+    _emit(dolly_path(center, radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)
 
 
@@ -90,15 +94,18 @@ def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
 @click.option("--height", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True)
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis.")
 @click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout.")
-def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width, height, up, out):
+@click.option("--animation", default=None, help="A glTF scene's animation to frame the scene over, by name or number "
+              "[the first].")
+def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width, height, up, out, animation):
     """A parallel projection of technical drawing that frames the whole scene (its drawing centred,
     5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
     from --azimuth / --elevation."""
     s = load_scene(scene)
+    center, radius, points = s.framing(animation)
     try:
-        path = parallel_path(s.center, s.radius, projection, azimuth=azimuth, elevation=elevation,
+        path = parallel_path(center, radius, projection, azimuth=azimuth, elevation=elevation,
                              oblique_angle=oblique_angle, frames=frames, width=width, height=height, up_axis=up,
-                             points=s.vertices)
+                             points=points)
     except InputError as e:  # an angle the projection does not take: the options' fault (exit 2)
         raise UsageError(f"--projection {projection}: {e}") from None
     _emit(path, out)

@@ -42,6 +42,10 @@ def command(scene: str, as_json: bool, crease_angle: float):
     ]
     if d.get("cameras"):
         rows.append(("cameras", f"{d['cameras']} (render with --camera {scene})"))
+    if d.get("animations"):
+        rows.append(("animations", "; ".join(
+            f"{a['index']}{' (' + a['name'] + ')' if a['name'] else ''}: {a['seconds']:.4g} s"
+            f"{'' if a['moves'] else ', moves no object'}" for a in d["animations"])))
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         click.echo(f"{k:<{w}}  {v}")

@@ -80,12 +80,13 @@ def command(scene, **o):
         load_seconds = time.perf_counter() - t_load
         if path is None:
             width, height = size or (1024, 1024)
-            path = orbit_path(s.center, s.radius, o["orbit"] or 48, elevation=o["elevation"], fov_y=o["fov"],
+            center, radius, _ = s.framing(request.animation)  # (over the whole animation)
+            path = orbit_path(center, radius, o["orbit"] or 48, elevation=o["elevation"], fov_y=o["fov"],
                               width=width, height=height, up_axis=o["up"])
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), request=request,
                        outputs=outputs_from(o, given, lines.occlusion, path.fps), workers=workers,
                        scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
-                       camera_source=str(o["camera"]) if o["camera"] else path.source)
+                       camera_source=str(o["camera"]) if o["camera"] else path.source, fps=path.fps)
         check_files_apart(spec, also_written=[("--report", o["report"])])
         try:
             res = _run_with_progress(spec, o["quiet"], dict(workers=pool, scene=s, load_seconds=load_seconds,

@@ -210,6 +210,8 @@ class PathTracker:
         out, self.next_id = brush_step(self.prev, lines, o, self.next_id)
         # The held paths vote with the drawn ones: one still there next frame takes its id back.
         self.prev = out.strokes if out.held is None else concat_two(out.strokes, out.held)
+        if lines.pose is not None:  # (a moving scene: where this frame's objects were, for the next one)
+            self.prev = self.prev.replace(pose=lines.pose)
         return out
 
 

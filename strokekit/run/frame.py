@@ -38,6 +38,9 @@ class Frame:
     json_head: dict
     layers: tuple[str, ...]
     paths: BrushPaths | None = None
+    #: The frame's time in the scene's animation, and which animation (None: a still scene).
+    time: float | None = None
+    animation: str | None = None
     raster: RasterFrame | None = None
     raster_info: dict = field(default_factory=dict)
     underlays: tuple[str, ...] = ()
@@ -51,6 +54,8 @@ class Frame:
     def to_json(self) -> bytes:
         """The frame JSON (writers.strokes_json), as the run writes it."""
         head = {**self.json_head, "raster": self.raster_info} if self.raster_info else self.json_head
+        if self.strokes.pose is not None:  # a moving scene: where its objects were
+            head = {**head, "animation": self.animation, **self.strokes.pose.to_json()}
         cam = self.strokes.camera
         return strokes_json(self.strokes, cam.width, cam.height, self.number, extra=head, paths=self.paths)
 
@@ -68,6 +73,13 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
     z-buffer workspace (raster.hits.thread_workspace) the raster pass reuses; the frame's
     raster then lives until the next pass in that workspace."""
     timings: dict = {}
+    clock = plan.clock
+    time_s = clock.time(number)
+    t = time.perf_counter()
+    posed = renderer.at(time_s, clock.animation)
+    if posed is not renderer:
+        timings["pose scene"] = time.perf_counter() - t
+    renderer = posed
     renderer.check_camera(camera, number)
     lines = renderer.render(camera, number, timings)
     raster, info, underlays = None, {}, ()
@@ -81,8 +93,10 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
         if plan.raster.band_polygons:
             underlays = (bands_layer(band_regions(raster)),)
         timings["raster pass"] = time.perf_counter() - t
+    moving = renderer.pose is not None
     return Frame(number, camera, lines, plan.json_head(), plan.lines.layers, raster=raster, raster_info=info,
-                 underlays=underlays, timings=timings)
+                 underlays=underlays, timings=timings, time=time_s if moving else None,
+                 animation=clock.animation if moving else None)
 
 
 def raster_info(raster: RasterFrame) -> dict:
@@ -128,5 +142,8 @@ class StrokeCarry:
         if self.paths is not None:
             t = time.perf_counter()
             paths = self.paths.step(lines)
+            if lines.pose is not None:  # (the paths lie on the frame's posed scene too)
+                paths = replace(paths, strokes=paths.strokes.replace(pose=lines.pose),
+                                lines=paths.lines.replace(pose=lines.pose))
             timings["brush paths"] = time.perf_counter() - t
         return replace(frame, lines=lines, paths=paths, timings=timings)

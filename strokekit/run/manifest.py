@@ -72,8 +72,12 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
         opts["paths"] = plan.paths
     options_d = _digest(opts)
     frames, chain = {}, ""
+    motion = scene.motion
+    moving = motion is not None and motion.moves(motion.animation(spec.request.animation))
     for f, cam in spec.cameras:
-        d = _digest(cam.to_json())
+        # (a moving scene's frame is also its time in the animation: another fps or offset is
+        # another frame)
+        d = _digest(cam.to_json() if not moving else [cam.to_json(), spec.plan.clock.time(f), spec.request.animation])
         if plan.carried:
             d = chain = _digest([chain, f, d])
         frames[f] = d

@@ -96,7 +96,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         except OSError as e:
             write_error = e
         if write_error is None:
-            kernels.ready(spec, workers.main_helps, work=bool(lines_needed(spec, resume)))
+            kernels.ready(spec, workers.main_helps, work=bool(lines_needed(spec, resume)), moving=moves(scene, spec))
             write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
         for name, seconds in kernels.seconds().items():
             stage[name].seconds += seconds
@@ -150,6 +150,12 @@ def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, res
         except OSError as e:
             stream.write_failed(None, e)
     return stream.write_error
+
+
+def moves(scene: Scene, spec: RunSpec) -> bool:
+    """Whether the run's animation moves the scene's objects (its frames are posed)."""
+    m = scene.motion
+    return m is not None and m.moves(m.animation(spec.request.animation))
 
 
 def run_files(spec: RunSpec) -> list[Path]:
@@ -417,8 +423,18 @@ def write_sequence_glb(spec: RunSpec, scene: Scene, res: RunResult, stage: dict,
     if not (out.gltf and out.gltf_sequence and stream.ordered):
         return
     t = time.perf_counter()
-    seq = [stream.drawn[f].strokes for f in stream.ordered]
+    frames = [stream.drawn[f] for f in stream.ordered]
+    seq = [f.strokes for f in frames]
     depth_at = surface_depth(out, stream.scene)
+    if depth_at is not None and any(f.time is not None for f in frames):
+        # Each frame's ribbons lie on the scene as posed in that frame: the depth function of the
+        # frame whose camera asks (each frame's strokes hold their own camera object).
+        base = stream.scene.renderer()
+        by_camera = {id(f.strokes.camera): surface_depth(out, None, base.at(f.time, f.animation).occluder)
+                     for f in frames}
+
+        def depth_at(camera, pixels):
+            return by_camera[id(camera)](camera, pixels)
     res.outputs.append(str(atomic_write_bytes(out.out_dir / "sequence.glb",
                                               glb_for_sequence(seq, out.gltf_options, depth_at))))
     stage["ribbons + glTF"].seconds += time.perf_counter() - t

@@ -120,11 +120,12 @@ class RunSpec:
     fail_fast: bool = option(False, "--fail-fast", "Stop at the first failed frame (frames already written stay; the "
                              "run streams them out in order).", switch=True)
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
+    fps: float = 24.0  # the camera path's frame rate: frame N shows the scene's animation at (N - 1) / fps
 
     @cached_property
     def plan(self) -> SequencePlan:
         """The request settled for this run's frames."""
-        return self.request.plan(len(self.cameras))
+        return self.request.plan(len(self.cameras), self.fps)
 
     @property
     def lines(self) -> LineOptions:
@@ -226,6 +227,9 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
     o, L, plan = spec.outputs, spec.lines, spec.plan
     kinds = set(L.kinds)
     st = [StageRecord("load scene + BVH", True, "every run needs the scene and its occlusion BVH")]
+    if scene.motion is not None and scene.motion.moves(scene.motion.animation(spec.request.animation)):
+        st.append(StageRecord("pose scene", True, "the scene's animation moves its objects: each frame poses them "
+                              "(still and rigidly moving objects keep their BVH, deforming ones get one a frame)"))
 
     def add(name, ran, yes, no):
         st.append(StageRecord(name, bool(ran), yes if ran else no))

@@ -140,7 +140,7 @@ def frame_task(task: FrameTask) -> FrameResult:
         frame = replace(frame, raster=None)
         written = None
         if task.write and task.outputs is not None:
-            written = write_task(WriteTask(frame, task.outputs, task.scene), occluder=r.occluder)
+            written = write_task(WriteTask(frame, task.outputs, task.scene), occluder=_frame_renderer(r, frame).occluder)
             if not task.keep_frame:
                 frame = None
         return FrameResult(n, frame, files, time.perf_counter() - t0, timings, r.occluder.backend, written)
@@ -168,6 +168,8 @@ def write_task(task: WriteTask, occluder: Occluder | None = None) -> WriteResult
             files.append(_write(outputs.frame_file(frame.number, ".json"), frame.to_json()))
             timings["json"] = time.perf_counter() - t0 - sum(timings.values())
         if outputs.gltf and not outputs.gltf_sequence:
+            if occluder is None and frame.time is not None:  # (world ribbons lie on the posed surface)
+                occluder = _frame_renderer(task.scene.renderer(), frame).occluder
             files.append(_write(outputs.frame_file(frame.number, ".glb"), glb_for_frame(
                 frame.strokes, frame.strokes.camera, outputs.gltf_options,
                 surface_depth(outputs, task.scene, occluder))))
@@ -177,6 +179,11 @@ def write_task(task: WriteTask, occluder: Occluder | None = None) -> WriteResult
         return WriteResult(frame.number, write_error=WriteError.of(w.error))
     except Exception as e:
         return WriteResult(frame.number, error=f"frame {frame.number}: writing failed: {type(e).__name__}: {e}")
+
+
+def _frame_renderer(renderer, frame: Frame):
+    """The renderer of the scene as `frame` saw it (posed at its time, for a moving scene)."""
+    return renderer if frame.time is None else renderer.at(frame.time, frame.animation)
 
 
 def surface_depth(outputs: OutputOptions, scene: SceneRef | None, occluder: Occluder | None = None):

@@ -8,7 +8,7 @@ import numpy as np
 import orjson
 
 from strokekit.camera.view import Camera
-from strokekit.model import KIND_INDEX, KINDS, N_KINDS, BrushPaths, Strokes
+from strokekit.model import KIND_INDEX, KINDS, N_KINDS, BrushPaths, RecordedPose, Strokes
 
 
 def round_list(x: np.ndarray, ndigits: int) -> list[float]:
@@ -32,6 +32,8 @@ def round_list(x: np.ndarray, ndigits: int) -> list[float]:
 _STROKE = (b'{"id":%d,"kind":"%s","points":[%s],"u":[%s],"surface":[%s],"face":[%s],'
            b'"length_px":%s,"level":%s,"level_weight":%s}')
 _STROKE_OCCLUSION = _STROKE.replace(b'"kind":"%s",', b'"kind":"%s","occlusion":%d,')
+#: A moving scene's strokes: each point's object and its point in the object's own frame too.
+_POSED = (b'"face":[%s],', b'"face":[%s],"object":[%s],"local":[%s],')
 _KIND_BYTES = [k.encode() for k in KINDS]
 _KIND_BYTES_ARRAY = np.array(_KIND_BYTES, dtype=object)
 _NP = orjson.OPT_SERIALIZE_NUMPY
@@ -40,7 +42,9 @@ _NP = orjson.OPT_SERIALIZE_NUMPY
 def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra: dict | None = None,
                  paths: BrushPaths | None = None) -> bytes:
     """JSON bytes: frame, size, camera and every stroke with points (px, 4 decimals), u, surface
-    (world), face, length_px, self-similar level and weight. Deterministic. Hidden-line runs
+    (world), face, length_px, self-similar level and weight. Deterministic. A moving scene's
+    strokes (strokes.pose) also give each point's object and its point in the object's own
+    frame ("object", "local"; scene.motion.ScenePose.object_points). Hidden-line runs
     (`extra` holds "occlusion", the range of levels drawn; or a stroke is hidden) give each stroke
     its "occlusion" level after its kind (0: visible; "level" is the texture octave).
 
@@ -94,6 +98,8 @@ def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion
     if occlusion:
         cols.append((codes // N_KINDS).tolist())
         template = _STROKE_OCCLUSION
+    if strokes.pose is not None:
+        template = template.replace(*_POSED)
     cols += [*cuts, _number_texts(strokes.lengths, 4, n), _number_texts(strokes.level, 6, n),
              _number_texts(strokes.level_weight, 6, n)]
     if covers is not None:
@@ -126,8 +132,8 @@ def _number_texts(x: np.ndarray, ndigits: int, n: int) -> list[bytes]:
 
 
 def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
-    """Each stroke's points, u, surface and face as the JSON text between the brackets of its
-    arrays: orjson's text of the frame's whole array, cut at the stroke starts. None when a stroke
+    """Each stroke's points, u, surface and face (and for a moving scene its objects and object
+    points) as the JSON text between the brackets of its arrays: orjson's text of the frame's whole array, cut at the stroke starts. None when a stroke
     is empty, the arrays are not the (N, 2), (N,), (N, 3), (N,) of the offsets or the ids are not
     integers (%d would write them differently)."""
     off = strokes.offsets
@@ -139,7 +145,10 @@ def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
             or not len(strokes.surface) == len(strokes.u) == len(strokes.face) == n):
         return None
     out = []
-    for arr in (np.round(strokes.points, 4) + 0.0, np.round(strokes.u, 5) + 0.0, strokes.surface, strokes.face):
+    arrays = [np.round(strokes.points, 4) + 0.0, np.round(strokes.u, 5) + 0.0, strokes.surface, strokes.face]
+    if strokes.pose is not None:
+        arrays += list(strokes.pose.object_points(strokes.surface, strokes.face))
+    for arr in arrays:
         text = orjson.dumps(np.ascontiguousarray(arr), option=_NP)  # orjson refuses strided arrays
         b = np.frombuffer(text, np.uint8)
         # [[x,y],[x,y]]: rows start at '['; [a,b,c]: elements after the commas. The comma before
@@ -161,9 +170,13 @@ def _stroke_dicts(strokes: Strokes, occlusion: bool = False) -> list[dict]:
     off = strokes.offsets.tolist()
     lengths = round_list(strokes.lengths, 4)
     level, weight = round_list(strokes.level, 6), round_list(strokes.level_weight, 6)
+    obj = local = None
+    if strokes.pose is not None:
+        obj, local = strokes.pose.object_points(surface, face)
     return [{
         "id": i, "kind": KINDS[k % N_KINDS], **({"occlusion": k // N_KINDS} if occlusion else {}),
         "points": pts[a:b], "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
+        **({"object": obj[a:b], "local": local[a:b]} if obj is not None else {}),
         "length_px": ln, "level": lv, "level_weight": w,
     } for i, k, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), off[:-1], off[1:],
                                        lengths, level, weight)]
@@ -205,6 +218,9 @@ def read_strokes_json(path, which: str = "strokes") -> Strokes:
     cam = None
     if d.get("camera"):
         cam = Camera.from_json(dict(d["camera"]))
+    pose = None
+    if "objects" in d and ss and "object" in ss[0]:  # a moving scene's frame
+        pose = RecordedPose.from_json(d, np.asarray(cat("object", 1), np.int64), cat("local", 3))
     st = Strokes(points=cat("points", 2), surface=cat("surface", 3),
                  face=np.asarray(cat("face", 1) if ss and "face" in ss[0] else np.full(offsets[-1], -1), np.int64),
                  offsets=offsets,
@@ -212,5 +228,5 @@ def read_strokes_json(path, which: str = "strokes") -> Strokes:
                  ids=np.array([s["id"] for s in ss], np.int64), u=cat("u", 1),
                  level=np.array([s.get("level", 0.0) for s in ss], float),
                  level_weight=np.array([s.get("level_weight", 1.0) for s in ss], float),
-                 camera=cam, frame=int(d["frame"]), period_px=float(d.get("period_px", 30.0)))
+                 camera=cam, frame=int(d["frame"]), period_px=float(d.get("period_px", 30.0)), pose=pose)
     return st
