@@ -57,9 +57,10 @@ def command(scene, **o):
     lines = request.lines
     path = _camera_file_path(o, size)
     frames = parse_frames(o["frames"], len(path) if path is not None else o["orbit"] or 48)
-    if "path_merge" in given and request.plan(len(frames)).paths is None:
-        raise UsageError("--path-merge needs brush paths (--strokes brush; one frame, --no-coherence or a --coherence "
-                         "method draw the lines by default)")
+    for name in ("path_merge", "path_heal"):
+        if name in given and request.plan(len(frames)).paths is None:
+            raise UsageError(f"--{name.replace('_', '-')} needs brush paths (--strokes brush; one frame, "
+                             "--no-coherence or a --coherence method draw the lines by default)")
     workers = min(o["workers"] or default_workers(len(frames), wants_raster(o)), len(frames))
     # The workers start before this process loads the scene: their start-up (imports, scene,
     # BVH: about a second) overlaps ours.
