@@ -377,6 +377,36 @@ def test_unwritable_output_is_one_line_before_any_work(cube, tmp_path, capsys):
     assert blocker.read_text() == "x" and not any(folder.iterdir())
 
 
+def test_an_output_onto_an_input_is_a_usage_error_and_the_input_stays(cube, tmp_path, capsys):
+    """--report (or any other output) naming the scene or the camera file, also through a link:
+    exit 2, one line naming the option, nothing written, the input's bytes unchanged (the run
+    used to replace the scene by its JSON report and exit 0)."""
+    cam = write_camera(tmp_path / "c.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}])
+    (tmp_path / "link.obj").symlink_to(cube)
+    svg = tmp_path / "a.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="10" height="10"/>')
+    (tmp_path / "shot").mkdir()
+    frame_cam = write_camera(tmp_path / "shot" / "frame_0001.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}])
+    (tmp_path / "shot-link").symlink_to(tmp_path / "shot")
+    inputs = {p: p.read_bytes() for p in (cube, cam, svg, frame_cam)}
+    o = tmp_path / "o"
+    for args, flag in ((["render", cube, "--orbit", "2", "--out", o, "--report", cube], "--report"),
+                       (["render", tmp_path / "link.obj", "--orbit", "2", "--out", o, "--report", cube], "--report"),
+                       (["render", cube, "--camera", cam, "--out", o, "--report", cam], "--report"),
+                       (["render", cube, "--camera", cam, "--out", o, "--report", tmp_path / "link.obj"], "--report"),
+                       (["camera", "orbit", cube, "--frames", "2", "-o", cube], "--out"),
+                       (["camera", "parallel", cube, "-o", cube], "--out"),
+                       (["bench", cube, "--camera", cam, "--plot", cam], "--plot"),
+                       (["diff", svg, svg, "--png", svg], "--png"),
+                       (["render", cube, "--camera", frame_cam, "--out", tmp_path / "shot"], "--out"),
+                       (["render", cube, "--camera", frame_cam, "--out", tmp_path / "shot-link"], "--out")):
+        code, out, err = run_cli(args, capsys)
+        assert code == 2, (args, err)
+        assert len(err.strip().splitlines()) == 1 and flag in err and "overwritten" in err, err
+        assert not o.exists() and out == ""
+        assert all(p.read_bytes() == b for p, b in inputs.items()), args
+
+
 def test_coherence_with_a_bad_pattern_is_a_usage_error(tmp_path, capsys):
     """render refuses a --pattern without {frame}; coherence read it as a glob and said "found 0"
     (exit 1): the same check now, exit 2."""

@@ -9,7 +9,7 @@ import click
 from strokekit.camera.paths import load_camera_path
 from strokekit.camera.view import MAX_PATH_FRAMES
 from strokekit.errors import UsageError
-from strokekit.fileio import check_output_file
+from strokekit.fileio import check_not_an_input, check_output_file
 from strokekit.metrics.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
 from strokekit.scene.load import load_scene
 
@@ -46,6 +46,7 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
             raise UsageError("--sweep values must be > 0")
     if plot_path is not None:
         check_output_file(plot_path)  # said now, not after a minute of timing
+        check_not_an_input("--plot", plot_path, [("scene", scene_path), ("camera file", camera_path)])
     scene = load_scene(scene_path)
     say_warnings(scene)
     if camera_path:

@@ -9,7 +9,7 @@ import click
 from strokekit.camera.paths import dolly_path, orbit_path, parallel_path
 from strokekit.camera.view import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
 from strokekit.errors import InputError, UsageError
-from strokekit.fileio import atomic_write_text
+from strokekit.fileio import atomic_write_text, check_not_an_input
 from strokekit.scene.load import load_scene
 
 from ..common import FINITE, FiniteFloatRange, say_warnings
@@ -54,6 +54,7 @@ def command():
               help="Frames per second (for glTF animation).")
 def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
     """A turntable orbit around the scene that keeps it in view."""
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
     _emit(orbit_path(s.center, s.radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
@@ -66,6 +67,7 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
 @click.option("--end", type=FiniteFloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
 def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
     _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
@@ -94,6 +96,7 @@ def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width
     """A parallel projection of technical drawing that frames the whole scene (its drawing centred,
     5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
     from --azimuth / --elevation."""
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     try:
         path = parallel_path(s.center, s.radius, projection, azimuth=azimuth, elevation=elevation,

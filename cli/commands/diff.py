@@ -7,6 +7,7 @@ import click
 import orjson
 
 from strokekit.errors import StrokekitError
+from strokekit.fileio import check_not_an_input
 from strokekit.metrics.diff import diff_paths
 
 from ..common import FINITE, FiniteFloatRange
@@ -33,6 +34,7 @@ def command(ctx: click.Context, a: str, b: str, tol: float, as_json: bool, png: 
 
     Exit codes: 0 equal, 1 different (or unreadable input), 2 usage error."""
     try:
+        check_not_an_input("--png", png, [("A file", a), ("B file", b)])
         result = diff_paths(a, b, tol, png=png, png_scale=png_scale)
     except StrokekitError as e:
         # one line and the error's exit code, also when the command runs outside `strokekit` (tests)

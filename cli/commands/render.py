@@ -14,7 +14,13 @@ from strokekit.camera.frames import parse_frames
 from strokekit.camera.paths import load_camera_path, orbit_path
 from strokekit.camera.view import MAX_IMAGE_PX, CameraPath
 from strokekit.errors import UsageError
-from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
+from strokekit.fileio import (
+    atomic_write_text,
+    check_not_an_input,
+    check_output_file,
+    check_output_folder,
+    check_pattern,
+)
 from strokekit.run.kernels import RunKernels
 from strokekit.run.report import run_report
 from strokekit.run.request import RenderRequest
@@ -52,7 +58,7 @@ def command(scene, **o):
     1 bad input or unwritable output, 2 usage error, 3 some frames failed (the others are written),
     130 interrupted by Ctrl-C (the frames written so far stay, whole; --report lists them)."""
     given = said(o)
-    size = _check_usage(o, given)
+    size = _check_usage(scene, o, given)
     request = request_from(o, given)
     lines = request.lines
     path = _camera_file_path(o, size)
@@ -119,9 +125,10 @@ def command(scene, **o):
     return res.exit_code
 
 
-def _check_usage(o: dict, given: dict) -> tuple[int, int] | None:
-    """Usage errors before any work (one line, exit 2); outputs that cannot be written are said now,
-    not after every frame has been rendered. Returns --size as (width, height), or None."""
+def _check_usage(scene: str, o: dict, given: dict) -> tuple[int, int] | None:
+    """Usage errors before any work (one line, exit 2); outputs that cannot be written, or that
+    would overwrite an input, are said now, not after every frame has been rendered. Returns
+    --size as (width, height), or None."""
     if o["camera"] and o["orbit"]:
         raise UsageError("give either --camera or --orbit, not both")
     _check_option_pairs(o, given)
@@ -151,6 +158,7 @@ def _check_usage(o: dict, given: dict) -> tuple[int, int] | None:
         check_output_file(report_path)
         if Path(report_path).resolve() == Path(out_dir).resolve():
             raise UsageError(f"--report {report_path} is the --out folder: name a file for the report")
+        check_not_an_input("--report", report_path, [("scene", scene), ("camera file", o["camera"])])
     return size
 
 

@@ -164,13 +164,13 @@ def run_files(spec: RunSpec) -> list[Path]:
 def check_files_apart(spec: RunSpec, also_written=()) -> None:
     """UsageError when one of the run's outputs would overwrite one of its inputs (the scene, the
     camera file) or a file also written ((what, name) pairs `also_written`, e.g. the run report)."""
-    written = {os.path.abspath(p) for p in run_files(spec)}
+    written = {os.path.realpath(p) for p in run_files(spec)}  # (links resolved: --out may be one)
     for what, name in (("scene", spec.scene_path), ("camera file", spec.camera_source)):
-        if name and os.path.abspath(name) in written and Path(name).is_file():
+        if name and os.path.realpath(name) in written and Path(name).is_file():
             raise UsageError(f"{name}: the {what} is also one of the run's outputs (it would be overwritten); "
                              "choose another --out or --pattern")
     for what, name in also_written:
-        if name and os.path.abspath(name) in written:
+        if name and os.path.realpath(name) in written:
             raise UsageError(f"{what} {name} is also one of the run's outputs: name another file")
 
 
