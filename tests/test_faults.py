@@ -556,3 +556,15 @@ def test_failed_frame_is_said_in_one_line(frames, code_expected, cube, tmp_path,
     assert "cube.obj" in lines[0] and f"frame {n // 2 + 1}" in lines[0] and "inside the mesh" in lines[0], e
     if n > 1:
         assert all((tmp_path / "o" / f"frame_000{f}.svg").exists() for f in (1, 3))
+
+
+def test_failed_frames_point_at_no_report_that_was_not_asked_for(cube, tmp_path, capsys):
+    """Two frames fail and there is no --report: the line says how to get every error, and
+    does not read as if a report listed them ('--report lists every error' sent users looking
+    for a file); with --report it names the file."""
+    cam = write_camera(tmp_path / "cam.json", [INSIDE, INSIDE, FRONT[0]])
+    code, _, e = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+    assert code == 3 and e.rstrip().endswith("; give --report FILE to list every error"), e
+    code, _, e = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "p", "--report", tmp_path / "r.json"],
+                         capsys)
+    assert code == 3 and e.rstrip().endswith(f"; every error in {tmp_path / 'r.json'}"), e

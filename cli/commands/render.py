@@ -201,7 +201,7 @@ def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
         if spec.fail_fast and not_run:
             msg += f"; stopped at frame {first} (--fail-fast), {not_run} not run"
         if len(res.failures) > 1:
-            msg += f"; every error in {report_path}" if report_path else "; --report lists every error"
+            msg += f"; every error in {report_path}" if report_path else "; give --report FILE to list every error"
         click.echo(msg, err=True)
     elif not o["quiet"]:
         msg = f"wrote {len(res.frames_ok)} frame(s) to {out_dir}/ in {res.wall_seconds:.2f} s"

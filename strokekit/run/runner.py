@@ -19,6 +19,7 @@ from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
 from strokekit.raster.rays import check_raster_fits
+from strokekit.run.cluster import check_workers
 from strokekit.run.frame import Frame, StrokeCarry, objects_and_materials
 from strokekit.run.kernels import RunKernels
 from strokekit.run.manifest import RUN_MANIFEST, not_a_resume, read_run_manifest, run_manifest, write_run_manifest
@@ -88,6 +89,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
+        check_workers(spec, workers)  # a cluster's workers see the scene and the output folder
         stage = {s.name: s for s in res.stages}
         resume = plan_resume(spec, scene)
         res.frames_skipped = sorted(resume.done_before)

@@ -4,7 +4,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import os
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from strokekit.fileio import TEMP_SUFFIX
 from strokekit.options import LineOptions, option
 from strokekit.raster.bands import RasterOptions
 from strokekit.raster.passes import PassOptions
+from strokekit.ribbons.brushes import BUNDLED
 from strokekit.run.request import RenderRequest, SequencePlan
 from strokekit.run.workers import MAX_WORKERS
 from strokekit.scene.load import Scene
@@ -120,6 +122,18 @@ class RunSpec:
     fail_fast: bool = option(False, "--fail-fast", "Stop at the first failed frame (frames already written stay; the "
                              "run streams them out in order).", switch=True)
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
+
+    def __post_init__(self):
+        # A cluster's workers resolve a relative name in their own folders (frames written on
+        # their disks, the scene not found): a run on one names every file the tasks read or
+        # write by its absolute path.
+        if self.scheduler:
+            o = self.outputs
+            g = o.gltf_options
+            if g is not None and g.brush not in BUNDLED:  # a PNG of the user's, read by the GLB writer
+                g = replace(g, brush=os.path.abspath(g.brush))
+            object.__setattr__(self, "scene_path", os.path.abspath(self.scene_path))
+            object.__setattr__(self, "outputs", replace(o, out_dir=Path(os.path.abspath(o.out_dir)), gltf_options=g))
 
     @cached_property
     def plan(self) -> SequencePlan:

@@ -98,6 +98,8 @@ class Workers:
     #: Pool workers that have finished starting (imports, scene, BVH): a shared integer (always
     #: 0 when this process is the only one), or None when this process does not render (dask).
     started: object | None = None
+    #: A dask cluster's `client.run`: call a function on every worker -> {worker address: result}.
+    on_each: Callable[[Callable], dict] | None = None
 
     @property
     def main_helps(self) -> bool:
@@ -257,7 +259,7 @@ def make_executor(workers: int, scheduler: str | None, warm: SceneRef) -> Worker
         except Exception as e:
             raise InputError(f"cannot reach the dask scheduler at {scheduler} ({e})") from None
         ex = client.get_executor(pure=False)
-        return Workers(ex, _once(client.close))
+        return Workers(ex, _once(client.close), on_each=client.run)
     if workers <= 1:
         # This process does every task, one by one, handling each result before the next task.
         return Workers(None, lambda: None, started=_NoPool())
