@@ -18,6 +18,19 @@ def say_warnings(scene) -> None:
         click.echo(f"strokekit: warning: {w}", err=True)
 
 
+def hint_up_axis(scene, scene_path, up_given: bool) -> None:
+    """A hint on stderr when an orbit or a view is made about Y for a scene that looks modelled
+    Z-up (camera.paths.looks_z_up); not when --up was given, nor for glTF (Y-up by its
+    specification: a scene that rests on -Z there was modelled so)."""
+    from strokekit.camera.paths import looks_z_up
+
+    if up_given or str(scene_path).lower().endswith((".gltf", ".glb")):
+        return
+    if looks_z_up(scene.vertices, scene.faces):
+        click.echo(f"strokekit: hint: {scene_path} looks modelled Z-up (it rests on a flat base facing -Z): "
+                   "--up z turns the view about its Z axis (--up y: this view, without this line)", err=True)
+
+
 def split_list(value: str | None, option: str = "the list") -> tuple[str, ...] | None:
     """'a, b,c' -> ('a', 'b', 'c'); None stays None; an empty list is a usage error naming `option`."""
     if value is None:

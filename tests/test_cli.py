@@ -834,3 +834,35 @@ def test_truncated_binary_stl_says_truncated(tmp_path, capsys):
         (tmp_path / f"a{i}.stl").write_bytes(data)
         code, _, err = run_cli(["info", tmp_path / f"a{i}.stl"], capsys)
         assert code == 0, err
+
+
+def _plate(path: Path, extents) -> Path:
+    import trimesh
+
+    trimesh.creation.box(extents=extents).export(path)
+    return path
+
+
+def test_a_scene_that_looks_z_up_gets_a_hint_at_up_z(tmp_path, capsys):
+    """A plate lying on Z (as an STL for printing is) orbited about Y is seen from above at its
+    edge: one hint line names the file and --up z. Not for the same plate Y-up, nor for a cube
+    (a base on both axes), nor once --up is given, nor with --quiet, nor for glTF (Y-up by its
+    specification); the camera commands hint too."""
+    z_up = _plate(tmp_path / "z_up.stl", (4, 3, 0.5))
+    y_up = _plate(tmp_path / "y_up.stl", (4, 0.5, 3))
+    cube = _plate(tmp_path / "cube.stl", (1, 1, 1))
+    glb = _plate(tmp_path / "z_up.glb", (4, 3, 0.5))
+    hint = f"strokekit: hint: {z_up} looks modelled Z-up (it rests on a flat base facing -Z): --up z"
+    render = ["render", "--orbit", "1", "--size", "64x64", "--out", tmp_path / "o"]
+    code, _, err = run_cli([*render[:1], z_up, *render[1:]], capsys)
+    assert code == 0 and [line for line in err.splitlines() if "hint" in line] == [err.splitlines()[0]], err
+    assert err.startswith(hint), err
+    for scene, extra in ((y_up, []), (cube, []), (glb, []), (z_up, ["--up", "z"]), (z_up, ["--up", "y"]),
+                         (z_up, ["-q"])):
+        code, _, err = run_cli([render[0], scene, *render[1:], *extra], capsys)
+        assert code == 0 and "hint" not in err, (scene, extra, err)
+    for cmd in (["camera", "orbit", z_up], ["camera", "dolly", z_up], ["camera", "parallel", z_up]):
+        code, out, err = run_cli(cmd, capsys)
+        assert code == 0 and err.startswith(hint) and json.loads(out)["frames"], err
+        code, _, err = run_cli([*cmd, "--up", "z"], capsys)
+        assert code == 0 and err == "", err

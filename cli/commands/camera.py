@@ -12,7 +12,11 @@ from strokekit.errors import InputError, UsageError
 from strokekit.fileio import atomic_write_text, check_not_an_input
 from strokekit.scene.load import load_scene
 
-from ..common import FINITE, FiniteFloatRange, say_warnings
+from ..common import FINITE, FiniteFloatRange, hint_up_axis, say_warnings
+
+
+def _up_given() -> bool:
+    return click.get_current_context().get_parameter_source("up") == click.core.ParameterSource.COMMANDLINE
 
 
 def _emit(path, out):
@@ -57,6 +61,7 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
     check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
+    hint_up_axis(s, scene, _up_given())
     _emit(orbit_path(s.center, s.radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
                      fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
 
@@ -70,6 +75,7 @@ def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
     check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
+    hint_up_axis(s, scene, _up_given())
     _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)
 
@@ -98,6 +104,7 @@ def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width
     from --azimuth / --elevation."""
     check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
+    hint_up_axis(s, scene, _up_given())
     try:
         path = parallel_path(s.center, s.radius, projection, azimuth=azimuth, elevation=elevation,
                              oblique_angle=oblique_angle, frames=frames, width=width, height=height, up_axis=up,

@@ -29,7 +29,7 @@ from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec
 from strokekit.run.workers import SceneRef, default_workers, make_executor
 from strokekit.scene.load import load_scene
 
-from ..common import is_interactive, say_warnings
+from ..common import hint_up_axis, is_interactive, say_warnings
 from ..flags import options_of, said
 from .render_options import RENDER_CLASSES, check_needs, outputs_from, request_from, wants_raster
 
@@ -85,6 +85,8 @@ def command(scene, **o):
         say_warnings(s)
         load_seconds = time.perf_counter() - t_load
         if path is None:
+            if not o["quiet"]:
+                hint_up_axis(s, scene, "up" in given)
             width, height = size or (1024, 1024)
             path = orbit_path(s.center, s.radius, o["orbit"] or 48, elevation=o["elevation"], fov_y=o["fov"],
                               width=width, height=height, up_axis=o["up"])
