@@ -8,7 +8,7 @@ import sys
 
 import click
 
-from strokekit.errors import UsageError
+from strokekit.errors import UsageError, did_you_mean
 
 
 def say_warnings(scene) -> None:
@@ -81,6 +81,19 @@ class FiniteFloatRange(click.FloatRange):
     def convert(self, value, param, ctx):
         _check_finite(self, click.types.FloatParamType.convert(self, value, param, ctx), value, param, ctx)
         return super().convert(value, param, ctx)
+
+
+class Choice(click.Choice):
+    """click.Choice whose refusal names the closest choice ("did you mean 'smooth'?")."""
+
+    def convert(self, value, param, ctx):
+        try:
+            return super().convert(value, param, ctx)
+        except click.BadParameter as e:
+            hint = did_you_mean(value, self.choices)
+            if hint:
+                e.message = f"{e.message.rstrip('.')}: {hint.strip()}"
+            raise
 
 
 #: The type of every float option: `type=FINITE` instead of `type=float`.

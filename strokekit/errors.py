@@ -32,6 +32,14 @@ class UsageError(StrokekitError):
         super().__init__(message, path)
 
 
+def did_you_mean(word, known) -> str:
+    """"did you mean 'x'? " for the one of `known` closest to a mistyped `word`, else ""."""
+    import difflib
+
+    close = difflib.get_close_matches(str(word), [str(k) for k in known], n=1)
+    return f"did you mean '{close[0]}'? " if close else ""
+
+
 class hold_interrupts:
     """Ctrl-C during the block is held until the block ends, then raised as KeyboardInterrupt.
     For code that would swallow or transform it: trimesh catches BaseException around its optional

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from strokekit.errors import UsageError
+from strokekit.errors import UsageError, did_you_mean
 from strokekit.model import KINDS, MAX_OCCLUSION
 
 #: Accuracy knobs per preset. whole_edge_px: edges shorter than this on screen get one
@@ -170,7 +170,8 @@ class LineOptions:
     def __post_init__(self):
         unknown = [k for k in self.kinds if k not in KINDS]
         if unknown:
-            raise UsageError(f"unknown line kind(s) {', '.join(unknown)} (known: {', '.join(KINDS)})")
+            raise UsageError(f"unknown line kind(s) {', '.join(unknown)} ({did_you_mean(unknown[0], KINDS)}known: "
+                             f"{', '.join(KINDS)})")
         if not self.kinds:
             raise UsageError("no line kinds selected")
         # One order (KINDS'), each kind once: the drawing does not depend on the order they were

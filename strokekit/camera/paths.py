@@ -6,7 +6,6 @@ All camera maths is float64.
 
 from __future__ import annotations
 
-import difflib
 import json
 import math
 from dataclasses import replace
@@ -16,7 +15,7 @@ import numpy as np
 
 from strokekit.camera.gltf import gltf_camera_path
 from strokekit.camera.view import ANGLED, FALLBACK_UPS, MAX_IMAGE_PX, MAX_PATH_FRAMES, Camera, CameraPath, angled_basis
-from strokekit.errors import InputError, UsageError
+from strokekit.errors import InputError, UsageError, did_you_mean
 
 # --- keyframes ----------------------------------------------------------------------------------
 
@@ -198,9 +197,7 @@ def _check_keys(d: dict, known: tuple[str, ...], where: str, source: str) -> Non
     unknown = [k for k in d if k not in known and not (isinstance(k, str) and (k.startswith("_") or k == "extras"))]
     if unknown:
         k = unknown[0]
-        close = difflib.get_close_matches(str(k), known, n=1)
-        hint = f"did you mean '{close[0]}'? " if close else ""
-        raise InputError(f"{where}unknown key {json.dumps(k)} ({hint}known: {', '.join(known)}; "
+        raise InputError(f"{where}unknown key {json.dumps(k)} ({did_you_mean(k, known)}known: {', '.join(known)}; "
                          "keys starting with '_' are comments)", source)
 
 

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from strokekit.errors import InputError
+from strokekit.errors import InputError, did_you_mean
 
 BUNDLED = ("plain", "ink", "dry")
 
@@ -146,7 +146,8 @@ def load_brush(path: str | Path, tex_head: float = _HEAD, tex_tail: float = _TAI
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"brush image not found (bundled brushes: {', '.join(BUNDLED)}; or give a PNG path)", p)
+        raise InputError(f"brush image not found ({did_you_mean(path, BUNDLED) if '.' not in str(path) else ''}"
+                         f"bundled brushes: {', '.join(BUNDLED)}; or give a PNG path)", p)
     try:
         im = Image.open(p)
         im.load()
