@@ -218,6 +218,10 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
 
 @pytest.mark.parametrize("args,needle", [
     (["--kinds", "silhouette,sparkle"], "unknown line kind"),
+    (["--kinds", "silhouete"], "unknown line kind(s) silhouete (did you mean 'silhouette'? known: silhouette, "),
+    (["--shading", "smoth", "--bands", "3"], "'smoth' is not one of 'flat', 'smooth': did you mean 'smooth'?"),
+    (["--coherence", "sead"], "did you mean 'seed'?"),
+    (["--smooth-angle", "0", "--bands", "3"], "--smooth-angle must be in (0, 180) degrees, got 0"),
     (["--orbit", "3", "--camera", "x.json"], "either --camera or --orbit"),
     (["--frames", "5-3"], "bad frame range"),
     (["--frames", "1-99"], "beyond"),
@@ -251,6 +255,11 @@ def test_impossible_options_exit_2(cube, tmp_path, capsys, args, needle):
     code, _, err = run_cli(["render", cube, "--out", tmp_path / "o", *args], capsys)
     assert code == 2, err
     assert needle in err and "Traceback" not in err
+
+
+def test_a_brush_name_mistyped_gets_a_did_you_mean(cube, tmp_path, capsys):
+    code, _, err = run_cli(["render", cube, "--orbit", "1", "--gltf", "--brush", "inq", "--out", tmp_path / "o"], capsys)
+    assert code == 1 and "inq: brush image not found (did you mean 'ink'? bundled brushes: plain, ink, dry" in err, err
 
 
 def test_camera_inside_the_mesh_is_an_input_error(cube, tmp_path, capsys):

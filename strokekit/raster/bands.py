@@ -52,9 +52,10 @@ class RasterOptions:
 
     bands: N; thresholds: explicit n.l thresholds (increasing, in (0, 1)), which override N with
     len(thresholds) + 1; shading 'flat' (face normals) or 'smooth' (corner normals interpolated
-    across each face, split at creases sharper than the crease angle like Blender's auto smooth,
-    `Scene.split_normals`: a box's faces stay flat, a sphere shades smoothly; the angle is
-    the line options' crease angle, which `render_raster` takes as an argument); light: direction
+    across each face, split at edges sharper than smooth_angle_deg like Blender's auto smooth,
+    `Scene.split_normals`: a box's faces stay flat, a sphere shades smoothly; shading has its own
+    angle, smaller than the lines' crease angle: a countersunk hole's 45-degree rim split only at
+    60 would smear its shade across the flat plate around it); light: direction
     toward the light, in camera space (x right, y up, z toward the viewer) or world space;
     supersample K in {1, 2, 4}: samples per pixel side everywhere; masks: one anti-aliased PNG per
     band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: self-similar
@@ -72,7 +73,10 @@ class RasterOptions:
         (), "--band-thresholds", "Explicit n.l thresholds a,b,.. instead of N equal bands.", text="numbers")
     shading: str = option(
         "smooth", "--shading", "Band normals: per face, or interpolated and split at edges sharper than "
-        "--crease-angle.", choices=SHADINGS, show_default=True, needs="raster")
+        "--smooth-angle.", choices=SHADINGS, show_default=True, needs="raster")
+    smooth_angle_deg: float = option(
+        30.0, "--smooth-angle", "Smooth shading: normals split at edges sharper than N degrees (Blender's auto "
+        "smooth; the lines' --crease-angle is another).", show_default=True, needs="raster")
     light: tuple[float, float, float] = option(
         (-0.4, 0.6, 0.7), "--light", "Direction toward the light x,y,z.", text="numbers", count=3, show_default=True,
         needs="raster")
@@ -118,6 +122,9 @@ class RasterOptions:
             raise UsageError(f"bands must be in 1..254, got {self.bands}")
         if self.shading not in SHADINGS:
             raise UsageError(f"shading must be one of {', '.join(SHADINGS)}, got {self.shading!r}")
+        if not 0 < self.smooth_angle_deg < 180:
+            raise UsageError(f"smooth_angle_deg must be in (0, 180) degrees, got {self.smooth_angle_deg:g}",
+                             option="smooth_angle_deg")
         if self.light_space not in LIGHT_SPACES:
             raise UsageError(f"light space must be one of {', '.join(LIGHT_SPACES)}, got {self.light_space!r}")
         light = np.asarray(self.light, float)
@@ -149,12 +156,6 @@ class RasterOptions:
         return RasterOptions(supersample=k, edge_supersample=r, **given)
 
 
-def check_crease_angle(crease_angle_deg: float) -> float:
-    if not 0 < crease_angle_deg < 180:
-        raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
-    return float(crease_angle_deg)
-
-
 # --- shading --------------------------------------------------------------------------------------
 
 def light_direction(camera: Camera, options: RasterOptions) -> np.ndarray:
@@ -177,18 +178,18 @@ def back_facing(scene: Scene, camera: Camera) -> np.ndarray:
     return scene.face_offsets - nf @ camera.eye_array > 0
 
 
-def corner_shading(scene: Scene, crease_angle_deg: float = 60.0, vnormals: np.ndarray | None = None
+def corner_shading(scene: Scene, smooth_angle_deg: float = 30.0, vnormals: np.ndarray | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(corner (F, 3) node of each face corner, normals (N, 3) unit node normals, gram (F, 3)
     n_a.n_b, n_b.n_c, n_c.n_a of each face's corner normals) for smooth shading.
 
-    The nodes and normals are `scene.split_normals(crease_angle_deg)`, the ones smooth contours
-    use (angle-weighted, Blender's auto smooth rule): corners share a normal only across edges
-    flatter than the crease angle, so a face next to a sharp edge keeps its own normal there.
+    The nodes and normals are `scene.split_normals(smooth_angle_deg)` (angle-weighted, Blender's
+    auto smooth rule): corners share a normal only across edges flatter than the angle, so a
+    face next to a sharp edge keeps its own normal there.
     With `vnormals` (V, 3) those vertex normals are interpolated instead, unsplit."""
     if vnormals is not None:
         return scene.faces, np.asarray(vnormals, float), corner_gram(scene.faces, np.asarray(vnormals, float))
-    sn = scene.split_normals(crease_angle_deg)
+    sn = scene.split_normals(smooth_angle_deg)
     return sn.corner, sn.normals, sn.corner_gram
 
 
@@ -282,7 +283,7 @@ class FaceShading:
 
 
 def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np.ndarray,
-                 crease_angle_deg: float, vnormals: np.ndarray | None = None) -> FaceShading:
+                 vnormals: np.ndarray | None = None) -> FaceShading:
     """The frame's FaceShading. Band ranges: flat shading has one n.l per face; smooth shading's
     interpolated numerator (wa la + wb lb + wc lc) is linear, so its extremes are corner values,
     and the renormalization divides it by |n| in [sqrt(min n_i.n_j), 1] (|sum w_i n_i|^2 = sum
@@ -295,11 +296,11 @@ def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np
     if options.shading == "flat":
         lo = hi = quantize_bands(sign * (scene.face_normals @ light), N, th)
     else:
-        corner, normals, gram = corner_shading(scene, crease_angle_deg, vnormals)
+        corner, normals, gram = corner_shading(scene, options.smooth_angle_deg, vnormals)
         nl = normals @ light
         la, lb, lc = (np.take(nl, corner[:, k]) for k in range(3))
         lmin, lmax = np.minimum(np.minimum(la, lb), lc), np.maximum(np.maximum(la, lb), lc)
-        root = _min_norm(scene, crease_angle_deg, vnormals)
+        root = _min_norm(scene, options.smooth_angle_deg, vnormals)
         LO = np.where(lmin >= 0, lmin, lmin / root)
         HI = np.where(lmax >= 0, lmax / root, lmax)
         lo = quantize_bands(np.where(back, -HI, LO), N, th)
@@ -312,12 +313,12 @@ def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np
                        region_object=robj, bands=N, thresholds=th)
 
 
-def _min_norm(scene: Scene, crease_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
+def _min_norm(scene: Scene, smooth_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
     """(F,) a lower bound of |w_a n_a + w_b n_b + w_c n_c| over each face (weights >= 0 summing
     to 1) for smooth shading's corner normals (`tables.min_interpolated_norm`)."""
     if vnormals is None:
-        return scene.split_normals(crease_angle_deg).min_corner_norm
-    return min_interpolated_norm(corner_shading(scene, crease_angle_deg, vnormals)[2])
+        return scene.split_normals(smooth_angle_deg).min_corner_norm
+    return min_interpolated_norm(corner_shading(scene, smooth_angle_deg, vnormals)[2])
 
 
 #: Relative depth slack of the thin-triangle occlusion test (float32 depths, curvature between
@@ -633,20 +634,18 @@ def label_polygons(key: np.ndarray, tolerance_px: float = 0.5) -> dict[int, obje
 # --- entry points ---------------------------------------------------------------------------------
 
 def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, options: RasterOptions,
-                  crease_angle_deg: float = 60.0, vnormals: np.ndarray | None = None, *, reference: bool = False,
+                  vnormals: np.ndarray | None = None, *, reference: bool = False,
                   work=None, timings: dict | None = None) -> RasterFrame:
     """Sample one frame and label its bands. Call only when a raster output is asked for.
 
     The z-buffer rasterizer samples it (`raster.hits.ZBufferHits`); `reference=True` casts Embree
     rays through the same samples instead (`occluder`, the scene's; not needed otherwise): the
     reference tests and `strokekit bench` hold the rasterizer against. Smooth shading uses the
-    normals split at `crease_angle_deg`, the line options' crease angle (cached per scene);
-    `vnormals` (V, 3) replaces them by given vertex normals, interpolated without splitting.
+    normals split at options.smooth_angle_deg (cached per scene); `vnormals` (V, 3) replaces
+    them by given vertex normals, interpolated without splitting.
     `work`: a zbuffer.Workspace whose buffers the frame then uses (until the next frame drawn
     with it; `raster.hits.thread_workspace()`). `timings`: {stage: seconds} gets 'rasterize'
     (the sample grid), 'shading' (labels, mixed pixels) and 'edge samples' (their R x R samples)."""
-    if not 0 < crease_angle_deg < 180:
-        raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
     ensure_kernels()  # (loaded, or compiled, before the frame's clock starts)
     t0 = time.perf_counter()
     if reference:
@@ -663,7 +662,7 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
                       ray_dir_y=(H / 2.0 - (np.arange(H * K) + 0.5) / K) / f)
     t1 = time.perf_counter()
     light = light_direction(camera, options)
-    shading = face_shading(scene, camera, options, light, crease_angle_deg, vnormals)
+    shading = face_shading(scene, camera, options, light, vnormals)
     labels_ss, keys_ss = shading.labels(face, bary)
     frame = RasterFrame(scene=scene, camera=camera, options=options, hits=hits, labels_ss=labels_ss, light=light,
                         shading=shading, keys_ss=keys_ss, source=src)
@@ -783,7 +782,7 @@ def soft_iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(1, 2, 4), reference: int = 4,
-                   options: RasterOptions | None = None, crease_angle_deg: float = 60.0) -> list[dict]:
+                   options: RasterOptions | None = None) -> list[dict]:
     """Band masks of the z-buffer pass at each supersample K (an int, or (K, R) for K with
     edge_supersample R) against the ray-cast reference (`render_raster(reference=True)`) at the
     uniform `reference` K, over `cameras`.
@@ -798,7 +797,7 @@ def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(
     occluder = occluder or Occluder(scene)
     base = options or RasterOptions()
     refs = [render_raster(scene, c, occluder, replace(base, supersample=reference, edge_supersample=0),
-                          crease_angle_deg, reference=True).coverage for c in cameras]
+                          reference=True).coverage for c in cameras]
     rows = []
     for entry in ks:
         K, R = (entry, 0) if np.isscalar(entry) else entry
@@ -806,7 +805,7 @@ def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(
         times, ious, thick, mins, maxs, below = [], [], [], 0.0, 0.0, 0
         for c, r in zip(cameras, refs):
             t = time.perf_counter()
-            cov = render_raster(scene, c, occluder, opts, crease_angle_deg).coverage
+            cov = render_raster(scene, c, occluder, opts).coverage
             times.append(time.perf_counter() - t)
             for b in range(cov.shape[2]):
                 a, q = cov[..., b], r[..., b]

@@ -58,15 +58,16 @@ class PassOptions:
         object.__setattr__(self, "passes", tuple(p for p in PASSES if p in self.passes))
 
 
-def view_normals(frame: RasterFrame, crease_angle_deg: float = 60.0) -> np.ndarray:
+def view_normals(frame: RasterFrame) -> np.ndarray:
     """(H, W, 3) float32 view-space unit normals (x right, y up, z toward the camera) of each
     pixel's representative sample: the face normal (flat shading) or the corner normals split at
-    `crease_angle_deg` interpolated (smooth), turned to face the camera; 0 on background. A view
+    the raster options' smooth_angle_deg interpolated (smooth: the bands' normals), turned to
+    face the camera; 0 on background. A view
     of three contiguous (H, W) planes, the EXR's channels."""
     hits, cam, scene = frame.hits, frame.camera, frame.scene
     H, W = frame.height, frame.width
     if frame.options.shading == "smooth":
-        sn = scene.split_normals(crease_angle_deg)
+        sn = scene.split_normals(frame.options.smooth_angle_deg)
         corner, normals = np.ascontiguousarray(sn.corner, np.int64), np.ascontiguousarray(sn.normals, np.float64)
     else:
         corner, normals = np.zeros((0, 3), np.int64), np.zeros((0, 3))
@@ -123,9 +124,9 @@ def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:
 
 
 def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: PassOptions,
-                       crease_angle_deg: float = 60.0, lines_coverage: dict | None = None) -> RasterPasses:
+                       lines_coverage: dict | None = None) -> RasterPasses:
     """The passes `options` asks for, of one frame (its raster pass, and its strokes for 'lines');
-    `crease_angle_deg`: the line options' (smooth normals split there); `lines_coverage`: the
+    `lines_coverage`: the
     strokes' coverage at options.stroke_width_px when the caller has it (stroke_coverage)."""
     p = options.passes
     H, W = frame.height, frame.width
@@ -134,7 +135,7 @@ def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: Pas
         z = representative(frame.hits.depth, frame.K)
         depth = np.where(np.isfinite(z), z, BACKGROUND_DEPTH).astype(np.float32)
     if "normal" in p:
-        normal = view_normals(frame, crease_angle_deg)
+        normal = view_normals(frame)
     if "shade" in p:
         shade = linear_shade(frame)
     if "bands" in p:
