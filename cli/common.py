@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
+import time
 
 import click
 
@@ -58,6 +60,50 @@ def echo_json(obj) -> None:
 
 def is_interactive(quiet: bool) -> bool:
     return not quiet and sys.stderr.isatty()
+
+
+#: time.perf_counter() when this module was first imported: the process start where /proc cannot tell.
+_IMPORTED = time.perf_counter()
+
+
+def process_started() -> float:
+    """time.perf_counter() at this process's start, the interpreter's own start-up included
+    (Linux: its start time in /proc/self/stat, to a clock tick; elsewhere when this module was
+    imported)."""
+    try:
+        with open("/proc/self/stat") as f:
+            ticks = int(f.read().rsplit(")", 1)[1].split()[19])  # field 22, starttime
+        age = time.clock_gettime(time.CLOCK_BOOTTIME) - ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return _IMPORTED
+    return time.perf_counter() - age if 0 <= age < 3600 else _IMPORTED
+
+
+class StatusLine:
+    """One line on stderr saying what a command waits for (loading the scene, building the BVH),
+    with a spinner, on an interactive terminal only (`on`), until `stop` (a progress bar takes
+    its place). Lines printed meanwhile appear above it."""
+
+    def __init__(self, on: bool, text: str):
+        self._live = self._spinner = None
+        if on:
+            from rich.console import Console
+            from rich.live import Live
+            from rich.spinner import Spinner
+
+            self._spinner = Spinner("dots", text, style="green")
+            self._live = Live(self._spinner, console=Console(stderr=True), transient=True, refresh_per_second=12.5)
+            self._live.start(refresh=True)  # (drawn now, not at the first tick)
+
+    def say(self, text: str) -> None:
+        if self._live is not None:
+            self._spinner.update(text=text)
+            self._live.refresh()
+
+    def stop(self) -> None:
+        if self._live is not None:
+            self._live.stop()
+            self._live = None
 
 
 def _check_finite(type_: click.ParamType, rv, value, param, ctx):

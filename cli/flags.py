@@ -10,12 +10,11 @@ import click
 
 from strokekit.options import Flag, LineOptions, flag_of
 from strokekit.paths.options import PathOptions
-from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PassOptions
+from strokekit.raster.options import PassOptions, RasterOptions
 from strokekit.run.request import RenderRequest
 from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.tracking.options import TrackingOptions
-from strokekit.writers.gltf import GltfOptions
+from strokekit.writers.options import GltfOptions
 
 from .common import FINITE, Choice, FiniteFloatRange, floats, split_list
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import threading
 
 
@@ -34,8 +35,6 @@ class UsageError(StrokekitError):
 
 def did_you_mean(word, known) -> str:
     """"did you mean 'x'? " for the one of `known` closest to a mistyped `word`, else ""."""
-    import difflib
-
     close = difflib.get_close_matches(str(word), [str(k) for k in known], n=1)
     return f"did you mean '{close[0]}'? " if close else ""
 

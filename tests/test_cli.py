@@ -536,12 +536,12 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
 def test_ctrl_c_while_the_scene_loads_still_writes_the_report(cube, tmp_path, capsys, monkeypatch):
     """Ctrl-C before the run starts (the scene is loading): exit 130, one line, and --report is
     written with status 'interrupted', as for a Ctrl-C during the frames."""
-    import strokekit_cli.commands.render as render_cmd
+    import strokekit.scene.load
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(render_cmd, "load_scene", interrupted)
+    monkeypatch.setattr(strokekit.scene.load, "load_scene", interrupted)  # (the command imports it when run)
     cam = write_camera(tmp_path / "cams.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}] * 3)
     code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o", "--report",
                             tmp_path / "r.json", "--workers", "1"], capsys)
@@ -693,12 +693,12 @@ def test_temporary_files_are_told_from_other_dotfiles():
 
 def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatch):
     """click turns a KeyboardInterrupt into an empty line and 'Aborted!'; the user gets one line."""
-    import strokekit_cli.commands.info as info
+    import strokekit.scene.load
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(info, "load_scene", interrupted)
+    monkeypatch.setattr(strokekit.scene.load, "load_scene", interrupted)
     code, out, err = run_cli(["info", cube], capsys)
     assert code == 130 and err == "strokekit: interrupted\n" and out == ""
 

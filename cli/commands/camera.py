@@ -6,11 +6,9 @@ import json
 
 import click
 
-from strokekit.camera.paths import dolly_path, orbit_path, parallel_path
-from strokekit.camera.view import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
+from strokekit.camera.limits import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
 from strokekit.errors import InputError, UsageError
 from strokekit.fileio import atomic_write_text, check_not_an_input
-from strokekit.scene.load import load_scene
 
 from ..common import FINITE, FiniteFloatRange, hint_up_axis, say_warnings
 
@@ -58,6 +56,9 @@ def command():
               help="Frames per second (for glTF animation).")
 def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
     """A turntable orbit around the scene that keeps it in view."""
+    from strokekit.camera.paths import orbit_path
+    from strokekit.scene.load import load_scene
+
     check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
@@ -72,6 +73,9 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
 @click.option("--end", type=FiniteFloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
 def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
+    from strokekit.camera.paths import dolly_path
+    from strokekit.scene.load import load_scene
+
     check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
@@ -102,6 +106,9 @@ def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width
     """A parallel projection of technical drawing that frames the whole scene (its drawing centred,
     5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
     from --azimuth / --elevation."""
+    from strokekit.camera.paths import parallel_path
+    from strokekit.scene.load import load_scene
+
     check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     hint_up_axis(s, scene, _up_given())

@@ -3,12 +3,8 @@
 from __future__ import annotations
 
 import click
-import orjson
-from rich.console import Console
-from rich.table import Table
 
 from strokekit.errors import InputError
-from strokekit.metrics.coherence import read_frames, sequence_metrics, wholeness
 
 from ..common import FiniteFloatRange
 from .render_options import occlusion_from
@@ -41,6 +37,12 @@ def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern:
     1000 px (with --fresh: beside those of the same frames drawn afresh, and the ratio; overall:
     medians over the second half of the frames), from the frame JSON files of OUT_DIR (README:
     what each metric measures)."""
+    import orjson
+    from rich.console import Console
+    from rich.table import Table
+
+    from strokekit.metrics.coherence import read_frames, sequence_metrics, wholeness
+
     levels = occlusion_from({"occlusion_range": occlusion_range}) if occlusion_range is not None else None
     frames = read_frames(out_dir, pattern, occlusion=levels)
     fresh = read_frames(fresh_dir, pattern, occlusion=levels, at_least=1) if fresh_dir is not None else None

@@ -4,11 +4,9 @@ within a pixel tolerance. Exit 0 when equal, 1 when different, 2 for usage error
 from __future__ import annotations
 
 import click
-import orjson
 
 from strokekit.errors import StrokekitError
 from strokekit.fileio import check_not_an_input
-from strokekit.metrics.diff import diff_paths
 
 from ..common import FINITE, FiniteFloatRange
 
@@ -33,6 +31,10 @@ def command(ctx: click.Context, a: str, b: str, tol: float, as_json: bool, png: 
     order, direction and splits. A is the reference (e.g. golden files), B the new output.
 
     Exit codes: 0 equal, 1 different (or an unreadable SVG), 2 usage error or a missing file or folder."""
+    import orjson
+
+    from strokekit.metrics.diff import diff_paths
+
     try:
         check_not_an_input("--png", png, [("A file", a), ("B file", b)])
         result = diff_paths(a, b, tol, png=png, png_scale=png_scale)

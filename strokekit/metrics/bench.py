@@ -25,8 +25,9 @@ from strokekit.lines.renderer import LineRenderer
 from strokekit.metrics.accuracy import DEFAULT_TOLS, Accuracy, accuracy
 from strokekit.model import Strokes
 from strokekit.options import QUALITY_PRESETS, LineOptions
-from strokekit.raster.bands import RasterOptions, render_raster
+from strokekit.raster.bands import render_raster
 from strokekit.raster.hits import thread_workspace, warm_kernels
+from strokekit.raster.options import RasterOptions
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
 from strokekit.writers.png import png_files

@@ -10,52 +10,18 @@ all the samples of the mixed pixels (the R x R samples at band, material and obj
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from strokekit.cryptomatte import ranked_matte
-from strokekit.errors import UsageError
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
-from strokekit.options import option
 from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.hits import compiled
+from strokekit.raster.options import PassOptions
 from strokekit.raster.strokes import stroke_coverage
 
-#: The passes an EXR can hold, in the order they are written.
-PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
 #: Cryptomatte ranks written per type: two RGBA layers. The issue asks for at least 3; every
 #: layer more adds about a tenth to the EXR's write time (ZIP of float32 channels).
 RANKS = 4
-#: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read: ZIP (the
-#: default, as Blender writes) and ZIPS are the smallest, PIZ encodes faster at about twice their
-#: size, RLE in about half ZIP's time at four to eight times the size (README, `--exr`).
-CODECS = ("zip", "zips", "piz", "rle", "none")
-
-
-@dataclass(frozen=True)
-class PassOptions:
-    """Which compositing passes to compute (PASSES), the stroke width of the lines pass (px), and
-    the EXR's compression (CODECS)."""
-
-    passes: tuple[str, ...] = option(
-        PASSES, "--exr-layers", "The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all].",
-        text="names", needs="exr")
-    stroke_width_px: float = 1.5  # (the SVG's: --stroke-width)
-    codec: str = option(
-        "zip", "--exr-codec", "The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at "
-        "about twice their size, rle in about half zip's time at four to eight times the size.", choices=CODECS,
-        show_default=True, needs="exr")
-
-    def __post_init__(self):
-        unknown = [p for p in self.passes if p not in PASSES]
-        if unknown or not self.passes:
-            raise UsageError(f"unknown or no EXR layer(s) {', '.join(unknown) or '(none)'} "
-                             f"(known: {', '.join(PASSES)})", option="passes")
-        if self.codec not in CODECS:
-            raise UsageError(f"codec {self.codec!r} is not one of {', '.join(CODECS)} (the lossless ones: "
-                             "Cryptomatte ids and depth must come back exact)", option="codec")
-        object.__setattr__(self, "passes", tuple(p for p in PASSES if p in self.passes))
 
 
 def view_normals(frame: RasterFrame) -> np.ndarray:

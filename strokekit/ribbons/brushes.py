@@ -26,8 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from strokekit.errors import InputError, did_you_mean
-
-BUNDLED = ("plain", "ink", "dry")
+from strokekit.ribbons.options import BUNDLED
 
 _W, _H = 256, 32  # texels; power-of-two sizes keep every viewer's mipmapping happy; head and tail
 # are then each 2 ribbon widths long on screen (texels stay square there)

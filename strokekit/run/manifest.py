@@ -12,13 +12,12 @@ from pathlib import Path
 from strokekit.fileio import atomic_write_bytes
 from strokekit.options import LineOptions, flag_of
 from strokekit.paths.options import PathOptions
-from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PassOptions
-from strokekit.ribbons.brushes import BUNDLED
+from strokekit.raster.options import PassOptions, RasterOptions
+from strokekit.ribbons.options import BUNDLED
 from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.scene.load import Scene
 from strokekit.tracking.options import TrackingOptions
-from strokekit.writers.gltf import GltfOptions
+from strokekit.writers.options import GltfOptions
 
 # --- the run manifest ----------------------------------------------------------------------------------
 

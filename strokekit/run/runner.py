@@ -56,7 +56,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
         started_at: float | None = None, notice: Callable[[str], None] | None = None,
         kernels: RunKernels | None = None) -> RunResult:
-    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
+    """Render every frame of `spec`. `progress(phase, done, total)` is called when the frames
+    start ("lines", 0, total) and as they finish.
     `workers`: make_executor(spec.workers, spec.scheduler, SceneRef(spec.scene_path, "", spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
     `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
@@ -135,6 +136,8 @@ def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, res
         SceneRef(spec.scene_path, scene.content_hash, spec.lines).keep(scene)
         stage["load scene + BVH"].seconds += time.perf_counter() - t
     stream = FrameStream(spec, scene, res, stage, resume, progress)
+    if progress is not None and stream.n_lines:
+        progress("lines", 0, stream.n_lines)  # the frames start (the scene, its BVH and kernels ready)
     try:
         workers.map(stream.pending, stream.handle)
         if spec.fail_fast and res.failures and stream.write_error is None:

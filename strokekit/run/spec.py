@@ -8,18 +8,23 @@ import os
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.fileio import TEMP_SUFFIX
 from strokekit.options import LineOptions, option
-from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PassOptions
-from strokekit.ribbons.brushes import BUNDLED
+from strokekit.raster.options import PassOptions, RasterOptions
+from strokekit.ribbons.options import BUNDLED
 from strokekit.run.request import RenderRequest, SequencePlan
-from strokekit.run.workers import MAX_WORKERS
-from strokekit.scene.load import Scene
-from strokekit.writers.gltf import GltfOptions
+from strokekit.writers.options import GltfOptions
+
+if TYPE_CHECKING:  # (annotations only: the options load without the scene or camera code)
+    from strokekit.camera.view import Camera
+    from strokekit.scene.load import Scene
+
+#: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
+#: than a few per core only share the cores.
+MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
 #: The longest file name (bytes) of Linux, macOS and Windows file systems.
 NAME_MAX = 255

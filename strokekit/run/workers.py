@@ -16,9 +16,6 @@ from strokekit.lines.renderer import LineRenderer
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene, load_scene
 
-#: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
-#: than a few per core only share the cores.
-MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
 def default_workers(n_frames: int, raster: bool) -> int:
     """Processes for a run of `n_frames` when none is said: the machine's cores from 8 frames on,
