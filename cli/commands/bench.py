@@ -8,6 +8,7 @@ import click
 
 from strokekit.camera.limits import MAX_PATH_FRAMES
 from strokekit.errors import UsageError
+from strokekit.extras import need
 from strokekit.fileio import check_not_an_input, check_output_file
 
 from ..common import is_interactive, say_warnings
@@ -46,7 +47,8 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
         if not values or min(values) <= 0:
             raise UsageError("--sweep values must be > 0")
     if plot_path is not None:
-        check_output_file(plot_path)  # said now, not after a minute of timing
+        need("matplotlib", "--plot")  # (said now, not after a minute of timing)
+        check_output_file(plot_path)
         check_not_an_input("--plot", plot_path, [("scene", scene_path), ("camera file", camera_path)])
     scene = load_scene(scene_path)
     say_warnings(scene)

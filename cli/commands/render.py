@@ -11,6 +11,7 @@ import click
 
 from strokekit.camera.limits import MAX_IMAGE_PX
 from strokekit.errors import UsageError
+from strokekit.extras import need
 from strokekit.fileio import (
     atomic_write_text,
     check_not_an_input,
@@ -54,6 +55,8 @@ def command(scene, **o):
     t_start = process_started()  # (the summary and the report count from here)
     given = said(o)
     size = _check_usage(scene, o, given)
+    if o["scheduler"]:
+        need("distributed", "--scheduler")
     request = request_from(o, given)
     path = _camera_file_path(o, size)
     frames = parse_frames(o["frames"], len(path) if path is not None else o["orbit"] or 48)

@@ -19,6 +19,7 @@ import numpy as np
 
 from strokekit.camera.paths import orbit_path
 from strokekit.camera.view import Camera
+from strokekit.extras import need
 from strokekit.fileio import atomic_write_bytes
 from strokekit.lines.features import static_features
 from strokekit.lines.renderer import LineRenderer
@@ -260,7 +261,7 @@ def result_json(result: dict) -> dict:
 
 def plot_bench(result: dict, path, tol: float = 1.0) -> None:
     """Write bench_figure(result, tol) to `path` as a PNG (atomic)."""
-
+    need("matplotlib", "the benchmark's plot")
     import matplotlib.pyplot as plt
 
     fig = bench_figure(result, tol)

@@ -11,7 +11,8 @@ from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, w
 from dataclasses import dataclass
 from typing import Callable
 
-from strokekit.errors import InputError, UsageError
+from strokekit.errors import InputError
+from strokekit.extras import need
 from strokekit.lines.renderer import LineRenderer
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene, load_scene
@@ -247,10 +248,9 @@ def make_executor(workers: int, scheduler: str | None, warm: SceneRef) -> Worker
     Otherwise `workers` processes on this machine: this one, plus a spawn-started pool of
     workers - 1 processes, started now; each loads the `warm` scene and builds its BVH right away."""
     if scheduler:
-        try:
-            from distributed import Client
-        except ImportError:
-            raise UsageError("--scheduler needs dask.distributed (pip install 'dask[distributed]')") from None
+        need("distributed", "--scheduler")
+        from distributed import Client
+
         try:
             client = Client(scheduler, timeout=10)
         except Exception as e:
