@@ -52,3 +52,19 @@ def test_a_feature_without_its_extra_says_which_to_install(tmp_path):
         assert p.returncode == 2, p.stderr
         assert p.stderr.strip().splitlines() == [line], p.stderr
         assert not (tmp_path / "out").exists() and not (tmp_path / "p.png").exists()
+
+
+def test_the_report_names_the_open3d_build_installed(monkeypatch):
+    """open3d's CPU-only build is the distribution open3d-cpu: the run report's open3d version
+    said None for it."""
+    import importlib.metadata
+
+    from strokekit.run.report import installed_versions
+
+    def version(name):
+        if name == "open3d-cpu":
+            return "0.20.0"
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, "version", version)
+    assert installed_versions()["open3d"] == "0.20.0"
