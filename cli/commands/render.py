@@ -89,7 +89,12 @@ def _render(scene: str, o: dict, given: dict, size, request: RenderRequest, path
     # BVH: about a second) overlaps ours.
     if not Path(scene).is_file():
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
-    notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
+
+    def say_wait(line: str) -> None:  # (a wait the user may wonder about: the kernels' first compile)
+        click.echo(f"strokekit: {line}", err=True)
+        status.say(line)
+
+    notice = None if o["quiet"] else say_wait
     # The kernels load (or compile, on a machine's first run): the raster ones beside the scene's
     # load (not beside a dask cluster: there the workers draw every frame).
     kernels = RunKernels(notice, raster=wants_raster(o) and not o["scheduler"])
