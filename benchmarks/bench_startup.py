@@ -69,6 +69,12 @@ def timed(python: str, args: list[str], out: Path, files: list[str]) -> tuple[fl
     return wall, cpu
 
 
+def _label(python: str) -> str:
+    """A column's name: the environment's folder, or the folder holding it when that is `.venv`."""
+    env = Path(python).parent.parent
+    return (env.parent.name if env.name.startswith(".") else env.name) or python
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("pythons", nargs="*", default=[sys.executable])
@@ -79,7 +85,7 @@ def main() -> None:
         out.mkdir()
         cases = _cases(out)
         results = {(c[0], py): [] for c in cases for py in a.pythons}
-        for name, args, files in cases:
+        for _, args, files in cases:
             for py in a.pythons:
                 timed(py, args, out, files)  # warm: the file cache, numba's cache, the scene cache
         for _ in range(a.runs):
@@ -88,7 +94,7 @@ def main() -> None:
                     results[(name, py)].append(timed(py, args, out, files))
     print(f"load average {os.getloadavg()[0]:.2f}; medians of {a.runs} runs in turns (wall s / CPU s)")
     width = max(len(c[0]) for c in cases)
-    print(" " * width + "".join(f"  {Path(py).parent.parent.name or py:>22}" for py in a.pythons))
+    print(" " * width + "".join(f"  {_label(py):>22}" for py in a.pythons))
     for name, _, _ in cases:
         cells = []
         for py in a.pythons:
