@@ -60,7 +60,7 @@ def raster_and_files(scene, cam, occ, strokes, number, variant) -> list[str]:
     """One frame's raster pass and its files, as a render's frame task makes them."""
     raster_options, outputs = variant
     raster = render_raster(scene, cam, occ, raster_options, work=thread_workspace())
-    return raster_files(Frame(number, cam, strokes, {}, (), raster=raster), outputs, 60.0, {})
+    return raster_files(Frame(number, cam, strokes, {}, (), raster=raster), outputs, {})
 
 
 def timed(fn, *args) -> tuple[float, float]:

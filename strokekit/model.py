@@ -11,20 +11,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from strokekit.kinds import KIND_INDEX, KINDS, MAX_OCCLUSION, N_KINDS, layer_name  # noqa: F401 (the model's names)
+
 if TYPE_CHECKING:  # the model holds a frame's Camera; the camera stage imports the model's KINDS nowhere
     from strokekit.camera.view import Camera
     from strokekit.scene.motion import ScenePose
 
-#: Line kinds in layer order. The index is what `kind` arrays hold.
-KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmanifold",
-                          "smooth_contour", "suggestive", "intersection")
-KIND_INDEX = {k: i for i, k in enumerate(KINDS)}
-N_KINDS = len(KINDS)
-#: Hidden lines (LineOptions.occlusion) carry their occlusion level in the kind arrays: code =
-#: kind + N_KINDS * level, so every stage that keeps kinds apart (chaining, the cleanup of doubled
-#: lines, tracking's joins) keeps levels apart. int8 codes hold levels 0..15; deeper pieces count
-#: as 15.
-MAX_OCCLUSION = (127 - (N_KINDS - 1)) // N_KINDS
 
 
 def kind_of(code) -> np.ndarray:
@@ -35,13 +27,6 @@ def kind_of(code) -> np.ndarray:
 def occlusion_of(code) -> np.ndarray:
     """The occlusion level of kind codes: 0 visible, n hidden by n surfaces."""
     return np.asarray(code) // N_KINDS
-
-
-def layer_name(code: int) -> str:
-    """The SVG layer (and glTF material) of a kind code: the kind, or hidden-<kind> for any level
-    >= 1 (the levels of one kind share its hidden layer; the JSON gives each stroke's level)."""
-    code = int(code)
-    return KINDS[code % N_KINDS] if code < N_KINDS else "hidden-" + KINDS[code % N_KINDS]
 
 
 try:  # the clip ufunc itself: np.clip(a, lo, hi) with both bounds given is this call, behind ~1 us

@@ -7,11 +7,14 @@ samples of one frame matched to another's (`match_samples`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from strokekit.model import Strokes, bracket, row_norm, uclip
+
+if TYPE_CHECKING:  # (scipy loads where samples are matched: the writers' import stays light)
+    from scipy.spatial import cKDTree
 
 #: A sample's match in the other frame lies within this radius (px) and its tangent agrees with
 #: the sample's: |t . t'| at least MIN_TANGENT_DOT (the coherence metrics' rule).
@@ -185,7 +188,11 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     ok = fin[:, 0] & fin[:, 1] & ((z > 0) | camera.is_ortho)
     if not ok.any():
         return (out, q) if return_projected else out
-    tree = dst_tree if dst_tree is not None else cKDTree(dst.p)
+    tree = dst_tree
+    if tree is None:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(dst.p)
     kk = min(k, len(dst))
     every = ok.all()  # the usual case: no copies, no scatter
     qq = q if every else q[ok]

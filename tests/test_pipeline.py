@@ -12,6 +12,7 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
+import numpy as np
 import pytest
 from helpers import SAMPLES, cli_env, model_path
 
@@ -531,7 +532,9 @@ def _scenes(tmp_path: Path) -> tuple[Path, Path]:
     import trimesh
 
     other = tmp_path / "cylinder.obj"
-    trimesh.creation.cylinder(radius=1.0, height=2.0, sections=12).export(other)
+    # (standing on Y, as the orbit's default up: no Z-up hint among the lines checked)
+    upright = trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])
+    trimesh.creation.cylinder(radius=1.0, height=2.0, sections=12, transform=upright).export(other)
     return _cube(tmp_path), other
 
 
@@ -607,6 +610,19 @@ def test_skip_existing_sees_a_brush_image_whose_bytes_changed(tmp_path, capsys):
     Image.new("RGBA", (8, 4), (0, 0, 0, 128)).save(brush)
     code, _, err = run_cli(args + ["--skip-existing"], capsys)
     assert code == 2 and ".strokekit-run.json differs: options" in err, err
+
+
+def test_skip_existing_names_the_option_that_differs(tmp_path, capsys):
+    """'differs: options' left the user to guess which: the manifest keeps the settings, and the
+    line names each changed one as it was given (its flag) with both values."""
+    cube, _ = _scenes(tmp_path)
+    out = tmp_path / "o"
+    assert run_cli(["render", cube, "--orbit", "3", "--out", out, "-q"] + SMALL, capsys)[0] == 0
+    code, _, err = run_cli(["render", cube, "--orbit", "3", "--out", out, "--skip-existing", "--stroke-width", "2",
+                            "--kinds", "silhouette,crease"] + SMALL, capsys)
+    assert code == 2, err
+    assert ".strokekit-run.json differs: options (--kinds silhouette,border,crease,material,nonmanifold there, " \
+           "silhouette,crease now; --stroke-width 1.5 there, 2.0 now)" in err, err
 
 
 def test_skip_existing_refuses_frames_without_a_manifest(tmp_path, capsys):

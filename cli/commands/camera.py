@@ -6,13 +6,15 @@ import json
 
 import click
 
-from strokekit.camera.paths import dolly_path, orbit_path, parallel_path
-from strokekit.camera.view import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
+from strokekit.camera.limits import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
 from strokekit.errors import InputError, UsageError
-from strokekit.fileio import atomic_write_text
-from strokekit.scene.load import load_scene
+from strokekit.fileio import atomic_write_text, check_not_an_input
 
-from ..common import FINITE, FiniteFloatRange, say_warnings
+from ..common import FINITE, FiniteFloatRange, hint_up_axis, say_warnings
+
+
+def _up_given() -> bool:
+    return click.get_current_context().get_parameter_source("up") == click.core.ParameterSource.COMMANDLINE
 
 
 def _emit(path, out):
@@ -56,8 +58,13 @@ def command():
               help="Frames per second (for glTF animation).")
 def orbit(scene, frames, elevation, fov, width, height, up, out, animation, degrees_per_frame, fps):
     """A turntable orbit around the scene that keeps it in view (over its whole animation)."""
+    from strokekit.camera.paths import orbit_path
+    from strokekit.scene.load import load_scene
+
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
+    hint_up_axis(s, scene, _up_given())
     center, radius, _ = s.framing(animation)
     _emit(orbit_path(center, radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
                      fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
@@ -69,8 +76,13 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, animation, degr
 @click.option("--end", type=FiniteFloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
 def dolly(scene, frames, elevation, fov, width, height, up, out, animation, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
+    from strokekit.camera.paths import dolly_path
+    from strokekit.scene.load import load_scene
+
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
+    hint_up_axis(s, scene, _up_given())
     center, radius, _ = s.framing(animation)
     _emit(dolly_path(center, radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)
@@ -100,7 +112,12 @@ def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width
     """A parallel projection of technical drawing that frames the whole scene (its drawing centred,
     5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
     from --azimuth / --elevation."""
+    from strokekit.camera.paths import parallel_path
+    from strokekit.scene.load import load_scene
+
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
+    hint_up_axis(s, scene, _up_given())
     center, radius, points = s.framing(animation)
     try:
         path = parallel_path(center, radius, projection, azimuth=azimuth, elevation=elevation,

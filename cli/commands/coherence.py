@@ -3,13 +3,8 @@
 from __future__ import annotations
 
 import click
-import orjson
-from rich.console import Console
-from rich.table import Table
 
 from strokekit.errors import InputError
-from strokekit.metrics.coherence import posed_frames, read_frames, sequence_metrics, wholeness
-from strokekit.scene.load import load_scene
 
 from ..common import FiniteFloatRange
 from .render_options import occlusion_from
@@ -47,6 +42,13 @@ def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern:
     1000 px (with --fresh: beside those of the same frames drawn afresh, and the ratio; overall:
     medians over the second half of the frames), from the frame JSON files of OUT_DIR (README:
     what each metric measures)."""
+    import orjson
+    from rich.console import Console
+    from rich.table import Table
+
+    from strokekit.metrics.coherence import posed_frames, read_frames, sequence_metrics, wholeness
+    from strokekit.scene.load import load_scene
+
     levels = occlusion_from({"occlusion_range": occlusion_range}) if occlusion_range is not None else None
     frames = read_frames(out_dir, pattern, occlusion=levels)
     if scene_path is not None:

@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import click
 
-from strokekit.camera.gltf import gltf_camera_count
-from strokekit.scene.load import load_scene
-
 from ..common import FINITE, echo_json, say_warnings
 
 
@@ -16,6 +13,9 @@ from ..common import FINITE, echo_json, say_warnings
 @click.option("--crease-angle", type=FINITE, default=60.0, show_default=True, help="Crease threshold, degrees.")
 def command(scene: str, as_json: bool, crease_angle: float):
     """Meshes, faces, materials, bounds, borders and non-manifold edges, and the line kinds present."""
+    from strokekit.camera.gltf import gltf_camera_count
+    from strokekit.scene.load import load_scene
+
     s = load_scene(scene)
     say_warnings(s)
     d = s.summary()

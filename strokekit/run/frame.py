@@ -87,8 +87,7 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
         # The kernels' load (a process's first raster frame) is the 'raster kernels' stage, not this frame's.
         timings["kernels"] = ensure_kernels()
         t = time.perf_counter()
-        raster = render_raster(renderer.scene, camera, renderer.occluder, plan.raster, plan.lines.crease_angle_deg,
-                               work=work, timings=timings)
+        raster = render_raster(renderer.scene, camera, renderer.occluder, plan.raster, work=work, timings=timings)
         info = raster_info(raster)
         if plan.raster.band_polygons:
             underlays = (bands_layer(band_regions(raster)),)

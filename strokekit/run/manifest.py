@@ -10,9 +10,14 @@ from dataclasses import fields, is_dataclass
 from pathlib import Path
 
 from strokekit.fileio import atomic_write_bytes
-from strokekit.ribbons.brushes import BUNDLED
-from strokekit.run.spec import RunSpec
+from strokekit.options import LineOptions, flag_of
+from strokekit.paths.options import PathOptions
+from strokekit.raster.options import PassOptions, RasterOptions
+from strokekit.ribbons.options import BUNDLED
+from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.scene.load import Scene
+from strokekit.tracking.options import TrackingOptions
+from strokekit.writers.options import GltfOptions
 
 # --- the run manifest ----------------------------------------------------------------------------------
 
@@ -58,6 +63,8 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
                and not (f.name == "hidden_dashes" and o.hidden_dashes is None)
                and not (f.name == "dash_paths" and not o.dash_paths)}
     outputs["raster_options"] = plan.raster  # (the raster pass is digested with the outputs)
+    if plan.raster is not None and plan.raster.shading == "flat":  # (the smooth angle shapes no flat bytes)
+        outputs["raster_options"] = {k: v for k, v in canonical(plan.raster).items() if k != "smooth_angle_deg"}
     if o.exr is not None and o.exr.codec == "zip":
         outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr) if f.name != "codec"}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
@@ -71,6 +78,7 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
     if plan.paths is not None:  # (brush runs only: a lines run's digest has no paths)
         opts["paths"] = plan.paths
     options_d = _digest(opts)
+    settings = _flat(canonical(opts))
     frames, chain = {}, ""
     motion = scene.motion
     moving = motion is not None and motion.moves(motion.animation(spec.request.animation))
@@ -82,7 +90,50 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
             d = chain = _digest([chain, f, d])
         frames[f] = d
     return {"strokekit_run": 1, "run": _digest([scene_d, options_d]), "scene": scene_d, "options": options_d,
-            "frames": frames}
+            "settings": settings, "frames": frames}
+
+
+def _flat(v, prefix: str = "") -> dict:
+    """{dotted name: value} of nested dicts ('outputs.raster_options.bands': 3)."""
+    if not isinstance(v, dict):
+        return {prefix: v}
+    out = {}
+    for k, x in v.items():
+        out.update(_flat(x, f"{prefix}.{k}" if prefix else str(k)))
+    return out
+
+
+#: The options class of each part of the settings, whose fields name their flags.
+_SETTINGS_CLASSES = {"lines": LineOptions, "outputs": OutputOptions, "outputs.raster_options": RasterOptions,
+                     "outputs.exr": PassOptions, "outputs.gltf_options": GltfOptions, "tracking": TrackingOptions,
+                     "paths": PathOptions}
+
+
+def _setting_name(key: str) -> str:
+    """A setting as the user gave it: its flag ('--stroke-width'), else its dotted name."""
+    part, _, name = key.rpartition(".")
+    cls = _SETTINGS_CLASSES.get(part)
+    field = next((f for f in fields(cls) if f.name == name), None) if cls is not None else None
+    flag = flag_of(field) if field is not None else None
+    return flag.name if flag is not None else key
+
+
+def _setting_value(v) -> str:
+    if isinstance(v, list):
+        return ",".join(map(_setting_value, v))
+    return v if isinstance(v, str) else "none" if v is None else json.dumps(v)
+
+
+def settings_changed(old: dict, new: dict, most: int = 3) -> str:
+    """The settings that differ between two manifests' ('--stroke-width 1.5 there, 2 now'), the
+    first `most` of them; "" when the old manifest has none (written before they were kept)."""
+    a, b = old.get("settings"), new.get("settings")
+    if not isinstance(a, dict) or not isinstance(b, dict):
+        return ""
+    changed = [k for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)]
+    said = [f"{_setting_name(k)} {_setting_value(a.get(k))} there, {_setting_value(b.get(k))} now"
+            for k in changed[:most]]
+    return "; ".join(said) + (f"; {len(changed) - most} more" if len(changed) > most else "")
 
 
 def read_run_manifest(out_dir: Path) -> dict | None:
@@ -98,7 +149,7 @@ def read_run_manifest(out_dir: Path) -> dict | None:
 
 
 def write_run_manifest(out_dir: Path, manifest: dict, frames: dict[int, str]) -> Path:
-    d = {k: manifest[k] for k in ("strokekit_run", "run", "scene", "options")}
+    d = {k: manifest[k] for k in ("strokekit_run", "run", "scene", "options", "settings") if k in manifest}
     d["frames"] = {str(f): frames[f] for f in sorted(frames)}
     return atomic_write_bytes(Path(out_dir) / RUN_MANIFEST, (json.dumps(d, indent=1) + "\n").encode())
 
@@ -122,9 +173,12 @@ def not_a_resume(out_dir: Path, old: dict | None, new: dict, present: set[int]) 
         return (f"--skip-existing: {where} holds frames but no readable {RUN_MANIFEST} to tell what they were "
                 f"rendered from; {fix}")
     parts = [p for p in ("scene", "options") if old[p] != new[p]]
+    if "options" in parts and settings_changed(old, new):
+        parts[parts.index("options")] = f"options ({settings_changed(old, new)})"
     cams = [f for f in present if f in old["frames"] and old["frames"][f] != new["frames"][f]]
     if cams:
         parts.append(f"cameras of frames {_frame_ranges(cams)}")
-    what = " or ".join(x for x, p in (("another scene", "scene"), ("other options", "options")) if p in parts)
+    what = " or ".join(x for x, p in (("another scene", "scene"), ("other options", "options"))
+                       if old[p] != new[p])
     what = what or "another run"  # a run digest that its parts do not explain: an edited file
     return (f"--skip-existing: {where} holds frames of {what} ({RUN_MANIFEST} differs: {', '.join(parts)}); {fix}")

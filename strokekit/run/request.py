@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 from strokekit.errors import UsageError
 from strokekit.options import LineOptions, option
 from strokekit.paths.options import PathOptions
-from strokekit.raster.bands import RasterOptions
+from strokekit.raster.options import RasterOptions
 from strokekit.tracking.options import METHODS, TrackingOptions
 
 STROKES = ("brush", "lines")

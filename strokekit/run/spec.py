@@ -4,20 +4,27 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import os
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.fileio import TEMP_SUFFIX
 from strokekit.options import LineOptions, option
-from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PassOptions
+from strokekit.raster.options import PassOptions, RasterOptions
+from strokekit.ribbons.options import BUNDLED
 from strokekit.run.request import RenderRequest, SequencePlan
-from strokekit.run.workers import MAX_WORKERS
-from strokekit.scene.load import Scene
-from strokekit.writers.gltf import GltfOptions
+from strokekit.writers.options import GltfOptions
+
+if TYPE_CHECKING:  # (annotations only: the options load without the scene or camera code)
+    from strokekit.camera.view import Camera
+    from strokekit.scene.load import Scene
+
+#: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
+#: than a few per core only share the cores.
+MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
 #: The longest file name (bytes) of Linux, macOS and Windows file systems.
 NAME_MAX = 255
@@ -121,6 +128,18 @@ class RunSpec:
                              "run streams them out in order).", switch=True)
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
     fps: float = 24.0  # the camera path's frame rate: frame N shows the scene's animation at (N - 1) / fps
+
+    def __post_init__(self):
+        # A cluster's workers resolve a relative name in their own folders (frames written on
+        # their disks, the scene not found): a run on one names every file the tasks read or
+        # write by its absolute path.
+        if self.scheduler:
+            o = self.outputs
+            g = o.gltf_options
+            if g is not None and g.brush not in BUNDLED:  # a PNG of the user's, read by the GLB writer
+                g = replace(g, brush=os.path.abspath(g.brush))
+            object.__setattr__(self, "scene_path", os.path.abspath(self.scene_path))
+            object.__setattr__(self, "outputs", replace(o, out_dir=Path(os.path.abspath(o.out_dir)), gltf_options=g))
 
     @cached_property
     def plan(self) -> SequencePlan:

@@ -135,7 +135,7 @@ def frame_task(task: FrameTask) -> FrameResult:
         plan = task.plan if task.outputs is not None else replace(task.plan, raster=None)
         frame = render_frame(r, n, task.camera, plan, work=thread_workspace() if plan.raster is not None else None)
         timings = dict(frame.timings)
-        files = raster_files(frame, task.outputs, plan.lines.crease_angle_deg, timings) \
+        files = raster_files(frame, task.outputs, timings) \
             if task.outputs is not None else []
         frame = replace(frame, raster=None)
         written = None
@@ -197,11 +197,10 @@ def surface_depth(outputs: OutputOptions, scene: SceneRef | None, occluder: Occl
     return surface_depth_at(occluder)
 
 
-def raster_files(frame: Frame, outputs: OutputOptions, crease_angle_deg: float, timings: dict) -> list[str]:
+def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[str]:
     """Write one frame's image passes (PNGs, one folder per pass: its raster pass's images, the
     lines PNG) and EXR; returns the files written. The lines in them are the frame's as drawn,
-    before any carry. `crease_angle_deg`: the line options' (the EXR's smooth normals split
-    there). `timings` gets the seconds of each part."""
+    before any carry. `timings` gets the seconds of each part."""
     files: list[str] = []
     raster, strokes, camera = frame.raster, frame.lines, frame.camera
     stem = outputs.stem(frame.number)
@@ -234,7 +233,7 @@ def raster_files(frame: Frame, outputs: OutputOptions, crease_angle_deg: float, 
             - timings.get("lines PNG", 0.0)
         if outputs.exr is not None:
             t1 = time.perf_counter()
-            passes = compositing_passes(raster, strokes, outputs.exr, crease_angle_deg,
+            passes = compositing_passes(raster, strokes, outputs.exr,
                                         coverage(outputs.exr.stroke_width_px) if "lines" in outputs.exr.passes else None)
             files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec)))
             timings["EXR"] = time.perf_counter() - t1
@@ -262,21 +261,20 @@ def _lines_image(cov: dict, camera: Camera) -> np.ndarray:
     return out.reshape(H, W, 4)
 
 
-def raster_outputs(scene, camera: Camera, occluder: Occluder | None, options, crease_angle_deg: float = 60.0
-                   ) -> dict[str, bytes]:
+def raster_outputs(scene, camera: Camera, occluder: Occluder | None, options) -> dict[str, bytes]:
     """{pass: PNG bytes} of one frame for RasterOptions (see strokekit.raster; raster_files
-    writes them as OUT/<pass>/frame_0001.png). `crease_angle_deg`: the line options'."""
-    return png_files(render_raster(scene, camera, occluder, options, crease_angle_deg).images())
+    writes them as OUT/<pass>/frame_0001.png)."""
+    return png_files(render_raster(scene, camera, occluder, options).images())
 
 
 def raster_outputs_with_bands_layer(scene, camera: Camera, occluder: Occluder | None, options,
-                                    crease_angle_deg: float = 60.0, timings: dict | None = None,
+                                    timings: dict | None = None,
                                     work=None) -> tuple[dict[str, bytes], list]:
     """(PNG outputs, the SVG text of the 'bands' layer in a list, [] when options.band_polygons is
     off): pass it as svg_document(..., underlays=...) so the bands sit under the line layers.
     `timings` gets the raster stages' seconds (render_raster's, 'images', 'png'); `work`: the
     z-buffer workspace (raster.hits.thread_workspace()) whose buffers this frame reuses."""
-    frame = render_raster(scene, camera, occluder, options, crease_angle_deg, work=work, timings=timings)
+    frame = render_raster(scene, camera, occluder, options, work=work, timings=timings)
     t0 = time.perf_counter()
     images = frame.images()
     t1 = time.perf_counter()

@@ -11,14 +11,12 @@ from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, w
 from dataclasses import dataclass
 from typing import Callable
 
-from strokekit.errors import InputError, UsageError
+from strokekit.errors import InputError
+from strokekit.extras import need
 from strokekit.lines.renderer import LineRenderer
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene, load_scene
 
-#: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
-#: than a few per core only share the cores.
-MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
 def default_workers(n_frames: int, raster: bool) -> int:
     """Processes for a run of `n_frames` when none is said: the machine's cores from 8 frames on,
@@ -98,6 +96,8 @@ class Workers:
     #: Pool workers that have finished starting (imports, scene, BVH): a shared integer (always
     #: 0 when this process is the only one), or None when this process does not render (dask).
     started: object | None = None
+    #: A dask cluster's `client.run`: call a function on every worker -> {worker address: result}.
+    on_each: Callable[[Callable], dict] | None = None
 
     @property
     def main_helps(self) -> bool:
@@ -248,16 +248,15 @@ def make_executor(workers: int, scheduler: str | None, warm: SceneRef) -> Worker
     Otherwise `workers` processes on this machine: this one, plus a spawn-started pool of
     workers - 1 processes, started now; each loads the `warm` scene and builds its BVH right away."""
     if scheduler:
-        try:
-            from distributed import Client
-        except ImportError:
-            raise UsageError("--scheduler needs dask.distributed (pip install 'dask[distributed]')") from None
+        need("distributed", "--scheduler")
+        from distributed import Client
+
         try:
             client = Client(scheduler, timeout=10)
         except Exception as e:
             raise InputError(f"cannot reach the dask scheduler at {scheduler} ({e})") from None
         ex = client.get_executor(pure=False)
-        return Workers(ex, _once(client.close))
+        return Workers(ex, _once(client.close), on_each=client.run)
     if workers <= 1:
         # This process does every task, one by one, handling each result before the next task.
         return Workers(None, lambda: None, started=_NoPool())

@@ -25,6 +25,7 @@ from strokekit.animation import GltfData, load_gltf
 from strokekit.errors import InputError, hold_interrupts
 from strokekit.fileio import atomic_write_bytes
 from strokekit.scene.motion import SceneMotion, ScenePose
+from strokekit.scene.obj_faces import face_past_vertices, short_face_warnings
 from strokekit.scene.tables import SceneTables, dihedral_cos_of, face_normals_of, face_offsets_of
 from strokekit.scene.weld import Welded, weld
 
@@ -316,10 +317,13 @@ def _read_parts(p: Path) -> tuple:
     obj = _ObjStatements.of(p) if p.suffix.lower() == ".obj" else None
     if obj is not None:
         warnings = obj.warnings()
+    if p.suffix.lower() == ".obj":
+        warnings += short_face_warnings(p.read_bytes())
     try:
         loaded = _load_holding_interrupts(p, **(obj.load_options() if obj is not None else {}))
     except Exception as e:  # trimesh raises many kinds on bad files
-        raise InputError(f"cannot read mesh ({type(e).__name__}: {e})", p) from None
+        past = face_past_vertices(p.read_bytes()) if p.suffix.lower() == ".obj" else None
+        raise InputError(past or f"cannot read mesh ({type(e).__name__}: {e})", p) from None
     # An OBJ split by its objects (see _ObjStatements): the pieces of one object, one per
     # material, are one object named as the OBJ names it.
     renamed = obj.object_names(loaded) if obj is not None and obj.split else {}
