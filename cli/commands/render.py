@@ -60,7 +60,7 @@ def command(scene, **o):
     if "path_merge" in given and request.plan(len(frames)).paths is None:
         raise UsageError("--path-merge needs brush paths (--strokes brush; one frame, --no-coherence or a --coherence "
                          "method draw the lines by default)")
-    workers = min(o["workers"] or default_workers(len(frames), wants_raster(o)), len(frames))
+    workers = min(o["workers"] or default_workers(len(frames), wants_raster(o), o["worker_kind"]), len(frames))
     # The workers start before this process loads the scene: their start-up (imports, scene,
     # BVH: about a second) overlaps ours.
     if not Path(scene).is_file():
@@ -70,7 +70,7 @@ def command(scene, **o):
     # load (not beside a dask cluster: there the workers draw every frame).
     kernels = RunKernels(notice, raster=wants_raster(o) and not o["scheduler"])
     t_start = time.perf_counter()
-    pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines))
+    pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines), kind=o["worker_kind"])
     spec = None
     write_error: RunWriteError | None = None
     try:
@@ -84,7 +84,7 @@ def command(scene, **o):
                               width=width, height=height, up_axis=o["up"])
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), request=request,
                        outputs=outputs_from(o, given, lines.occlusion, path.fps), workers=workers,
-                       scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
+                       worker_kind=o["worker_kind"], scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
                        camera_source=str(o["camera"]) if o["camera"] else path.source)
         check_files_apart(spec, also_written=[("--report", o["report"])])
         try:
