@@ -282,7 +282,7 @@ def test_failed_write_in_a_pool_worker_says_the_file_and_leaves_whole_frames(suf
 
     monkeypatch.setattr(fileio.os, "replace", main_replace)
     code, _, e = run_cli(["render", scene, "--orbit", "5", "--size", "48x36", "--gltf", "--bands", "2",
-                          "--no-coherence", "--out", out, "--workers", "2"], capsys)
+                          "--no-coherence", "--out", out, "--workers", "2", "--worker-kind", "processes"], capsys)
     monkeypatch.undo()
     assert Path(cfg["ready"]).exists(), "the pool worker never started (or the hook was not loaded)"
     log = Path(cfg["log"]).read_text().split("\n") if Path(cfg["log"]).exists() else []

@@ -241,3 +241,56 @@ def test_a_ctrl_c_in_the_trackers_compiled_loops_stays_a_keyboard_interrupt():
     tr.method = SimpleNamespace(track=in_loop)
     with pytest.raises(KeyboardInterrupt):
         tr.step(lines)
+
+
+def test_kernels_let_other_threads_run_and_their_options_are_in_the_cache_stamp(tmp_path):
+    """A kernel releases Python's lock while it runs (KERNEL_OPTIONS nogil: the workers of a run
+    are threads), so another thread of the process keeps running meanwhile; and a kernel cached
+    under other options is compiled again (numba's own cache key does not hold them)."""
+    _tiny_module(tmp_path, "sk_busy", """
+        from strokekit.numba_cache import kernel
+
+        @kernel("(i8,)")
+        def spin(n):
+            s = 0.0
+            for i in range(n):
+                s += (i % 7) * 0.5
+            return s
+        """)
+    code = textwrap.dedent("""
+        import importlib, sys, threading, time
+        from strokekit import numba_cache
+        if sys.argv[1] == "gil":
+            numba_cache.KERNEL_OPTIONS = {"cache": True, "nogil": False}
+        mod = importlib.import_module("sk_busy")
+        print(numba_cache.compile_needed(mod))
+        numba_cache.LazyKernels("sk_busy").kernels()
+        mod.spin(10)
+        n = 10
+        while True:  # a call of about 0.3 s
+            t = time.perf_counter(); mod.spin(n); dt = time.perf_counter() - t
+            if dt > 0.3:
+                break
+            n *= 4
+        wakes = []
+        th = threading.Thread(target=mod.spin, args=(n,))
+        th.start()
+        while th.is_alive():
+            time.sleep(0.001)
+            wakes.append(1)
+        print(len(wakes))
+        """)
+    env = {**os.environ, "PYTHONPATH": f"{tmp_path}:{ROOT}"}
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def run(options):
+        out = subprocess.run([sys.executable, "-c", code, options], capture_output=True, text=True, cwd=tmp_path,
+                             env=env, check=True).stdout.split()
+        return out[0], int(out[1])
+
+    needed, wakes = run("nogil")
+    assert needed == "True" and wakes >= 20, wakes  # this thread woke while the kernel ran
+    assert run("nogil")[0] == "False"  # (from the cache)
+    needed, wakes = run("gil")
+    assert needed == "True", "a kernel cached with other options would be loaded as it was"
+    assert wakes <= 3, wakes  # holding the lock, the kernel keeps this thread asleep

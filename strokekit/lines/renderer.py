@@ -84,9 +84,10 @@ class LineRenderer:
         if not edge_on.any():
             return self.occluder
         key = np.packbits(edge_on).tobytes()
-        if self._edge_on is None or self._edge_on[0] != key:
-            self._edge_on = (key, self.occluder.without_faces(edge_on))
-        return self._edge_on[1]
+        kept = self._edge_on  # (read once: frames in other threads may replace it)
+        if kept is None or kept[0] != key:
+            kept = self._edge_on = (key, self.occluder.without_faces(edge_on))
+        return kept[1]
 
     def check_camera(self, camera: Camera, frame: int = 0) -> None:
         if eye_enclosed(self.occluder, camera):

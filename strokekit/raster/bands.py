@@ -252,9 +252,10 @@ class MixedPixels:
     @cached_property
     def counts(self) -> np.ndarray:
         """(P, n_labels) int64 samples of each label (n_labels: max label + 1)."""
-        P, S = self.labels.shape
         n = int(self.labels.max(initial=0)) + 1
-        return np.bincount((np.arange(P)[:, None] * n + self.labels).reshape(-1), minlength=P * n).reshape(P, n)
+        counts = np.empty((len(self.labels), n), np.int64)
+        compiled().label_counts(np.ascontiguousarray(self.labels), counts)
+        return counts
 
     def coverage(self, n_labels: int) -> np.ndarray:
         """(P, n_labels) float32 share of each label."""

@@ -135,6 +135,9 @@ PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
 #: default, as Blender writes) and ZIPS are the smallest, PIZ encodes faster at about twice their
 #: size, RLE in about half ZIP's time at four to eight times the size (README, `--exr`).
 CODECS = ("zip", "zips", "piz", "rle", "none")
+#: --exr-float: half float where Blender writes it (depth and Cryptomatte stay float32), or
+#: float32 everywhere.
+PRECISIONS = ("half", "full")
 
 
 @dataclass(frozen=True)
@@ -150,6 +153,10 @@ class PassOptions:
         "zip", "--exr-codec", "The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at "
         "about twice their size, rle in about half zip's time at four to eight times the size.", choices=CODECS,
         show_default=True, needs="exr")
+    precision: str = option(
+        "half", "--exr-float", "The EXR's float types: half (as Blender writes its passes: colour, normals, band "
+        "labels and lines in half float, depth and Cryptomatte in float32) or full (every channel float32).",
+        choices=PRECISIONS, show_default=True, needs="exr")
 
     def __post_init__(self):
         unknown = [p for p in self.passes if p not in PASSES]
@@ -159,4 +166,7 @@ class PassOptions:
         if self.codec not in CODECS:
             raise UsageError(f"codec {self.codec!r} is not one of {', '.join(CODECS)} (the lossless ones: "
                              "Cryptomatte ids and depth must come back exact)", option="codec")
+        if self.precision not in PRECISIONS:
+            raise UsageError(f"EXR float type {self.precision!r} is not one of {', '.join(PRECISIONS)}",
+                             option="precision")
         object.__setattr__(self, "passes", tuple(p for p in PASSES if p in self.passes))

@@ -58,15 +58,17 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
                        "materials": [m.base_color for m in scene.materials]})
     o = spec.outputs
     # An option at its default that a later option added is left out of the digest, so that the
-    # digests of runs made before it stay: the dashes, the EXR codec.
+    # digests of runs made before it stay: the dashes, the EXR codec and float types.
     outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
                and not (f.name == "hidden_dashes" and o.hidden_dashes is None)
                and not (f.name == "dash_paths" and not o.dash_paths)}
     outputs["raster_options"] = plan.raster  # (the raster pass is digested with the outputs)
     if plan.raster is not None and plan.raster.shading == "flat":  # (the smooth angle shapes no flat bytes)
         outputs["raster_options"] = {k: v for k, v in canonical(plan.raster).items() if k != "smooth_angle_deg"}
-    if o.exr is not None and o.exr.codec == "zip":
-        outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr) if f.name != "codec"}
+    if o.exr is not None:
+        outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr)
+                          if not (f.name == "codec" and o.exr.codec == "zip")
+                          and not (f.name == "precision" and o.exr.precision == "half")}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
     if o.gltf and brush is not None:
         if brush not in BUNDLED:  # a user's image: its bytes go into every GLB

@@ -83,7 +83,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     own = workers is None
     raster = spec.raster is not None
     if own:
-        workers = make_executor(spec.workers, spec.scheduler, warm=SceneRef(spec.scene_path, "", spec.lines))
+        workers = make_executor(spec.workers, spec.scheduler, warm=SceneRef(spec.scene_path, "", spec.lines),
+                                kind=spec.worker_kind)
     # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
     if kernels is None:
         kernels = RunKernels(notice, raster=raster and workers.main_helps)

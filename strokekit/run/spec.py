@@ -25,6 +25,8 @@ if TYPE_CHECKING:  # (annotations only: the options load without the scene or ca
 #: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
 #: than a few per core only share the cores.
 MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
+#: --worker-kind: threads of this process, or a pool of processes.
+WORKER_KINDS = ("threads", "processes")
 
 #: The longest file name (bytes) of Linux, macOS and Windows file systems.
 NAME_MAX = 255
@@ -116,9 +118,14 @@ class RunSpec:
     outputs: OutputOptions
     request: RenderRequest = field(default_factory=RenderRequest)
     workers: int = option(
-        1, "--workers", "Processes rendering frames: this one and N-1 started beside it (default: the machine's "
-        "cores for 8 frames or more, 16 with a raster output, else 1; at most 4 per core, 8 on smaller machines).",
+        1, "--workers", "Frames drawn at once: by this process and N-1 workers beside it (--worker-kind; default: "
+        "the machine's cores for a sequence, 1 for one frame; at most 4 per core, 8 on smaller machines).",
         low=1, high=MAX_WORKERS, needs="no scheduler")
+    worker_kind: str = option(
+        "threads", "--worker-kind", "What the workers are: threads of this process (they share its scene and BVH and "
+        "start at once) or processes (each imports strokekit and loads the scene, about a second, then draws frames "
+        "without sharing Python's lock with the others: for long runs on many cores).",
+        choices=WORKER_KINDS, show_default=True, needs="no scheduler")
     scheduler: str | None = option(None, "--scheduler", "dask.distributed scheduler address, e.g. tcp://host:8786.")
     skip_existing: bool = option(  # resume: see run(); frames of another scene or options are a UsageError
         False, "--skip-existing", "Resume: do not rewrite frames whose files all exist and were rendered from the "

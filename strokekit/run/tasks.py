@@ -235,7 +235,7 @@ def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[st
             t1 = time.perf_counter()
             passes = compositing_passes(raster, strokes, outputs.exr,
                                         coverage(outputs.exr.stroke_width_px) if "lines" in outputs.exr.passes else None)
-            files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec)))
+            files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec, outputs.exr.precision)))
             timings["EXR"] = time.perf_counter() - t1
     elif outputs.lines_png:
         t1 = time.perf_counter()
