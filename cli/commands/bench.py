@@ -17,7 +17,7 @@ from ..common import is_interactive, say_warnings
 @click.command("bench", short_help="What accuracy costs in time: presets and a sweep.")
 @click.argument("scene_path", metavar="SCENE", type=click.Path())
 @click.option("--camera", "camera_path", type=click.Path(), default=None,
-              help="Camera path JSON (format: README, camera path files); default: an orbit around the scene.")
+              help="Camera path JSON (format: docs/camera-files.md); default: an orbit around the scene.")
 @click.option("--frames", type=click.IntRange(1, MAX_PATH_FRAMES), default=8, show_default=True,
               help="Orbit frames, or the first N frames of --camera.")
 @click.option("--repeats", type=click.IntRange(1, 1000), default=3, show_default=True,

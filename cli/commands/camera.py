@@ -1,4 +1,4 @@
-"""`strokekit camera orbit|dolly SCENE`: write a camera path file (the README's format) to stdout or a file."""
+"""`strokekit camera orbit|dolly SCENE`: write a camera path file (docs/camera-files.md) to stdout or a file."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def _with_common(f):
 
 @click.group("camera", short_help="Write camera path files (orbit, dolly, parallel projections).")
 def command():
-    """Generate camera path files (JSON, see the README) so every run can be reproduced from a file."""
+    """Generate camera path files (JSON, docs/camera-files.md) so every run can be reproduced from a file."""
 
 
 @command.command("orbit")
@@ -91,7 +91,7 @@ def dolly(scene, frames, elevation, fov, width, height, up, out, animation, star
 @command.command("parallel")
 @click.argument("scene", type=click.Path())
 @click.option("--projection", type=click.Choice(list(ANGLED) + ["orthographic"]), default="isometric",
-              show_default=True, help="The parallel projection (README: parallel projections).")
+              show_default=True, help="The parallel projection (docs/camera-files.md, parallel projections).")
 @click.option("--azimuth", type=FINITE, default=None,
               help="Degrees about the up axis (isometric, dimetric: 45, 135, 225 or 315 [45]; trimetric: needed; "
                    "oblique and orthographic: [0], the front view).")

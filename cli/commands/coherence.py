@@ -40,8 +40,8 @@ def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern:
     """Per frame pair and overall: M1 id persistence, M2 popping, M4 sliding (median/p95/max px),
     M5 flatness (octaves, with self-similar levels and raw u), M7 end growth, M8 path ends per
     1000 px (with --fresh: beside those of the same frames drawn afresh, and the ratio; overall:
-    medians over the second half of the frames), from the frame JSON files of OUT_DIR (README:
-    what each metric measures)."""
+    medians over the second half of the frames), from the frame JSON files of OUT_DIR
+    (docs/coherence.md: what each metric measures)."""
     import orjson
     from rich.console import Console
     from rich.table import Table

@@ -27,7 +27,7 @@ from ..flags import OPTION_CLASSES, field_values, flags_of
 class RenderCommand:
     """The command's own options, declared as the library's fields are (never instantiated)."""
 
-    camera: str | None = option(None, "--camera", "Camera path JSON (format: README, camera path files), or a "
+    camera: str | None = option(None, "--camera", "Camera path JSON (format: docs/camera-files.md), or a "
                                 "glTF/GLB file with a camera node (its animation, if any, sampled at 24 fps).", path=True)
     orbit: int | None = option(None, "--orbit", "Orbit the scene in N frames (instead of --camera; at most as many "
                                "as a camera file may have).", low=1, high=MAX_PATH_FRAMES)

@@ -133,7 +133,7 @@ class RasterOptions:
 PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
 #: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read: ZIP (the
 #: default, as Blender writes) and ZIPS are the smallest, PIZ encodes faster at about twice their
-#: size, RLE in about half ZIP's time at four to eight times the size (README, `--exr`).
+#: size, RLE in about half ZIP's time at four to eight times the size (docs/compositing.md).
 CODECS = ("zip", "zips", "piz", "rle", "none")
 #: --exr-float: half float where Blender writes it (depth and Cryptomatte stay float32), or
 #: float32 everywhere.
