@@ -36,7 +36,7 @@ import numpy as np
 from strokekit.model import N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.numba_cache import keyboard_interrupts
 from strokekit.paths.cover import HOLD_RADIUS_PX, covered_runs, held_back, on_drawing, run_cover
-from strokekit.paths.heal import heal_paths, touching_pairs
+from strokekit.paths.heal import bridge_splits, heal_paths, touching_pairs
 from strokekit.paths.options import PathOptions
 from strokekit.paths.pieces import (
     HAIRPIN_PX,
@@ -110,6 +110,12 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths = _carried_u(prev, paths, vst, vs, vu, vid, vw, vsign, o)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
     hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
+    if o.bridge_px > 0:
+        paths, new_of = bridge_splits(paths, known, _voted_id(vst, vid, vw, len(paths)), o.bridge_px, hold,
+                                      lambda pa, pb: on_drawing(line_grid, pa, pb, D=D))
+        hold = np.bincount(new_of[hold], minlength=len(paths)) > 0
+        path_of = new_of[path_of]
+        covers = (lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece)
     if o.heal_px > 0:
         paths, new_of = heal_paths(paths, known, np.zeros(0, np.int64) if touched is None else touched, o.heal_px,
                                    hold)
@@ -117,6 +123,20 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         path_of = new_of[path_of]
         covers = (lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece)
     return _finish(paths, *covers, hold), next_id
+
+
+def _voted_id(vst: np.ndarray, vid: np.ndarray, vw: np.ndarray, S: int) -> np.ndarray:
+    """(S,) the id of most vote weight on each path (vote k on path vst[k], id vid[k], weight
+    vw[k]); -1 where none landed."""
+    out = np.full(S, -1, np.int64)
+    if len(vst) == 0:
+        return out
+    cell, inv = np.unique(np.stack((vst, vid)), axis=1, return_inverse=True)
+    w = np.bincount(inv.ravel(), weights=vw)
+    o = np.lexsort((-w, cell[0]))
+    head = o[np.r_[True, cell[0][o][1:] != cell[0][o][:-1]]]
+    out[cell[0][head]] = cell[1][head]
+    return out
 
 
 def _carried_u(prev: Strokes, paths: Strokes, vst: np.ndarray, vs: np.ndarray, vu: np.ndarray, vid: np.ndarray,
