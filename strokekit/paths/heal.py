@@ -16,6 +16,7 @@ import numpy as np
 
 from strokekit.model import Strokes, row_norm
 from strokekit.tracking.joins import gather_paths, touching_paths
+from strokekit.tracking.strokeops import select
 
 #: Ends this close (px) meet; the most the healed path turns where they do (degrees).
 HEAL_TOL_PX = 1.5
@@ -83,9 +84,15 @@ def bridge_splits(paths: Strokes, known: np.ndarray, parent: np.ndarray, gap_px:
     S = len(paths)
     if S < 2 or gap_px <= 0:
         return paths, np.arange(S)
-    ids, P = paths.ids, paths.points
-    carried = np.isin(ids, known)
-    first, last = paths.offsets[:-1], paths.offsets[1:] - 1
+    carried_all = np.isin(paths.ids, known)
+    # (Only the fresh paths with a parent drawn this frame, and their parents, can join.)
+    child = ~carried_all & np.isin(parent, paths.ids)
+    sub = np.flatnonzero(child | (carried_all & np.isin(paths.ids, parent[child])))
+    if len(sub) < 2:
+        return paths, np.arange(S)
+    part = select(paths, np.isin(np.arange(S), sub))
+    ids, P, parent, apart, carried = part.ids, part.points, parent[sub], apart[sub], carried_all[sub]
+    first, last = part.offsets[:-1], part.offsets[1:] - 1
     cos_max = np.cos(np.radians(HEAL_ANGLE_DEG))
 
     def end_of(r, at_end):
@@ -110,8 +117,10 @@ def bridge_splits(paths: Strokes, known: np.ndarray, parent: np.ndarray, gap_px:
             on[k] = on_line(pa[k], pb[k])
         return ok & ((gap <= HEAL_TOL_PX) | on)
 
-    group, rev, pos = touching_paths(paths, gap_px, HEAL_ANGLE_DEG, allow=allow)
-    return _joined(paths, group, rev, pos, carried)
+    g_sub, r_sub, p_sub = touching_paths(part, gap_px, HEAL_ANGLE_DEG, allow=allow)
+    group, rev, pos = np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
+    group[sub], rev[sub], pos[sub] = sub[g_sub], r_sub, p_sub
+    return _joined(paths, group, rev, pos, carried_all)
 
 
 def _joined(paths: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray,

@@ -110,8 +110,10 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths = _carried_u(prev, paths, vst, vs, vu, vid, vw, vsign, o)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
     hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
-    if o.bridge_px > 0:
-        paths, new_of = bridge_splits(paths, known, _voted_id(vst, vid, vw, len(paths)), o.bridge_px, hold,
+    fresh = ~np.isin(paths.ids, known)
+    parent = _voted_id(vst, vid, vw, fresh) if o.bridge_px > 0 and fresh.any() else None
+    if parent is not None and (parent >= 0).any():  # (only a fresh path with a parent bridges)
+        paths, new_of = bridge_splits(paths, known, parent, o.bridge_px, hold,
                                       lambda pa, pb: on_drawing(line_grid, pa, pb, D=D))
         hold = np.bincount(new_of[hold], minlength=len(paths)) > 0
         path_of = new_of[path_of]
@@ -125,17 +127,20 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     return _finish(paths, *covers, hold), next_id
 
 
-def _voted_id(vst: np.ndarray, vid: np.ndarray, vw: np.ndarray, S: int) -> np.ndarray:
-    """(S,) the id of most vote weight on each path (vote k on path vst[k], id vid[k], weight
-    vw[k]); -1 where none landed."""
-    out = np.full(S, -1, np.int64)
+def _voted_id(vst: np.ndarray, vid: np.ndarray, vw: np.ndarray, which: np.ndarray) -> np.ndarray:
+    """(S,) the id of most vote weight on each path where `which` (S,), -1 elsewhere and where
+    no vote landed (vote k on path vst[k], id vid[k], weight vw[k])."""
+    out = np.full(len(which), -1, np.int64)
+    on = which[vst]
+    vst, vid, vw = vst[on], vid[on], vw[on]
     if len(vst) == 0:
         return out
-    cell, inv = np.unique(np.stack((vst, vid)), axis=1, return_inverse=True)
+    key, inv = np.unique((np.asarray(vst, np.int64) << 32) | np.asarray(vid, np.int64), return_inverse=True)
     w = np.bincount(inv.ravel(), weights=vw)
-    o = np.lexsort((-w, cell[0]))
-    head = o[np.r_[True, cell[0][o][1:] != cell[0][o][:-1]]]
-    out[cell[0][head]] = cell[1][head]
+    path, pid = key >> 32, key & 0xFFFFFFFF
+    o = np.lexsort((-w, path))
+    head = o[np.r_[True, path[o][1:] != path[o][:-1]]]
+    out[path[head]] = pid[head]
     return out
 
 
