@@ -249,6 +249,7 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
     # messages name the flag the user typed
     (["--orbit", "3", "--path-merge", "-1"], "--path-merge (merge_px) must be"),
     (["--orbit", "3", "--path-heal", "-1"], "--path-heal (heal_px) must be"),
+    (["--orbit", "3", "--path-bridge", "-1"], "--path-bridge (bridge_px) must be"),
     (["--gltf", "--taper", "-1"], "--taper must be"),
     (["--pattern", "{frame:>300}"], "file names longer than the 255 bytes"),  # was exit 1 after the manifest
 ])
@@ -791,6 +792,7 @@ def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube,
     (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers needs no --scheduler"),
     (["--frames", "1", "--path-merge", "3"], "--path-merge needs brush paths"),
     (["--frames", "1", "--path-heal", "3"], "--path-heal needs brush paths"),
+    (["--frames", "1", "--path-bridge", "3"], "--path-bridge needs brush paths"),
 ])
 def test_an_option_the_run_would_ignore_is_a_usage_error(tmp_path, capsys, args, said):
     """An option given on the command line that does nothing beside the others (or contradicts

@@ -11,7 +11,7 @@ from strokekit.camera.paths import orbit_path
 from strokekit.lines.renderer import LineRenderer
 from strokekit.lines.strokeops import drop_doubled
 from strokekit.metrics.coherence import sequence_metrics
-from strokekit.model import KIND_INDEX, Strokes
+from strokekit.model import KIND_INDEX, N_KINDS, Strokes
 from strokekit.options import LineOptions
 from strokekit.paths import PathOptions, PathTracker, brush_frames
 from strokekit.paths.cover import held_back, on_drawing
@@ -120,7 +120,7 @@ def test_noisy_sphere_keeps_ids_while_its_lines_have_shingles(noisy_sphere_frame
     # Short paths merge or heal into the ones they touch: without that, splits leave ids behind for good.
     late = np.mean([len(b) for b in out[-10:]])
     assert late < np.mean([len(f) for f in noisy_sphere_frames[-10:]])
-    assert late < np.mean([len(b) for b in brush_frames(noisy_sphere_frames, PathOptions(merge_px=0.0, heal_px=0.0))[-10:]])
+    assert late < np.mean([len(b) for b in brush_frames(noisy_sphere_frames, PathOptions(merge_px=0.0, heal_px=0.0, bridge_px=0.0))[-10:]])
 
 
 def test_covers_list_the_line_pieces_of_each_path(torus_frames):
@@ -537,3 +537,34 @@ def test_a_healed_piece_keeps_its_texture_shifted_by_whole_periods():
     np.testing.assert_allclose(out.u[on_long], u_long)
     k = out.u[~on_long] - (0.37 + out.points[~on_long, 0] / 10.0)
     np.testing.assert_allclose(k, np.round(k))
+
+
+def test_a_line_cut_for_two_frames_keeps_one_id_and_comes_back_whole():
+    """A 160 px outline is cut by a 10 px gap in frames 2 and 3 (past join_px), where a crease
+    runs along it: the 50 px piece beyond the gap, too long to heal, would take a fresh id and
+    keep it (two paths for good). With bridge_px 20 it is held joined to its parent across the gap
+    (the bridge lies on the drawing), so the outline is one path with frame 1's id in every
+    frame, whole again from frame 4 on."""
+    from strokekit.camera.view import Camera
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+    whole = [[(np.array([-2.0, 0.0]), np.array([2.0, 0.0]))]]
+    cut = [[(np.array([-2.0, 0.0]), np.array([0.55, 0.0]))], [(np.array([0.8, 0.0]), np.array([2.0, 0.0]))]]
+
+    def frame(k):
+        if k not in (2, 3):
+            return _polyline_frame(cam, k, whole)
+        crease = _polyline_frame(cam, k, [[(np.array([0.5, 0.0]), np.array([0.85, 0.0]))]])
+        crease = crease.replace(kind=np.full(1, KIND_INDEX["crease"], crease.kind.dtype))
+        return Strokes.concat([_polyline_frame(cam, k, cut), crease])
+
+    frames = [frame(k) for k in range(1, 7)]
+    for bridge_px in (20.0, 0.0):
+        out = [b.strokes for b in brush_frames(frames, PathOptions(bridge_px=bridge_px))]
+        outline = [s.kind % N_KINDS == KIND_INDEX["silhouette"] for s in out]
+        ids = [s.ids[o].tolist() for s, o in zip(out, outline)]
+        if bridge_px:
+            assert ids == [ids[0]] * 6
+            assert all(abs(s.lengths[o][0] - out[0].lengths[0]) < 2.0 for s, o in zip(out, outline))
+        else:
+            assert [len(i) for i in ids] == [1, 2, 2, 2, 2, 2]

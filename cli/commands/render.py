@@ -60,7 +60,7 @@ def command(scene, **o):
     request = request_from(o, given)
     path = _camera_file_path(o, size)
     frames = parse_frames(o["frames"], len(path) if path is not None else o["orbit"] or 48)
-    for name in ("path_merge", "path_heal"):
+    for name in ("path_merge", "path_heal", "path_bridge"):
         if name in given and request.plan(len(frames)).paths is None:
             raise UsageError(f"--{name.replace('_', '-')} needs brush paths (--strokes brush; one frame, "
                              "--no-coherence or a --coherence method draw the lines by default)")

@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from strokekit.model import Strokes
+from strokekit.model import Strokes, row_norm
 from strokekit.tracking.joins import gather_paths, touching_paths
+from strokekit.tracking.strokeops import select
 
 #: Ends this close (px) meet; the most the healed path turns where they do (degrees).
 HEAL_TOL_PX = 1.5
@@ -69,6 +70,66 @@ def heal_paths(paths: Strokes, known: np.ndarray, touched: np.ndarray, short_px:
         return ok
 
     group, rev, pos = touching_paths(paths, HEAL_TOL_PX, HEAL_ANGLE_DEG, allow=allow)
+    return _joined(paths, group, rev, pos, carried)
+
+
+def bridge_splits(paths: Strokes, known: np.ndarray, parent: np.ndarray, gap_px: float,
+                  apart: np.ndarray, on_line) -> tuple[Strokes, np.ndarray]:
+    """The paths with their fresh splits held joined: a path with a fresh id whose votes came
+    mostly from the id `parent` (S,) of a carried path it meets end to end within `gap_px`
+    (same kind, the bridge running on along both ends, turning by at most HEAL_ANGLE_DEG, and
+    beyond HEAL_TOL_PX lying on the drawing: `on_line(pa, pb)` (K,) whether segments pa -> pb do)
+    is drawn as part of it, bridged: a split of one line costs no id. `apart` as heal_paths.
+    Returns the paths and the new index of each old path."""
+    S = len(paths)
+    if S < 2 or gap_px <= 0:
+        return paths, np.arange(S)
+    carried_all = np.isin(paths.ids, known)
+    # (Only the fresh paths with a parent drawn this frame, and their parents, can join.)
+    child = ~carried_all & np.isin(parent, paths.ids)
+    sub = np.flatnonzero(child | (carried_all & np.isin(paths.ids, parent[child])))
+    if len(sub) < 2:
+        return paths, np.arange(S)
+    part = select(paths, np.isin(np.arange(S), sub))
+    ids, P, parent, apart, carried = part.ids, part.points, parent[sub], apart[sub], carried_all[sub]
+    first, last = part.offsets[:-1], part.offsets[1:] - 1
+    cos_max = np.cos(np.radians(HEAL_ANGLE_DEG))
+
+    def end_of(r, at_end):
+        """The end point of paths r and the unit direction out of it (over up to 3 px)."""
+        e = np.where(at_end, last[r], first[r])
+        inner = np.where(at_end, np.maximum(last[r] - 3, first[r]), np.minimum(first[r] + 3, last[r]))
+        d = P[e] - P[inner]
+        return P[e], d / np.maximum(row_norm(d), 1e-12)[:, None]
+
+    def allow(ra, rb, a_end, b_end):
+        ok = (a_end != b_end) & ~apart[ra] & ~apart[rb]
+        ok &= ((carried[ra] & ~carried[rb] & (parent[rb] == ids[ra]))
+               | (carried[rb] & ~carried[ra] & (parent[ra] == ids[rb])))
+        pa, da = end_of(ra, a_end)
+        pb, db = end_of(rb, b_end)
+        v = pb - pa
+        gap = row_norm(v)
+        v = v / np.maximum(gap, 1e-12)[:, None]
+        on = ((v * da).sum(1) >= cos_max) & (-(v * db).sum(1) >= cos_max)
+        if ok.any():
+            k = np.flatnonzero(ok & on & (gap > HEAL_TOL_PX))
+            on[k] = on_line(pa[k], pb[k])
+        return ok & ((gap <= HEAL_TOL_PX) | on)
+
+    g_sub, r_sub, p_sub = touching_paths(part, gap_px, HEAL_ANGLE_DEG, allow=allow)
+    group, rev, pos = np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
+    group[sub], rev[sub], pos[sub] = sub[g_sub], r_sub, p_sub
+    return _joined(paths, group, rev, pos, carried_all)
+
+
+def _joined(paths: Strokes, group: np.ndarray, rev: np.ndarray, pos: np.ndarray,
+            carried: np.ndarray) -> tuple[Strokes, np.ndarray]:
+    """The paths laid end to end as touching_paths links them (group, rev, pos), each drawn the
+    way its keeper's u increases (the keeper: carried first, then the longest) with the keeper's
+    id and u, the others' u continued (module doc); and the new index of each old path."""
+    S = len(paths)
+    ids, L = paths.ids, paths.lengths
     if np.array_equal(group, np.arange(S)):
         return paths, np.arange(S)
     g = gather_paths(paths, group, rev, pos)

@@ -48,6 +48,10 @@ class PathOptions:
     that shows for one frame costs no id (0: never hold).
     heal_px: a path shorter than this that meets another end to end on one line heals into it
     (its id gives way) where the cut is new this frame or lasts two frames (paths.heal; 0: never).
+    bridge_px: a piece cut off a carried path this frame (a fresh path whose votes came mostly
+    from that path's id) whose end meets the path's within this many px, on one line (the bridge
+    running on along both ends and lying on the drawn lines), stays part of it: a split of one
+    line that the labels or the cover make costs no id (paths.heal.bridge_splits; 0: never).
     tracking: the correspondence of carried samples (search radius, tangent agreement, vote
     spacing) and the fit of u (stretch, knots, outliers), as the Kalnins tracker has them; the
     paths' own default (`path_tracking`) lets u follow the votes more closely."""
@@ -69,6 +73,9 @@ class PathOptions:
         6.0, "--path-heal", "With brush paths: a path shorter than N px that meets another end to end on one line "
         "heals into it where the cut is new or lasts two frames [6; 0: never; 20: about half the path ends, a little "
         "less id persistence: see docs/coherence.md].", needs="brush")
+    bridge_px: float = option(
+        20.0, "--path-bridge", "With brush paths: a piece cut off a carried path by a gap of up to N px along the "
+        "drawn lines stays part of it (no fresh id) [20; 0: never: see docs/coherence.md].", needs="brush")
     tracking: TrackingOptions = field(default_factory=path_tracking)
 
     def __post_init__(self):
@@ -76,7 +83,7 @@ class PathOptions:
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
-        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px", "hold_px", "heal_px"):
+        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px", "hold_px", "heal_px", "bridge_px"):
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)

@@ -36,7 +36,7 @@ import numpy as np
 from strokekit.model import N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.numba_cache import keyboard_interrupts
 from strokekit.paths.cover import HOLD_RADIUS_PX, covered_runs, held_back, on_drawing, run_cover
-from strokekit.paths.heal import heal_paths, touching_pairs
+from strokekit.paths.heal import bridge_splits, heal_paths, touching_pairs
 from strokekit.paths.options import PathOptions
 from strokekit.paths.pieces import (
     HAIRPIN_PX,
@@ -110,6 +110,14 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths = _carried_u(prev, paths, vst, vs, vu, vid, vw, vsign, o)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
     hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
+    fresh = ~np.isin(paths.ids, known)
+    parent = _voted_id(vst, vid, vw, fresh) if o.bridge_px > 0 and fresh.any() else None
+    if parent is not None and (parent >= 0).any():  # (only a fresh path with a parent bridges)
+        paths, new_of = bridge_splits(paths, known, parent, o.bridge_px, hold,
+                                      lambda pa, pb: on_drawing(line_grid, pa, pb, D=D))
+        hold = np.bincount(new_of[hold], minlength=len(paths)) > 0
+        path_of = new_of[path_of]
+        covers = (lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece)
     if o.heal_px > 0:
         paths, new_of = heal_paths(paths, known, np.zeros(0, np.int64) if touched is None else touched, o.heal_px,
                                    hold)
@@ -117,6 +125,23 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         path_of = new_of[path_of]
         covers = (lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece)
     return _finish(paths, *covers, hold), next_id
+
+
+def _voted_id(vst: np.ndarray, vid: np.ndarray, vw: np.ndarray, which: np.ndarray) -> np.ndarray:
+    """(S,) the id of most vote weight on each path where `which` (S,), -1 elsewhere and where
+    no vote landed (vote k on path vst[k], id vid[k], weight vw[k])."""
+    out = np.full(len(which), -1, np.int64)
+    on = which[vst]
+    vst, vid, vw = vst[on], vid[on], vw[on]
+    if len(vst) == 0:
+        return out
+    key, inv = np.unique((np.asarray(vst, np.int64) << 32) | np.asarray(vid, np.int64), return_inverse=True)
+    w = np.bincount(inv.ravel(), weights=vw)
+    path, pid = key >> 32, key & 0xFFFFFFFF
+    o = np.lexsort((-w, path))
+    head = o[np.r_[True, path[o][1:] != path[o][:-1]]]
+    out[path[head]] = pid[head]
+    return out
 
 
 def _carried_u(prev: Strokes, paths: Strokes, vst: np.ndarray, vs: np.ndarray, vu: np.ndarray, vid: np.ndarray,
