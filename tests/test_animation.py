@@ -424,3 +424,29 @@ def test_coherence_moves_a_deforming_objects_points_with_the_scene(tmp_path, cap
     assert posed["M1"] >= plain["M1"]
     code, _, err = run_cli(["coherence", out, "--scene", model_path("spot.obj")], capsys)
     assert code == 1 and "not a moving scene" in err
+
+
+def test_threads_pose_a_fresh_scene_at_once():
+    """Frames drawn by threads pose one scene at the same time: its lazily made tables must be
+    whole whenever another thread sees them (a half-made entry failed a frame with KeyError)."""
+    import sys
+
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # (threads switch as often as they can: a race shows)
+    try:
+        _pose_in_threads()
+    finally:
+        sys.setswitchinterval(switch)
+
+
+def _pose_in_threads():
+    from concurrent.futures import ThreadPoolExecutor
+
+    for _ in range(6):
+        s = load_scene(model_path(TRUCK))
+        with ThreadPoolExecutor(4) as pool:
+            posed = list(pool.map(s.at, [0.1, 0.4, 0.7, 1.0] * 2))
+        alone = load_scene(model_path(TRUCK))
+        for t, p in zip([0.1, 0.4, 0.7, 1.0], posed):
+            q = alone.at(t)
+            assert np.array_equal(p.vertices, q.vertices) and np.array_equal(p.faces, q.faces)

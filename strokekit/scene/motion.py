@@ -527,13 +527,13 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: t
     rows, moved_faces = moving
     of = rest.vertex_of
     n = len(rest.vertices)
-    if "rep" not in motion._kinds:
+    # (one entry, set whole: frames drawn by threads read it while another may be making it)
+    if "rest weld" not in motion._kinds:
         used = of >= 0
         rep = np.empty(n, np.int64)
         rep[of[used]] = np.flatnonzero(used)
-        motion._kinds["rep"] = rep
-        motion._kinds["area2"] = _area2(motion.file_vertices, motion.file_faces)
-    rep = motion._kinds["rep"]
+        motion._kinds["rest weld"] = (rep, _area2(motion.file_vertices, motion.file_faces))
+    rep, rest_area2 = motion._kinds["rest weld"]
     P = V[rep]
     check = np.flatnonzero(rows & (of >= 0))
     if not np.array_equal(V[check], P[of[check]]):
@@ -549,7 +549,7 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: t
     # (the weld's extent: of the vertices of every face, dropped ones included)
     E = V[motion.face_vertices]
     extent = float(np.max(E.max(axis=0) - E.min(axis=0))) or 1.0
-    area2 = motion._kinds["area2"].copy()
+    area2 = rest_area2.copy()
     mf = np.flatnonzero(moved_faces)
     area2[mf] = _area2(V, faces[mf])
     alive = area2 > (1e-14 * extent) ** 2
