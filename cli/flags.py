@@ -14,13 +14,14 @@ from strokekit.raster.bands import RasterOptions
 from strokekit.raster.passes import PassOptions
 from strokekit.run.request import RenderRequest
 from strokekit.run.spec import OutputOptions, RunSpec
+from strokekit.style.linesets import Style
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.gltf import GltfOptions
 
 from .common import FINITE, FiniteFloatRange, floats, split_list
 
 #: The library's options classes whose fields have flags.
-OPTION_CLASSES = (LineOptions, RenderRequest, TrackingOptions, PathOptions, OutputOptions, GltfOptions,
+OPTION_CLASSES = (LineOptions, RenderRequest, TrackingOptions, PathOptions, OutputOptions, Style, GltfOptions,
                   RasterOptions, PassOptions, RunSpec)
 
 

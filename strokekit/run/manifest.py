@@ -53,10 +53,10 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
                        "materials": [m.base_color for m in scene.materials]})
     o = spec.outputs
     # An option at its default that a later option added is left out of the digest, so that the
-    # digests of runs made before it stay: the dashes, the EXR codec.
+    # digests of runs made before it stay: the dash paths, the SVG's outlines, the EXR codec.
     outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
-               and not (f.name == "hidden_dashes" and o.hidden_dashes is None)
-               and not (f.name == "dash_paths" and not o.dash_paths)}
+               and not (f.name == "dash_paths" and not o.dash_paths)
+               and not (f.name == "svg_lines" and o.svg_lines == "outline")}
     outputs["raster_options"] = plan.raster  # (the raster pass is digested with the outputs)
     if o.exr is not None and o.exr.codec == "zip":
         outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr) if f.name != "codec"}
@@ -67,7 +67,7 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
                 outputs["brush_sha256"] = hashlib.sha256(Path(brush).read_bytes()).hexdigest()
             except OSError:
                 pass  # the run reports it
-    opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking}
+    opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking, "style": plan.style.to_json()}
     if plan.paths is not None:  # (brush runs only: a lines run's digest has no paths)
         opts["paths"] = plan.paths
     options_d = _digest(opts)

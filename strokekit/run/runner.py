@@ -33,6 +33,7 @@ from strokekit.run.spec import (
 from strokekit.run.tasks import FrameResult, FrameTask, WriteResult, WriteTask, surface_depth, write_task
 from strokekit.run.workers import SceneRef, Workers, make_executor
 from strokekit.scene.load import Scene, load_scene
+from strokekit.style.file import check_style_names
 from strokekit.writers.gltf import glb_for_sequence
 
 
@@ -88,6 +89,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
+        check_style_names(spec.request.style, scene)
         stage = {s.name: s for s in res.stages}
         resume = plan_resume(spec, scene)
         res.frames_skipped = sorted(resume.done_before)
@@ -417,7 +419,7 @@ def write_sequence_glb(spec: RunSpec, scene: Scene, res: RunResult, stage: dict,
     if not (out.gltf and out.gltf_sequence and stream.ordered):
         return
     t = time.perf_counter()
-    seq = [stream.drawn[f].strokes for f in stream.ordered]
+    seq = [stream.drawn[f].styled for f in stream.ordered]
     depth_at = surface_depth(out, stream.scene)
     res.outputs.append(str(atomic_write_bytes(out.out_dir / "sequence.glb",
                                               glb_for_sequence(seq, out.gltf_options, depth_at))))
