@@ -105,7 +105,7 @@ class Curvature:
     """Width by screen curvature: `flat` x where the line runs straight, `curved` x where its
     radius of curvature is `radius` px or less, linear in the curvature between. The curvature
     at a point is the turn between the chords to the points `span` px before and after it,
-    over span (less at the stroke's ends, 0 at the ends themselves)."""
+    over span (less near the stroke's ends, 0 within half a pixel of them)."""
 
     by = "curvature"
     flat: float = 1.0

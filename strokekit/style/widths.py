@@ -2,11 +2,12 @@
 first line set that selects it (the others are not drawn), and a width in px at every point:
 the set's width times its thickness modifiers, in order.
 
-Where a modifier varies along a segment, points are added on it (at most `step` px apart, the
-modifier's own scale: half its span, an eighth of the noise's wavelength; at the along
-modifier's head and tail ends and every TAPER_STEP_PX within them), so that a width drawn
-linearly between points (the SVG's outline, the ribbons) is the modifiers' width. The points
-added lie on the stroke: its centreline does not change.
+Where the width varies along a segment, points are added on it, so that the width drawn linearly
+between points (the SVG's outline, the ribbons) is the modifiers' width: at the along modifier's
+head and tail ends (its kinks), every half wavelength of a noise, then wherever a segment's
+width in its middle is off the line between its ends by more than WIDTH_TOL_PX (the segment is
+halved, and each half looked at again). The points added lie on the stroke: its centreline
+does not change.
 
 The formulas (strokekit.style.linesets has each modifier's parameters), at a point at arc length
 s of a stroke of length L, u its texture coordinate (periods of P px), id its stroke id:
@@ -14,7 +15,8 @@ s of a stroke of length L, u its texture coordinate (periods of P px), id its st
   [0, 1], head and tail scaled by min(1, L / (head + tail)), none at a joined end (joins);
 - depth: near + (far - near) clip((z - z_near) / (z_far - z_near), 0, 1), z the view depth;
 - curvature: flat + (curved - flat) clip(k radius, 0, 1), k = the angle between the chords
-  P(s - a) -> P(s) and P(s) -> P(s + b) over (a + b) / 2, a = min(span, s), b = min(span, L - s);
+  P(s - a) -> P(s) and P(s) -> P(s + b) over (a + b) / 2, a = min(span, s), b = min(span, L - s),
+  and 0 where a or b is below END_CHORD_PX (a chord that short has no direction to speak of);
 - calligraphy: thin + (1 - thin) |sin(theta - angle)|, theta the direction of P(s + b) - P(s - a)
   with a = min(span, s), b = min(span, L - s), y up;
 - noise: 1 + amplitude n(u P / wavelength), n a value noise (values in [-1, 1] at whole
@@ -44,12 +46,10 @@ from strokekit.style.linesets import (
     Style,
 )
 
-#: Inside a head or tail, points at most this far apart (px): the eased ramp drawn as a curve.
-TAPER_STEP_PX = 2.0
-#: The finest step points are added at (px): a modifier's scale below it gains nothing visible.
+#: No segment is halved below this length (px).
 MIN_STEP_PX = 0.25
-#: Along a segment the view depth is not linear on screen (perspective): points this far apart.
-DEPTH_STEP_PX = 16.0
+#: The curvature is 0 this close to a stroke's end (px): a shorter chord's direction is noise.
+END_CHORD_PX = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,7 +115,9 @@ class StyledStrokes:
     """Strokes as drawn: `strokes` those a line set selects (points added where the width needs
     them, module doc), width (N,) px at each point, lineset (S,) the index of each stroke's set in
     `sets`, kept (S0,) which of the strokes given were drawn, depth_range: what the depth
-    modifiers took for the frame's visible depths (None: none did)."""
+    modifiers took for the frame's visible depths (None: none did), colors: each set's colour,
+    free (S, 2): which stroke ends are free (not joined to the next piece of their line: there
+    the along modifier's head and tail are; None without one)."""
 
     strokes: Strokes
     width: np.ndarray
@@ -125,6 +127,7 @@ class StyledStrokes:
     kept: np.ndarray
     depth_range: tuple[float, float] | None = None
     colors: tuple[str, ...] = field(default=())
+    free: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.strokes)
@@ -211,22 +214,8 @@ def apply_style(strokes: Strokes, layers: tuple[str, ...], style: Style | None =
         depth_range = context.depth_range if context is not None and context.depth_range is not None else \
             _own_depth_range(strokes)
     free = _free_ends(strokes, which, sets)
-    strokes = _add_points(strokes, which, sets, free)
-    sop = strokes.stroke_of_point
-    width = base[which][sop] if len(which) else np.zeros(0)
-    for k, s in enumerate(sets):
-        if not s.thickness:
-            continue
-        members = np.flatnonzero(which == k)
-        if not len(members):
-            continue
-        pts = np.flatnonzero(np.isin(sop, members)) if len(members) < len(which) else np.arange(len(sop))
-        f = np.ones(len(pts))
-        for m in s.thickness:
-            f = f * modifier_factor(m, strokes, pts, free, depth_range)
-        width[pts] = width[pts] * f
-    width = np.maximum(width, MIN_WIDTH_PX)
-    return StyledStrokes(strokes, width, which, sets, style, kept, depth_range, colors=set_colours(sets))
+    strokes, width = _widths(strokes, which, sets, base, free, depth_range)
+    return StyledStrokes(strokes, width, which, sets, style, kept, depth_range, colors=set_colours(sets), free=free)
 
 
 def _assign(strokes: Strokes, sets: tuple[LineSet, ...], context: StyleContext | None) -> np.ndarray:
@@ -286,12 +275,13 @@ def _own_depth_range(strokes: Strokes) -> tuple[float, float] | None:
     return (float(z.min()), float(z.max())) if len(z) else None
 
 
-def _free_ends(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...]) -> np.ndarray:
+def _free_ends(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...]) -> np.ndarray | None:
     """(S, 2) whether each stroke's start and end are free (not joined to the next piece of its
-    line, strokekit.style.joins; strokes of different sets never join)."""
+    line, strokekit.style.joins; strokes of different sets never join); None without an along
+    modifier (which alone needs them)."""
     S = len(strokes)
-    if not S or not any(isinstance(m, Along) for s in sets for m in s.thickness):
-        return np.ones((S, 2), bool)
+    if not any(isinstance(m, Along) for s in sets for m in s.thickness):
+        return None
     label = strokes.kind.astype(np.int64) + 128 * which
     joins = stroke_joins(np.asarray(strokes.points, float), strokes.stroke_of_point.astype(np.int64), S, label,
                          JOIN_PX, JOIN_ANGLE_DEG)
@@ -300,17 +290,131 @@ def _free_ends(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...]) -
 
 # --- points added where the width varies ------------------------------------------------------------
 
-def _step(s: LineSet) -> float:
-    """The longest a segment of the set's strokes may stay (px): the finest scale of its modifiers."""
-    step = np.inf
-    for m in s.thickness:
-        if isinstance(m, (Curvature, Calligraphy)):
-            step = min(step, 0.5 * m.span)
-        elif isinstance(m, Noise) and m.amplitude > 0:
-            step = min(step, m.wavelength / 8.0)
-        elif isinstance(m, Depth) and m.near != m.far:
-            step = min(step, DEPTH_STEP_PX)
-    return max(step, MIN_STEP_PX)
+@dataclass(frozen=True, eq=False)
+class Sites:
+    """Places on the strokes where widths are evaluated: stroke index st, arc length s, position
+    P (M, 2), texture coordinate u, view depth z (nan: unknown), on `strokes`."""
+
+    strokes: Strokes
+    st: np.ndarray
+    s: np.ndarray
+    P: np.ndarray
+    u: np.ndarray
+    z: np.ndarray
+
+    @staticmethod
+    def of_points(strokes: Strokes) -> Sites:
+        z = strokes.camera.depth(strokes.surface) if strokes.camera is not None and len(strokes.points) \
+            else np.full(len(strokes.points), np.nan)
+        return Sites(strokes, strokes.stroke_of_point, strokes.arc_length, strokes.points, strokes.u, z)
+
+    def at(self, st: np.ndarray, s: np.ndarray) -> Sites:
+        """Sites at arc lengths s of strokes st: linear on screen, the depth as the surface point
+        between (sampling.surface_between: 1/z linear under perspective)."""
+        i, j, a = locate(self.strokes, st, s)
+        P = self.P[i] + a[:, None] * (self.P[j] - self.P[i])
+        u = self.u[i] + a * (self.u[j] - self.u[i])
+        zi, zj = self.z[i], self.z[j]
+        cam = self.strokes.camera
+        if cam is not None and not cam.is_ortho:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = 1.0 / ((1 - a) / zi + a / zj)
+        else:
+            z = zi + a * (zj - zi)
+        return Sites(self.strokes, st, s, P, u, z)
+
+    def take(self, k: np.ndarray) -> Sites:
+        return Sites(self.strokes, self.st[k], self.s[k], self.P[k], self.u[k], self.z[k])
+
+
+#: The width drawn between two points is linear: points are added until it is within this of
+#: the modifiers' width in the middle of every segment (px).
+WIDTH_TOL_PX = 0.01
+#: Segments are halved at most this many times looking for it.
+MAX_HALVINGS = 8
+
+
+def _widths(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
+            depth_range) -> tuple[Strokes, np.ndarray]:
+    """The strokes with the points their widths need (module doc) and the width at each."""
+    S = len(strokes)
+    if S == 0:
+        return strokes, np.zeros(0)
+    # Fixed points: the along modifiers' head and tail ends (the profile's kinks), and the noise's
+    # every half wavelength (a feature between two points a midpoint cannot see).
+    cut_st, cut_s = [], []
+    sop = strokes.stroke_of_point
+    seg, arc = strokes.segment_lengths, strokes.arc_length
+    step = np.array([min([m.wavelength / 2 for m in s.thickness if isinstance(m, Noise) and m.amplitude > 0],
+                         default=np.inf) for s in sets])[which]
+    n = np.ones(len(seg), np.int64)
+    fin = np.isfinite(step[sop])
+    n[fin] = np.ceil(seg[fin] / step[sop][fin]).astype(np.int64)
+    long = np.flatnonzero(n > 1)
+    if len(long):
+        reps = n[long] - 1
+        owner = np.repeat(long, reps)
+        k = np.arange(int(reps.sum())) - np.repeat(np.cumsum(reps) - reps, reps) + 1
+        cut_st.append(sop[owner])
+        cut_s.append(arc[owner] - seg[owner] + seg[owner] * k / n[owner])
+    for k_set, s in enumerate(sets):
+        for m in s.thickness:
+            st = np.flatnonzero(which == k_set)
+            if isinstance(m, Along) and len(st):
+                head, tail = along_lengths(m, strokes, st, free)
+                L = strokes.lengths[st]
+                cut_st += [st, st]
+                cut_s += [head, L - tail]
+    if cut_st:
+        strokes = insert_points(strokes, np.concatenate(cut_st), np.concatenate(cut_s))[0]
+    sites = Sites.of_points(strokes)
+    w = _width_at(sites, which, sets, base, free, depth_range)
+    # Halving: a segment whose middle's width is off the line between its ends' by more than
+    # WIDTH_TOL_PX gets a point there, and both halves are looked at again.
+    sop, arc = strokes.stroke_of_point, strokes.arc_length
+    a = np.flatnonzero(sop[1:] == sop[:-1]) if len(sop) > 1 else np.zeros(0, np.int64)
+    seg_st, s0, s1, w0, w1 = sop[a], arc[a], arc[a + 1], w[a], w[a + 1]
+    varies = np.array([bool(x.thickness) for x in sets])[which]
+    keep = varies[seg_st] & (s1 - s0 > 2 * MIN_STEP_PX)
+    seg_st, s0, s1, w0, w1 = seg_st[keep], s0[keep], s1[keep], w0[keep], w1[keep]
+    add_st, add_s, add_w = [], [], []
+    for _ in range(MAX_HALVINGS):
+        if not len(seg_st):
+            break
+        mid = 0.5 * (s0 + s1)
+        wm = _width_at(sites.at(seg_st, mid), which, sets, base, free, depth_range)
+        split = np.abs(wm - 0.5 * (w0 + w1)) > WIDTH_TOL_PX
+        if not split.any():
+            break
+        seg_st, s0, s1, w0, w1, mid, wm = (x[split] for x in (seg_st, s0, s1, w0, w1, mid, wm))
+        add_st.append(seg_st)
+        add_s.append(mid)
+        add_w.append(wm)
+        half = s1 - mid > 2 * MIN_STEP_PX
+        seg_st, s0, s1, w0, w1 = (np.r_[x[half], y[half]] for x, y in
+                                  ((seg_st, seg_st), (s0, mid), (mid, s1), (w0, wm), (wm, w1)))
+    if add_st:
+        strokes, w = insert_points(strokes, np.concatenate(add_st), np.concatenate(add_s), w, np.concatenate(add_w))
+    return strokes, w
+
+
+def _width_at(sites: Sites, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
+              depth_range) -> np.ndarray:
+    """The width at each site: its set's width times the set's modifiers, at least MIN_WIDTH_PX."""
+    set_of = which[sites.st]
+    width = base[set_of]
+    for k, s in enumerate(sets):
+        if not s.thickness:
+            continue
+        on = np.flatnonzero(set_of == k) if len(sets) > 1 else np.arange(len(set_of))
+        if not len(on):
+            continue
+        here = sites.take(on) if len(on) < len(set_of) else sites
+        f = np.ones(len(on))
+        for m in s.thickness:
+            f = f * modifier_factor(m, here, free, depth_range)
+        width[on] = width[on] * f
+    return np.maximum(width, MIN_WIDTH_PX)
 
 
 def along_lengths(m: Along, strokes: Strokes, st: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -329,66 +433,29 @@ def end_lengths(head: np.ndarray, tail: np.ndarray, free: np.ndarray, length: np
     return a * k, b * k
 
 
-def _add_points(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], free: np.ndarray) -> Strokes:
-    """The strokes with points added where their sets' widths vary (module doc)."""
-    S = len(strokes)
-    if S == 0:
-        return strokes
-    step = np.array([_step(s) for s in sets])[which]
-    cut_st, cut_s = [], []
-    # every segment longer than its stroke's step, cut into equal pieces
-    seg = strokes.segment_lengths
-    sop = strokes.stroke_of_point
-    n = np.where(np.isfinite(step[sop]), np.ceil(seg / np.where(np.isfinite(step[sop]), step[sop], 1.0)), 1.0)
-    n = n.astype(np.int64)
-    long = np.flatnonzero(n > 1)
-    if len(long):
-        reps = n[long] - 1
-        owner = np.repeat(long, reps)
-        k = np.arange(int(reps.sum())) - np.repeat(np.cumsum(reps) - reps, reps) + 1
-        arc = strokes.arc_length
-        cut_st.append(sop[owner])
-        cut_s.append(arc[owner] - seg[owner] + seg[owner] * k / n[owner])
-    # the along modifiers' head and tail ends, and points within them
-    for k_set, s in enumerate(sets):
-        for m in s.thickness:
-            if not isinstance(m, Along):
-                continue
-            st = np.flatnonzero(which == k_set)
-            if not len(st):
-                continue
-            head, tail = along_lengths(m, strokes, st, free)
-            L = strokes.lengths[st]
-            for length, from_end in ((head, False), (tail, True)):
-                cnt = np.ceil(length / TAPER_STEP_PX).astype(np.int64)
-                own = np.repeat(np.arange(len(st)), cnt)
-                j = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt) + 1
-                d = length[own] * j / cnt[own]
-                cut_st.append(st[own])
-                cut_s.append(L[own] - d if from_end else d)
-    if not cut_st:
-        return strokes
-    return insert_points(strokes, np.concatenate(cut_st), np.concatenate(cut_s))
-
-
-def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Strokes:
+def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray, values: np.ndarray | None = None,
+                  new_values: np.ndarray | None = None) -> tuple[Strokes, np.ndarray | None]:
     """The strokes with a point added at arc length s (px) of each stroke `stroke`, inside its
     segments (not at or beyond its points, each position once), position and u interpolated
-    linearly, the surface point as sampling.surface_between, the face of the segment's start."""
+    linearly, the surface point as sampling.surface_between, the face of the segment's start;
+    and `values` (N,) of the points with `new_values` (of the points added) in the same order."""
     L = strokes.lengths[stroke]
     ok = (s > 0) & (s < L)
     stroke, s = stroke[ok], s[ok]
+    nv = new_values[ok] if new_values is not None else None
     if not len(s):
-        return strokes
+        return strokes, values
     order = np.lexsort((s, stroke))
     stroke, s = stroke[order], s[order]
     distinct = np.r_[True, (stroke[1:] != stroke[:-1]) | (s[1:] - s[:-1] > 1e-9)]
     stroke, s = stroke[distinct], s[distinct]
+    if nv is not None:
+        nv = nv[order][distinct]
     i, j, a = locate(strokes, stroke, s)
     inside = (a > 1e-9) & (a < 1 - 1e-9) & (j == i + 1)
     i, j, a, stroke = i[inside], j[inside], a[inside], stroke[inside]
     if not len(i):
-        return strokes
+        return strokes, values
     P = strokes.points
     new_p = P[i] + a[:, None] * (P[j] - P[i])
     new_u = strokes.u[i] + a * (strokes.u[j] - strokes.u[i])
@@ -396,11 +463,14 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> Stroke
     key = np.concatenate([np.arange(len(P), dtype=float), i + a])
     order = np.argsort(key, kind="stable")
     counts = np.diff(strokes.offsets) + np.bincount(stroke, minlength=len(strokes))
-    return replace(strokes, points=np.concatenate([P, new_p])[order],
-                   surface=np.concatenate([strokes.surface, new_x])[order],
-                   face=np.concatenate([strokes.face, strokes.face[i]])[order],
-                   u=np.concatenate([strokes.u, new_u])[order],
-                   offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    out = replace(strokes, points=np.concatenate([P, new_p])[order],
+                  surface=np.concatenate([strokes.surface, new_x])[order],
+                  face=np.concatenate([strokes.face, strokes.face[i]])[order],
+                  u=np.concatenate([strokes.u, new_u])[order],
+                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    if values is None:
+        return out, None
+    return out, np.concatenate([values, nv[inside]])[order]
 
 
 # --- the modifiers --------------------------------------------------------------------------------
@@ -419,11 +489,10 @@ def along_profile(s: np.ndarray, length: np.ndarray, head: np.ndarray, tail: np.
     return tip + (1 - tip) * np.minimum(grow, fade)
 
 
-def modifier_factor(m, strokes: Strokes, pts: np.ndarray, free: np.ndarray,
-                    depth_range: tuple[float, float] | None) -> np.ndarray:
-    """The factor of modifier `m` at points `pts` of the strokes (module doc for the formulas)."""
-    st = strokes.stroke_of_point[pts]
-    s = strokes.arc_length[pts]
+def modifier_factor(m, sites: Sites, free: np.ndarray, depth_range: tuple[float, float] | None) -> np.ndarray:
+    """The factor of modifier `m` at the sites (module doc for the formulas); free (S, 2): which
+    stroke ends are free (joins)."""
+    strokes, st, s = sites.strokes, sites.st, sites.s
     L = strokes.lengths[st]
     if isinstance(m, Along):
         uniq, inv = np.unique(st, return_inverse=True)
@@ -435,18 +504,16 @@ def modifier_factor(m, strokes: Strokes, pts: np.ndarray, free: np.ndarray,
         elif depth_range is not None:
             zn, zf = depth_range
         else:
-            return np.full(len(pts), m.near)
-        z = strokes.camera.depth(strokes.surface[pts]) if strokes.camera is not None else np.full(len(pts), zn)
-        t = np.clip((z - zn) / (zf - zn), 0.0, 1.0) if zf > zn else np.zeros(len(pts))
+            return np.full(len(st), m.near)
+        t = np.clip((sites.z - zn) / (zf - zn), 0.0, 1.0) if zf > zn else np.zeros(len(st))
         t = np.where(np.isfinite(t), t, 0.5)
         return m.near + (m.far - m.near) * t
     if isinstance(m, Curvature):
         a, b = np.minimum(m.span, s), np.minimum(m.span, L - s)
-        P = strokes.points[pts]
-        c1 = P - point_at(strokes, st, s - a)
-        c2 = point_at(strokes, st, s + b) - P
+        c1 = sites.P - point_at(strokes, st, s - a)
+        c2 = point_at(strokes, st, s + b) - sites.P
         ang = np.arctan2(np.abs(c1[:, 0] * c2[:, 1] - c1[:, 1] * c2[:, 0]), np.einsum("ij,ij->i", c1, c2))
-        ok = (a > 1e-9) & (b > 1e-9) & (row_norm(c1) > 1e-12) & (row_norm(c2) > 1e-12)
+        ok = (a >= END_CHORD_PX) & (b >= END_CHORD_PX) & (row_norm(c1) > 1e-12) & (row_norm(c2) > 1e-12)
         k = np.where(ok, ang / np.where(ok, 0.5 * (a + b), 1.0), 0.0)
         return m.flat + (m.curved - m.flat) * np.clip(k * m.radius, 0.0, 1.0)
     if isinstance(m, Calligraphy):
@@ -456,8 +523,7 @@ def modifier_factor(m, strokes: Strokes, pts: np.ndarray, free: np.ndarray,
         f = m.thin + (1 - m.thin) * np.abs(np.sin(theta - np.radians(m.angle)))
         return np.where(row_norm(d) > 1e-12, f, 1.0)
     if isinstance(m, Noise):
-        u = strokes.u[pts]
-        u = np.where(np.isfinite(u), u, s / strokes.period_px)
+        u = np.where(np.isfinite(sites.u), sites.u, s / strokes.period_px)
         key = int(strokes.frame) // m.boil if m.boil else 0
         return 1.0 + m.amplitude * value_noise(u * strokes.period_px / m.wavelength, strokes.ids[st], m.seed, key)
     raise TypeError(f"not a thickness modifier: {m!r}")

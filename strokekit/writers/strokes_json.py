@@ -33,6 +33,9 @@ def round_list(x: np.ndarray, ndigits: int) -> list[float]:
 _STROKE = (b'{"id":%d,"kind":"%s","lineset":"%s","points":[%s],"width":[%s],"u":[%s],"surface":[%s],"face":[%s],'
            b'"length_px":%s,"level":%s,"level_weight":%s}')
 _STROKE_OCCLUSION = _STROKE.replace(b'"kind":"%s",', b'"kind":"%s","occlusion":%d,')
+#: With an along modifier, whether each end is joined to the next piece of its line (no head or
+#: tail there: strokekit.style.joins), after the widths.
+_JOINED = b'"width":[%s],"joined":[%d,%d],'
 #: The lines a brush-path frame keeps beside its strokes are not drawn: no line set, no width.
 _LINE = _STROKE.replace(b'"lineset":"%s",', b"").replace(b'"width":[%s],', b"")
 _LINE_OCCLUSION = _STROKE_OCCLUSION.replace(b'"lineset":"%s",', b"").replace(b'"width":[%s],', b"")
@@ -47,7 +50,9 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
     """JSON bytes: frame, size, camera, the line sets drawn ("linesets": name, selection,
     colour, width, modifiers; "depth_range" when a depth modifier took the frame's) and every
     stroke drawn with its line set, points (px, 4 decimals), width (px at each point, 4
-    decimals), u, surface (world), face, length_px, self-similar level and weight.
+    decimals; with an along modifier, "joined": [start, end], 1 where the end meets the next
+    piece of its line: no head or tail there), u, surface (world), face, length_px, self-similar
+    level and weight.
     Deterministic. Hidden-line runs (`extra` holds "occlusion", the range of levels drawn; or a
     stroke is hidden) give each stroke its "occlusion" level after its kind (0: visible; "level"
     is the texture octave).
@@ -124,11 +129,16 @@ def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion
         template = _LINE_OCCLUSION if occlusion else _LINE
     else:
         template = _STROKE_OCCLUSION if occlusion else _STROKE
+        if styled.free is not None:
+            template = template.replace(b'"width":[%s],', _JOINED)
     if occlusion:
         cols.append((codes // N_KINDS).tolist())
     if styled is not None:
         names = np.array([s.name.encode() for s in styled.sets], dtype=object)
         cols.append(names.take(styled.lineset).tolist())
+    if styled is not None and styled.free is not None:
+        joined = (~styled.free).astype(int)
+        cuts = [*cuts[:2], joined[:, 0].tolist(), joined[:, 1].tolist(), *cuts[2:]]
     cols += [*cuts, _number_texts(strokes.lengths, 4, n), _number_texts(strokes.level, 6, n),
              _number_texts(strokes.level_weight, 6, n)]
     if covers is not None:
@@ -205,13 +215,15 @@ def _stroke_dicts(strokes: Strokes, occlusion: bool = False, styled: StyledStrok
     level, weight = round_list(strokes.level, 6), round_list(strokes.level_weight, 6)
     wd = np.round(styled.width, 4) + 0.0 if styled is not None else None
     names = [styled.sets[k].name for k in styled.lineset.tolist()] if styled is not None else [None] * len(strokes)
+    joined = (~styled.free).astype(int).tolist() if styled is not None and styled.free is not None else \
+        [None] * len(strokes)
     return [{
         "id": i, "kind": KINDS[k % N_KINDS], **({"occlusion": k // N_KINDS} if occlusion else {}),
         **({"lineset": name} if styled is not None else {}), "points": pts[a:b],
-        **({"width": wd[a:b]} if styled is not None else {}), "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
-        "length_px": ln, "level": lv, "level_weight": w,
-    } for i, k, name, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), names, off[:-1], off[1:],
-                                             lengths, level, weight)]
+        **({"width": wd[a:b]} if styled is not None else {}), **({"joined": j} if j is not None else {}),
+        "u": u[a:b], "surface": surface[a:b], "face": face[a:b], "length_px": ln, "level": lv, "level_weight": w,
+    } for i, k, name, j, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), names, joined,
+                                                off[:-1], off[1:], lengths, level, weight)]
 
 
 def _strokes_json_nested(styled: StyledStrokes, width: int, height: int, frame: int, *,
