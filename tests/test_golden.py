@@ -81,7 +81,7 @@ def test_writers_fast_paths_write_the_plain_bytes():
         return _strokes_json_nested(apply_style(s, ()), *args, **kw)
 
     rng = np.random.default_rng(11)
-    noisy = Style(sets=(LineSet("all", thickness=(Noise(amplitude=0.5, wavelength=3.0),)),))
+    noisy = Style(sets=(LineSet("all", thickness=(Noise(amplitude=0.5, wavelength=200.0),)),))
     for trial in range(40):
         s = _random_strokes(rng, int(rng.integers(1, 40)))
         extra = {"tracking": {"matched": 3}} if trial % 2 else None

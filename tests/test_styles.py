@@ -271,6 +271,18 @@ def test_a_constant_width_stroke_stays_a_centreline_and_the_default_svg_is_uncha
     assert 'stroke="#123456"' in wide and 'stroke-width="4"' in wide and "fill=\"#123456\"" not in wide
 
 
+def test_the_default_json_has_no_widths_and_a_style_file_s_has():
+    """Without a style file the frame JSON keeps the keys it always had (its bytes: same_bytes)."""
+    from strokekit.writers.strokes_json import strokes_json
+
+    s = line([[10, 30], [60, 10], [110, 30]])
+    default = json.loads(strokes_json(s, 120, 60, 1, layers=("silhouette",)))
+    assert "linesets" not in default and {"width", "lineset"}.isdisjoint(default["strokes"][0])
+    assert strokes_json(s, 120, 60, 1, styled=apply_style(s, (), Style(width=3.0))) == strokes_json(s, 120, 60, 1)
+    styled = json.loads(strokes_json(s, 120, 60, 1, styled=apply_style(s, (), one_set(width=3.0))))
+    assert styled["linesets"][0]["name"] == "all" and styled["strokes"][0]["width"] == [3.0, 3.0, 3.0]
+
+
 def test_several_sets_in_a_layer_get_a_group_each(tmp_path):
     """Hidden strokes one surface deep in one set, deeper ones in another: one Inkscape layer
     (hidden-silhouette), a group per set in it."""

@@ -67,7 +67,13 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
                 outputs["brush_sha256"] = hashlib.sha256(Path(brush).read_bytes()).hexdigest()
             except OSError:
                 pass  # the run reports it
-    opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking, "style": plan.style.to_json()}
+    opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking}
+    if plan.style.is_default:  # the shortcuts' style: digested as the outputs' options it was before
+        outputs["stroke_width_px"] = plan.style.width
+        if plan.style.dashes is not None:
+            outputs["hidden_dashes"] = plan.style.dashes
+    else:
+        opts["style"] = plan.style.to_json()
     if plan.paths is not None:  # (brush runs only: a lines run's digest has no paths)
         opts["paths"] = plan.paths
     options_d = _digest(opts)

@@ -53,6 +53,8 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
     decimals; with an along modifier, "joined": [start, end], 1 where the end meets the next
     piece of its line: no head or tail there), u, surface (world), face, length_px, self-similar
     level and weight.
+    The default style (no line sets: Style.is_default) draws every stroke at one width in its
+    kind's colour: its JSON has no "linesets", and its strokes no line set and no widths.
     Deterministic. Hidden-line runs (`extra` holds "occlusion", the range of levels drawn; or a
     stroke is hidden) give each stroke its "occlusion" level after its kind (0: visible; "level"
     is the texture octave).
@@ -78,29 +80,34 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
     if extra:
         if {"strokes", "linesets"} & extra.keys() or (paths is not None and "lines" in extra):
             # the key would sit where extra puts it
-            return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths, layers=layers)
+            return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths)
         doc.update(extra)
-    doc.update(_sets_json(styled, layers))
+    doc.update(_sets_json(styled))
     doc["strokes"] = []
     head = orjson.dumps(doc, option=_NP)
     covers = _cover_texts(paths, styled.kept) if paths is not None else None
-    body = _strokes_body(strokes, covers, _with_occlusion(strokes, extra), styled)
+    body = _strokes_body(strokes, covers, _with_occlusion(strokes, extra), _said(styled))
     if body is None:  # unusual arrays (empty strokes, shapes that do not match): the plain way
-        return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths, layers=layers)
+        return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths)
     if paths is None:
         return b"".join((head[:-2], body, b"]}\n")) if len(strokes) else head + b"\n"
     lines = _strokes_body(paths.lines, None, _with_occlusion(paths.lines, extra))
     if lines is None:
-        return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths, layers=layers)
+        return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths)
     return b"".join((head[:-2], body, b'],"lines":[', lines, b"]}\n"))
 
 
-def _sets_json(styled: StyledStrokes, layers: tuple[str, ...]) -> dict:
-    """{"linesets": [...]} (the sets of the frame's layers or drawing a stroke, with the colour
-    each is drawn in), and "depth_range" when a depth modifier took the frame's."""
-    used = set(np.unique(styled.lineset).tolist())
-    sets = [dict(s.to_json(styled.style), color=styled.color(k)) for k, s in enumerate(styled.sets)
-            if not styled.style.is_default or s.name in layers or k in used]
+def _said(styled: StyledStrokes) -> StyledStrokes | None:
+    """The style the JSON writes out: None for the default one (module doc of strokes_json)."""
+    return None if styled.style.is_default else styled
+
+
+def _sets_json(styled: StyledStrokes) -> dict:
+    """{"linesets": [...]} (the style's sets, with the colour each is drawn in), and
+    "depth_range" when a depth modifier took the frame's; {} for the default style."""
+    if _said(styled) is None:
+        return {}
+    sets = [dict(s.to_json(styled.style), color=styled.color(k)) for k, s in enumerate(styled.sets)]
     out: dict = {"linesets": sets}
     if styled.depth_range is not None:
         out["depth_range"] = list(styled.depth_range)
@@ -227,11 +234,10 @@ def _stroke_dicts(strokes: Strokes, occlusion: bool = False, styled: StyledStrok
 
 
 def _strokes_json_nested(styled: StyledStrokes, width: int, height: int, frame: int, *,
-                         extra: dict | None = None, paths: BrushPaths | None = None,
-                         layers: tuple[str, ...] = ()) -> bytes:
+                         extra: dict | None = None, paths: BrushPaths | None = None) -> bytes:
     """strokes_json by orjson.dumps of the nested document (a numpy view per stroke and field)."""
     strokes = styled.strokes
-    out = _stroke_dicts(strokes, _with_occlusion(strokes, extra), styled)
+    out = _stroke_dicts(strokes, _with_occlusion(strokes, extra), _said(styled))
     if paths is not None:
         for d, c in zip(out, _covers_lists(paths, styled.kept)):
             d["covers"] = c
@@ -240,7 +246,7 @@ def _strokes_json_nested(styled: StyledStrokes, width: int, height: int, frame: 
            "period_px": strokes.period_px}
     if extra:
         doc.update(extra)
-    doc.update(_sets_json(styled, layers))
+    doc.update(_sets_json(styled))
     doc["strokes"] = out
     if paths is not None:
         doc["lines"] = _stroke_dicts(paths.lines, _with_occlusion(paths.lines, extra))
