@@ -17,13 +17,12 @@ from __future__ import annotations
 import argparse
 import io
 import json
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from same_bytes import strokekit  # (this folder: the CLI in a subprocess, quiet)
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT.parent / "shared" / "models"
@@ -46,13 +45,6 @@ name = "noise"
 width = 2.0
 thickness = [{{ by = "noise", amplitude = 0.3, wavelength = 30, boil = {boil} }}]
 """
-
-
-def strokekit(*args) -> None:
-    cmd = [sys.executable, "-m", "strokekit_cli.main", *map(str, args), "-q"]
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode != 0:
-        raise SystemExit(f"failed ({p.returncode}): {' '.join(cmd)}\n{p.stderr}")
 
 
 def sphere(out: Path) -> Path:
