@@ -4,10 +4,12 @@ Each variant writes one frame's raster files the way `strokekit render` does
 (the raster pass, then `run.tasks.raster_files`: the images and their encoding, into a
 temporary folder), for every frame of an orbit, in turns, `--repeats` times:
 
+- `no files`: the raster pass alone (what the others add is measured against it);
 - `band PNGs`: render's default raster output (`--bands 3`: bands/ and shade/);
 - `all PNGs`: the PNG passes that carry what the EXR holds (`--bands 3 --masks --objectid --depth
   --lines-png`: labels, band masks, shade colours, object ids, depth, the lines);
-- `EXR`: `--exr` with every layer (depth, normals, shade, bands, Cryptomatte, lines), no PNG.
+- `EXR`: `--exr` with every layer (depth, normals, shade, bands, Cryptomatte, lines), no PNG;
+  `EXR full`: the same with `--exr-float full` (every channel float32).
 
 Printed: process CPU ms a frame (all threads; steadier than wall time on a shared machine) and
 wall ms a frame, median over the repeats; what the EXR adds against each PNG variant (the bar:
@@ -50,9 +52,11 @@ CODECS = ("NO", "RLE", "ZIPS", "ZIP", "PIZ")  # NO: the floor, copying the chann
 
 def variants(out: Path) -> dict[str, tuple[RasterOptions, OutputOptions]]:
     return {
+        "no files": (RasterOptions(bands=3, pngs=False), OutputOptions(out)),
         "band PNGs": (RasterOptions(bands=3), OutputOptions(out)),
         "all PNGs": (RasterOptions(bands=3, masks=True, objectid=True, depth=True), OutputOptions(out, lines_png=True)),
         "EXR": (RasterOptions(bands=3, pngs=False), OutputOptions(out, exr=PassOptions())),
+        "EXR full": (RasterOptions(bands=3, pngs=False), OutputOptions(out, exr=PassOptions(precision="full"))),
     }
 
 
@@ -60,7 +64,7 @@ def raster_and_files(scene, cam, occ, strokes, number, variant) -> list[str]:
     """One frame's raster pass and its files, as a render's frame task makes them."""
     raster_options, outputs = variant
     raster = render_raster(scene, cam, occ, raster_options, work=thread_workspace())
-    return raster_files(Frame(number, cam, strokes, {}, (), raster=raster), outputs, 60.0, {})
+    return raster_files(Frame(number, cam, strokes, {}, (), raster=raster), outputs, {})
 
 
 def timed(fn, *args) -> tuple[float, float]:
@@ -99,6 +103,11 @@ def bench_model(name: str, args) -> None:
         print(f"  {k:10} {c:8.1f} {w:8.1f}")
     for k in ("band PNGs", "all PNGs"):
         print(f"  EXR / {k}: CPU {med['EXR'][0] / med[k][0]:.2f}x, wall {med['EXR'][1] / med[k][1]:.2f}x")
+    # What the files add to the raster pass (the bar: the EXR adds at most 1.5 times what the PNGs add).
+    adds = {k: (c - med["no files"][0], w - med["no files"][1]) for k, (c, w) in med.items()}
+    for k in ("EXR", "EXR full"):
+        print(f"  {k} adds / all PNGs add: CPU {adds[k][0] / adds['all PNGs'][0]:.2f}x "
+              f"({adds[k][0]:.1f} / {adds['all PNGs'][0]:.1f} ms), wall {adds[k][1] / adds['all PNGs'][1]:.2f}x")
 
     # The EXR's parts, on the first frame.
     raster = render_raster(scene, cams[0], occ, RasterOptions(bands=3, pngs=False), work=thread_workspace())

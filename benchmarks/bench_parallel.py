@@ -1,11 +1,13 @@
 """Issue 7 benchmark: frames in parallel, and end-to-end throughput.
 
-  python benchmarks/bench_parallel.py [--frames 48] [--repeats 3] [--gltf] [--tracking]
+  python benchmarks/bench_parallel.py [--frames 48] [--repeats 3] [--gltf] [--tracking] [--kind threads]
 
-Runs `strokekit.run.run` on a bunny orbit at 1024 x 1024 with 1 and 2 workers, in one
-process run so the ratios are measured under the same conditions, two ways:
-- cold: each run starts its own pool, as `strokekit render --workers N` does (a spawned worker
-  spends about a second on imports, the scene and its BVH before its first frame);
+Runs `strokekit.run.run` on a bunny orbit at 1024 x 1024 with 1 and 2 workers (--kind: threads,
+the default, or processes), in one process run so the ratios are measured under the same
+conditions, two ways:
+- cold: each run starts its own pool, as `strokekit render --workers N` does (a thread starts at
+  once; a spawned worker spends about a second on imports, the scene and its BVH before its
+  first frame);
 - warm: one pool per worker count, started before the timing and kept across runs (as a
   library user rendering several shots keeps it: `run(spec, workers=make_executor(...))`), so
   the ratio is that of the frame work alone.
@@ -40,10 +42,11 @@ from strokekit.run.workers import SceneRef, make_executor  # noqa: E402
 from strokekit.scene.load import load_scene  # noqa: E402
 
 
-def spec_for(scene_path, cams, workers, out_dir, gltf, tracking):
+def spec_for(scene_path, cams, workers, out_dir, gltf, tracking, kind="threads"):
     return RunSpec(scene_path=str(scene_path), cameras=tuple(cams),
                    outputs=OutputOptions(out_dir=Path(out_dir), gltf=gltf, gltf_options=_gltf_options() if gltf else None),
-                   request=RenderRequest(strokes="lines", coherence=None if tracking else "none"), workers=workers)
+                   request=RenderRequest(strokes="lines", coherence=None if tracking else "none"), workers=workers,
+                   worker_kind=kind)
 
 
 def _gltf_options():
@@ -59,6 +62,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--gltf", action="store_true", help="also write GLB ribbons")
     ap.add_argument("--tracking", action="store_true", help="coherent tracking on")
+    ap.add_argument("--kind", default="threads", choices=("threads", "processes"), help="what the workers are")
     a = ap.parse_args()
     s = load_scene(a.scene)
     path = orbit_path(s.center, s.radius, a.frames, degrees_per_frame=3.0)
@@ -69,10 +73,10 @@ def main():
         for workers in (1, 2):
             with tempfile.TemporaryDirectory() as d:
                 t = time.perf_counter()
-                res = run(spec_for(a.scene, cams, workers, d, a.gltf, tracking))
+                res = run(spec_for(a.scene, cams, workers, d, a.gltf, tracking, a.kind))
                 cold[workers].append(time.perf_counter() - t)
                 assert not res.failures, res.failures
-    pools = {w: make_executor(w, None, SceneRef(a.scene, "", LineOptions())) for w in (1, 2)}
+    pools = {w: make_executor(w, None, SceneRef(a.scene, "", LineOptions()), kind=a.kind) for w in (1, 2)}
     try:
         while pools[2].started.value < 1:  # the pool worker has its scene and BVH
             time.sleep(0.02)
@@ -80,13 +84,14 @@ def main():
             for workers in (1, 2):
                 with tempfile.TemporaryDirectory() as d:
                     t = time.perf_counter()
-                    res = run(spec_for(a.scene, cams, workers, d, a.gltf, tracking), workers=pools[workers], scene=s)
+                    res = run(spec_for(a.scene, cams, workers, d, a.gltf, tracking, a.kind), workers=pools[workers],
+                              scene=s)
                     warm[workers].append(time.perf_counter() - t)
                     assert not res.failures, res.failures
     finally:
         for p in pools.values():
             p.close()
-    print(f"{a.frames}-frame orbit of {Path(a.scene).name}, 1024x1024, lines + SVG + JSON"
+    print(f"{a.frames}-frame orbit of {Path(a.scene).name}, 1024x1024, {a.kind}, lines + SVG + JSON"
           f"{' + GLB' if a.gltf else ''}{' + tracking' if a.tracking else ''}, median of {a.repeats}")
     print(f"{'workers':>8} {'cold s':>8} {'frames/s':>9} {'warm s':>8} {'frames/s':>9}")
     med = {k: {w: statistics.median(v) for w, v in d.items()} for k, d in (("cold", cold), ("warm", warm))}

@@ -49,8 +49,8 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
                    "x_plan_resume", "x_lines_needed", "x_run_files", "x_check_files_apart", "x_clean_up",
                    "x__file_states", "x__written_by_run", "x__frames_found_whole", "x__remove_partial_frames",
                    "x_remove_temp_files", "xǁFrameStreamǁenter_written")) + ("strokekit.run.manifest.*",),
-               ("tests/test_pipeline.py", "tests/test_faults_units.py", "-k",
-                "skip_existing or temporaries or failed_run_removes or two_runs or stopped_rerun or interrupted or "
+               ("tests/test_pipeline.py", "tests/test_faults_units.py", "tests/test_manifest.py", "-k",
+                "test_manifest or skip_existing or temporaries or failed_run_removes or two_runs or stopped_rerun or interrupted or "
                 "whole_just_before or resume_after or write_error or over_an_input or sequence_after")),
     "camera-file": (("strokekit/camera/paths.py",), (), ("tests/test_camera_path.py", "tests/test_gltf_camera.py",
                                                         "tests/test_faults.py", "-k", "camera or keyframe or up")),

@@ -10,15 +10,14 @@ import click
 
 from strokekit.options import Flag, LineOptions, flag_of
 from strokekit.paths.options import PathOptions
-from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PassOptions
+from strokekit.raster.options import PassOptions, RasterOptions
 from strokekit.run.request import RenderRequest
 from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.style.linesets import Style
 from strokekit.tracking.options import TrackingOptions
-from strokekit.writers.gltf import GltfOptions
+from strokekit.writers.options import GltfOptions
 
-from .common import FINITE, FiniteFloatRange, floats, split_list
+from .common import FINITE, Choice, FiniteFloatRange, floats, split_list
 
 #: The library's options classes whose fields have flags.
 OPTION_CLASSES = (LineOptions, RenderRequest, TrackingOptions, PathOptions, OutputOptions, Style, GltfOptions,
@@ -80,7 +79,7 @@ def click_option(flag: Flag, default):
     if flag.path:
         kw["type"] = click.Path()
     elif flag.choices:
-        kw["type"] = click.Choice(list(flag.choices))
+        kw["type"] = Choice(list(flag.choices))
     elif flag.text:
         pass  # text, parsed by field_values
     elif flag.low is not None or flag.high is not None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import threading
 
 
@@ -30,6 +31,12 @@ class UsageError(StrokekitError):
     def __init__(self, message: str, path: str | None = None, option: str | None = None):
         self.option = option
         super().__init__(message, path)
+
+
+def did_you_mean(word, known) -> str:
+    """"did you mean 'x'? " for the one of `known` closest to a mistyped `word`, else ""."""
+    close = difflib.get_close_matches(str(word), [str(k) for k in known], n=1)
+    return f"did you mean '{close[0]}'? " if close else ""
 
 
 class hold_interrupts:

@@ -128,6 +128,27 @@ def check_output_file(path: str | Path) -> None:
         raise InputError(f"cannot be written: its folder {p.parent} {why}", path)
 
 
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether `a` and `b` name one file: one path once links and '..' are resolved, or two names
+    (hard links, bind mounts) of one existing file."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_not_an_input(flag: str, output: str | Path | None, inputs) -> None:
+    """UsageError when the file that `flag` writes (`output`) is one of `inputs` ((what, path)
+    pairs: the scene, the camera file): writing it would destroy the input."""
+    if not output or not str(output).strip():
+        return
+    for what, name in inputs:
+        if name and Path(name).is_file() and same_file(output, name):
+            raise UsageError(f"{flag} {output} is the {what}: it would be overwritten; name another file")
+
+
 def check_pattern(pattern: str) -> None:
     """UsageError unless `pattern` (a frame's file name without extension, `{frame}` in str.format
     syntax) names frames apart, inside the output folder, not as dotfiles."""

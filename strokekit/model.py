@@ -11,19 +11,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from strokekit.kinds import KIND_INDEX, KINDS, MAX_OCCLUSION, N_KINDS, layer_name  # noqa: F401 (the model's names)
+
 if TYPE_CHECKING:  # the model holds a frame's Camera; the camera stage imports the model's KINDS nowhere
     from strokekit.camera.view import Camera
+    from strokekit.scene.motion import ScenePose
 
-#: Line kinds in layer order. The index is what `kind` arrays hold.
-KINDS: tuple[str, ...] = ("silhouette", "border", "crease", "material", "nonmanifold",
-                          "smooth_contour", "suggestive", "intersection")
-KIND_INDEX = {k: i for i, k in enumerate(KINDS)}
-N_KINDS = len(KINDS)
-#: Hidden lines (LineOptions.occlusion) carry their occlusion level in the kind arrays: code =
-#: kind + N_KINDS * level, so every stage that keeps kinds apart (chaining, the cleanup of doubled
-#: lines, tracking's joins) keeps levels apart. int8 codes hold levels 0..15; deeper pieces count
-#: as 15.
-MAX_OCCLUSION = (127 - (N_KINDS - 1)) // N_KINDS
 
 
 def kind_of(code) -> np.ndarray:
@@ -34,13 +27,6 @@ def kind_of(code) -> np.ndarray:
 def occlusion_of(code) -> np.ndarray:
     """The occlusion level of kind codes: 0 visible, n hidden by n surfaces."""
     return np.asarray(code) // N_KINDS
-
-
-def layer_name(code: int) -> str:
-    """The SVG layer (and glTF material) of a kind code: the kind, or hidden-<kind> for any level
-    >= 1 (the levels of one kind share its hidden layer; the JSON gives each stroke's level)."""
-    code = int(code)
-    return KINDS[code % N_KINDS] if code < N_KINDS else "hidden-" + KINDS[code % N_KINDS]
 
 
 try:  # the clip ufunc itself: np.clip(a, lo, hi) with both bounds given is this call, behind ~1 us
@@ -144,7 +130,9 @@ class Strokes:
     points (N, 2) pixels; surface (N, 3) world points the 2D points came from; face (N,) the mesh
     face under each point (-1 unknown); u (N,) parametrization in texture periods; offsets (S+1,)
     so that stroke s is points[offsets[s]:offsets[s+1]]; kind (S,) int8 into KINDS; ids (S,)
-    persistent stroke ids; level, level_weight (S,) self-similar texture octave and blend weight."""
+    persistent stroke ids; level, level_weight (S,) self-similar texture octave and blend weight.
+    pose: where the scene's objects were in this frame (None: a still scene), so that a surface
+    point can be carried with its object (carry_points)."""
 
     points: np.ndarray
     surface: np.ndarray
@@ -158,6 +146,7 @@ class Strokes:
     camera: Camera | None = None
     frame: int = 0
     period_px: float = 30.0
+    pose: ScenePose | RecordedPose | None = None
 
     def __len__(self) -> int:
         return len(self.offsets) - 1
@@ -362,3 +351,58 @@ class RasterPasses:
 
 #: View depth of background pixels in depth passes: what Blender's Cycles and Eevee write there.
 BACKGROUND_DEPTH = 1e10
+
+
+@dataclass(frozen=True, eq=False)
+class RecordedPose:
+    """A frame's pose as its JSON recorded it (read back: writers.strokes_json; a posed scene's
+    own is strokekit.scene.motion.ScenePose, and carry_points takes either): each object's
+    world matrix (O, 4, 4) and whether it deforms, and the frame's own stroke points' objects
+    (N,) and object points (N, 3). It moves rigid objects' points only: a deforming object's
+    points need the scene (their world point is kept)."""
+
+    matrix: np.ndarray
+    deforms: np.ndarray
+    obj: np.ndarray
+    local: np.ndarray
+    time: float | None = None
+
+    @staticmethod
+    def from_json(head: dict, obj: np.ndarray, local: np.ndarray) -> "RecordedPose":
+        objects = head.get("objects") or []
+        m = np.array([o["matrix"] for o in objects], float).reshape(-1, 4, 4)
+        return RecordedPose(m, np.array([bool(o.get("deforms")) for o in objects], bool), obj, local,
+                            head.get("time"))
+
+    def input_faces(self, face: np.ndarray) -> np.ndarray:
+        return np.asarray(face, np.int64)
+
+    def object_points(self, X: np.ndarray, face: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The recorded objects and object points of the frame's own points X."""
+        if len(X) != len(self.obj):
+            raise ValueError("a recorded pose knows the object points of its own frame's points only")
+        return self.obj, self.local
+
+    def world_points(self, obj: np.ndarray, local: np.ndarray, input_face: np.ndarray) -> np.ndarray:
+        """World points of object points; NaN where the object deforms or is unknown."""
+        obj = np.asarray(obj, np.int64)
+        out = np.full((len(obj), 3), np.nan)
+        rigid = (obj >= 0) & (obj < len(self.matrix))
+        rigid[rigid] = ~self.deforms[obj[rigid]]
+        M = self.matrix[obj[rigid]]
+        out[rigid] = np.einsum("nij,nj->ni", M[:, :3, :3], np.asarray(local, float)[rigid]) + M[:, :3, 3]
+        return out
+
+
+def carry_points(X: np.ndarray, face: np.ndarray, src, dst) -> np.ndarray:
+    """World points X (N, 3) on scene faces `face` of the scene posed by `src` (a ScenePose or
+    RecordedPose), moved with their objects to where they are in the scene posed by `dst`. A
+    scene at rest (None) does not move: X as it is, as for a point whose move is not known."""
+    if src is None or dst is None or src is dst:
+        return X
+    obj, local = src.object_points(X, face)
+    out = dst.world_points(obj, local, src.input_faces(face))
+    unknown = ~np.isfinite(out).all(axis=1)
+    if unknown.any():
+        out[unknown] = np.asarray(X, float)[unknown]
+    return out

@@ -45,15 +45,21 @@ except ImportError:  # not POSIX: no lock among processes
 
 # --- declaring kernels ---------------------------------------------------------------------------
 
+#: njit options of every kernel: `nogil` lets a run's other threads go on while a kernel runs
+#: (kernels touch no Python object). Part of each kernel module's cache stamp: numba's own cache
+#: key does not hold them.
+KERNEL_OPTIONS = {"cache": True, "nogil": True}
+
+
 def kernel(*signatures: str, **options):
-    """A numba kernel called from Python (njit, cache=True, no fastmath: the same results on
-    every run and in every process), compiled for each of `signatures`: numba type strings of
+    """A numba kernel called from Python (njit with KERNEL_OPTIONS, no fastmath: the same results
+    on every run and in every process), compiled for each of `signatures`: numba type strings of
     its arguments, e.g. "(f8[:, ::1], i8[::1], f8)". `options`: more njit options
     (parallel=True kernels are compiled on their first use, not by the warm-up)."""
     def declare(f):
         import numba
 
-        d = numba.njit(cache=True, **options)(f)
+        d = numba.njit(**KERNEL_OPTIONS, **options)(f)
         d.declared_signatures = tuple(signatures)
         return d
 
@@ -95,12 +101,12 @@ def _callees(mod) -> list[str]:
 
 
 def _callee_stamp(mod) -> str | None:
-    """A digest of the source of the modules whose kernels `mod`'s kernels call (None: none)."""
-    names = _callees(mod)
-    if not names:
+    """A digest of KERNEL_OPTIONS and of the source of the modules whose kernels `mod`'s kernels
+    call (None: `mod` has no kernel)."""
+    if not _dispatchers(mod):
         return None
-    h = hashlib.sha256()
-    for name in names:
+    h = hashlib.sha256(repr(sorted(KERNEL_OPTIONS.items())).encode() + b"\0")
+    for name in _callees(mod):
         h.update(name.encode() + b"\0" + Path(sys.modules[name].__file__).read_bytes() + b"\0")
     return h.hexdigest()
 
@@ -113,8 +119,8 @@ def _stamp_file(mod) -> Path | None:
 
 
 def _drop_stale(mod) -> bool:
-    """Empty the cache of `mod`'s kernels when a module they call changed since they were
-    cached (numba would load them as they were). Returns whether it did."""
+    """Empty the cache of `mod`'s kernels when a module they call or KERNEL_OPTIONS changed since
+    they were cached (numba would load them as they were). Returns whether it did."""
     stamp = _callee_stamp(mod)
     path = _stamp_file(mod)
     if stamp is None or path is None:

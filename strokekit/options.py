@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
-import numpy as np
-
-from strokekit.errors import UsageError
-from strokekit.model import KINDS, MAX_OCCLUSION
+from strokekit.errors import UsageError, did_you_mean
+from strokekit.kinds import KINDS, MAX_OCCLUSION
 
 #: Accuracy knobs per preset. whole_edge_px: edges shorter than this on screen get one
 #: visibility ray at their middle and are drawn whole or not at all (0: none);
@@ -170,7 +169,8 @@ class LineOptions:
     def __post_init__(self):
         unknown = [k for k in self.kinds if k not in KINDS]
         if unknown:
-            raise UsageError(f"unknown line kind(s) {', '.join(unknown)} (known: {', '.join(KINDS)})")
+            raise UsageError(f"unknown line kind(s) {', '.join(unknown)} ({did_you_mean(unknown[0], KINDS)}known: "
+                             f"{', '.join(KINDS)})")
         if not self.kinds:
             raise UsageError("no line kinds selected")
         # One order (KINDS'), each kind once: the drawing does not depend on the order they were
@@ -208,7 +208,7 @@ class LineOptions:
             raise UsageError(f"contours must be 'mesh' or 'smooth', got {self.contours!r}")
         if self.occlusion is not None:
             rng = tuple(self.occlusion)
-            if (len(rng) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) for v in rng)
+            if (len(rng) != 2 or any(isinstance(v, bool) or not isinstance(v, numbers.Integral) for v in rng)
                     or not 0 <= rng[0] <= rng[1] <= MAX_OCCLUSION):
                 raise UsageError(f"occlusion must be two whole levels lo <= hi within 0-{MAX_OCCLUSION} (deeper "
                                  f"pieces count as {MAX_OCCLUSION}), got {self.occlusion!r}", option="occlusion")

@@ -7,11 +7,14 @@ samples of one frame matched to another's (`match_samples`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from strokekit.model import Strokes, bracket, row_norm, uclip
+
+if TYPE_CHECKING:  # (scipy loads where samples are matched: the writers' import stays light)
+    from scipy.spatial import cKDTree
 
 #: A sample's match in the other frame lies within this radius (px) and its tangent agrees with
 #: the sample's: |t . t'| at least MIN_TANGENT_DOT (the coherence metrics' rule).
@@ -80,10 +83,13 @@ class Samples:
         return len(self.p)
 
 
-def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray) -> np.ndarray:
+def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray,
+                    values: np.ndarray | None = None) -> np.ndarray:
     """World points under the screen points p_i + a (p_j - p_i) (a (K,) in [0, 1]): the surface
     points are interpolated perspective-correctly (1/z is linear on screen), so that a point in
-    the middle of a long receding segment is the world point actually drawn there."""
+    the middle of a long receding segment is the world point actually drawn there. `values`
+    (N, 3): interpolate these per-point values instead, with the same weights (the surface points
+    moved with their objects to another frame, model.carry_points)."""
     X = strokes.surface
     cam = strokes.camera
     a = np.asarray(a, float)
@@ -102,6 +108,8 @@ def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarra
             zi = np.where(ok, zi, 1.0)
             den = (1 - a) * np.where(ok, zj, 1.0) + a * zi
             a = np.where(ok & (den > 0), a * zi / np.where(den > 0, den, 1.0), a)
+    if values is not None:
+        Xi, Xj = values.take(i, axis=0), values.take(j, axis=0)
     return Xi * (1 - a)[:, None] + Xj * a[:, None]
 
 
@@ -128,10 +136,12 @@ def locate(strokes: Strokes, stroke: np.ndarray, s: np.ndarray, side: str = "rig
     return i, j, uclip(a, 0.0, 1.0)
 
 
-def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool = True) -> Samples:
+def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool = True,
+                     surface: np.ndarray | None = None) -> Samples:
     """Resample every stroke into pieces of at most `step_px` px; one sample at the middle of each
     piece, with u, X and position interpolated linearly along the polyline (vectorized).
-    with_surface=False leaves X at zero (screen-only uses, cheaper)."""
+    with_surface=False leaves X at zero (screen-only uses, cheaper). `surface` (N, 3): X from
+    these per-point values (surface_between's `values`)."""
     if len(strokes) == 0 or len(strokes.points) == 0:
         z = np.zeros(0)
         zi = np.zeros(0, np.int64)
@@ -142,7 +152,7 @@ def resample_strokes(strokes: Strokes, step_px: float = 1.0, with_surface: bool 
     s = (k + 0.5) * w
     i, j, a = locate(strokes, stroke, s)
     P, U = strokes.points, strokes.u
-    Xs = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
+    Xs = surface_between(strokes, i, j, a, surface) if with_surface else np.zeros((len(i), 3))
     u = U[i] * (1 - a) + U[j] * a
     Pi, Pj = P.take(i, axis=0), P.take(j, axis=0)  # once for the position and the tangent (take: see above)
     t = Pj - Pi
@@ -178,7 +188,11 @@ def match_samples(src: Samples, camera, dst: Samples, dst_tree: cKDTree | None =
     ok = fin[:, 0] & fin[:, 1] & ((z > 0) | camera.is_ortho)
     if not ok.any():
         return (out, q) if return_projected else out
-    tree = dst_tree if dst_tree is not None else cKDTree(dst.p)
+    tree = dst_tree
+    if tree is None:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(dst.p)
     kk = min(k, len(dst))
     every = ok.all()  # the usual case: no copies, no scatter
     qq = q if every else q[ok]

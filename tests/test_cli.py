@@ -218,6 +218,10 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
 
 @pytest.mark.parametrize("args,needle", [
     (["--kinds", "silhouette,sparkle"], "unknown line kind"),
+    (["--kinds", "silhouete"], "unknown line kind(s) silhouete (did you mean 'silhouette'? known: silhouette, "),
+    (["--shading", "smoth", "--bands", "3"], "'smoth' is not one of 'flat', 'smooth': did you mean 'smooth'?"),
+    (["--coherence", "sead"], "did you mean 'seed'?"),
+    (["--smooth-angle", "0", "--bands", "3"], "--smooth-angle must be in (0, 180) degrees, got 0"),
     (["--orbit", "3", "--camera", "x.json"], "either --camera or --orbit"),
     (["--frames", "5-3"], "bad frame range"),
     (["--frames", "1-99"], "beyond"),
@@ -244,6 +248,7 @@ def test_broken_camera_file_gives_one_line_and_exit_1(cube, tmp_path, capsys, co
     (["--bands", "2", "--light", "1e300,0,0"], "beyond float range"),
     # messages name the flag the user typed
     (["--orbit", "3", "--path-merge", "-1"], "--path-merge (merge_px) must be"),
+    (["--orbit", "3", "--path-heal", "-1"], "--path-heal (heal_px) must be"),
     (["--gltf", "--taper", "-1"], "--taper must be"),
     (["--pattern", "{frame:>300}"], "file names longer than the 255 bytes"),  # was exit 1 after the manifest
 ])
@@ -251,6 +256,11 @@ def test_impossible_options_exit_2(cube, tmp_path, capsys, args, needle):
     code, _, err = run_cli(["render", cube, "--out", tmp_path / "o", *args], capsys)
     assert code == 2, err
     assert needle in err and "Traceback" not in err
+
+
+def test_a_brush_name_mistyped_gets_a_did_you_mean(cube, tmp_path, capsys):
+    code, _, err = run_cli(["render", cube, "--orbit", "1", "--gltf", "--brush", "inq", "--out", tmp_path / "o"], capsys)
+    assert code == 1 and "inq: brush image not found (did you mean 'ink'? bundled brushes: plain, ink, dry" in err, err
 
 
 def test_camera_inside_the_mesh_is_an_input_error(cube, tmp_path, capsys):
@@ -377,6 +387,36 @@ def test_unwritable_output_is_one_line_before_any_work(cube, tmp_path, capsys):
     assert blocker.read_text() == "x" and not any(folder.iterdir())
 
 
+def test_an_output_onto_an_input_is_a_usage_error_and_the_input_stays(cube, tmp_path, capsys):
+    """--report (or any other output) naming the scene or the camera file, also through a link:
+    exit 2, one line naming the option, nothing written, the input's bytes unchanged (the run
+    used to replace the scene by its JSON report and exit 0)."""
+    cam = write_camera(tmp_path / "c.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}])
+    (tmp_path / "link.obj").symlink_to(cube)
+    svg = tmp_path / "a.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="10" height="10"/>')
+    (tmp_path / "shot").mkdir()
+    frame_cam = write_camera(tmp_path / "shot" / "frame_0001.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}])
+    (tmp_path / "shot-link").symlink_to(tmp_path / "shot")
+    inputs = {p: p.read_bytes() for p in (cube, cam, svg, frame_cam)}
+    o = tmp_path / "o"
+    for args, flag in ((["render", cube, "--orbit", "2", "--out", o, "--report", cube], "--report"),
+                       (["render", tmp_path / "link.obj", "--orbit", "2", "--out", o, "--report", cube], "--report"),
+                       (["render", cube, "--camera", cam, "--out", o, "--report", cam], "--report"),
+                       (["render", cube, "--camera", cam, "--out", o, "--report", tmp_path / "link.obj"], "--report"),
+                       (["camera", "orbit", cube, "--frames", "2", "-o", cube], "--out"),
+                       (["camera", "parallel", cube, "-o", cube], "--out"),
+                       (["bench", cube, "--camera", cam, "--plot", cam], "--plot"),
+                       (["diff", svg, svg, "--png", svg], "--png"),
+                       (["render", cube, "--camera", frame_cam, "--out", tmp_path / "shot"], "--out"),
+                       (["render", cube, "--camera", frame_cam, "--out", tmp_path / "shot-link"], "--out")):
+        code, out, err = run_cli(args, capsys)
+        assert code == 2, (args, err)
+        assert len(err.strip().splitlines()) == 1 and flag in err and "overwritten" in err, err
+        assert not o.exists() and out == ""
+        assert all(p.read_bytes() == b for p, b in inputs.items()), args
+
+
 def test_coherence_with_a_bad_pattern_is_a_usage_error(tmp_path, capsys):
     """render refuses a --pattern without {frame}; coherence read it as a glob and said "found 0"
     (exit 1): the same check now, exit 2."""
@@ -497,12 +537,12 @@ def test_ctrl_c_inside_trimesh_is_not_swallowed(tmp_path, monkeypatch):
 def test_ctrl_c_while_the_scene_loads_still_writes_the_report(cube, tmp_path, capsys, monkeypatch):
     """Ctrl-C before the run starts (the scene is loading): exit 130, one line, and --report is
     written with status 'interrupted', as for a Ctrl-C during the frames."""
-    import strokekit_cli.commands.render as render_cmd
+    import strokekit.scene.load
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(render_cmd, "load_scene", interrupted)
+    monkeypatch.setattr(strokekit.scene.load, "load_scene", interrupted)  # (the command imports it when run)
     cam = write_camera(tmp_path / "cams.json", [{"eye": [0, 0, 5], "target": [0, 0, 0]}] * 3)
     code, _, err = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o", "--report",
                             tmp_path / "r.json", "--workers", "1"], capsys)
@@ -654,12 +694,12 @@ def test_temporary_files_are_told_from_other_dotfiles():
 
 def test_ctrl_c_in_any_command_is_one_line_and_exit_130(cube, capsys, monkeypatch):
     """click turns a KeyboardInterrupt into an empty line and 'Aborted!'; the user gets one line."""
-    import strokekit_cli.commands.info as info
+    import strokekit.scene.load
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(info, "load_scene", interrupted)
+    monkeypatch.setattr(strokekit.scene.load, "load_scene", interrupted)
     code, out, err = run_cli(["info", cube], capsys)
     assert code == 130 and err == "strokekit: interrupted\n" and out == ""
 
@@ -750,6 +790,7 @@ def test_a_raster_pass_larger_than_the_machine_is_refused_before_any_frame(cube,
     (["--decimals", "3", "--no-svg"], "--decimals needs the SVG"),
     (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers needs no --scheduler"),
     (["--frames", "1", "--path-merge", "3"], "--path-merge needs brush paths"),
+    (["--frames", "1", "--path-heal", "3"], "--path-heal needs brush paths"),
 ])
 def test_an_option_the_run_would_ignore_is_a_usage_error(tmp_path, capsys, args, said):
     """An option given on the command line that does nothing beside the others (or contradicts
@@ -804,3 +845,35 @@ def test_truncated_binary_stl_says_truncated(tmp_path, capsys):
         (tmp_path / f"a{i}.stl").write_bytes(data)
         code, _, err = run_cli(["info", tmp_path / f"a{i}.stl"], capsys)
         assert code == 0, err
+
+
+def _plate(path: Path, extents) -> Path:
+    import trimesh
+
+    trimesh.creation.box(extents=extents).export(path)
+    return path
+
+
+def test_a_scene_that_looks_z_up_gets_a_hint_at_up_z(tmp_path, capsys):
+    """A plate lying on Z (as an STL for printing is) orbited about Y is seen from above at its
+    edge: one hint line names the file and --up z. Not for the same plate Y-up, nor for a cube
+    (a base on both axes), nor once --up is given, nor with --quiet, nor for glTF (Y-up by its
+    specification); the camera commands hint too."""
+    z_up = _plate(tmp_path / "z_up.stl", (4, 3, 0.5))
+    y_up = _plate(tmp_path / "y_up.stl", (4, 0.5, 3))
+    cube = _plate(tmp_path / "cube.stl", (1, 1, 1))
+    glb = _plate(tmp_path / "z_up.glb", (4, 3, 0.5))
+    hint = f"strokekit: hint: {z_up} looks modelled Z-up (it rests on a flat base facing -Z): --up z"
+    render = ["render", "--orbit", "1", "--size", "64x64", "--out", tmp_path / "o"]
+    code, _, err = run_cli([*render[:1], z_up, *render[1:]], capsys)
+    assert code == 0 and [line for line in err.splitlines() if "hint" in line] == [err.splitlines()[0]], err
+    assert err.startswith(hint), err
+    for scene, extra in ((y_up, []), (cube, []), (glb, []), (z_up, ["--up", "z"]), (z_up, ["--up", "y"]),
+                         (z_up, ["-q"])):
+        code, _, err = run_cli([render[0], scene, *render[1:], *extra], capsys)
+        assert code == 0 and "hint" not in err, (scene, extra, err)
+    for cmd in (["camera", "orbit", z_up], ["camera", "dolly", z_up], ["camera", "parallel", z_up]):
+        code, out, err = run_cli(cmd, capsys)
+        assert code == 0 and err.startswith(hint) and json.loads(out)["frames"], err
+        code, _, err = run_cli([*cmd, "--up", "z"], capsys)
+        assert code == 0 and err == "", err

@@ -358,7 +358,7 @@ def test_cli_exit_codes_and_output(tmp_path):
     res = run(diff_command, [str(a), str(tmp_path / "dir")])
     assert res.exit_code == 2 and "folder" in res.output
     res = run(diff_command, [str(a), str(tmp_path / "nope.svg")])
-    assert res.exit_code == 1 and "nope.svg: no such file" in res.output
+    assert res.exit_code == 2 and "nope.svg: no such file" in res.output
     assert len(res.output.strip().splitlines()) == 1
     assert run(diff_command, [str(a), str(a), "--tol", "-1"]).exit_code == 2
     assert run(diff_command, [str(a), str(a), "--tol", "nan"]).exit_code == 2
@@ -375,6 +375,37 @@ def test_cli_folders_and_png_folder(tmp_path):
     assert res.exit_code == 1
     assert "frame_0002.svg" in res.output
     assert sorted(p.name for p in (tmp_path / "pngs").iterdir()) == ["frame_0002.png"]
+
+
+def test_cli_a_missing_golden_folder_is_told_apart_from_a_difference(tmp_path):
+    """Exit 1 means the drawings differ: a golden folder (or output folder) that is not there,
+    or two folders without any SVG, exit 2 (they exited 1, like a real difference, so a CI job
+    could not tell a moved golden folder from a changed drawing)."""
+    _frames(tmp_path / "out", 2)
+    (tmp_path / "empty_a").mkdir()
+    (tmp_path / "empty_b").mkdir()
+    run = CliRunner().invoke
+    for a, b, words in (("golden", "out", "golden: no such file or folder"),
+                        ("out", "golden", "golden: no such file or folder"),
+                        ("empty_a", "empty_b", "no SVG files in either folder")):
+        res = run(diff_command, [str(tmp_path / a), str(tmp_path / b)])
+        assert res.exit_code == 2 and words in res.output and len(res.output.strip().splitlines()) == 1, res.output
+    res = run(diff_command, [str(tmp_path / "empty_a"), str(tmp_path / "out")])
+    assert res.exit_code == 1 and "2 extra in B" in res.output  # a golden folder emptied: a difference
+
+
+def test_cli_folders_show_style_changes(tmp_path):
+    """Folders of the same geometry drawn with another stroke width are equal (exit 0), and the
+    summary says so once, with the files (the note appeared only for single files or --json)."""
+    _frames(tmp_path / "golden", 3)
+    (tmp_path / "out").mkdir()
+    for p in sorted((tmp_path / "golden").iterdir()):
+        (tmp_path / "out" / p.name).write_text(p.read_text().replace('stroke-width="1.5"', 'stroke-width="4"'))
+    res = CliRunner().invoke(diff_command, [str(tmp_path / "golden"), str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    notes = [line for line in res.output.splitlines() if "style differs" in line]
+    assert len(notes) == 2 and all("stroke-width 1.5" in n and "stroke-width 4" in n for n in notes), res.output
+    assert all(n.endswith("[frame_0001.svg, frame_0002.svg, frame_0003.svg]") for n in notes), res.output
 
 
 def test_read_svg_keeps_empty_layers_and_viewbox(tmp_path):

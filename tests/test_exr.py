@@ -244,6 +244,45 @@ def test_every_exr_codec_gives_back_the_same_channels(tmp_path, codec):
         assert a[name].dtype == b[name].dtype and a[name].tobytes() == b[name].tobytes(), name
 
 
+#: The channels Blender writes in half float in a multilayer EXR ("Float (Half)" colour passes);
+#: depth and Cryptomatte stay float32.
+HALF_LAYERS = ("N", "RGBA", "bands", "lines")
+
+
+def _layer(channel: str) -> str:
+    return channel.rsplit(".", 1)[0] if "." in channel else ("RGBA" if channel in "RGBA" else channel)
+
+
+def test_exr_floats_are_blenders_and_the_header_says_what_each_layer_holds(exr_run):
+    """By default colour, normals, band labels and lines are half float, depth and Cryptomatte
+    float32 (as Blender writes them); the strokekit/layers attribute gives each layer's type and
+    what it holds, in agreement with the channels."""
+    ch, hdr = read_exr(exr_run / "frame_0001.exr")
+    said = json.loads(hdr["strokekit/layers"])
+    assert set(said) == {_layer(c) for c in ch}
+    for name, a in ch.items():
+        half = _layer(name).startswith(HALF_LAYERS)
+        assert a.dtype == (np.float16 if half else np.float32), name
+        assert said[_layer(name)]["type"] == ("half" if half else "float"), name
+    assert "1e10" in said["Z"]["holds"] and "premultiplied" in said["RGBA"]["holds"]
+
+
+def test_exr_float_full_writes_every_channel_float32_with_the_same_values(tmp_path):
+    """--exr-float full: every channel float32 (the header says so); the half channels of the
+    default file are those values rounded to half, the float32 ones the same bits."""
+    half = render(tmp_path, "--size", "64x48", "--exr", "--no-svg", out="half")
+    full = render(tmp_path, "--size", "64x48", "--exr", "--exr-float", "full", "--no-svg", out="full")
+    a, _ = read_exr(half / "frame_0001.exr")
+    b, hdr = read_exr(full / "frame_0001.exr")
+    assert sorted(a) == sorted(b)
+    assert {v["type"] for v in json.loads(hdr["strokekit/layers"]).values()} == {"float"}
+    for name in a:
+        assert b[name].dtype == np.float32, name
+        assert b[name].astype(a[name].dtype).tobytes() == a[name].tobytes(), name
+    assert any(a[n].dtype == np.float16 and (b[n] != b[n].astype(np.float16)).any() for n in a), \
+        "no channel holds a value half float rounds: the test would not see a half channel written"
+
+
 def test_exr_codec_without_exr_is_a_usage_error(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["render", str(SAMPLE), "--orbit", "2", "--frames", "1", "-q", "--out", str(tmp_path / "o"),

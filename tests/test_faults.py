@@ -282,7 +282,7 @@ def test_failed_write_in_a_pool_worker_says_the_file_and_leaves_whole_frames(suf
 
     monkeypatch.setattr(fileio.os, "replace", main_replace)
     code, _, e = run_cli(["render", scene, "--orbit", "5", "--size", "48x36", "--gltf", "--bands", "2",
-                          "--no-coherence", "--out", out, "--workers", "2"], capsys)
+                          "--no-coherence", "--out", out, "--workers", "2", "--worker-kind", "processes"], capsys)
     monkeypatch.undo()
     assert Path(cfg["ready"]).exists(), "the pool worker never started (or the hook was not loaded)"
     log = Path(cfg["log"]).read_text().split("\n") if Path(cfg["log"]).exists() else []
@@ -514,6 +514,48 @@ def test_truncated_ply_is_one_sentence_about_the_file(where, tmp_path, capsys):
     assert len(lines) == 1 and "cut.ply" in lines[0] and not INTERNAL.search(lines[0]), e
 
 
+@pytest.mark.parametrize("cut", ["f 4 5", "f 4", "f 4/4/4"])
+def test_obj_cut_short_mid_face_warns_with_the_line(cut, tmp_path, capsys):
+    """An OBJ cut short in its last face line (`head -c` of a large file ends 'f 2'): trimesh drops
+    the line in silence and the drawing shows false borders. A warning names the file and the
+    line, and says the file looks cut short; the render still runs (exit 0)."""
+    p = tmp_path / "cut.obj"
+    p.write_text(obj_text() + cut)
+    code, _, e = run_cli(["render", p, "--orbit", "1", "--size", "48x36", "--out", tmp_path / "o", "-q"], capsys)
+    assert code == 0, e
+    n = len(cut.split()) - 1
+    assert err_lines(e) == [f"strokekit: warning: {p}: line 21 {cut!r} is a face of {n} vertex "
+                            f"index{'es' if n > 1 else ''} (a face needs 3): dropped; the file ends there: "
+                            "it looks cut short"], e
+
+
+def test_obj_short_face_lines_inside_the_file_are_counted(tmp_path):
+    """Short face lines anywhere: the first named, the others counted; a whole file: no warning."""
+    from strokekit.scene.load import load_scene
+
+    p = tmp_path / "short.obj"
+    p.write_text(obj_text().replace("f 1 4 3\n", "f 1 4\n").replace("f 5 6 7\n", "f 5\n"))
+    assert load_scene(p).warnings == (f"{p}: line 10 'f 1 4' is a face of 2 vertex indexes (a face needs 3): "
+                                      "dropped, with 1 more such line(s)",)
+    assert load_scene(_write(tmp_path / "ok.obj", obj_text())).warnings == ()
+
+
+def _write(p: Path, text: str) -> Path:
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("face,vertex,before", [("f 1 2 9", 9, ""), ("f -1 -9 2", -9, " (8 before that line)")])
+def test_obj_face_past_its_vertices_names_the_line(face, vertex, before, tmp_path, capsys):
+    """trimesh fails on it as 'cannot read mesh (IndexError: index 8 is out of bounds ...)': one
+    line naming the file, the line and the vertex, exit 1."""
+    p = _write(tmp_path / "past.obj", obj_text() + face + "\n")
+    code, _, e = run_cli(["info", p], capsys)
+    assert code == 1, e
+    assert err_lines(e) == [f"strokekit: error: {p}: line 21 {face!r} refers to vertex {vertex}, but the file has "
+                            f"8 vertices{before}"], e
+
+
 def test_gltf_accessor_longer_than_its_buffer_view_is_one_sentence(tmp_path, capsys):
     """Today: 'cannot read mesh (ValueError: cannot reshape array of size 24 into shape (600,3))'.
     The line says which accessor does not fit its buffer view, in words."""
@@ -556,3 +598,15 @@ def test_failed_frame_is_said_in_one_line(frames, code_expected, cube, tmp_path,
     assert "cube.obj" in lines[0] and f"frame {n // 2 + 1}" in lines[0] and "inside the mesh" in lines[0], e
     if n > 1:
         assert all((tmp_path / "o" / f"frame_000{f}.svg").exists() for f in (1, 3))
+
+
+def test_failed_frames_point_at_no_report_that_was_not_asked_for(cube, tmp_path, capsys):
+    """Two frames fail and there is no --report: the line says how to get every error, and
+    does not read as if a report listed them ('--report lists every error' sent users looking
+    for a file); with --report it names the file."""
+    cam = write_camera(tmp_path / "cam.json", [INSIDE, INSIDE, FRONT[0]])
+    code, _, e = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "o"], capsys)
+    assert code == 3 and e.rstrip().endswith("; give --report FILE to list every error"), e
+    code, _, e = run_cli(["render", cube, "--camera", cam, "--out", tmp_path / "p", "--report", tmp_path / "r.json"],
+                         capsys)
+    assert code == 3 and e.rstrip().endswith(f"; every error in {tmp_path / 'r.json'}"), e

@@ -80,7 +80,8 @@ def test_every_kernel_python_calls_says_how_it_is_called(lazy):
 
 def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
     """After the warm-up, drawing frames compiles nothing more: brush paths, tracked lines,
-    hidden lines and the raster pass call their kernels with the declared types only (a kernel
+    hidden lines, the raster pass and a moving scene's rays call their kernels with the declared
+    types only (a kernel
     called with another type would compile during a run's first frame, after the run said
     nothing of a compile). Checked in a fresh interpreter (this one's other tests call the
     kernels themselves)."""
@@ -89,9 +90,14 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit.lines.kernels import HIDDEN_LINES
         from strokekit.paths.kernels import BRUSH_PATHS
         from strokekit.raster.hits import RASTER
+        from strokekit.scene.occluder import MOVING_SCENE
         from strokekit.tracking.kernels import TRACKING
         from strokekit_cli.main import cli
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING)
+        import sys
+        sys.path.insert(0, {str(ROOT / 'tests')!r})
+        from animated import sphere_and_box_glb
+        from pathlib import Path
+        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE)
         for g in groups:
             g.warm()
         warm = {{}}
@@ -103,7 +109,9 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         runs = [["render", S + "/still_life.glb", "--camera", S + "/orbit.json", "--frames", "1-3", "--gltf",
                  "--bands", "3", "--exr", "--masks", "--objectid", "--depth", "--fill", "--size", "160x120"],
                 ["render", M + "/fandisk.obj", "--orbit", "3", "--hidden", "--size", "240x200"],
-                ["render", M + "/spot.obj", "--orbit", "3", "--strokes", "lines", "--size", "240x200"]]
+                ["render", M + "/spot.obj", "--orbit", "3", "--strokes", "lines", "--size", "240x200"],
+                ["render", str(sphere_and_box_glb(Path(out) / "sphere.glb", "sphere")), "--orbit", "3",
+                 "--strokes", "lines", "--size", "240x200"]]
         for k, r in enumerate(runs):
             try:
                 cli.main(args=r + ["--workers", "1", "-q", "--out", out + "/r%d" % k], standalone_mode=False)
@@ -233,3 +241,56 @@ def test_a_ctrl_c_in_the_trackers_compiled_loops_stays_a_keyboard_interrupt():
     tr.method = SimpleNamespace(track=in_loop)
     with pytest.raises(KeyboardInterrupt):
         tr.step(lines)
+
+
+def test_kernels_let_other_threads_run_and_their_options_are_in_the_cache_stamp(tmp_path):
+    """A kernel releases Python's lock while it runs (KERNEL_OPTIONS nogil: the workers of a run
+    are threads), so another thread of the process keeps running meanwhile; and a kernel cached
+    under other options is compiled again (numba's own cache key does not hold them)."""
+    _tiny_module(tmp_path, "sk_busy", """
+        from strokekit.numba_cache import kernel
+
+        @kernel("(i8,)")
+        def spin(n):
+            s = 0.0
+            for i in range(n):
+                s += (i % 7) * 0.5
+            return s
+        """)
+    code = textwrap.dedent("""
+        import importlib, sys, threading, time
+        from strokekit import numba_cache
+        if sys.argv[1] == "gil":
+            numba_cache.KERNEL_OPTIONS = {"cache": True, "nogil": False}
+        mod = importlib.import_module("sk_busy")
+        print(numba_cache.compile_needed(mod))
+        numba_cache.LazyKernels("sk_busy").kernels()
+        mod.spin(10)
+        n = 10
+        while True:  # a call of about 0.3 s
+            t = time.perf_counter(); mod.spin(n); dt = time.perf_counter() - t
+            if dt > 0.3:
+                break
+            n *= 4
+        wakes = []
+        th = threading.Thread(target=mod.spin, args=(n,))
+        th.start()
+        while th.is_alive():
+            time.sleep(0.001)
+            wakes.append(1)
+        print(len(wakes))
+        """)
+    env = {**os.environ, "PYTHONPATH": f"{tmp_path}:{ROOT}"}
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def run(options):
+        out = subprocess.run([sys.executable, "-c", code, options], capture_output=True, text=True, cwd=tmp_path,
+                             env=env, check=True).stdout.split()
+        return out[0], int(out[1])
+
+    needed, wakes = run("nogil")
+    assert needed == "True" and wakes >= 20, wakes  # this thread woke while the kernel ran
+    assert run("nogil")[0] == "False"  # (from the cache)
+    needed, wakes = run("gil")
+    assert needed == "True", "a kernel cached with other options would be loaded as it was"
+    assert wakes <= 3, wakes  # holding the lock, the kernel keeps this thread asleep

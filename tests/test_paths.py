@@ -117,10 +117,10 @@ def test_noisy_sphere_keeps_ids_while_its_lines_have_shingles(noisy_sphere_frame
     _, ov = sequence_metrics([b.strokes for b in out])
     assert ov["M1"] >= 0.97
     _assert_on_the_drawing(out[::8])
-    # Short paths merge into the ones they touch: without that, splits leave ids behind for good.
+    # Short paths merge or heal into the ones they touch: without that, splits leave ids behind for good.
     late = np.mean([len(b) for b in out[-10:]])
     assert late < np.mean([len(f) for f in noisy_sphere_frames[-10:]])
-    assert late < np.mean([len(b) for b in brush_frames(noisy_sphere_frames, PathOptions(merge_px=0.0))[-10:]])
+    assert late < np.mean([len(b) for b in brush_frames(noisy_sphere_frames, PathOptions(merge_px=0.0, heal_px=0.0))[-10:]])
 
 
 def test_covers_list_the_line_pieces_of_each_path(torus_frames):
@@ -493,3 +493,47 @@ def test_a_path_ends_at_a_corner_whether_one_line_or_two_meet_there():
         second = tracker.step(_polyline_frame(cam, 2, [[a], [b]])).strokes
         assert len(first) == len(second) == n_paths, turn
         assert sorted(first.ids) == sorted(second.ids), turn
+
+
+def test_a_line_that_breaks_for_one_frame_heals_with_the_longer_pieces_id():
+    """A 160 px outline breaks in frame 2 (a gap of 10 px, past join_px, cuts a 12 px piece off
+    its end: that piece takes a fresh id) and is whole again from frame 3 on. The two paths meet
+    end to end on the whole line in frame 3 (a touch that must last: still two paths) and heal in
+    frame 4 into one path with the long path's id, which stays (heal_px 0: two paths for good;
+    the default heals only pieces under 6 px)."""
+    from strokekit.camera.view import Camera
+
+    cam = Camera(eye=(0.0, 0.0, 10.0), target=(0.0, 0.0, 0.0), fov_y=40, width=400, height=300)
+    whole = [[(np.array([-2.0, 0.0]), np.array([2.0, 0.0]))]]
+    broken = [[(np.array([-2.0, 0.0]), np.array([1.45, 0.0]))], [(np.array([1.7, 0.0]), np.array([2.0, 0.0]))]]
+    frames = [_polyline_frame(cam, k, broken if k == 2 else whole) for k in range(1, 7)]
+    for heal_px, counts in ((20.0, [1, 2, 2, 1, 1, 1]), (0.0, [1, 2, 2, 2, 2, 2])):
+        out = [b.strokes for b in brush_frames(frames, PathOptions(heal_px=heal_px))]
+        assert [len(s) for s in out] == counts, heal_px
+        long_id = int(out[0].ids[0])
+        assert all(int(s.ids[np.argmax(s.lengths)]) == long_id for s in out), heal_px
+
+
+def test_a_healed_piece_keeps_its_texture_shifted_by_whole_periods():
+    """heal_paths: a 12 px path (born this frame) meeting a carried 100 px path end to end joins it
+    with the carried id; the long path's u stays, the short one's u is its own plus a whole number
+    of periods (matched samples do not slide), the healed path's u increasing along it."""
+    from strokekit.paths.heal import heal_paths
+
+    x = np.arange(0.0, 101.0)
+    xs = np.arange(101.0, 113.0)
+    pts = np.vstack([np.column_stack([xs[::-1], 0 * xs]), np.column_stack([x, 0 * x])])
+    u_short, u_long = 0.37 + xs[::-1] / 10.0, 5.0 + x / 10.0
+    u_short = u_short[::-1].copy()  # (increasing along its own points, which run towards the long path)
+    pts[:12] = pts[:12][::-1]
+    N = len(pts)
+    paths = Strokes(points=pts, surface=np.zeros((N, 3)), face=np.zeros(N, np.int64), offsets=np.array([0, 12, N]),
+                    kind=np.zeros(2, np.int8), ids=np.array([9, 4]), u=np.concatenate([u_short, u_long]),
+                    level=np.zeros(2), level_weight=np.ones(2), period_px=10.0)
+    out, new_of = heal_paths(paths, np.array([4]), np.zeros(0, np.int64), 20.0, np.zeros(2, bool))
+    assert len(out) == 1 and out.ids.tolist() == [4] and new_of.tolist() == [0, 0]
+    assert np.all(np.diff(out.u) > 0)
+    on_long = out.points[:, 0] <= 100.0
+    np.testing.assert_allclose(out.u[on_long], u_long)
+    k = out.u[~on_long] - (0.37 + out.points[~on_long, 0] / 10.0)
+    np.testing.assert_allclose(k, np.round(k))

@@ -12,6 +12,7 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
+import numpy as np
 import pytest
 from helpers import SAMPLES, cli_env, model_path
 
@@ -96,10 +97,14 @@ def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
     assert {s["stage"]: s["ran"] for s in rep["stages"]}["brush paths"] is True
 
 
-def test_pool_and_inline_give_identical_bytes(tmp_path, capsys):
-    args = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-4", "-q"]
+@pytest.mark.parametrize("kind", ["threads", "processes"])
+def test_pool_and_inline_give_identical_bytes(tmp_path, capsys, kind):
+    """Frames drawn by two workers (threads of this process, or a process pool) give the bytes of
+    one worker: brush paths and their raster passes (the bands: per-thread z-buffers)."""
+    args = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-4", "-q",
+            "--bands", "2"]
     assert run_cli(args + ["--out", tmp_path / "one", "--workers", "1"], capsys)[0] == 0
-    assert run_cli(args + ["--out", tmp_path / "two", "--workers", "2"], capsys)[0] == 0
+    assert run_cli(args + ["--out", tmp_path / "two", "--workers", "2", "--worker-kind", kind], capsys)[0] == 0
     assert tree_bytes(tmp_path / "one") == tree_bytes(tmp_path / "two")
 
 
@@ -480,17 +485,19 @@ def test_a_frame_written_whole_just_before_ctrl_c_counts_as_written(tmp_path, mo
     assert [rep["frames"][k]["status"] for k in "1234"] == ["ok", "ok", "not run", "not run"]
 
 
-def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
-    """SIGINT to `strokekit render` with a pool once frames are coming out: exit 130, one line
-    saying how many frames were written, the --report written with status 'interrupted', the
-    worker processes gone, no temporary file left, and every frame file there is whole."""
+@pytest.mark.parametrize("kind", ["threads", "processes"])
+def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path, kind):
+    """SIGINT to `strokekit render` with two workers once frames are coming out: exit 130, one
+    line saying how many frames were written, the --report written with status 'interrupted',
+    the worker processes gone (with --worker-kind processes), no temporary file left, and every
+    frame file there is whole."""
 
     psutil = pytest.importorskip("psutil")
     out, report = tmp_path / "o", tmp_path / "run.json"
     env = cli_env()
     env.pop("STROKEKIT_DEBUG", None)
     cmd = [sys.executable, "-m", "strokekit_cli.main", "render", str(SAMPLES / "still_life.glb"), "--orbit", "1000",
-           "--size", "200x150", "--workers", "2", "--out", str(out), "--report", str(report)]
+           "--size", "200x150", "--workers", "2", "--worker-kind", kind, "--out", str(out), "--report", str(report)]
     # SIGINT as a terminal gives it, also when this test runs where it is ignored (a background job).
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
@@ -522,7 +529,7 @@ def test_ctrl_c_during_render_stops_cleanly_with_a_report(tmp_path):
     for p in out.glob("frame_*.json"):
         json.loads(p.read_text())
     alive = psutil.wait_procs(children, timeout=10)[1]
-    assert children and not alive, "worker processes outlived the run"
+    assert (bool(children) == (kind == "processes")) and not alive, "worker processes outlived the run"
 
 
 # --- --skip-existing and the run manifest (.strokekit-run.json) ---------------------------------------
@@ -531,7 +538,9 @@ def _scenes(tmp_path: Path) -> tuple[Path, Path]:
     import trimesh
 
     other = tmp_path / "cylinder.obj"
-    trimesh.creation.cylinder(radius=1.0, height=2.0, sections=12).export(other)
+    # (standing on Y, as the orbit's default up: no Z-up hint among the lines checked)
+    upright = trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0])
+    trimesh.creation.cylinder(radius=1.0, height=2.0, sections=12, transform=upright).export(other)
     return _cube(tmp_path), other
 
 
@@ -607,6 +616,19 @@ def test_skip_existing_sees_a_brush_image_whose_bytes_changed(tmp_path, capsys):
     Image.new("RGBA", (8, 4), (0, 0, 0, 128)).save(brush)
     code, _, err = run_cli(args + ["--skip-existing"], capsys)
     assert code == 2 and ".strokekit-run.json differs: options" in err, err
+
+
+def test_skip_existing_names_the_option_that_differs(tmp_path, capsys):
+    """'differs: options' left the user to guess which: the manifest keeps the settings, and the
+    line names each changed one as it was given (its flag) with both values."""
+    cube, _ = _scenes(tmp_path)
+    out = tmp_path / "o"
+    assert run_cli(["render", cube, "--orbit", "3", "--out", out, "-q"] + SMALL, capsys)[0] == 0
+    code, _, err = run_cli(["render", cube, "--orbit", "3", "--out", out, "--skip-existing", "--stroke-width", "2",
+                            "--kinds", "silhouette,crease"] + SMALL, capsys)
+    assert code == 2, err
+    assert ".strokekit-run.json differs: options (--kinds silhouette,border,crease,material,nonmanifold there, " \
+           "silhouette,crease now; --stroke-width 1.5 there, 2.0 now)" in err, err
 
 
 def test_skip_existing_refuses_frames_without_a_manifest(tmp_path, capsys):
@@ -744,11 +766,14 @@ def test_gltf_sequence_after_a_resume_holds_every_frame(tmp_path, capsys):
     assert (out / "sequence.glb").read_bytes() == whole
 
 
-def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path):
+@pytest.mark.parametrize("kind", ["processes", "threads"])
+def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path, kind):
     """--fail-fast with pool workers, tracking and raster outputs: a worker's lines may be done
     for frames before the failed one while their (tracked) writes still wait in line. Those
     frames are still written, each whole (SVG, JSON and both PNGs); nothing after the failure is
-    written, and no frame is left with its PNGs alone."""
+    written, and no frame is left with its PNGs alone. A process pool has taken every frame
+    before the failure by then; a thread pool drops the ones still queued (they are not written:
+    a --skip-existing run draws them)."""
     from strokekit.camera.paths import orbit_path
     from strokekit.options import LineOptions
     from strokekit.raster.bands import RasterOptions
@@ -766,18 +791,22 @@ def test_fail_fast_in_a_pool_writes_the_frames_before_the_failure_whole(tmp_path
     spec = RunSpec(scene_path=str(path), cameras=tuple(cams),
                    outputs=OutputOptions(out_dir=out),
                    request=RenderRequest(strokes="lines", raster=RasterOptions(bands=2)), workers=2, fail_fast=True)
-    pool = make_executor(2, None, SceneRef(str(path), "", LineOptions()))
+    pool = make_executor(2, None, SceneRef(str(path), "", LineOptions()), kind=kind)
     try:
         while pool.started.value < 1:
             time.sleep(0.02)
         res = run(spec, workers=pool, scene=s)
     finally:
         pool.close()
-    assert list(res.failures) == [10] and res.frames_ok == list(range(1, 10))
+    assert list(res.failures) == [10]
+    if kind == "processes":
+        assert res.frames_ok == list(range(1, 10))
+    else:
+        assert set(res.frames_ok) <= set(range(1, 10)) and len(res.frames_ok) >= 7
     by_frame: dict[str, set] = {}
     for p in out.rglob("frame_*"):
         by_frame.setdefault(p.name[:10], set()).add(str(p.relative_to(out))[:-len(p.name)] + p.name[10:])
-    assert sorted(by_frame) == [f"frame_{f:04d}" for f in range(1, 10)]
+    assert sorted(by_frame) == [f"frame_{f:04d}" for f in res.frames_ok]
     assert all(v == {".svg", ".json", "bands/.png", "shade/.png"} for v in by_frame.values()), by_frame
 
 

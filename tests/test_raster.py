@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import io
 import json
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -136,15 +136,41 @@ def test_bad_options_are_usage_errors(bad):
 
 
 @pytest.mark.parametrize("angle", [0.0, 180.0])
-def test_the_crease_angle_is_the_line_options_and_checked(sphere, angle):
-    """One crease angle: LineOptions.crease_angle_deg, which the run passes to render_raster
-    (RasterOptions has none); a direct caller's bad angle is a usage error as there."""
-    assert "crease_angle_deg" not in {f.name for f in fields(RasterOptions)}
-    cam = Camera(eye=(3.0, -2.0, 6.0), target=(3.0, -2.0, 1.0), width=16, height=16)
-    with pytest.raises(UsageError):
-        render_raster(sphere, cam, None, RasterOptions(), angle)
+def test_the_smooth_angle_is_the_raster_options_and_checked(angle):
+    """Shading splits its normals at its own angle (RasterOptions.smooth_angle_deg), the lines
+    at theirs (LineOptions.crease_angle_deg): a bad one is a usage error either way."""
+    with pytest.raises(UsageError, match="smooth_angle_deg"):
+        RasterOptions(smooth_angle_deg=angle)
     with pytest.raises(UsageError):
         LineOptions(crease_angle_deg=angle)
+
+
+def test_smooth_shading_keeps_a_cad_plate_flat_around_its_countersunk_holes():
+    """A plate with holes countersunk at 45 degrees, in isometric: smooth shading split at the
+    lines' 60 degrees smoothed the rim's normal into the plate's long thin top triangles, a dark
+    band smeared across the flat plate from each hole (--shading flat was clean). Split at the
+    shading's own 30 degrees (Blender's auto smooth), every plate-top sample has the flat
+    label, and the countersinks still shade smoothly (more than one band in them)."""
+    from helpers import countersunk_plate
+
+    from strokekit.camera.paths import parallel_path
+
+    plate = build_scene(*countersunk_plate())
+    cam = parallel_path(plate.center, plate.radius, "isometric", width=500, height=400, up_axis="z").cameras[0]
+    # (a light whose n.l on the plate, 0.75, lies just above a band threshold, 2/3: the smear
+    # of tilted normals crosses it)
+    opts = RasterOptions(bands=3, light=(0.7, 0.3, 0.75), light_space="world")
+    flat = render_raster(plate, cam, None, replace(opts, shading="flat"))
+    hit = flat.hits.hit
+    face = flat.hits.face[hit]
+    top = plate.face_normals[face, 2] > 1 - 1e-9
+    sink = np.abs(plate.face_normals[face, 2] - np.sqrt(0.5)) < 0.05  # (facets of a 45-degree cone)
+    assert top.sum() > 20000 and sink.sum() > 1000
+    smooth = render_raster(plate, cam, None, opts).labels_ss[hit]
+    assert np.array_equal(smooth[top], flat.labels_ss[hit][top])
+    assert len(np.unique(smooth[sink])) > 1
+    smeared = render_raster(plate, cam, None, replace(opts, smooth_angle_deg=60.0)).labels_ss[hit]
+    assert (smeared[top] != flat.labels_ss[hit][top]).sum() > 5000  # the smear, split at 60 degrees
 
 
 @pytest.mark.parametrize("shading", ["flat", "smooth"])
@@ -179,9 +205,9 @@ def box():
 
 @pytest.mark.parametrize("K", [1, 2])
 def test_smooth_shading_keeps_box_faces_flat(box, K):
-    """Smooth shading splits normals at creases (--crease-angle, default 60 deg): each visible
-    face of a box is one band, and the band changes exactly where the hit moves to another face
-    (at the box's edges). With a crease angle above 90 deg the edges are smoothed over and the
+    """Smooth shading splits normals at edges sharper than --smooth-angle (default 30 deg): each
+    visible face of a box is one band, and the band changes exactly where the hit moves to another
+    face (at the box's edges). With an angle above 90 deg the edges are smoothed over and the
     faces get curved bands (what smooth shading did for every box before)."""
     occ = Occluder(box)
     cam = Camera(eye=(4.5, 3.5, 2.0), target=(1.0, 0.5, -2.0), fov_y=40, width=96, height=80)
@@ -205,13 +231,14 @@ def test_smooth_shading_keeps_box_faces_flat(box, K):
         assert np.array_equal((fr.labels_ss[a] != fr.labels_ss[b])[both], (sides[a] != sides[b])[both])
     # Flat shading gives the same labels on a box; smoothing across 90 deg edges does not.
     assert np.array_equal(render_raster(box, cam, occ, replace(opts, shading="flat")).labels_ss, fr.labels_ss)
-    rounded = render_raster(box, cam, occ, opts, 120.0).labels_ss[hit]
+    rounded = render_raster(box, cam, occ, replace(opts, smooth_angle_deg=120.0)).labels_ss[hit]
     assert any(len(np.unique(rounded[side == sd])) > 1 for sd in (0, 1, 2))
 
 
-def test_crease_angle_reaches_the_raster_pass_from_the_command_line(box, tmp_path, capsys):
-    """`strokekit render --shading smooth` splits normals at --crease-angle: the default keeps a
-    cube's faces flat (same bands as --shading flat), --crease-angle 120 rounds them."""
+def test_smooth_angle_reaches_the_raster_pass_from_the_command_line(box, tmp_path, capsys):
+    """`strokekit render --shading smooth` splits normals at --smooth-angle: the default keeps a
+    cube's faces flat (same bands as --shading flat), --smooth-angle 120 rounds them; the lines'
+    --crease-angle 120 leaves the shading as it is."""
     from strokekit_cli.main import main
 
     p = tmp_path / "box.obj"
@@ -219,14 +246,15 @@ def test_crease_angle_reaches_the_raster_pass_from_the_command_line(box, tmp_pat
                  + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in box.faces))
     out = {}
     for name, extra in (("flat", ["--shading", "flat"]), ("smooth", ["--shading", "smooth"]),
-                        ("rounded", ["--shading", "smooth", "--crease-angle", "120"])):
+                        ("rounded", ["--shading", "smooth", "--smooth-angle", "120"]),
+                        ("creases", ["--shading", "smooth", "--crease-angle", "120"])):
         with pytest.raises(SystemExit) as e:
             main([str(a) for a in ["render", p, "--orbit", "1", "--elevation", "30", "--size", "64x64", "--bands", "3",
                                    "--no-svg", "--no-json", "-q", "--out", tmp_path / name, *extra]])
         assert e.value.code == 0, capsys.readouterr().err
         out[name] = read_png((tmp_path / name / "bands" / "frame_0001.png").read_bytes())
     assert (out["flat"] > 0).mean() > 0.1
-    assert np.array_equal(out["smooth"], out["flat"])
+    assert np.array_equal(out["smooth"], out["flat"]) and np.array_equal(out["creases"], out["flat"])
     assert not np.array_equal(out["rounded"], out["flat"])
 
 
@@ -851,7 +879,7 @@ def test_fill_is_antialiased_like_the_bands(sphere, sphere_occ):
 
     from strokekit.raster.bands import face_shading, light_direction
 
-    shading = face_shading(sphere, cam, opts, light_direction(cam, opts), 60.0)
+    shading = face_shading(sphere, cam, opts, light_direction(cam, opts))
 
     def binary(K):  # K x K rays a pixel, binary marks, box-filtered
         hits = cast_pixels(cam, sphere_occ, K)

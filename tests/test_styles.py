@@ -377,3 +377,32 @@ def test_gallery_styles_read():
     files = sorted(gallery.glob("*.toml"))
     for f in files:
         read_style(f)
+
+
+def test_a_style_file_draws_a_moving_scene_with_its_objects_points(tmp_path, cli):
+    """A style on a scene that moves (a turntable): every stroke of the frame JSON has its line
+    set, one width per point, and each point's object and object point, which the frame's
+    object matrices map back onto its surface point; the SVG and the GLB are written."""
+    import trimesh
+    from animated import turntable_glb
+
+    ball = trimesh.creation.icosphere(subdivisions=3)
+    turn = turntable_glb(tmp_path / "turn.glb", ball.vertices, ball.faces, frames=3)
+    style = tmp_path / "s.toml"
+    style.write_text(MINIMAL)
+    r = cli(["render", str(turn), "--orbit", "3", "--size", "96x96", "--style", str(style), "--strokes", "lines",
+             "--gltf", "--out", str(tmp_path / "o"), "-q"])
+    assert r.exit_code == 0, r.stderr
+    for n in (1, 2, 3):
+        d = json.loads((tmp_path / "o" / f"frame_{n:04d}.json").read_text())
+        assert d["time"] == pytest.approx((n - 1) / 24) and d["linesets"][0]["name"]
+        M = np.array([o["matrix"] for o in d["objects"]])
+        assert d["strokes"]
+        for st in d["strokes"]:
+            k = len(st["points"])
+            assert len(st["width"]) == len(st["object"]) == len(st["local"]) == k and st["lineset"]
+            obj, local = np.array(st["object"]), np.array(st["local"])
+            back = np.einsum("nij,nj->ni", M[obj][:, :3, :3], local) + M[obj][:, :3, 3]
+            assert np.allclose(back, np.array(st["surface"]), atol=1e-6)
+            assert min(st["width"]) > 0
+        assert (tmp_path / "o" / f"frame_{n:04d}.svg").exists() and (tmp_path / "o" / f"frame_{n:04d}.glb").exists()

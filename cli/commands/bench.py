@@ -6,12 +6,10 @@ import json
 
 import click
 
-from strokekit.camera.paths import load_camera_path
-from strokekit.camera.view import MAX_PATH_FRAMES
+from strokekit.camera.limits import MAX_PATH_FRAMES
 from strokekit.errors import UsageError
-from strokekit.fileio import check_output_file
-from strokekit.metrics.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
-from strokekit.scene.load import load_scene
+from strokekit.extras import need
+from strokekit.fileio import check_not_an_input, check_output_file
 
 from ..common import is_interactive, say_warnings
 
@@ -19,7 +17,7 @@ from ..common import is_interactive, say_warnings
 @click.command("bench", short_help="What accuracy costs in time: presets and a sweep.")
 @click.argument("scene_path", metavar="SCENE", type=click.Path())
 @click.option("--camera", "camera_path", type=click.Path(), default=None,
-              help="Camera path JSON (format: README, camera path files); default: an orbit around the scene.")
+              help="Camera path JSON (format: docs/camera-files.md); default: an orbit around the scene.")
 @click.option("--frames", type=click.IntRange(1, MAX_PATH_FRAMES), default=8, show_default=True,
               help="Orbit frames, or the first N frames of --camera.")
 @click.option("--repeats", type=click.IntRange(1, 1000), default=3, show_default=True,
@@ -36,6 +34,10 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
     recall at 0.5/1/2 px against the `exact` preset, and the raster pass (the z-buffer) at
     supersample 1, 2, 4 and at render's default (1, edge pixels resampled 4 x 4), and that default
     cast with Embree rays, with their IoU against Embree rays at supersample 4."""
+    from strokekit.camera.paths import load_camera_path
+    from strokekit.metrics.bench import DEFAULT_SWEEP, default_cameras, format_table, plot_bench, result_json, run_bench
+    from strokekit.scene.load import load_scene
+
     values = DEFAULT_SWEEP
     if sweep:
         try:
@@ -45,7 +47,9 @@ def command(scene_path, camera_path, frames, repeats, sweep, raster_frames, plot
         if not values or min(values) <= 0:
             raise UsageError("--sweep values must be > 0")
     if plot_path is not None:
-        check_output_file(plot_path)  # said now, not after a minute of timing
+        need("matplotlib", "--plot")  # (said now, not after a minute of timing)
+        check_output_file(plot_path)
+        check_not_an_input("--plot", plot_path, [("scene", scene_path), ("camera file", camera_path)])
     scene = load_scene(scene_path)
     say_warnings(scene)
     if camera_path:

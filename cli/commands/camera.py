@@ -1,4 +1,4 @@
-"""`strokekit camera orbit|dolly SCENE`: write a camera path file (the README's format) to stdout or a file."""
+"""`strokekit camera orbit|dolly SCENE`: write a camera path file (docs/camera-files.md) to stdout or a file."""
 
 from __future__ import annotations
 
@@ -6,13 +6,15 @@ import json
 
 import click
 
-from strokekit.camera.paths import dolly_path, orbit_path, parallel_path
-from strokekit.camera.view import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
+from strokekit.camera.limits import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES
 from strokekit.errors import InputError, UsageError
-from strokekit.fileio import atomic_write_text
-from strokekit.scene.load import load_scene
+from strokekit.fileio import atomic_write_text, check_not_an_input
 
-from ..common import FINITE, FiniteFloatRange, say_warnings
+from ..common import FINITE, FiniteFloatRange, hint_up_axis, say_warnings
+
+
+def _up_given() -> bool:
+    return click.get_current_context().get_parameter_source("up") == click.core.ParameterSource.COMMANDLINE
 
 
 def _emit(path, out):
@@ -33,6 +35,8 @@ _common = [
     click.option("--height", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True),
     click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis."),
     click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout."),
+    click.option("--animation", default=None, help="A glTF scene's animation to frame the scene over, by name or "
+                 "number [the first]."),
 ]
 
 
@@ -44,7 +48,7 @@ def _with_common(f):
 
 @click.group("camera", short_help="Write camera path files (orbit, dolly, parallel projections).")
 def command():
-    """Generate camera path files (JSON, see the README) so every run can be reproduced from a file."""
+    """Generate camera path files (JSON, docs/camera-files.md) so every run can be reproduced from a file."""
 
 
 @command.command("orbit")
@@ -52,11 +56,17 @@ def command():
 @click.option("--degrees-per-frame", type=FINITE, default=None, help="Default: a full turn over the frames.")
 @click.option("--fps", type=FiniteFloatRange(min=0, min_open=True), default=24.0, show_default=True,
               help="Frames per second (for glTF animation).")
-def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_frame, fps):
-    """A turntable orbit around the scene that keeps it in view."""
+def orbit(scene, frames, elevation, fov, width, height, up, out, animation, degrees_per_frame, fps):
+    """A turntable orbit around the scene that keeps it in view (over its whole animation)."""
+    from strokekit.camera.paths import orbit_path
+    from strokekit.scene.load import load_scene
+
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
-    _emit(orbit_path(s.center, s.radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
+    hint_up_axis(s, scene, _up_given())
+    center, radius, _ = s.framing(animation)
+    _emit(orbit_path(center, radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
                      fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
 
 
@@ -64,18 +74,24 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, degrees_per_fra
 @_with_common
 @click.option("--start", type=FiniteFloatRange(min=0, min_open=True), default=1.0, show_default=True, help="Start distance factor.")
 @click.option("--end", type=FiniteFloatRange(min=0, min_open=True), default=8.0, show_default=True, help="End distance factor.")
-def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
+def dolly(scene, frames, elevation, fov, width, height, up, out, animation, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
+    from strokekit.camera.paths import dolly_path
+    from strokekit.scene.load import load_scene
+
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
     say_warnings(s)
-    _emit(dolly_path(s.center, s.radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
+    hint_up_axis(s, scene, _up_given())
+    center, radius, _ = s.framing(animation)
+    _emit(dolly_path(center, radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)
 
 
 @command.command("parallel")
 @click.argument("scene", type=click.Path())
 @click.option("--projection", type=click.Choice(list(ANGLED) + ["orthographic"]), default="isometric",
-              show_default=True, help="The parallel projection (README: parallel projections).")
+              show_default=True, help="The parallel projection (docs/camera-files.md, parallel projections).")
 @click.option("--azimuth", type=FINITE, default=None,
               help="Degrees about the up axis (isometric, dimetric: 45, 135, 225 or 315 [45]; trimetric: needed; "
                    "oblique and orthographic: [0], the front view).")
@@ -90,15 +106,23 @@ def dolly(scene, frames, elevation, fov, width, height, up, out, start, end):
 @click.option("--height", type=click.IntRange(min=1, max=MAX_IMAGE_PX), default=1024, show_default=True)
 @click.option("--up", type=click.Choice(["y", "z"]), default="y", show_default=True, help="The scene's up axis.")
 @click.option("-o", "--out", type=click.Path(), default=None, help="Write to a file instead of stdout.")
-def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width, height, up, out):
+@click.option("--animation", default=None, help="A glTF scene's animation to frame the scene over, by name or number "
+              "[the first].")
+def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width, height, up, out, animation):
     """A parallel projection of technical drawing that frames the whole scene (its drawing centred,
     5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
     from --azimuth / --elevation."""
+    from strokekit.camera.paths import parallel_path
+    from strokekit.scene.load import load_scene
+
+    check_not_an_input("--out", out, [("scene", scene)])
     s = load_scene(scene)
+    hint_up_axis(s, scene, _up_given())
+    center, radius, points = s.framing(animation)
     try:
-        path = parallel_path(s.center, s.radius, projection, azimuth=azimuth, elevation=elevation,
+        path = parallel_path(center, radius, projection, azimuth=azimuth, elevation=elevation,
                              oblique_angle=oblique_angle, frames=frames, width=width, height=height, up_axis=up,
-                             points=s.vertices)
+                             points=points)
     except InputError as e:  # an angle the projection does not take: the options' fault (exit 2)
         raise UsageError(f"--projection {projection}: {e}") from None
     _emit(path, out)

@@ -3,12 +3,8 @@
 from __future__ import annotations
 
 import click
-import orjson
-from rich.console import Console
-from rich.table import Table
 
 from strokekit.errors import InputError
-from strokekit.metrics.coherence import read_frames, sequence_metrics, wholeness
 
 from ..common import FiniteFloatRange
 from .render_options import occlusion_from
@@ -34,15 +30,29 @@ _FRESH_COLUMNS = [("M8_fresh", "fresh", "{:.2f}"), ("M8_ratio", "x fresh", "{:.2
 @click.option("--fresh", "fresh_dir", type=click.Path(), default=None,
               help="The same frames drawn afresh (rendered with --no-coherence --strokes brush): M8, the path "
                    "ends against theirs.")
+@click.option("--scene", "scene_path", type=click.Path(), default=None,
+              help="The moving scene the frames were rendered from: its deforming objects' points move with their "
+                   "mesh too (the frame JSON alone moves the rigid objects' points).")
+@click.option("--animation", default=None, help="With --scene: the animation the frames were rendered with "
+              "[the first].")
 def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern: str, occlusion_range: str | None,
-            fresh_dir: str | None):
+            fresh_dir: str | None, scene_path: str | None, animation: str | None):
     """Per frame pair and overall: M1 id persistence, M2 popping, M4 sliding (median/p95/max px),
     M5 flatness (octaves, with self-similar levels and raw u), M7 end growth, M8 path ends per
     1000 px (with --fresh: beside those of the same frames drawn afresh, and the ratio; overall:
-    medians over the second half of the frames), from the frame JSON files of OUT_DIR (README:
-    what each metric measures)."""
+    medians over the second half of the frames), from the frame JSON files of OUT_DIR
+    (docs/coherence.md: what each metric measures)."""
+    import orjson
+    from rich.console import Console
+    from rich.table import Table
+
+    from strokekit.metrics.coherence import posed_frames, read_frames, sequence_metrics, wholeness
+    from strokekit.scene.load import load_scene
+
     levels = occlusion_from({"occlusion_range": occlusion_range}) if occlusion_range is not None else None
     frames = read_frames(out_dir, pattern, occlusion=levels)
+    if scene_path is not None:
+        frames = posed_frames(frames, load_scene(scene_path), animation, out_dir)
     fresh = read_frames(fresh_dir, pattern, occlusion=levels, at_least=1) if fresh_dir is not None else None
     pairs, total = sequence_metrics(frames, radius_px=radius, min_tangent_dot=min_dot)
     for p in pairs:

@@ -1,13 +1,12 @@
 """`strokekit diff A B`: compare the stroke geometry of two SVG drawings (or two folders of them)
-within a pixel tolerance. Exit 0 when equal, 1 when different, 2 for usage errors."""
+within a pixel tolerance. Exit 0 when equal, 1 when different, 2 for usage errors and missing paths."""
 
 from __future__ import annotations
 
 import click
-import orjson
 
 from strokekit.errors import StrokekitError
-from strokekit.metrics.diff import diff_paths
+from strokekit.fileio import check_not_an_input
 
 from ..common import FINITE, FiniteFloatRange
 
@@ -31,8 +30,13 @@ def command(ctx: click.Context, a: str, b: str, tol: float, as_json: bool, png: 
     """Compare stroke geometry kind by kind (SVG layers) within --tol px, ignoring stroke ids,
     order, direction and splits. A is the reference (e.g. golden files), B the new output.
 
-    Exit codes: 0 equal, 1 different (or unreadable input), 2 usage error."""
+    Exit codes: 0 equal, 1 different (or an unreadable SVG), 2 usage error or a missing file or folder."""
+    import orjson
+
+    from strokekit.metrics.diff import diff_paths
+
     try:
+        check_not_an_input("--png", png, [("A file", a), ("B file", b)])
         result = diff_paths(a, b, tol, png=png, png_scale=png_scale)
     except StrokekitError as e:
         # one line and the error's exit code, also when the command runs outside `strokekit` (tests)

@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import click
 
-from strokekit.camera.gltf import gltf_camera_count
-from strokekit.scene.load import load_scene
-
 from ..common import FINITE, echo_json, say_warnings
 
 
@@ -16,6 +13,9 @@ from ..common import FINITE, echo_json, say_warnings
 @click.option("--crease-angle", type=FINITE, default=60.0, show_default=True, help="Crease threshold, degrees.")
 def command(scene: str, as_json: bool, crease_angle: float):
     """Meshes, faces, materials, bounds, borders and non-manifold edges, and the line kinds present."""
+    from strokekit.camera.gltf import gltf_camera_count
+    from strokekit.scene.load import load_scene
+
     s = load_scene(scene)
     say_warnings(s)
     d = s.summary()
@@ -42,6 +42,10 @@ def command(scene: str, as_json: bool, crease_angle: float):
     ]
     if d.get("cameras"):
         rows.append(("cameras", f"{d['cameras']} (render with --camera {scene})"))
+    if d.get("animations"):
+        rows.append(("animations", "; ".join(
+            f"{a['index']}{' (' + a['name'] + ')' if a['name'] else ''}: {a['seconds']:.4g} s"
+            f"{'' if a['moves'] else ', moves no object'}" for a in d["animations"])))
     w = max(len(k) for k, _ in rows)
     for k, v in rows:
         click.echo(f"{k:<{w}}  {v}")

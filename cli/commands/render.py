@@ -8,22 +8,21 @@ from dataclasses import replace
 from pathlib import Path
 
 import click
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from strokekit.camera.frames import parse_frames
-from strokekit.camera.paths import load_camera_path, orbit_path
-from strokekit.camera.view import MAX_IMAGE_PX, CameraPath
+from strokekit.camera.limits import MAX_IMAGE_PX
 from strokekit.errors import UsageError
-from strokekit.fileio import atomic_write_text, check_output_file, check_output_folder, check_pattern
-from strokekit.run.kernels import RunKernels
-from strokekit.run.report import run_report
+from strokekit.extras import need
+from strokekit.fileio import (
+    atomic_write_text,
+    check_not_an_input,
+    check_output_file,
+    check_output_folder,
+    check_pattern,
+)
 from strokekit.run.request import RenderRequest
-from strokekit.run.runner import check_files_apart, run
 from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
-from strokekit.run.workers import SceneRef, default_workers, make_executor
-from strokekit.scene.load import load_scene
 
-from ..common import is_interactive, say_warnings
+from ..common import StatusLine, hint_up_axis, is_interactive, process_started, say_warnings
 from ..flags import options_of, said
 from .render_options import RENDER_CLASSES, check_needs, outputs_from, request_from, wants_raster
 
@@ -51,26 +50,56 @@ def command(scene, **o):
     Writes OUT/frame_0001.svg and .json (and .glb, band PNGs when asked) per frame. Exit codes: 0 done,
     1 bad input or unwritable output, 2 usage error, 3 some frames failed (the others are written),
     130 interrupted by Ctrl-C (the frames written so far stay, whole; --report lists them)."""
+    from strokekit.camera.frames import parse_frames
+
+    t_start = process_started()  # (the summary and the report count from here)
     given = said(o)
-    size = _check_usage(o, given)
+    size = _check_usage(scene, o, given)
+    if o["scheduler"]:
+        need("distributed", "--scheduler")
     request = request_from(o, given)
-    lines = request.lines
     path = _camera_file_path(o, size)
     frames = parse_frames(o["frames"], len(path) if path is not None else o["orbit"] or 48)
-    if "path_merge" in given and request.plan(len(frames)).paths is None:
-        raise UsageError("--path-merge needs brush paths (--strokes brush; one frame, --no-coherence or a --coherence "
-                         "method draw the lines by default)")
-    workers = min(o["workers"] or default_workers(len(frames), wants_raster(o)), len(frames))
+    for name in ("path_merge", "path_heal"):
+        if name in given and request.plan(len(frames)).paths is None:
+            raise UsageError(f"--{name.replace('_', '-')} needs brush paths (--strokes brush; one frame, "
+                             "--no-coherence or a --coherence method draw the lines by default)")
+    # What the render waits for, said from its first second on a terminal until the progress bar:
+    # the run's modules (open3d, trimesh, numba behind them) load from here on.
+    status = StatusLine(is_interactive(o["quiet"]), f"loading {scene}")
+    try:
+        return _render(scene, o, given, size, request, path, frames, status, t_start)
+    finally:
+        status.stop()
+
+
+def _render(scene: str, o: dict, given: dict, size, request: RenderRequest, path, frames, status: StatusLine,
+            t_start: float) -> int:
+    """The run of a render command whose options are checked: workers, the scene, the run, the
+    report and the summary."""
+    from strokekit.camera.paths import orbit_path
+    from strokekit.run.kernels import RunKernels
+    from strokekit.run.report import run_report
+    from strokekit.run.runner import check_files_apart
+    from strokekit.run.workers import SceneRef, default_workers, make_executor
+    from strokekit.scene.load import load_scene
+
+    lines = request.lines
+    workers = min(o["workers"] or default_workers(len(frames), wants_raster(o), o["worker_kind"]), len(frames))
     # The workers start before this process loads the scene: their start-up (imports, scene,
     # BVH: about a second) overlaps ours.
     if not Path(scene).is_file():
         load_scene(scene)  # its one-line error (missing file, a folder), before any worker starts
-    notice = None if o["quiet"] else (lambda line: click.echo(f"strokekit: {line}", err=True))
+
+    def say_wait(line: str) -> None:  # (a wait the user may wonder about: the kernels' first compile)
+        click.echo(f"strokekit: {line}", err=True)
+        status.say(line)
+
+    notice = None if o["quiet"] else say_wait
     # The kernels load (or compile, on a machine's first run): the raster ones beside the scene's
     # load (not beside a dask cluster: there the workers draw every frame).
     kernels = RunKernels(notice, raster=wants_raster(o) and not o["scheduler"])
-    t_start = time.perf_counter()
-    pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines))
+    pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines), kind=o["worker_kind"])
     spec = None
     write_error: RunWriteError | None = None
     try:
@@ -78,18 +107,23 @@ def command(scene, **o):
         s = load_scene(scene)
         say_warnings(s)
         load_seconds = time.perf_counter() - t_load
+        status.say("building the BVH" if not o["scheduler"] else f"sending the frames to {o['scheduler']}")
         if path is None:
+            if not o["quiet"]:
+                hint_up_axis(s, scene, "up" in given)
             width, height = size or (1024, 1024)
-            path = orbit_path(s.center, s.radius, o["orbit"] or 48, elevation=o["elevation"], fov_y=o["fov"],
+            center, radius, _ = s.framing(request.animation)  # (over the whole animation)
+            path = orbit_path(center, radius, o["orbit"] or 48, elevation=o["elevation"], fov_y=o["fov"],
                               width=width, height=height, up_axis=o["up"])
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), request=request,
                        outputs=outputs_from(o, given, lines.occlusion, path.fps), workers=workers,
+                       worker_kind=o["worker_kind"],
                        scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
-                       camera_source=str(o["camera"]) if o["camera"] else path.source)
+                       camera_source=str(o["camera"]) if o["camera"] else path.source, fps=path.fps)
         check_files_apart(spec, also_written=[("--report", o["report"])])
         try:
-            res = _run_with_progress(spec, o["quiet"], dict(workers=pool, scene=s, load_seconds=load_seconds,
-                                                            started_at=t_start, notice=notice, kernels=kernels))
+            res = _run_with_progress(spec, o["quiet"], status, dict(workers=pool, scene=s, load_seconds=load_seconds,
+                                                                    started_at=t_start, notice=notice, kernels=kernels))
         except RunInterrupted as e:  # Ctrl-C: workers stopped, temporaries removed by the run
             res = e.result
         except RunWriteError as e:  # a file could not be written: the run stopped, frames whole or gone
@@ -104,6 +138,7 @@ def command(scene, **o):
                        outputs=OutputOptions(out_dir=Path(o["out"]), pattern=o["pattern"]),
                        workers=workers, scheduler=o["scheduler"])
     finally:
+        status.stop()  # (before the report and the summary: the status line is gone)
         pool.close()
     if o["report"]:
         try:
@@ -119,9 +154,10 @@ def command(scene, **o):
     return res.exit_code
 
 
-def _check_usage(o: dict, given: dict) -> tuple[int, int] | None:
-    """Usage errors before any work (one line, exit 2); outputs that cannot be written are said now,
-    not after every frame has been rendered. Returns --size as (width, height), or None."""
+def _check_usage(scene: str, o: dict, given: dict) -> tuple[int, int] | None:
+    """Usage errors before any work (one line, exit 2); outputs that cannot be written, or that
+    would overwrite an input, are said now, not after every frame has been rendered. Returns
+    --size as (width, height), or None."""
     if o["camera"] and o["orbit"]:
         raise UsageError("give either --camera or --orbit, not both")
     _check_option_pairs(o, given)
@@ -151,13 +187,18 @@ def _check_usage(o: dict, given: dict) -> tuple[int, int] | None:
         check_output_file(report_path)
         if Path(report_path).resolve() == Path(out_dir).resolve():
             raise UsageError(f"--report {report_path} is the --out folder: name a file for the report")
+        check_not_an_input("--report", report_path, [("scene", scene), ("camera file", o["camera"])])
     return size
 
 
-def _camera_file_path(o: dict, size: tuple[int, int] | None) -> CameraPath | None:
-    """The --camera file's path, resized by --size; None for an orbit (made once the scene is loaded)."""
+def _camera_file_path(o: dict, size: tuple[int, int] | None):
+    """The --camera file's CameraPath, resized by --size; None for an orbit (made once the scene
+    is loaded)."""
     if not o["camera"]:
         return None
+    from strokekit.camera.paths import load_camera_path
+    from strokekit.camera.view import CameraPath
+
     path = load_camera_path(o["camera"])
     if size:
         path = CameraPath(cameras=tuple(replace(c, width=size[0], height=size[1]) for c in path.cameras),
@@ -193,7 +234,7 @@ def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
         if spec.fail_fast and not_run:
             msg += f"; stopped at frame {first} (--fail-fast), {not_run} not run"
         if len(res.failures) > 1:
-            msg += f"; every error in {report_path}" if report_path else "; --report lists every error"
+            msg += f"; every error in {report_path}" if report_path else "; give --report FILE to list every error"
         click.echo(msg, err=True)
     elif not o["quiet"]:
         msg = f"wrote {len(res.frames_ok)} frame(s) to {out_dir}/ in {res.wall_seconds:.2f} s"
@@ -206,21 +247,33 @@ def _say_result(o: dict, spec: RunSpec, res: RunResult, n_frames: int) -> None:
 ONCE_A_RUN = ("load scene + BVH", "raster kernels")
 
 
-def _run_with_progress(spec: RunSpec, quiet: bool, run_args: dict):
+def _run_with_progress(spec: RunSpec, quiet: bool, status: StatusLine, run_args: dict):
+    """run(spec) with a progress bar on an interactive terminal, started (in place of the status
+    line) when the frames start."""
+    from strokekit.run.runner import run
+
     if not is_interactive(quiet):
         return run(spec, **run_args)
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TextColumn("{task.fields[fps]:.1f} frames/s"), TimeRemainingColumn(), transient=True) as prog:
-        tasks = {}
-        # Rates from the run's start: a phase's first report comes when its first frame is done,
-        # so timing from there missed that frame's time (0 frames/s, then a burst).
-        t0 = time.perf_counter()
+    prog = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TextColumn("{task.fields[fps]:.1f} frames/s"), TimeRemainingColumn(), transient=True)
+    tasks = {}
+    # Rates from the frames' start: a phase's first frame takes as long as the others.
+    t0 = time.perf_counter()
 
-        def cb(phase, done, total):
-            if phase not in tasks:
-                tasks[phase] = prog.add_task(phase, total=total, fps=0.0)
-            dt = time.perf_counter() - t0
-            prog.update(tasks[phase], completed=done, total=total, fps=done / dt if dt > 0 else 0.0)
+    def cb(phase, done, total):
+        nonlocal t0
+        if not tasks:
+            status.stop()
+            prog.start()
+            t0 = time.perf_counter()
+        if phase not in tasks:
+            tasks[phase] = prog.add_task(phase, total=total, fps=0.0)
+        dt = time.perf_counter() - t0
+        prog.update(tasks[phase], completed=done, total=total, fps=done / dt if dt > 0 else 0.0)
 
+    try:
         return run(spec, progress=cb, **run_args)
+    finally:
+        prog.stop()

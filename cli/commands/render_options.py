@@ -8,20 +8,18 @@ import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from strokekit.camera.view import MAX_PATH_FRAMES
+from strokekit.camera.limits import MAX_PATH_FRAMES
 from strokekit.errors import UsageError
-from strokekit.model import MAX_OCCLUSION
+from strokekit.kinds import MAX_OCCLUSION
 from strokekit.options import QUALITY_PRESETS, LineOptions, option
 from strokekit.paths.options import PathOptions
-from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PassOptions
-from strokekit.ribbons.brushes import get_brush
+from strokekit.raster.options import PassOptions, RasterOptions
 from strokekit.run.request import RenderRequest
 from strokekit.run.spec import OutputOptions
 from strokekit.style.file import read_style, style_error
 from strokekit.style.linesets import Style
 from strokekit.tracking.options import TrackingOptions
-from strokekit.writers.gltf import GltfOptions
+from strokekit.writers.options import GltfOptions
 
 from ..common import floats, split_list
 from ..flags import OPTION_CLASSES, field_values, flags_of
@@ -31,7 +29,7 @@ from ..flags import OPTION_CLASSES, field_values, flags_of
 class RenderCommand:
     """The command's own options, declared as the library's fields are (never instantiated)."""
 
-    camera: str | None = option(None, "--camera", "Camera path JSON (format: README, camera path files), or a "
+    camera: str | None = option(None, "--camera", "Camera path JSON (format: docs/camera-files.md), or a "
                                 "glTF/GLB file with a camera node (its animation, if any, sampled at 24 fps).", path=True)
     orbit: int | None = option(None, "--orbit", "Orbit the scene in N frames (instead of --camera; at most as many "
                                "as a camera file may have).", low=1, high=MAX_PATH_FRAMES)
@@ -167,6 +165,8 @@ def outputs_from(values: dict, said: dict, occlusion: tuple[int, int] | None, fp
 
 def gltf_options_from(values: dict, said: dict, fps: float) -> GltfOptions:
     """GltfOptions of the ribbons. A bad brush fails here, before any work."""
+    from strokekit.ribbons.brushes import get_brush
+
     if values["ribbon_width"] <= 0:
         raise UsageError(f"--ribbon-width must be > 0, got {values['ribbon_width']}")
     opts = GltfOptions(**field_values(GltfOptions, said), fps=fps)

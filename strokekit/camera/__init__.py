@@ -1,10 +1,20 @@
 """The camera stage: a frame's view (`Camera`: eye, lens, image), camera paths read from JSON
 or glTF camera nodes or generated (orbit, dolly), and the frame selection of a run."""
 
-from strokekit.camera.frames import parse_frames
-from strokekit.camera.gltf import gltf_camera_count, gltf_camera_path
-from strokekit.camera.paths import camera_path_from_json, dolly_path, load_camera_path, orbit_path, parallel_path
-from strokekit.camera.view import Camera, CameraPath
+from strokekit.lazy import exports
 
-__all__ = ["Camera", "CameraPath", "camera_path_from_json", "dolly_path", "gltf_camera_count", "gltf_camera_path",
-           "load_camera_path", "orbit_path", "parallel_path", "parse_frames"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "Camera": "strokekit.camera.view",
+    "CameraPath": "strokekit.camera.view",
+    "camera_path_from_json": "strokekit.camera.paths",
+    "dolly_path": "strokekit.camera.paths",
+    "gltf_camera_count": "strokekit.camera.gltf",
+    "gltf_camera_path": "strokekit.camera.gltf",
+    "load_camera_path": "strokekit.camera.paths",
+    "orbit_path": "strokekit.camera.paths",
+    "parallel_path": "strokekit.camera.paths",
+    "parse_frames": "strokekit.camera.frames",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

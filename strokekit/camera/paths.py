@@ -6,7 +6,6 @@ All camera maths is float64.
 
 from __future__ import annotations
 
-import difflib
 import json
 import math
 from dataclasses import replace
@@ -16,7 +15,7 @@ import numpy as np
 
 from strokekit.camera.gltf import gltf_camera_path
 from strokekit.camera.view import ANGLED, FALLBACK_UPS, MAX_IMAGE_PX, MAX_PATH_FRAMES, Camera, CameraPath, angled_basis
-from strokekit.errors import InputError, UsageError
+from strokekit.errors import InputError, UsageError, did_you_mean
 
 # --- keyframes ----------------------------------------------------------------------------------
 
@@ -198,9 +197,7 @@ def _check_keys(d: dict, known: tuple[str, ...], where: str, source: str) -> Non
     unknown = [k for k in d if k not in known and not (isinstance(k, str) and (k.startswith("_") or k == "extras"))]
     if unknown:
         k = unknown[0]
-        close = difflib.get_close_matches(str(k), known, n=1)
-        hint = f"did you mean '{close[0]}'? " if close else ""
-        raise InputError(f"{where}unknown key {json.dumps(k)} ({hint}known: {', '.join(known)}; "
+        raise InputError(f"{where}unknown key {json.dumps(k)} ({did_you_mean(k, known)}known: {', '.join(known)}; "
                          "keys starting with '_' are comments)", source)
 
 
@@ -391,6 +388,40 @@ def load_camera_path(path: str | Path) -> CameraPath:
     except json.JSONDecodeError as e:
         raise InputError(f"camera file is not valid JSON ({e.msg}: line {e.lineno}, column {e.colno})", p) from None
     return camera_path_from_json(data, str(p))
+
+
+#: A scene "rests on" a flat base facing down along an axis when that much of its surface area
+#: lies within BASE_HEIGHT of its extent from its bottom along the axis, facing down within
+#: BASE_DEG: a part on a printer's bed, a scan cut flat at its foot.
+BASE_AREA = 0.02
+BASE_HEIGHT = 0.01
+BASE_DEG = 10.0
+
+
+def base_area(vertices: np.ndarray, faces: np.ndarray, axis: int) -> float:
+    """The share of the surface area of the mesh (`vertices` (V, 3), `faces` (F, 3)) in its flat
+    base facing down along `axis` (0 x, 1 y, 2 z): faces whose every vertex lies within
+    BASE_HEIGHT of the largest extent from the bottom, their normals within BASE_DEG of -axis."""
+    tri = vertices[faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = np.linalg.norm(cross, axis=1)
+    total = area.sum()
+    if not total > 0:
+        return 0.0
+    lo = vertices[:, axis].min()
+    extent = float(np.ptp(vertices, axis=0).max())
+    low = tri[:, :, axis].max(axis=1) <= lo + BASE_HEIGHT * extent
+    down = cross[:, axis] <= -math.cos(math.radians(BASE_DEG)) * area
+    return float(area[low & down].sum() / total)
+
+
+def looks_z_up(vertices: np.ndarray, faces: np.ndarray) -> bool:
+    """Whether a mesh looks modelled Z-up (most scans and STLs for printing are): it rests on a
+    flat base facing -Z (BASE_AREA of its area at least) at least twice the one it has facing -Y.
+    A mesh without a flat base says nothing: no guess from its proportions (a Y-up car is long
+    in Z)."""
+    z = base_area(vertices, faces, 2)
+    return z >= BASE_AREA and z >= 2.0 * base_area(vertices, faces, 1)
 
 
 def orbit_path(center: np.ndarray, radius: float, frames: int, *, elevation: float = 15.0, fov_y: float = 40.0,

@@ -25,12 +25,10 @@ from functools import cached_property
 
 import numpy as np
 
+from strokekit.camera.limits import ANGLED, MAX_IMAGE_PX, MAX_PATH_FRAMES, PROJECTIONS  # noqa: F401 (the view's names)
 from strokekit.errors import InputError
 
 FALLBACK_UPS = (np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
-# Limits of what a camera file (JSON or glTF) may ask for: beyond them a run would fail late (a
-# width of 1e30 px overflows the writers) or never end (a frame_count of 1e12).
-MAX_IMAGE_PX = 100_000  # per side
 #: The largest size of a camera coordinate (eye, target, up) or length (ortho_height, near, an
 #: angled projection's distance), world units. Far beyond any scene strokekit can draw (float64
 #: spacing there is 0.125), far below what overflows float64 once squared, multiplied or
@@ -40,9 +38,6 @@ MAX_COORD = 1e15
 #: vector): Camera.basis then picks a fallback up, and a camera file refuses it.
 UP_PARALLEL_TOL = 1e-6
 
-#: Projections a camera may have. The five after "orthographic" take their direction from angles.
-PROJECTIONS = ("perspective", "orthographic", "isometric", "dimetric", "trimetric", "cavalier", "cabinet")
-ANGLED = PROJECTIONS[2:]
 OBLIQUE_SCALE = {"cavalier": 1.0, "cabinet": 0.5}
 #: The isometric elevation: atan(1 / sqrt(2)), in degrees (35.264...).
 ISOMETRIC_ELEVATION = math.degrees(math.atan(1.0 / math.sqrt(2.0)))
@@ -302,9 +297,6 @@ class Camera:
         if self.near is not None:
             d["near"] = self.near
         return d
-
-
-MAX_PATH_FRAMES = 100_000
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,12 @@ smooth and suggestive contours, intersections), their visible runs split where v
 changes, chained into strokes (`LineRenderer.render`). What one frame sees of the scene (which
 faces face the eye, the contour edges) is its `FrameView`."""
 
-from strokekit.lines.facing import FrameView
-from strokekit.lines.renderer import LineRenderer
+from strokekit.lazy import exports
 
-__all__ = ["FrameView", "LineRenderer"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "FrameView": "strokekit.lines.facing",
+    "LineRenderer": "strokekit.lines.renderer",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

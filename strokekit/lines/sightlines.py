@@ -160,7 +160,7 @@ def visible_rows(occ: Occluder, P: np.ndarray, camera: Camera, offset: float, li
     object the surface rests on, whose first hit is then that object's back side; a near
     front-side hit is the surface's own relief around the point, where the plain ray mostly
     meets it too: skipping it changes few of the re-tested answers, nearly all on lines edge-on
-    in concave corners (the README's draft figures)."""
+    in concave corners (docs/accuracy-speed.md, the draft preset)."""
     c = P - occ.origin[:, None]
     eps = offset * np.maximum(np.sqrt(_einsum_sq(c)), scale)
     eye = np.asarray(camera.eye, float)

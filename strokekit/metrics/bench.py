@@ -19,14 +19,16 @@ import numpy as np
 
 from strokekit.camera.paths import orbit_path
 from strokekit.camera.view import Camera
+from strokekit.extras import need
 from strokekit.fileio import atomic_write_bytes
 from strokekit.lines.features import static_features
 from strokekit.lines.renderer import LineRenderer
 from strokekit.metrics.accuracy import DEFAULT_TOLS, Accuracy, accuracy
 from strokekit.model import Strokes
 from strokekit.options import QUALITY_PRESETS, LineOptions
-from strokekit.raster.bands import RasterOptions, render_raster
+from strokekit.raster.bands import render_raster
 from strokekit.raster.hits import thread_workspace, warm_kernels
+from strokekit.raster.options import RasterOptions
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
 from strokekit.writers.png import png_files
@@ -259,7 +261,7 @@ def result_json(result: dict) -> dict:
 
 def plot_bench(result: dict, path, tol: float = 1.0) -> None:
     """Write bench_figure(result, tol) to `path` as a PNG (atomic)."""
-
+    need("matplotlib", "the benchmark's plot")
     import matplotlib.pyplot as plt
 
     fig = bench_figure(result, tol)

@@ -36,7 +36,7 @@ from scipy.spatial import cKDTree
 
 from strokekit.errors import InputError
 from strokekit.fileio import check_pattern
-from strokekit.model import Strokes
+from strokekit.model import Strokes, carry_points
 from strokekit.sampling import MATCH_RADIUS_PX, MIN_TANGENT_DOT, Samples, match_samples, resample_strokes
 from strokekit.writers.strokes_json import read_strokes_json
 
@@ -125,11 +125,17 @@ def pair_metrics(prev: Strokes, cur: Strokes, *, radius_px: float = MATCH_RADIUS
                  min_tangent_dot: float = MIN_TANGENT_DOT, prev_samples: Samples | None = None,
                  cur_samples: Samples | None = None) -> PairMetrics:
     """BRIEF 3 metrics between the strokes of frame f-1 (`prev`) and frame f (`cur`). Both need
-    their camera. The sliding uses cur.period_px."""
+    their camera. The sliding uses cur.period_px. In a moving scene (the strokes' pose) each
+    frame's surface points move with their objects to where they are in the other frame before
+    they are projected with its camera (so the samples given are not used)."""
     if prev.camera is None or cur.camera is None:
         raise InputError("coherence metrics need the camera of both frames")
-    a = prev_samples if prev_samples is not None else resample_strokes(prev, 1.0)
-    b = cur_samples if cur_samples is not None else resample_strokes(cur, 1.0)
+    if prev.pose is not None or cur.pose is not None:
+        a = resample_strokes(prev, 1.0, surface=carry_points(prev.surface, prev.face, prev.pose, cur.pose))
+        b = resample_strokes(cur, 1.0, surface=carry_points(cur.surface, cur.face, cur.pose, prev.pose))
+    else:
+        a = prev_samples if prev_samples is not None else resample_strokes(prev, 1.0)
+        b = cur_samples if cur_samples is not None else resample_strokes(cur, 1.0)
     P = cur.period_px
     ta = cKDTree(a.p) if len(a) else None
     tb = cKDTree(b.p) if len(b) else None
@@ -253,6 +259,27 @@ def read_frames(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[in
         frames.append(st)
     frames.sort(key=lambda s: s.frame)
     return frames
+
+
+def posed_frames(frames: list[Strokes], scene, animation: str | None = None, where=None) -> list[Strokes]:
+    """Frames read back from their JSON (read_frames) with the poses of the scene they were drawn
+    from, at each frame's time (its JSON's "time"): a deforming object's points then move with its
+    mesh too (the JSON alone moves the rigid objects'). InputError for a frame without a time, or
+    whose strokes do not lie on the scene so posed (another scene)."""
+    m = scene.motion
+    if m is None or not m.moves(m.animation(animation)):
+        raise InputError("is not a moving scene: the frames' points need no scene to move", scene.source or None)
+    ai = m.animation(animation)
+    out = []
+    for st in frames:
+        if st.pose is None or getattr(st.pose, "time", None) is None:
+            raise InputError(f"frame {st.frame} has no time: not a frame of a moving scene", where)
+        posed = scene.at(st.pose.time, ai)
+        if len(st.face) and (st.face.max() >= len(posed.faces)):
+            raise InputError(f"frame {st.frame}'s strokes lie on faces the scene does not have: another scene",
+                             where)
+        out.append(st.replace(pose=posed.pose))
+    return out
 
 
 def folder_metrics(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[int, int] | None = None,

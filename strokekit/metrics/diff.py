@@ -263,8 +263,8 @@ class DiffResult:
         return [(k.kind, ia, ib) for k in self.kinds.values() for ia, ib in k.renamed]
 
     @property
-    def notes(self) -> list[str]:
-        """Information that does not make the drawings different."""
+    def look_notes(self) -> list[str]:
+        """What changed in the drawing's look but is no difference: a viewBox within tol, styles."""
         out = []
         if self.viewbox_a != self.viewbox_b and self.same_canvas:
             out.append(f"viewBox differs within {self.tol:g} px: A {self.viewbox_a}, B {self.viewbox_b}")
@@ -273,6 +273,12 @@ class DiffResult:
             if a and b and a != b:
                 out.append(f"{kind}: style differs (geometry is what is compared): A {_fmt_styles(a)}, "
                            f"B {_fmt_styles(b)}")
+        return out
+
+    @property
+    def notes(self) -> list[str]:
+        """Information that does not make the drawings different: look_notes, new stroke ids."""
+        out = self.look_notes
         for k in self.kinds.values():
             if k.renamed:
                 ex = ", ".join(f"{ia}->{ib}" for ia, ib in k.renamed[:5])
@@ -376,6 +382,14 @@ class DirDiffResult:
             lines.append("  " + self.files[n].summary().replace("\n", "\n  "))
         if len(diff) > max_files:
             lines.append(f"  ... {len(diff) - max_files} more different files (see --json)")
+        # The look notes of equal files (a different file's summary has its own), each said once
+        # with the files it holds for: a changed stroke width is the same note in every frame.
+        looks: dict[str, list[str]] = {}
+        for n, r in self.files.items():
+            for note in r.look_notes if r.equal else ():
+                looks.setdefault(note, []).append(n)
+        for note, names in looks.items():
+            lines.append(f"  note: {note} [{_fmt_ids(names, 3)}]")
         renamed = sum(len(r.renamed) for r in self.files.values())
         if renamed:
             lines.append(f"  note: {renamed} stroke(s) in {sum(1 for r in self.files.values() if r.renamed)} "
@@ -570,10 +584,11 @@ def diff_dirs(dir_a: str | Path, dir_b: str | Path, tol: float = 0.05, *, png_di
     ra, rb = Path(dir_a), Path(dir_b)
     for r in (ra, rb):
         if not r.is_dir():
-            raise InputError("no such folder" if not r.exists() else "is not a folder", path=r)
+            # (a path that is not there is the command's fault, exit 2: told apart from a difference)
+            raise (UsageError("no such folder", path=r) if not r.exists() else InputError("is not a folder", path=r))
     fa, fb = _svg_files(ra), _svg_files(rb)
     if not fa and not fb:
-        raise InputError(f"no SVG files in either folder ({ra} and {rb})")
+        raise UsageError(f"no SVG files in either folder ({ra} and {rb}): nothing to compare")
     files: dict[str, DiffResult] = {}
     pngs = []
     for name in sorted(fa.keys() & fb.keys()):
@@ -595,8 +610,8 @@ def diff_paths(a: str | Path, b: str | Path, tol: float = 0.05, *, png: str | Pa
     UsageError when one is a file and the other a folder."""
     pa, pb = Path(a), Path(b)
     for p in (pa, pb):
-        if not p.exists():
-            raise InputError("no such file or folder", path=p)
+        if not p.exists():  # (exit 2: a CI job tells a missing golden folder from a difference)
+            raise UsageError("no such file or folder", path=p)
     if pa.is_dir() != pb.is_dir():
         d, f = (pa, pb) if pa.is_dir() else (pb, pa)
         raise UsageError(f"cannot compare a folder with a file: {d} is a folder, {f} is a file")

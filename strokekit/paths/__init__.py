@@ -4,7 +4,14 @@ pieces of a compatible kind, is carried from frame to frame (its samples advecte
 surface, then relaxed onto the new lines), grows, shrinks, splits and keeps a persistent id, u and
 self-similar level (`PathTracker.step(lines) -> BrushPaths`)."""
 
-from strokekit.paths.options import PathOptions
-from strokekit.paths.stage import PathTracker, brush_frames, brush_step
+from strokekit.lazy import exports
 
-__all__ = ["PathOptions", "PathTracker", "brush_frames", "brush_step"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "PathOptions": "strokekit.paths.options",
+    "PathTracker": "strokekit.paths.stage",
+    "brush_frames": "strokekit.paths.stage",
+    "brush_step": "strokekit.paths.stage",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

@@ -46,6 +46,8 @@ class PathOptions:
     hold_px: a new path shorter than this lying beside the drawn paths (within 3 px all along)
     is held back one frame: drawn from the next frame on if it is still there, so that a piece
     that shows for one frame costs no id (0: never hold).
+    heal_px: a path shorter than this that meets another end to end on one line heals into it
+    (its id gives way) where the cut is new this frame or lasts two frames (paths.heal; 0: never).
     tracking: the correspondence of carried samples (search radius, tangent agreement, vote
     spacing) and the fit of u (stretch, knots, outliers), as the Kalnins tracker has them; the
     paths' own default (`path_tracking`) lets u follow the votes more closely."""
@@ -63,6 +65,10 @@ class PathOptions:
         "it touches [5; 0: never, the highest id persistence, but paths crumble over long sequences].",
         needs="brush")
     hold_px: float = 8.0
+    heal_px: float = option(
+        6.0, "--path-heal", "With brush paths: a path shorter than N px that meets another end to end on one line "
+        "heals into it where the cut is new or lasts two frames [6; 0: never; 20: about half the path ends, a little "
+        "less id persistence: see docs/coherence.md].", needs="brush")
     tracking: TrackingOptions = field(default_factory=path_tracking)
 
     def __post_init__(self):
@@ -70,7 +76,7 @@ class PathOptions:
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
-        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px", "hold_px"):
+        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px", "hold_px", "heal_px"):
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)

@@ -36,6 +36,7 @@ import numpy as np
 from strokekit.model import N_KINDS, BrushPaths, Strokes, row_norm
 from strokekit.numba_cache import keyboard_interrupts
 from strokekit.paths.cover import HOLD_RADIUS_PX, covered_runs, held_back, on_drawing, run_cover
+from strokekit.paths.heal import heal_paths, touching_pairs
 from strokekit.paths.options import PathOptions
 from strokekit.paths.pieces import (
     HAIRPIN_PX,
@@ -57,9 +58,11 @@ from strokekit.tracking.ufit import fit_u, levels_from_slope
 from strokekit.tracking.votes import segment_by_votes, u_trend
 
 
-def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: int) -> tuple[BrushPaths, int]:
+def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: int,
+               touched: np.ndarray | None = None) -> tuple[BrushPaths, int]:
     """The brush paths of a frame's `lines` given the previous frame's paths (None: no history),
-    and the next unused id (see module doc)."""
+    and the next unused id (see module doc); `touched`: the pairs of ids whose paths met end to
+    end in the previous frame (paths.heal.touching_pairs)."""
     if len(lines) == 0 or len(lines.points) == 0:
         return _empty(lines), next_id
     first_fresh = next_id
@@ -106,7 +109,14 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vsign = votes.sign[ok] * np.where(rev[vk], -1.0, 1.0)
     paths = _carried_u(prev, paths, vst, vs, vu, vid, vw, vsign, o)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
-    return _finish(paths, *covers, held_back(paths, first_fresh, o, D.p, owner, line_grid)), next_id
+    hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
+    if o.heal_px > 0:
+        paths, new_of = heal_paths(paths, known, np.zeros(0, np.int64) if touched is None else touched, o.heal_px,
+                                   hold)
+        hold = np.bincount(new_of[hold], minlength=len(paths)) > 0
+        path_of = new_of[path_of]
+        covers = (lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece)
+    return _finish(paths, *covers, hold), next_id
 
 
 def _carried_u(prev: Strokes, paths: Strokes, vst: np.ndarray, vs: np.ndarray, vu: np.ndarray, vid: np.ndarray,
@@ -191,9 +201,10 @@ class PathTracker:
         self.options = options or PathOptions()
         self.prev: Strokes | None = None
         self.next_id = 0
+        self.touched = np.zeros(0, np.int64)
 
     def reset(self) -> None:
-        self.prev, self.next_id = None, 0
+        self.prev, self.next_id, self.touched = None, 0, np.zeros(0, np.int64)
 
     def step(self, lines: Strokes) -> BrushPaths:
         """The brush paths of one frame's lines (as LineRenderer gives them)."""
@@ -207,9 +218,13 @@ class PathTracker:
         if not o.history:
             out, _ = brush_step(None, lines, o, 0)
             return out
-        out, self.next_id = brush_step(self.prev, lines, o, self.next_id)
+        out, self.next_id = brush_step(self.prev, lines, o, self.next_id, self.touched)
+        if o.heal_px > 0:
+            self.touched = touching_pairs(out.strokes)
         # The held paths vote with the drawn ones: one still there next frame takes its id back.
         self.prev = out.strokes if out.held is None else concat_two(out.strokes, out.held)
+        if lines.pose is not None:  # (a moving scene: where this frame's objects were, for the next one)
+            self.prev = self.prev.replace(pose=lines.pose)
         return out
 
 

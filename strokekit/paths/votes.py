@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.lines.strokeops import CONTOUR_KINDS, join_arrays
-from strokekit.model import KINDS, N_KINDS, Strokes
+from strokekit.model import KINDS, N_KINDS, Strokes, carry_points
 from strokekit.numba_cache import LazyKernels
 from strokekit.paths.options import PathOptions
 from strokekit.sampling import Samples
@@ -79,8 +79,13 @@ def carried_votes(prev: Strokes, lines: Strokes, D: Samples, o: PathOptions) -> 
         return Votes.none()
     step = max(1, int(round(o.reverse_px / o.sample_px)))
     sub = np.arange(0, len(D), step)
-    back = Samples(p=D.p.take(sub, axis=0), X=D.X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
-                   stroke=None, s=None, w=None) if step > 1 else D
+    X = D.X
+    if lines.pose is not None or prev.pose is not None:
+        # A moving scene: the line samples' surface points where their objects were in the
+        # previous frame, before they are projected with its camera.
+        X = resample(lines, o.sample_px, surface=carry_points(lines.surface, lines.face, lines.pose, prev.pose)).X
+    back = Samples(p=D.p.take(sub, axis=0), X=X.take(sub, axis=0), u=None, t=D.t.take(sub, axis=0), ids=None,
+                   stroke=None, s=None, w=None) if step > 1 or X is not D.X else D
     rm, rq = match_pieces(back, prev.camera, V, to.search_radius_px, to.min_tangent_dot, k=2)
     # (Kind classes (_kind_class) per stroke, then per sample, in the kernel; int64 codes: its one
     # compiled signature, whatever the codes' dtype.) The matches of another kind class: a claim

@@ -2,7 +2,14 @@
 and the self-similar fill (`render_raster` -> `RasterFrame`), sampled by a z-buffer rasterizer
 (`zbuffer`, numba kernels loaded by `hits`; Embree rays in `rays`, the reference)."""
 
-from strokekit.raster.bands import RasterFrame, RasterOptions, render_raster
-from strokekit.raster.rays import check_raster_fits
+from strokekit.lazy import exports
 
-__all__ = ["RasterFrame", "RasterOptions", "check_raster_fits", "render_raster"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "RasterFrame": "strokekit.raster.bands",
+    "RasterOptions": "strokekit.raster.bands",
+    "check_raster_fits": "strokekit.raster.rays",
+    "render_raster": "strokekit.raster.bands",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

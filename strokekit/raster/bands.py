@@ -28,131 +28,18 @@ import numpy as np
 
 from strokekit.camera.view import Camera
 from strokekit.colour import srgb_encode
-from strokekit.errors import UsageError
 from strokekit.model import BandRegion
-from strokekit.options import QUALITY_PRESETS, option
 from strokekit.raster.fill import FILL_SUPERSAMPLE, fill_coverage
 from strokekit.raster.hits import RayHits, ZBufferHits, compiled, ensure_kernels
+from strokekit.raster.options import RasterOptions
 from strokekit.raster.rays import RasterHits
 from strokekit.scene.load import Scene
 from strokekit.scene.occluder import Occluder
 from strokekit.scene.tables import corner_gram, min_interpolated_norm
 
-SHADINGS = ("flat", "smooth")
-LIGHT_SPACES = ("camera", "world")
-FILL_PATTERNS = ("hatch", "dots", "noise")
 #: The ramp's darkest shade, as a fraction of the base colour (seed 000 Fig 2.7: shades are the
 #: base colour darkened).
 RAMP_DARKEST = 0.45
-
-
-@dataclass(frozen=True)
-class RasterOptions:
-    """What the raster pass computes and writes. Only what is asked is computed.
-
-    bands: N; thresholds: explicit n.l thresholds (increasing, in (0, 1)), which override N with
-    len(thresholds) + 1; shading 'flat' (face normals) or 'smooth' (corner normals interpolated
-    across each face, split at creases sharper than the crease angle like Blender's auto smooth,
-    `Scene.split_normals`: a box's faces stay flat, a sphere shades smoothly; the angle is
-    the line options' crease angle, which `render_raster` takes as an argument); light: direction
-    toward the light, in camera space (x right, y up, z toward the viewer) or world space;
-    supersample K in {1, 2, 4}: samples per pixel side everywhere; masks: one anti-aliased PNG per
-    band; shade: ramp colours (RGBA); objectid, depth: compositing passes; fill: self-similar
-    hatching/dots/noise of `fill_pattern` with a base period of `fill_period_px` output pixels;
-    gooch: warm/cool ramps; band_polygons: the bands as SVG polygons (see `band_polygons_svg`);
-    edge_supersample R (0 = off; R <= K has no effect, the K x K grid is as fine): the pixels that may hold more than one label, material or
-    object are resampled on an R x R grid (masks, labels, alpha, colours), so edges get R x R
-    quality at a fraction of the cost: pixels whose K x K samples, or the nearest samples of
-    their neighbours, disagree, and pixels crossed by a triangle too thin for the K x K grid
-    (slivers, trim, thin parts) where it may show another label (see `_mixed_pixels`)."""
-
-    bands: int = option(3, "--bands", "Toon bands: write bands/frame_NNNN.png (labels) and shade/frame_NNNN.png "
-                        "with N bands of quantized n.l.", low=1, high=254)
-    thresholds: tuple[float, ...] = option(
-        (), "--band-thresholds", "Explicit n.l thresholds a,b,.. instead of N equal bands.", text="numbers")
-    shading: str = option(
-        "smooth", "--shading", "Band normals: per face, or interpolated and split at edges sharper than "
-        "--crease-angle.", choices=SHADINGS, show_default=True, needs="raster")
-    light: tuple[float, float, float] = option(
-        (-0.4, 0.6, 0.7), "--light", "Direction toward the light x,y,z.", text="numbers", count=3, show_default=True,
-        needs="raster")
-    light_space: str = option(
-        "camera", "--light-space", "--light is given in camera space (moves with the view) or in world space.",
-        choices=LIGHT_SPACES, show_default=True, needs="raster")
-    supersample: int = option(
-        1, "--supersample", "Samples per pixel side everywhere (default from --quality: 1 draft, 1 default, 4 exact).",
-        choices={"1": 1, "2": 2, "4": 4}, needs="raster")
-    masks: bool = option(False, "--masks", "Also one anti-aliased mask PNG per band (maskN/frame_NNNN.png).",
-                         switch=True)
-    shade: bool = option(True, "--no-shade", "No shade/ PNGs (the ramp colours).", switch=True, invert=True,
-                         needs="raster")
-    objectid: bool = option(False, "--objectid", "Also objectid/frame_NNNN.png (8-bit object ids, 0 background).",
-                            switch=True)
-    depth: bool = option(
-        False, "--depth", "Also depth/frame_NNNN.png (16-bit linear depth; its range in the PNG and the JSON).",
-        switch=True)
-    fill: bool = option(
-        False, "--fill", "Also fill/frame_NNNN.png: hatching that keeps its screen size at any zoom (self-similar "
-        "3D texture).", switch=True)
-    fill_pattern: str = option("hatch", "--fill-pattern", "Texture of the fill.", choices=FILL_PATTERNS,
-                               show_default=True, needs="fill")
-    fill_period_px: float = option(16.0, "--fill-period", "Fill texture period in px.", show_default=True,
-                                   needs="fill")
-    gooch: bool = option(False, "--gooch", "Gooch warm/cool ramp instead of darker shades.", switch=True,
-                         needs="raster")
-    band_polygons: bool = option(False, "--band-polygons", "Also the bands as vector polygons in an SVG layer under "
-                                 "the lines.", switch=True, needs="svg layer")
-    pngs: bool = True  # write the PNG passes (off: the raster pass runs for the EXR alone)
-    edge_supersample: int = option(
-        4, "--edge-supersample", "Resample only the pixels at band, material or object edges R x R (default from "
-        "--quality: 0 draft, 4 default, 0 exact).", low=0, high=8, needs="raster")
-
-    def __post_init__(self):
-        th = tuple(float(t) for t in self.thresholds)
-        object.__setattr__(self, "thresholds", th)
-        if th:
-            if not all(0.0 < t < 1.0 for t in th) or any(b <= a for a, b in zip(th, th[1:])):
-                raise UsageError(f"band thresholds must increase strictly inside (0, 1), got {list(th)}")
-            object.__setattr__(self, "bands", len(th) + 1)
-        if not 1 <= int(self.bands) <= 254:
-            raise UsageError(f"bands must be in 1..254, got {self.bands}")
-        if self.shading not in SHADINGS:
-            raise UsageError(f"shading must be one of {', '.join(SHADINGS)}, got {self.shading!r}")
-        if self.light_space not in LIGHT_SPACES:
-            raise UsageError(f"light space must be one of {', '.join(LIGHT_SPACES)}, got {self.light_space!r}")
-        light = np.asarray(self.light, float)
-        with np.errstate(over="ignore"):  # a length beyond float range (1e300, 0, 0) is refused too
-            length = np.linalg.norm(light) if light.shape == (3,) else 0.0
-        if light.shape != (3,) or not np.all(np.isfinite(light)) or not (0 < length < np.inf):
-            raise UsageError(f"light must be 3 finite numbers, not all zero, got {self.light!r}"
-                             + (" (its length is beyond float range)" if length == np.inf else ""))
-        if int(self.supersample) not in (1, 2, 4):
-            raise UsageError(f"supersample must be 1, 2 or 4, got {self.supersample}")
-        if int(self.edge_supersample) not in (0, 2, 4, 8):
-            raise UsageError(f"edge supersample must be 0 (off), 2, 4 or 8, got {self.edge_supersample}")
-        if self.fill_pattern not in FILL_PATTERNS:
-            raise UsageError(f"fill pattern must be one of {', '.join(FILL_PATTERNS)}, got {self.fill_pattern!r}")
-        if not self.fill_period_px > 0:
-            raise UsageError(f"fill period must be > 0 px, got {self.fill_period_px}")
-
-    @staticmethod
-    def preset(quality: str = "default", **overrides) -> "RasterOptions":
-        """Options of a named quality preset (options.QUALITY_PRESETS: supersample K and
-        edge_supersample R) with explicit overrides (None values ignored). A K given above the
-        preset's R turns the edge resampling off: the K x K grid is then as fine."""
-        if quality not in QUALITY_PRESETS:
-            raise UsageError(f"unknown quality {quality!r} (known: {', '.join(QUALITY_PRESETS)})")
-        given = {k: v for k, v in overrides.items() if v is not None}
-        k = int(given.pop("supersample", QUALITY_PRESETS[quality]["supersample"]))
-        r = QUALITY_PRESETS[quality]["edge_supersample"]
-        r = int(given.pop("edge_supersample", r if r > k else 0))
-        return RasterOptions(supersample=k, edge_supersample=r, **given)
-
-
-def check_crease_angle(crease_angle_deg: float) -> float:
-    if not 0 < crease_angle_deg < 180:
-        raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
-    return float(crease_angle_deg)
 
 
 # --- shading --------------------------------------------------------------------------------------
@@ -177,18 +64,18 @@ def back_facing(scene: Scene, camera: Camera) -> np.ndarray:
     return scene.face_offsets - nf @ camera.eye_array > 0
 
 
-def corner_shading(scene: Scene, crease_angle_deg: float = 60.0, vnormals: np.ndarray | None = None
+def corner_shading(scene: Scene, smooth_angle_deg: float = 30.0, vnormals: np.ndarray | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(corner (F, 3) node of each face corner, normals (N, 3) unit node normals, gram (F, 3)
     n_a.n_b, n_b.n_c, n_c.n_a of each face's corner normals) for smooth shading.
 
-    The nodes and normals are `scene.split_normals(crease_angle_deg)`, the ones smooth contours
-    use (angle-weighted, Blender's auto smooth rule): corners share a normal only across edges
-    flatter than the crease angle, so a face next to a sharp edge keeps its own normal there.
+    The nodes and normals are `scene.split_normals(smooth_angle_deg)` (angle-weighted, Blender's
+    auto smooth rule): corners share a normal only across edges flatter than the angle, so a
+    face next to a sharp edge keeps its own normal there.
     With `vnormals` (V, 3) those vertex normals are interpolated instead, unsplit."""
     if vnormals is not None:
         return scene.faces, np.asarray(vnormals, float), corner_gram(scene.faces, np.asarray(vnormals, float))
-    sn = scene.split_normals(crease_angle_deg)
+    sn = scene.split_normals(smooth_angle_deg)
     return sn.corner, sn.normals, sn.corner_gram
 
 
@@ -282,7 +169,7 @@ class FaceShading:
 
 
 def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np.ndarray,
-                 crease_angle_deg: float, vnormals: np.ndarray | None = None) -> FaceShading:
+                 vnormals: np.ndarray | None = None) -> FaceShading:
     """The frame's FaceShading. Band ranges: flat shading has one n.l per face; smooth shading's
     interpolated numerator (wa la + wb lb + wc lc) is linear, so its extremes are corner values,
     and the renormalization divides it by |n| in [sqrt(min n_i.n_j), 1] (|sum w_i n_i|^2 = sum
@@ -295,11 +182,11 @@ def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np
     if options.shading == "flat":
         lo = hi = quantize_bands(sign * (scene.face_normals @ light), N, th)
     else:
-        corner, normals, gram = corner_shading(scene, crease_angle_deg, vnormals)
+        corner, normals, gram = corner_shading(scene, options.smooth_angle_deg, vnormals)
         nl = normals @ light
         la, lb, lc = (np.take(nl, corner[:, k]) for k in range(3))
         lmin, lmax = np.minimum(np.minimum(la, lb), lc), np.maximum(np.maximum(la, lb), lc)
-        root = _min_norm(scene, crease_angle_deg, vnormals)
+        root = _min_norm(scene, options.smooth_angle_deg, vnormals)
         LO = np.where(lmin >= 0, lmin, lmin / root)
         HI = np.where(lmax >= 0, lmax / root, lmax)
         lo = quantize_bands(np.where(back, -HI, LO), N, th)
@@ -312,12 +199,12 @@ def face_shading(scene: Scene, camera: Camera, options: RasterOptions, light: np
                        region_object=robj, bands=N, thresholds=th)
 
 
-def _min_norm(scene: Scene, crease_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
+def _min_norm(scene: Scene, smooth_angle_deg: float, vnormals: np.ndarray | None) -> np.ndarray:
     """(F,) a lower bound of |w_a n_a + w_b n_b + w_c n_c| over each face (weights >= 0 summing
     to 1) for smooth shading's corner normals (`tables.min_interpolated_norm`)."""
     if vnormals is None:
-        return scene.split_normals(crease_angle_deg).min_corner_norm
-    return min_interpolated_norm(corner_shading(scene, crease_angle_deg, vnormals)[2])
+        return scene.split_normals(smooth_angle_deg).min_corner_norm
+    return min_interpolated_norm(corner_shading(scene, smooth_angle_deg, vnormals)[2])
 
 
 #: Relative depth slack of the thin-triangle occlusion test (float32 depths, curvature between
@@ -365,9 +252,10 @@ class MixedPixels:
     @cached_property
     def counts(self) -> np.ndarray:
         """(P, n_labels) int64 samples of each label (n_labels: max label + 1)."""
-        P, S = self.labels.shape
         n = int(self.labels.max(initial=0)) + 1
-        return np.bincount((np.arange(P)[:, None] * n + self.labels).reshape(-1), minlength=P * n).reshape(P, n)
+        counts = np.empty((len(self.labels), n), np.int64)
+        compiled().label_counts(np.ascontiguousarray(self.labels), counts)
+        return counts
 
     def coverage(self, n_labels: int) -> np.ndarray:
         """(P, n_labels) float32 share of each label."""
@@ -633,20 +521,18 @@ def label_polygons(key: np.ndarray, tolerance_px: float = 0.5) -> dict[int, obje
 # --- entry points ---------------------------------------------------------------------------------
 
 def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, options: RasterOptions,
-                  crease_angle_deg: float = 60.0, vnormals: np.ndarray | None = None, *, reference: bool = False,
+                  vnormals: np.ndarray | None = None, *, reference: bool = False,
                   work=None, timings: dict | None = None) -> RasterFrame:
     """Sample one frame and label its bands. Call only when a raster output is asked for.
 
     The z-buffer rasterizer samples it (`raster.hits.ZBufferHits`); `reference=True` casts Embree
     rays through the same samples instead (`occluder`, the scene's; not needed otherwise): the
     reference tests and `strokekit bench` hold the rasterizer against. Smooth shading uses the
-    normals split at `crease_angle_deg`, the line options' crease angle (cached per scene);
-    `vnormals` (V, 3) replaces them by given vertex normals, interpolated without splitting.
+    normals split at options.smooth_angle_deg (cached per scene); `vnormals` (V, 3) replaces
+    them by given vertex normals, interpolated without splitting.
     `work`: a zbuffer.Workspace whose buffers the frame then uses (until the next frame drawn
     with it; `raster.hits.thread_workspace()`). `timings`: {stage: seconds} gets 'rasterize'
     (the sample grid), 'shading' (labels, mixed pixels) and 'edge samples' (their R x R samples)."""
-    if not 0 < crease_angle_deg < 180:
-        raise UsageError(f"crease angle must be in (0, 180) degrees, got {crease_angle_deg}")
     ensure_kernels()  # (loaded, or compiled, before the frame's clock starts)
     t0 = time.perf_counter()
     if reference:
@@ -663,7 +549,7 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
                       ray_dir_y=(H / 2.0 - (np.arange(H * K) + 0.5) / K) / f)
     t1 = time.perf_counter()
     light = light_direction(camera, options)
-    shading = face_shading(scene, camera, options, light, crease_angle_deg, vnormals)
+    shading = face_shading(scene, camera, options, light, vnormals)
     labels_ss, keys_ss = shading.labels(face, bary)
     frame = RasterFrame(scene=scene, camera=camera, options=options, hits=hits, labels_ss=labels_ss, light=light,
                         shading=shading, keys_ss=keys_ss, source=src)
@@ -783,7 +669,7 @@ def soft_iou(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(1, 2, 4), reference: int = 4,
-                   options: RasterOptions | None = None, crease_angle_deg: float = 60.0) -> list[dict]:
+                   options: RasterOptions | None = None) -> list[dict]:
     """Band masks of the z-buffer pass at each supersample K (an int, or (K, R) for K with
     edge_supersample R) against the ray-cast reference (`render_raster(reference=True)`) at the
     uniform `reference` K, over `cameras`.
@@ -798,7 +684,7 @@ def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(
     occluder = occluder or Occluder(scene)
     base = options or RasterOptions()
     refs = [render_raster(scene, c, occluder, replace(base, supersample=reference, edge_supersample=0),
-                          crease_angle_deg, reference=True).coverage for c in cameras]
+                          reference=True).coverage for c in cameras]
     rows = []
     for entry in ks:
         K, R = (entry, 0) if np.isscalar(entry) else entry
@@ -806,7 +692,7 @@ def mask_agreement(scene: Scene, cameras, occluder: Occluder | None = None, ks=(
         times, ious, thick, mins, maxs, below = [], [], [], 0.0, 0.0, 0
         for c, r in zip(cameras, refs):
             t = time.perf_counter()
-            cov = render_raster(scene, c, occluder, opts, crease_angle_deg).coverage
+            cov = render_raster(scene, c, occluder, opts).coverage
             times.append(time.perf_counter() - t)
             for b in range(cov.shape[2]):
                 a, q = cov[..., b], r[..., b]

@@ -6,6 +6,7 @@ loaded on first use (`raster.hits.compiled()`: lines-only runs never import numb
   per-face tables of `bands.FaceShading` (smooth n.l interpolated only where a face spans bands).
 * `thin_face_pixels`: the pixels a triangle thinner than the sample spacing crosses where it may
   show another key than the samples there (`bands._thin_face_pixels` says why).
+* `label_counts`: per mixed pixel, the samples of each label.
 * `mixed_sums`: per mixed pixel, the samples of each label and the sum of its covered samples'
   linear colours.
 * `view_normals`: the EXR's view-space normal of every pixel's representative sample.
@@ -69,6 +70,34 @@ def label_samples(face, bary, label, coef, bands, thresholds, region, out_label,
         out_key[i] = lab if one else lab + step * region[f]
 
 
+#: Largest pixel box (with its ring) `_behind_box` reads; a longer sliver gets the per-pixel test.
+_BOX_PIXELS = 256
+
+
+@njit(cache=True, error_model="numpy")
+def _behind_box(xmin, xmax, ymin, ymax, zmin, W, H, K, depth, slack):
+    """Whether a triangle with pixel box [xmin, xmax] x [ymin, ymax] and nearest corner depth
+    zmin is behind every sample of its box widened by two pixels (its edge pixels' 3 x 3
+    neighbourhoods, with a pixel more for the rounding of its edge crossings): then the
+    per-pixel depth test of `thin_face_pixels` rejects each of its pixels (a depth on an edge is
+    at least the nearer end's, up to rounding, which the 1e-9 margin covers). False for a box
+    of more than _BOX_PIXELS pixels."""
+    c0 = int(max(math.floor(xmin) - 2.0, 0.0))
+    c1 = int(min(math.floor(xmax) + 2.0, W - 1.0))
+    r0 = int(max(math.floor(ymin) - 2.0, 0.0))
+    r1 = int(min(math.floor(ymax) + 2.0, H - 1.0))
+    if c0 > c1 or r0 > r1:
+        return True  # no pixel of the image
+    if (c1 - c0 + 1) * (r1 - r0 + 1) > _BOX_PIXELS:
+        return False
+    zmax = -np.inf
+    for r in range(r0 * K, (r1 + 1) * K):
+        for q in range(c0 * K, (c1 + 1) * K):
+            if depth[r, q] > zmax:
+                zmax = depth[r, q]
+    return zmin * (1.0 - 1e-9) > np.float64(zmax) * (1 + slack)
+
+
 @kernel(("(f8[:, ::1], f8[::1], i4[:, ::1], f8, i8, i8, i8, u1[::1], u1[::1], b1[::1], i4[::1], i8[:, ::1], "
         "i8, f4[:, ::1], i4[:, ::1], b1, f8, b1[:, ::1])"), error_model="numpy")
 def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step, depth, keys, ortho, slack, out):
@@ -110,6 +139,9 @@ def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step
                     break
             if plain:
                 continue
+        if _behind_box(min(xa, xb, xc), max(xa, xb, xc), min(ya, yb, yc), max(ya, yb, yc), min(za, zb, zc), W, H,
+                       K, depth, slack):
+            continue
         klo = np.int64(l0) + step * r0
         khi = np.int64(hi[fi]) + step * r0
         for e in range(3):
@@ -181,6 +213,17 @@ def thin_face_pixels(xy, z, faces, near, W, H, K, lo, hi, back, region, nb, step
                         out[iy, ix] = True
                         marked += 1
     return marked
+
+
+@kernel("(u1[:, ::1], i8[:, ::1])", error_model="numpy")
+def label_counts(labels, counts):
+    """counts (P, n) int64: per mixed pixel (rows of labels (P, S), every label < n), its samples
+    of each label."""
+    for p in range(labels.shape[0]):
+        for c in range(counts.shape[1]):
+            counts[p, c] = 0
+        for s in range(labels.shape[1]):
+            counts[p, labels[p, s]] += 1
 
 
 @kernel("(u1[:, ::1], i4[:, ::1], f8[:, ::1], i8, i4[:, ::1], f8[:, ::1])", error_model="numpy")

@@ -10,63 +10,30 @@ all the samples of the mixed pixels (the R x R samples at band, material and obj
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from strokekit.cryptomatte import ranked_matte
-from strokekit.errors import UsageError
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
-from strokekit.options import option
 from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.hits import compiled
+from strokekit.raster.options import PassOptions
 from strokekit.raster.strokes import stroke_coverage
 
-#: The passes an EXR can hold, in the order they are written.
-PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
 #: Cryptomatte ranks written per type: two RGBA layers. The issue asks for at least 3; every
 #: layer more adds about a tenth to the EXR's write time (ZIP of float32 channels).
 RANKS = 4
-#: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read: ZIP (the
-#: default, as Blender writes) and ZIPS are the smallest, PIZ encodes faster at about twice their
-#: size, RLE in about half ZIP's time at four to eight times the size (README, `--exr`).
-CODECS = ("zip", "zips", "piz", "rle", "none")
 
 
-@dataclass(frozen=True)
-class PassOptions:
-    """Which compositing passes to compute (PASSES), the stroke width of the lines pass (px), and
-    the EXR's compression (CODECS)."""
-
-    passes: tuple[str, ...] = option(
-        PASSES, "--exr-layers", "The EXR's layers, comma-separated: depth, normal, shade, bands, crypto, lines [all].",
-        text="names", needs="exr")
-    stroke_width_px: float = 1.5  # (the SVG's: --stroke-width)
-    codec: str = option(
-        "zip", "--exr-codec", "The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at "
-        "about twice their size, rle in about half zip's time at four to eight times the size.", choices=CODECS,
-        show_default=True, needs="exr")
-
-    def __post_init__(self):
-        unknown = [p for p in self.passes if p not in PASSES]
-        if unknown or not self.passes:
-            raise UsageError(f"unknown or no EXR layer(s) {', '.join(unknown) or '(none)'} "
-                             f"(known: {', '.join(PASSES)})", option="passes")
-        if self.codec not in CODECS:
-            raise UsageError(f"codec {self.codec!r} is not one of {', '.join(CODECS)} (the lossless ones: "
-                             "Cryptomatte ids and depth must come back exact)", option="codec")
-        object.__setattr__(self, "passes", tuple(p for p in PASSES if p in self.passes))
-
-
-def view_normals(frame: RasterFrame, crease_angle_deg: float = 60.0) -> np.ndarray:
+def view_normals(frame: RasterFrame) -> np.ndarray:
     """(H, W, 3) float32 view-space unit normals (x right, y up, z toward the camera) of each
     pixel's representative sample: the face normal (flat shading) or the corner normals split at
-    `crease_angle_deg` interpolated (smooth), turned to face the camera; 0 on background. A view
+    the raster options' smooth_angle_deg interpolated (smooth: the bands' normals), turned to
+    face the camera; 0 on background. A view
     of three contiguous (H, W) planes, the EXR's channels."""
     hits, cam, scene = frame.hits, frame.camera, frame.scene
     H, W = frame.height, frame.width
     if frame.options.shading == "smooth":
-        sn = scene.split_normals(crease_angle_deg)
+        sn = scene.split_normals(frame.options.smooth_angle_deg)
         corner, normals = np.ascontiguousarray(sn.corner, np.int64), np.ascontiguousarray(sn.normals, np.float64)
     else:
         corner, normals = np.zeros((0, 3), np.int64), np.zeros((0, 3))
@@ -123,9 +90,9 @@ def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:
 
 
 def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: PassOptions,
-                       crease_angle_deg: float = 60.0, lines_coverage: dict | None = None) -> RasterPasses:
+                       lines_coverage: dict | None = None) -> RasterPasses:
     """The passes `options` asks for, of one frame (its raster pass, and its strokes for 'lines');
-    `crease_angle_deg`: the line options' (smooth normals split there); `lines_coverage`: the
+    `lines_coverage`: the
     strokes' coverage at options.stroke_width_px when the caller has it (stroke_coverage)."""
     p = options.passes
     H, W = frame.height, frame.width
@@ -134,7 +101,7 @@ def compositing_passes(frame: RasterFrame, strokes: Strokes | None, options: Pas
         z = representative(frame.hits.depth, frame.K)
         depth = np.where(np.isfinite(z), z, BACKGROUND_DEPTH).astype(np.float32)
     if "normal" in p:
-        normal = view_normals(frame, crease_angle_deg)
+        normal = view_normals(frame)
     if "shade" in p:
         shade = linear_shade(frame)
     if "bands" in p:

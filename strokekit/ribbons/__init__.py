@@ -1,7 +1,15 @@
 """Ribbons: the triangle strips along strokes that the glTF writer stores, textured with a
 brush image (`build_ribbons` -> `RibbonMesh`)."""
 
-from strokekit.ribbons.brushes import Brush, get_brush
-from strokekit.ribbons.mesh import RibbonMesh, RibbonOptions, build_ribbons
+from strokekit.lazy import exports
 
-__all__ = ["Brush", "RibbonMesh", "RibbonOptions", "build_ribbons", "get_brush"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "Brush": "strokekit.ribbons.brushes",
+    "RibbonMesh": "strokekit.ribbons.mesh",
+    "RibbonOptions": "strokekit.ribbons.options",
+    "build_ribbons": "strokekit.ribbons.mesh",
+    "get_brush": "strokekit.ribbons.brushes",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

@@ -25,9 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from strokekit.errors import InputError
-
-BUNDLED = ("plain", "ink", "dry")
+from strokekit.errors import InputError, did_you_mean
+from strokekit.ribbons.options import BUNDLED
 
 _W, _H = 256, 32  # texels; power-of-two sizes keep every viewer's mipmapping happy; head and tail
 # are then each 2 ribbon widths long on screen (texels stay square there)
@@ -146,7 +145,8 @@ def load_brush(path: str | Path, tex_head: float = _HEAD, tex_tail: float = _TAI
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"brush image not found (bundled brushes: {', '.join(BUNDLED)}; or give a PNG path)", p)
+        raise InputError(f"brush image not found ({did_you_mean(path, BUNDLED) if '.' not in str(path) else ''}"
+                         f"bundled brushes: {', '.join(BUNDLED)}; or give a PNG path)", p)
     try:
         im = Image.open(p)
         im.load()

@@ -2,14 +2,25 @@
 `StrokeCarry` in frame order), in memory (`render_sequence`) or as a render run (`run`: frames in
 parallel in a process pool or a dask cluster, atomic writes, resumption and the run report)."""
 
-from strokekit.run.frame import Frame, StrokeCarry, render_frame
-from strokekit.run.report import run_report
-from strokekit.run.request import RenderRequest, SequencePlan
-from strokekit.run.runner import run
-from strokekit.run.sequence import render_sequence
-from strokekit.run.spec import OutputOptions, RunInterrupted, RunResult, RunSpec, RunWriteError
-from strokekit.run.workers import Workers, make_executor
+from strokekit.lazy import exports
 
-__all__ = ["Frame", "OutputOptions", "RenderRequest", "RunInterrupted", "RunResult", "RunSpec", "RunWriteError",
-           "SequencePlan", "StrokeCarry", "Workers", "make_executor", "render_frame", "render_sequence", "run",
-           "run_report"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "Frame": "strokekit.run.frame",
+    "OutputOptions": "strokekit.run.spec",
+    "RenderRequest": "strokekit.run.request",
+    "RunInterrupted": "strokekit.run.spec",
+    "RunResult": "strokekit.run.spec",
+    "RunSpec": "strokekit.run.spec",
+    "RunWriteError": "strokekit.run.spec",
+    "SequencePlan": "strokekit.run.request",
+    "StrokeCarry": "strokekit.run.frame",
+    "Workers": "strokekit.run.workers",
+    "make_executor": "strokekit.run.workers",
+    "render_frame": "strokekit.run.frame",
+    "render_sequence": "strokekit.run.sequence",
+    "run": "strokekit.run.runner",
+    "run_report": "strokekit.run.report",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

@@ -44,6 +44,9 @@ class Frame:
     json_head: dict
     layers: tuple[str, ...]
     paths: BrushPaths | None = None
+    #: The frame's time in the scene's animation, and which animation (None: a still scene).
+    time: float | None = None
+    animation: str | None = None
     raster: RasterFrame | None = None
     raster_info: dict = field(default_factory=dict)
     underlays: tuple[str, ...] = ()
@@ -69,13 +72,15 @@ class Frame:
     def to_json(self) -> bytes:
         """The frame JSON (writers.strokes_json), as the run writes it."""
         head = {**self.json_head, "raster": self.raster_info} if self.raster_info else self.json_head
+        if self.strokes.pose is not None:  # a moving scene: where its objects were
+            head = {**head, "animation": self.animation, **self.strokes.pose.to_json()}
         cam = self.strokes.camera
         return strokes_json(self.strokes, cam.width, cam.height, self.number, extra=head, paths=self.paths,
                             styled=self.styled, layers=self.layers)
 
     def to_svg(self, decimals: int = 2, dash_paths: bool = False, lines: str = "outline") -> str:
         """The frame's SVG (writers.svg.svg_document), as the run writes it with these outputs
-        (lines: writers.svg.SVG_LINES)."""
+        (lines: writers.options.SVG_LINES)."""
         cam = self.strokes.camera
         return svg_document(self.strokes, cam.width, cam.height, self.layers, decimals=decimals,
                             underlays=list(self.underlays) or None, dash_paths=dash_paths, styled=self.styled,
@@ -87,6 +92,13 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
     z-buffer workspace (raster.hits.thread_workspace) the raster pass reuses; the frame's
     raster then lives until the next pass in that workspace."""
     timings: dict = {}
+    clock = plan.clock
+    time_s = clock.time(number)
+    t = time.perf_counter()
+    posed = renderer.at(time_s, clock.animation)
+    if posed is not renderer:
+        timings["pose scene"] = time.perf_counter() - t
+    renderer = posed
     renderer.check_camera(camera, number)
     lines = renderer.render(camera, number, timings)
     context = None
@@ -99,14 +111,15 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
         # The kernels' load (a process's first raster frame) is the 'raster kernels' stage, not this frame's.
         timings["kernels"] = ensure_kernels()
         t = time.perf_counter()
-        raster = render_raster(renderer.scene, camera, renderer.occluder, plan.raster, plan.lines.crease_angle_deg,
-                               work=work, timings=timings)
+        raster = render_raster(renderer.scene, camera, renderer.occluder, plan.raster, work=work, timings=timings)
         info = raster_info(raster)
         if plan.raster.band_polygons:
             underlays = (bands_layer(band_regions(raster)),)
         timings["raster pass"] = time.perf_counter() - t
+    moving = renderer.pose is not None
     return Frame(number, camera, lines, plan.json_head(), plan.lines.layers, raster=raster, raster_info=info,
-                 underlays=underlays, timings=timings, style=plan.style, style_context=context)
+                 underlays=underlays, timings=timings, style=plan.style, style_context=context,
+                 time=time_s if moving else None, animation=clock.animation if moving else None)
 
 
 def raster_info(raster: RasterFrame) -> dict:
@@ -152,5 +165,8 @@ class StrokeCarry:
         if self.paths is not None:
             t = time.perf_counter()
             paths = self.paths.step(lines)
+            if lines.pose is not None:  # (the paths lie on the frame's posed scene too)
+                paths = replace(paths, strokes=paths.strokes.replace(pose=lines.pose),
+                                lines=paths.lines.replace(pose=lines.pose))
             timings["brush paths"] = time.perf_counter() - t
         return replace(frame, lines=lines, paths=paths, timings=timings)

@@ -12,20 +12,23 @@ from strokekit.numba_cache import KernelGroup, Warmup
 from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
 from strokekit.run.spec import RASTER_STAGES, RunSpec
+from strokekit.scene.occluder import MOVING_SCENE
 from strokekit.tracking.kernels import TRACKING
 
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",
-            TRACKING: "tracking"}
+            TRACKING: "tracking", MOVING_SCENE: "load scene + BVH"}
 
 
-def kernels_needed(spec: RunSpec, frames_here: bool) -> list[KernelGroup]:
+def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> list[KernelGroup]:
     """The groups of kernels a run of `spec` uses in this process: those of the stages it runs in
     frame order (brush paths, the tracker), and those of the frames' own work (hidden lines, the
-    raster pass) where `frames_here` (this process draws frames, or its workers share this
-    machine's cache)."""
+    raster pass, a `moving` scene's rays) where `frames_here` (this process draws frames, or its
+    workers share this machine's cache)."""
     plan = spec.plan
     out = []
+    if frames_here and moving:
+        out.append(MOVING_SCENE)
     if plan.paths is not None:
         out.append(BRUSH_PATHS)
     elif plan.tracking is not None and plan.tracking.method == "kalnins" and len(spec.cameras) > 1:
@@ -47,11 +50,12 @@ class RunKernels:
         self.notice = notice
         self.warmups = [Warmup([RASTER], notice)] if raster else []
 
-    def ready(self, spec: RunSpec, frames_here: bool, work: bool = True) -> None:
+    def ready(self, spec: RunSpec, frames_here: bool, work: bool = True, moving: bool = False) -> None:
         """Before any frame: the kernels `spec` needs (none when no frame is drawn, `work`
-        False) loading, compiled first where the cache lacks them."""
+        False; `moving`: the scene's animation moves it) loading, compiled first where the cache
+        lacks them."""
         started = {g for w in self.warmups for g in w.groups}
-        todo = [g for g in kernels_needed(spec, frames_here) if g not in started] if work else []
+        todo = [g for g in kernels_needed(spec, frames_here, moving) if g not in started] if work else []
         if todo:
             self.warmups.append(Warmup(todo, self.notice))
         for w in self.warmups:

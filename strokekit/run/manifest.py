@@ -10,9 +10,15 @@ from dataclasses import fields, is_dataclass
 from pathlib import Path
 
 from strokekit.fileio import atomic_write_bytes
-from strokekit.ribbons.brushes import BUNDLED
-from strokekit.run.spec import RunSpec
+from strokekit.options import LineOptions, flag_of
+from strokekit.paths.options import PathOptions
+from strokekit.raster.options import PassOptions, RasterOptions
+from strokekit.ribbons.options import BUNDLED
+from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.scene.load import Scene
+from strokekit.style.linesets import Style
+from strokekit.tracking.options import TrackingOptions
+from strokekit.writers.options import GltfOptions
 
 # --- the run manifest ----------------------------------------------------------------------------------
 
@@ -53,13 +59,26 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
                        "materials": [m.base_color for m in scene.materials]})
     o = spec.outputs
     # An option at its default that a later option added is left out of the digest, so that the
-    # digests of runs made before it stay: the dash paths, the SVG's outlines, the EXR codec.
-    outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
-               and not (f.name == "dash_paths" and not o.dash_paths)
-               and not (f.name == "svg_lines" and o.svg_lines == "outline")}
+    # digests of runs made before it stay: the dash paths, the SVG's outlines, the EXR codec and float
+    # types.
+    # The default style's shortcuts are digested among the outputs, where their options were.
+    shortcuts = _style_shortcuts(plan.style)
+    outputs = {}
+    for f in fields(o):
+        if f.name == "dash_paths":
+            outputs.update({k: v for k, v in shortcuts.items() if k != "stroke_width_px"})
+        if f.name != "out_dir" and not (f.name == "dash_paths" and not o.dash_paths) \
+                and not (f.name == "svg_lines" and o.svg_lines == "outline"):
+            outputs[f.name] = getattr(o, f.name)
+        if f.name == "decimals" and "stroke_width_px" in shortcuts:
+            outputs["stroke_width_px"] = shortcuts["stroke_width_px"]
     outputs["raster_options"] = plan.raster  # (the raster pass is digested with the outputs)
-    if o.exr is not None and o.exr.codec == "zip":
-        outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr) if f.name != "codec"}
+    if plan.raster is not None and plan.raster.shading == "flat":  # (the smooth angle shapes no flat bytes)
+        outputs["raster_options"] = {k: v for k, v in canonical(plan.raster).items() if k != "smooth_angle_deg"}
+    if o.exr is not None:
+        outputs["exr"] = {f.name: getattr(o.exr, f.name) for f in fields(o.exr)
+                          if not (f.name == "codec" and o.exr.codec == "zip")
+                          and not (f.name == "precision" and o.exr.precision == "half")}
     brush = o.gltf_options.brush if o.gltf_options is not None else None
     if o.gltf and brush is not None:
         if brush not in BUNDLED:  # a user's image: its bytes go into every GLB
@@ -68,23 +87,85 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
             except OSError:
                 pass  # the run reports it
     opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking}
-    if plan.style.is_default:  # the shortcuts' style: digested as the outputs' options it was before
-        outputs["stroke_width_px"] = plan.style.width
-        if plan.style.dashes is not None:
-            outputs["hidden_dashes"] = plan.style.dashes
-    else:
+    if not plan.style.is_default:
         opts["style"] = plan.style.to_json()
     if plan.paths is not None:  # (brush runs only: a lines run's digest has no paths)
         opts["paths"] = plan.paths
     options_d = _digest(opts)
+    settings = _flat(canonical(opts))
     frames, chain = {}, ""
+    motion = scene.motion
+    moving = motion is not None and motion.moves(motion.animation(spec.request.animation))
     for f, cam in spec.cameras:
-        d = _digest(cam.to_json())
+        # (a moving scene's frame is also its time in the animation: another fps or offset is
+        # another frame)
+        d = _digest(cam.to_json() if not moving else [cam.to_json(), spec.plan.clock.time(f), spec.request.animation])
         if plan.carried:
             d = chain = _digest([chain, f, d])
         frames[f] = d
     return {"strokekit_run": 1, "run": _digest([scene_d, options_d]), "scene": scene_d, "options": options_d,
-            "frames": frames}
+            "settings": settings, "frames": frames}
+
+
+#: The default style's shortcuts as the run options named them before line styles (outputs'
+#: names), and their fields of Style.
+_SHORTCUTS = {"stroke_width_px": "width", "hidden_dashes": "dashes"}
+
+
+def _style_shortcuts(style: Style) -> dict:
+    """{outputs' name: value} of the default style's shortcuts ({} for a style file's: it is
+    digested whole); the dashes only where said."""
+    if not style.is_default:
+        return {}
+    out = {"stroke_width_px": style.width}
+    if style.dashes is not None:
+        out["hidden_dashes"] = style.dashes
+    return out
+
+
+def _flat(v, prefix: str = "") -> dict:
+    """{dotted name: value} of nested dicts ('outputs.raster_options.bands': 3)."""
+    if not isinstance(v, dict):
+        return {prefix: v}
+    out = {}
+    for k, x in v.items():
+        out.update(_flat(x, f"{prefix}.{k}" if prefix else str(k)))
+    return out
+
+
+#: The options class of each part of the settings, whose fields name their flags.
+_SETTINGS_CLASSES = {"lines": LineOptions, "outputs": OutputOptions, "outputs.raster_options": RasterOptions,
+                     "outputs.exr": PassOptions, "outputs.gltf_options": GltfOptions, "tracking": TrackingOptions,
+                     "paths": PathOptions}
+
+
+def _setting_name(key: str) -> str:
+    """A setting as the user gave it: its flag ('--stroke-width'), else its dotted name."""
+    part, _, name = key.rpartition(".")
+    cls = _SETTINGS_CLASSES.get(part)
+    if part == "outputs" and name in _SHORTCUTS:
+        cls, name = Style, _SHORTCUTS[name]
+    field = next((f for f in fields(cls) if f.name == name), None) if cls is not None else None
+    flag = flag_of(field) if field is not None else None
+    return flag.name if flag is not None else key
+
+
+def _setting_value(v) -> str:
+    if isinstance(v, list):
+        return ",".join(map(_setting_value, v))
+    return v if isinstance(v, str) else "none" if v is None else json.dumps(v)
+
+
+def settings_changed(old: dict, new: dict, most: int = 3) -> str:
+    """The settings that differ between two manifests' ('--stroke-width 1.5 there, 2 now'), the
+    first `most` of them; "" when the old manifest has none (written before they were kept)."""
+    a, b = old.get("settings"), new.get("settings")
+    if not isinstance(a, dict) or not isinstance(b, dict):
+        return ""
+    changed = [k for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)]
+    said = [f"{_setting_name(k)} {_setting_value(a.get(k))} there, {_setting_value(b.get(k))} now"
+            for k in changed[:most]]
+    return "; ".join(said) + (f"; {len(changed) - most} more" if len(changed) > most else "")
 
 
 def read_run_manifest(out_dir: Path) -> dict | None:
@@ -100,7 +181,7 @@ def read_run_manifest(out_dir: Path) -> dict | None:
 
 
 def write_run_manifest(out_dir: Path, manifest: dict, frames: dict[int, str]) -> Path:
-    d = {k: manifest[k] for k in ("strokekit_run", "run", "scene", "options")}
+    d = {k: manifest[k] for k in ("strokekit_run", "run", "scene", "options", "settings") if k in manifest}
     d["frames"] = {str(f): frames[f] for f in sorted(frames)}
     return atomic_write_bytes(Path(out_dir) / RUN_MANIFEST, (json.dumps(d, indent=1) + "\n").encode())
 
@@ -124,9 +205,12 @@ def not_a_resume(out_dir: Path, old: dict | None, new: dict, present: set[int]) 
         return (f"--skip-existing: {where} holds frames but no readable {RUN_MANIFEST} to tell what they were "
                 f"rendered from; {fix}")
     parts = [p for p in ("scene", "options") if old[p] != new[p]]
+    if "options" in parts and settings_changed(old, new):
+        parts[parts.index("options")] = f"options ({settings_changed(old, new)})"
     cams = [f for f in present if f in old["frames"] and old["frames"][f] != new["frames"][f]]
     if cams:
         parts.append(f"cameras of frames {_frame_ranges(cams)}")
-    what = " or ".join(x for x, p in (("another scene", "scene"), ("other options", "options")) if p in parts)
+    what = " or ".join(x for x, p in (("another scene", "scene"), ("other options", "options"))
+                       if old[p] != new[p])
     what = what or "another run"  # a run digest that its parts do not explain: an edited file
     return (f"--skip-existing: {where} holds frames of {what} ({RUN_MANIFEST} differs: {', '.join(parts)}); {fix}")

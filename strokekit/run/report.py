@@ -12,20 +12,25 @@ from strokekit.run.manifest import canonical
 from strokekit.run.spec import RunResult, RunSpec
 
 
+def installed_versions() -> dict:
+    """The versions of Python and of the distributions that shape the outputs (None: not installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for dist in ("strokekit", "numpy", "scipy", "trimesh", "open3d", "embreex", "shapely",
+                 "pygltflib", "click", "pillow", "numba"):
+        out[dist] = None
+        # (open3d is installed as open3d-cpu where that build is published)
+        for name in (dist, "open3d-cpu") if dist == "open3d" else (dist,):
+            try:
+                out[dist] = out[dist] or version(name)
+            except PackageNotFoundError:
+                pass
+    return out
+
+
 def run_report(spec: RunSpec, res: RunResult) -> dict:
     """The JSON run report: versions, input hashes, per-frame status, outputs, timings, stages."""
-    def versions():
-        from importlib.metadata import PackageNotFoundError, version
-
-        out = {"python": platform.python_version()}
-        for dist in ("strokekit", "numpy", "scipy", "trimesh", "open3d", "embreex", "shapely",
-                     "pygltflib", "click", "pillow", "numba"):
-            try:
-                out[dist] = version(dist)
-            except PackageNotFoundError:
-                out[dist] = None
-        return out
-
     plan = spec.plan
     with open(spec.scene_path, "rb") as fh:
         file_hash = hashlib.sha256(fh.read()).hexdigest()
@@ -54,12 +59,12 @@ def run_report(spec: RunSpec, res: RunResult) -> dict:
         frames[str(f)]["camera"] = cams[f]
     return {
         "status": res.status,
-        "versions": versions(),
+        "versions": installed_versions(),
         "platform": platform.platform(),
         "scene": {"path": spec.scene_path, "sha256": file_hash, "content_hash": res.scene_hash, **res.scene_summary},
         "cameras": cameras,
-        "options": {"lines": spec.lines.to_json(), "workers": spec.workers, "scheduler": spec.scheduler,
-                    "strokes": "brush" if plan.paths is not None else "lines",
+        "options": {"lines": spec.lines.to_json(), "workers": spec.workers, "worker_kind": spec.worker_kind,
+                    "scheduler": spec.scheduler, "strokes": "brush" if plan.paths is not None else "lines",
                     "tracking": plan.tracking.method if plan.tracking is not None else "none",
                     "tracking_options": canonical(plan.tracking) if plan.tracking is not None else None,
                     "paths_options": canonical(plan.paths) if plan.paths is not None else None,

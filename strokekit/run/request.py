@@ -4,12 +4,13 @@ settled here, once, for the library and the command line alike."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 from strokekit.errors import UsageError
 from strokekit.options import LineOptions, option
 from strokekit.paths.options import PathOptions
-from strokekit.raster.bands import RasterOptions
+from strokekit.raster.options import RasterOptions
 from strokekit.style.linesets import Style
 from strokekit.tracking.options import METHODS, TrackingOptions
 
@@ -43,6 +44,11 @@ class RenderRequest:
     tracking: TrackingOptions = field(default_factory=TrackingOptions)
     paths: PathOptions = field(default_factory=PathOptions)
     raster: RasterOptions | None = None
+    animation: str | None = option(
+        None, "--animation", "The animation of a glTF scene that moves its objects, by name or number [the first]; "
+        "frame N shows it at (N - 1) / fps + --time-offset seconds.")
+    time_offset: float = option(0.0, "--time-offset", "Seconds added to every frame's time in the scene's animation "
+                                "[0].", show_default=False)
     style: Style = field(default_factory=Style)
 
     def __post_init__(self):
@@ -50,6 +56,9 @@ class RenderRequest:
             raise UsageError(f"strokes must be one of {', '.join(STROKES)}, got {self.strokes!r}", option="strokes")
         if self.coherence not in (None, *METHODS):
             raise UsageError(f"unknown coherence method {self.coherence!r} (known: {', '.join(METHODS)})")
+        if not (isinstance(self.time_offset, (int, float)) and math.isfinite(self.time_offset)):
+            raise UsageError(f"time offset must be a finite number of seconds, got {self.time_offset!r}",
+                             option="time_offset")
         if self.strokes == "brush" and self.coherence not in (None, "none"):
             raise UsageError(f"coherence {self.coherence!r} tracks lines: it goes with strokes 'lines' (brush paths "
                              "carry their own ids; coherence 'none' makes them afresh every frame)",
@@ -65,30 +74,47 @@ class RenderRequest:
         return cls(lines=LineOptions.preset(quality, **(lines or {})),
                    raster=None if raster is None else RasterOptions.preset(quality, **raster), **fields)
 
-    def plan(self, n_frames: int) -> SequencePlan:
-        """What `n_frames` frames of this request draw and carry from frame to frame."""
+    def plan(self, n_frames: int, fps: float = 24.0) -> SequencePlan:
+        """What `n_frames` frames of this request draw and carry from frame to frame; `fps`: the
+        camera path's, which times the scene's animation."""
         method = self.coherence or self.tracking.method
         strokes = self.strokes or ("brush" if n_frames >= 2 and self.coherence is None else "lines")
+        clock = SceneClock(self.animation, float(self.time_offset), float(fps))
         if strokes == "brush":
             paths = replace(self.paths, history=method != "none")
             return SequencePlan(self.lines, None, paths, self.raster, carried=n_frames >= 2 and paths.history,
-                                style=self.style)
+                                clock=clock, style=self.style)
         tracking = replace(self.tracking, method=method) if n_frames >= 2 and method != "none" else None
-        return SequencePlan(self.lines, tracking, None, self.raster, carried=tracking is not None, style=self.style)
+        return SequencePlan(self.lines, tracking, None, self.raster, carried=tracking is not None, clock=clock,
+                            style=self.style)
+
+
+@dataclass(frozen=True)
+class SceneClock:
+    """When each frame is in the scene's animation: frame N at (N - 1) / fps + offset seconds of
+    the animation `animation` (a name or number; None: the first)."""
+
+    animation: str | None = None
+    offset: float = 0.0
+    fps: float = 24.0
+
+    def time(self, frame: int) -> float:
+        return (frame - 1) / self.fps + self.offset
 
 
 @dataclass(frozen=True)
 class SequencePlan:
     """A request settled for a number of frames. tracking: the lines are tracked with it (None:
     not); paths: brush paths are drawn, made with it (None: the lines are drawn); carried:
-    a frame's strokes depend on the frames before it (which then render in order); style: how
-    they are drawn."""
+    a frame's strokes depend on the frames before it (which then render in order); clock: each
+    frame's time in the scene's animation; style: how the strokes are drawn."""
 
     lines: LineOptions
     tracking: TrackingOptions | None
     paths: PathOptions | None
     raster: RasterOptions | None
     carried: bool
+    clock: SceneClock = field(default_factory=lambda: SceneClock())
     style: Style = field(default_factory=Style)
 
     def json_head(self) -> dict:

@@ -19,6 +19,7 @@ from strokekit.errors import UsageError
 from strokekit.fileio import atomic_write_bytes, check_pattern, temp_file_target
 from strokekit.lines.budget import check_lines_fit
 from strokekit.raster.rays import check_raster_fits
+from strokekit.run.cluster import check_workers
 from strokekit.run.frame import Frame, StrokeCarry, objects_and_materials
 from strokekit.run.kernels import RunKernels
 from strokekit.run.manifest import RUN_MANIFEST, not_a_resume, read_run_manifest, run_manifest, write_run_manifest
@@ -56,7 +57,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         workers: Workers | None = None, scene: Scene | None = None, load_seconds: float = 0.0,
         started_at: float | None = None, notice: Callable[[str], None] | None = None,
         kernels: RunKernels | None = None) -> RunResult:
-    """Render every frame of `spec`. `progress(phase, done, total)` is called as frames finish.
+    """Render every frame of `spec`. `progress(phase, done, total)` is called when the frames
+    start ("lines", 0, total) and as they finish.
     `workers`: make_executor(spec.workers, spec.scheduler, SceneRef(spec.scene_path, "", spec.lines)) started
     by the caller (and closed by it), e.g. before it loads the scene, so the workers start sooner;
     `scene`: spec.scene_path already loaded by the caller, in `load_seconds` (reported as the
@@ -82,7 +84,8 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     own = workers is None
     raster = spec.raster is not None
     if own:
-        workers = make_executor(spec.workers, spec.scheduler, warm=SceneRef(spec.scene_path, "", spec.lines))
+        workers = make_executor(spec.workers, spec.scheduler, warm=SceneRef(spec.scene_path, "", spec.lines),
+                                kind=spec.worker_kind)
     # The raster kernels load (or, on a machine's first run, compile) beside the main process's work.
     if kernels is None:
         kernels = RunKernels(notice, raster=raster and workers.main_helps)
@@ -90,6 +93,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
         check_style_names(spec.request.style, scene)
+        check_workers(spec, workers)  # a cluster's workers see the scene and the output folder
         stage = {s.name: s for s in res.stages}
         resume = plan_resume(spec, scene)
         res.frames_skipped = sorted(resume.done_before)
@@ -98,7 +102,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
         except OSError as e:
             write_error = e
         if write_error is None:
-            kernels.ready(spec, workers.main_helps, work=bool(lines_needed(spec, resume)))
+            kernels.ready(spec, workers.main_helps, work=bool(lines_needed(spec, resume)), moving=moves(scene, spec))
             write_error = _stream_frames(spec, scene, res, stage, resume, progress, workers)
         for name, seconds in kernels.seconds().items():
             stage[name].seconds += seconds
@@ -135,6 +139,8 @@ def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, res
         SceneRef(spec.scene_path, scene.content_hash, spec.lines).keep(scene)
         stage["load scene + BVH"].seconds += time.perf_counter() - t
     stream = FrameStream(spec, scene, res, stage, resume, progress)
+    if progress is not None and stream.n_lines:
+        progress("lines", 0, stream.n_lines)  # the frames start (the scene, its BVH and kernels ready)
     try:
         workers.map(stream.pending, stream.handle)
         if spec.fail_fast and res.failures and stream.write_error is None:
@@ -154,6 +160,12 @@ def _stream_frames(spec: RunSpec, scene: Scene, res: RunResult, stage: dict, res
     return stream.write_error
 
 
+def moves(scene: Scene, spec: RunSpec) -> bool:
+    """Whether the run's animation moves the scene's objects (its frames are posed)."""
+    m = scene.motion
+    return m is not None and m.moves(m.animation(spec.request.animation))
+
+
 def run_files(spec: RunSpec) -> list[Path]:
     """Every file the run may write: each frame's files, sequence.glb, the run manifest."""
     out = spec.outputs
@@ -166,13 +178,13 @@ def run_files(spec: RunSpec) -> list[Path]:
 def check_files_apart(spec: RunSpec, also_written=()) -> None:
     """UsageError when one of the run's outputs would overwrite one of its inputs (the scene, the
     camera file) or a file also written ((what, name) pairs `also_written`, e.g. the run report)."""
-    written = {os.path.abspath(p) for p in run_files(spec)}
+    written = {os.path.realpath(p) for p in run_files(spec)}  # (links resolved: --out may be one)
     for what, name in (("scene", spec.scene_path), ("camera file", spec.camera_source)):
-        if name and os.path.abspath(name) in written and Path(name).is_file():
+        if name and os.path.realpath(name) in written and Path(name).is_file():
             raise UsageError(f"{name}: the {what} is also one of the run's outputs (it would be overwritten); "
                              "choose another --out or --pattern")
     for what, name in also_written:
-        if name and os.path.abspath(name) in written:
+        if name and os.path.realpath(name) in written:
             raise UsageError(f"{what} {name} is also one of the run's outputs: name another file")
 
 
@@ -419,8 +431,18 @@ def write_sequence_glb(spec: RunSpec, scene: Scene, res: RunResult, stage: dict,
     if not (out.gltf and out.gltf_sequence and stream.ordered):
         return
     t = time.perf_counter()
-    seq = [stream.drawn[f].styled for f in stream.ordered]
+    frames = [stream.drawn[f] for f in stream.ordered]
+    seq = [f.styled for f in frames]
     depth_at = surface_depth(out, stream.scene)
+    if depth_at is not None and any(f.time is not None for f in frames):
+        # Each frame's ribbons lie on the scene as posed in that frame: the depth function of the
+        # frame whose camera asks (each frame's strokes hold their own camera object).
+        base = stream.scene.renderer()
+        by_camera = {id(f.strokes.camera): surface_depth(out, None, base.at(f.time, f.animation).occluder)
+                     for f in frames}
+
+        def depth_at(camera, pixels):
+            return by_camera[id(camera)](camera, pixels)
     res.outputs.append(str(atomic_write_bytes(out.out_dir / "sequence.glb",
                                               glb_for_sequence(seq, out.gltf_options, depth_at))))
     stage["ribbons + glTF"].seconds += time.perf_counter() - t

@@ -22,8 +22,9 @@ def render_sequence(scene: Scene | str | Path, cameras: CameraPath | Iterable[Ca
     pairs (CameraPath.select). What the frames draw and carry over is settled for the whole
     sequence (RenderRequest.plan): by default a sequence draws brush paths, one camera its lines."""
     scene = scene if isinstance(scene, Scene) else load_scene(scene)
+    fps = cameras.fps if isinstance(cameras, CameraPath) else 24.0  # (frame N shows the animation at (N - 1) / fps)
     shots = numbered(cameras)
-    plan = (request or RenderRequest()).plan(len(shots))
+    plan = (request or RenderRequest()).plan(len(shots), fps)
     check_lines_fit(scene, shots, plan.lines)
     check_style_names(plan.style, scene)
     renderer = LineRenderer(scene, plan.lines)

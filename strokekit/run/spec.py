@@ -4,21 +4,29 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import os
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.fileio import TEMP_SUFFIX
 from strokekit.options import LineOptions, option
-from strokekit.raster.bands import RasterOptions
-from strokekit.raster.passes import PassOptions
+from strokekit.raster.options import PassOptions, RasterOptions
+from strokekit.ribbons.options import BUNDLED
 from strokekit.run.request import RenderRequest, SequencePlan
-from strokekit.run.workers import MAX_WORKERS
-from strokekit.scene.load import Scene
-from strokekit.writers.gltf import GltfOptions
-from strokekit.writers.svg import SVG_LINES
+from strokekit.writers.options import SVG_LINES, GltfOptions
+
+if TYPE_CHECKING:  # (annotations only: the options load without the scene or camera code)
+    from strokekit.camera.view import Camera
+    from strokekit.scene.load import Scene
+
+#: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
+#: than a few per core only share the cores.
+MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
+#: --worker-kind: threads of this process, or a pool of processes.
+WORKER_KINDS = ("threads", "processes")
 
 #: The longest file name (bytes) of Linux, macOS and Windows file systems.
 NAME_MAX = 255
@@ -110,9 +118,14 @@ class RunSpec:
     outputs: OutputOptions
     request: RenderRequest = field(default_factory=RenderRequest)
     workers: int = option(
-        1, "--workers", "Processes rendering frames: this one and N-1 started beside it (default: the machine's "
-        "cores for 8 frames or more, 16 with a raster output, else 1; at most 4 per core, 8 on smaller machines).",
+        1, "--workers", "Frames drawn at once: by this process and N-1 workers beside it (--worker-kind; default: "
+        "the machine's cores for a sequence, 1 for one frame; at most 4 per core, 8 on smaller machines).",
         low=1, high=MAX_WORKERS, needs="no scheduler")
+    worker_kind: str = option(
+        "threads", "--worker-kind", "What the workers are: threads of this process (they share its scene and BVH and "
+        "start at once) or processes (each imports strokekit and loads the scene, about a second, then draws frames "
+        "without sharing Python's lock with the others: for long runs on many cores).",
+        choices=WORKER_KINDS, show_default=True, needs="no scheduler")
     scheduler: str | None = option(None, "--scheduler", "dask.distributed scheduler address, e.g. tcp://host:8786.")
     skip_existing: bool = option(  # resume: see run(); frames of another scene or options are a UsageError
         False, "--skip-existing", "Resume: do not rewrite frames whose files all exist and were rendered from the "
@@ -121,11 +134,24 @@ class RunSpec:
     fail_fast: bool = option(False, "--fail-fast", "Stop at the first failed frame (frames already written stay; the "
                              "run streams them out in order).", switch=True)
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
+    fps: float = 24.0  # the camera path's frame rate: frame N shows the scene's animation at (N - 1) / fps
+
+    def __post_init__(self):
+        # A cluster's workers resolve a relative name in their own folders (frames written on
+        # their disks, the scene not found): a run on one names every file the tasks read or
+        # write by its absolute path.
+        if self.scheduler:
+            o = self.outputs
+            g = o.gltf_options
+            if g is not None and g.brush not in BUNDLED:  # a PNG of the user's, read by the GLB writer
+                g = replace(g, brush=os.path.abspath(g.brush))
+            object.__setattr__(self, "scene_path", os.path.abspath(self.scene_path))
+            object.__setattr__(self, "outputs", replace(o, out_dir=Path(os.path.abspath(o.out_dir)), gltf_options=g))
 
     @cached_property
     def plan(self) -> SequencePlan:
         """The request settled for this run's frames."""
-        return self.request.plan(len(self.cameras))
+        return self.request.plan(len(self.cameras), self.fps)
 
     @property
     def lines(self) -> LineOptions:
@@ -227,6 +253,9 @@ def plan_stages(scene: Scene, spec: RunSpec) -> list[StageRecord]:
     o, L, plan = spec.outputs, spec.lines, spec.plan
     kinds = set(L.kinds)
     st = [StageRecord("load scene + BVH", True, "every run needs the scene and its occlusion BVH")]
+    if scene.motion is not None and scene.motion.moves(scene.motion.animation(spec.request.animation)):
+        st.append(StageRecord("pose scene", True, "the scene's animation moves its objects: each frame poses them "
+                              "(still and rigidly moving objects keep their BVH, deforming ones get one a frame)"))
 
     def add(name, ran, yes, no):
         st.append(StageRecord(name, bool(ran), yes if ran else no))

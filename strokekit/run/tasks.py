@@ -135,12 +135,12 @@ def frame_task(task: FrameTask) -> FrameResult:
         plan = task.plan if task.outputs is not None else replace(task.plan, raster=None)
         frame = render_frame(r, n, task.camera, plan, work=thread_workspace() if plan.raster is not None else None)
         timings = dict(frame.timings)
-        files = raster_files(frame, task.outputs, plan.lines.crease_angle_deg, timings) \
+        files = raster_files(frame, task.outputs, timings) \
             if task.outputs is not None else []
         frame = replace(frame, raster=None)
         written = None
         if task.write and task.outputs is not None:
-            written = write_task(WriteTask(frame, task.outputs, task.scene), occluder=r.occluder)
+            written = write_task(WriteTask(frame, task.outputs, task.scene), occluder=_frame_renderer(r, frame).occluder)
             if not task.keep_frame:
                 frame = None
         return FrameResult(n, frame, files, time.perf_counter() - t0, timings, r.occluder.backend, written)
@@ -168,6 +168,8 @@ def write_task(task: WriteTask, occluder: Occluder | None = None) -> WriteResult
             files.append(_write(outputs.frame_file(frame.number, ".json"), frame.to_json()))
             timings["json"] = time.perf_counter() - t0 - sum(timings.values())
         if outputs.gltf and not outputs.gltf_sequence:
+            if occluder is None and frame.time is not None:  # (world ribbons lie on the posed surface)
+                occluder = _frame_renderer(task.scene.renderer(), frame).occluder
             files.append(_write(outputs.frame_file(frame.number, ".glb"), glb_for_frame(
                 frame.styled, frame.strokes.camera, outputs.gltf_options,
                 surface_depth(outputs, task.scene, occluder))))
@@ -177,6 +179,11 @@ def write_task(task: WriteTask, occluder: Occluder | None = None) -> WriteResult
         return WriteResult(frame.number, write_error=WriteError.of(w.error))
     except Exception as e:
         return WriteResult(frame.number, error=f"frame {frame.number}: writing failed: {type(e).__name__}: {e}")
+
+
+def _frame_renderer(renderer, frame: Frame):
+    """The renderer of the scene as `frame` saw it (posed at its time, for a moving scene)."""
+    return renderer if frame.time is None else renderer.at(frame.time, frame.animation)
 
 
 def surface_depth(outputs: OutputOptions, scene: SceneRef | None, occluder: Occluder | None = None):
@@ -190,11 +197,10 @@ def surface_depth(outputs: OutputOptions, scene: SceneRef | None, occluder: Occl
     return surface_depth_at(occluder)
 
 
-def raster_files(frame: Frame, outputs: OutputOptions, crease_angle_deg: float, timings: dict) -> list[str]:
+def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[str]:
     """Write one frame's image passes (PNGs, one folder per pass: its raster pass's images, the
     lines PNG) and EXR; returns the files written. The lines in them are the frame's as drawn,
-    before any carry, at their widths in the frame's style. `crease_angle_deg`: the line
-    options' (the EXR's smooth normals split there). `timings` gets the seconds of each part."""
+    before any carry, at their widths in the frame's style. `timings` gets the seconds of each part."""
     files: list[str] = []
     raster, camera = frame.raster, frame.camera
     stem = outputs.stem(frame.number)
@@ -228,9 +234,10 @@ def raster_files(frame: Frame, outputs: OutputOptions, crease_angle_deg: float, 
             - timings.get("lines PNG", 0.0)
         if outputs.exr is not None:
             t1 = time.perf_counter()
-            passes = compositing_passes(raster, frame.lines, outputs.exr, crease_angle_deg,
+            passes = compositing_passes(raster, frame.lines, outputs.exr,
                                         coverage() if "lines" in outputs.exr.passes else None)
-            files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec)))
+            files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec,
+                                                                                     outputs.exr.precision)))
             timings["EXR"] = time.perf_counter() - t1
     elif outputs.lines_png:
         t1 = time.perf_counter()
@@ -256,21 +263,20 @@ def _lines_image(cov: dict, camera: Camera) -> np.ndarray:
     return out.reshape(H, W, 4)
 
 
-def raster_outputs(scene, camera: Camera, occluder: Occluder | None, options, crease_angle_deg: float = 60.0
-                   ) -> dict[str, bytes]:
+def raster_outputs(scene, camera: Camera, occluder: Occluder | None, options) -> dict[str, bytes]:
     """{pass: PNG bytes} of one frame for RasterOptions (see strokekit.raster; raster_files
-    writes them as OUT/<pass>/frame_0001.png). `crease_angle_deg`: the line options'."""
-    return png_files(render_raster(scene, camera, occluder, options, crease_angle_deg).images())
+    writes them as OUT/<pass>/frame_0001.png)."""
+    return png_files(render_raster(scene, camera, occluder, options).images())
 
 
 def raster_outputs_with_bands_layer(scene, camera: Camera, occluder: Occluder | None, options,
-                                    crease_angle_deg: float = 60.0, timings: dict | None = None,
+                                    timings: dict | None = None,
                                     work=None) -> tuple[dict[str, bytes], list]:
     """(PNG outputs, the SVG text of the 'bands' layer in a list, [] when options.band_polygons is
     off): pass it as svg_document(..., underlays=...) so the bands sit under the line layers.
     `timings` gets the raster stages' seconds (render_raster's, 'images', 'png'); `work`: the
     z-buffer workspace (raster.hits.thread_workspace()) whose buffers this frame reuses."""
-    frame = render_raster(scene, camera, occluder, options, crease_angle_deg, work=work, timings=timings)
+    frame = render_raster(scene, camera, occluder, options, work=work, timings=timings)
     t0 = time.perf_counter()
     images = frame.images()
     t1 = time.perf_counter()

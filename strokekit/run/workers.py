@@ -1,34 +1,38 @@
-"""Where frames are rendered: this process and a spawn-started process pool, or a
-dask.distributed cluster (`make_executor` -> `Workers`). Each worker loads the scene and builds
-its BVH once and keeps its renderer."""
+"""Where frames are rendered: this process and threads of it (they share its scene, BVH and
+renderer), or this process and a spawn-started process pool, or a dask.distributed cluster
+(`make_executor` -> `Workers`). Each worker process loads the scene and builds its BVH once and
+keeps its renderer."""
 
 from __future__ import annotations
 
 import os
 import threading
 from collections import deque
-from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Callable
 
-from strokekit.errors import InputError, UsageError
+from strokekit.errors import InputError
+from strokekit.extras import need
 from strokekit.lines.renderer import LineRenderer
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene, load_scene
 
-#: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
-#: than a few per core only share the cores.
-MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
 
-def default_workers(n_frames: int, raster: bool) -> int:
-    """Processes for a run of `n_frames` when none is said: the machine's cores from 8 frames on,
-    from 16 with a raster output (each process also starts numba for the raster kernels), else 1."""
-    return (os.cpu_count() or 1) if n_frames >= (16 if raster else 8) else 1
+def default_workers(n_frames: int, raster: bool, kind: str = "threads") -> int:
+    """Workers for a run of `n_frames` when none is said: the machine's cores for a sequence of
+    threads (a thread starts at once, with the scene already loaded); for processes, from 8
+    frames on, from 16 with a raster output (each process also starts numba for the raster
+    kernels), else 1."""
+    least = 2 if kind == "threads" else (16 if raster else 8)
+    return (os.cpu_count() or 1) if n_frames >= least else 1
 
 
 # --- worker side -----------------------------------------------------------------------------------
 
 _WORKER_CACHE: dict = {}
+#: Held while a renderer is looked up or built: a pool's threads share this process's cache.
+_CACHE_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -42,6 +46,10 @@ class SceneRef:
 
     def renderer(self) -> LineRenderer:
         """This process's renderer of the scene, loaded and its BVH built once per process."""
+        with _CACHE_LOCK:
+            return self._renderer()
+
+    def _renderer(self) -> LineRenderer:
         key = (self.path, self.lines)
         r = _WORKER_CACHE.get(key)
         if r is not None and self.content_hash and r.scene.content_hash != self.content_hash:
@@ -56,10 +64,11 @@ class SceneRef:
 
     def keep(self, scene: Scene) -> None:
         """Make `scene` (this file, already loaded here) this process's renderer of it."""
-        r = _WORKER_CACHE.get((self.path, self.lines))
-        if r is None or r.scene.content_hash != scene.content_hash:
-            _WORKER_CACHE.clear()
-            _WORKER_CACHE[(self.path, self.lines)] = LineRenderer(scene, self.lines)
+        with _CACHE_LOCK:
+            r = _WORKER_CACHE.get((self.path, self.lines))
+            if r is None or r.scene.content_hash != scene.content_hash:
+                _WORKER_CACHE.clear()
+                _WORKER_CACHE[(self.path, self.lines)] = LineRenderer(scene, self.lines)
 
 
 def _warm_worker(scene: SceneRef, started) -> None:
@@ -71,7 +80,8 @@ def _warm_worker(scene: SceneRef, started) -> None:
     try:
         scene.renderer()
     except Exception:
-        _WORKER_CACHE.clear()
+        with _CACHE_LOCK:
+            _WORKER_CACHE.clear()
     with started.get_lock():
         started.value += 1
 
@@ -88,6 +98,14 @@ class _NoPool:
     value = 0
 
 
+@dataclass(frozen=True)
+class _Threads:
+    """The `started` count of a thread pool: its threads share this process's scene and BVH,
+    so they are ready at once."""
+
+    value: int
+
+
 @dataclass
 class Workers:
     """Where frame tasks run. `executor` takes them; beside a local pool (`started` set: --workers
@@ -98,6 +116,8 @@ class Workers:
     #: Pool workers that have finished starting (imports, scene, BVH): a shared integer (always
     #: 0 when this process is the only one), or None when this process does not render (dask).
     started: object | None = None
+    #: A dask cluster's `client.run`: call a function on every worker -> {worker address: result}.
+    on_each: Callable[[Callable], dict] | None = None
 
     @property
     def main_helps(self) -> bool:
@@ -243,24 +263,29 @@ def _stop(running, handle: Callable[[object], bool]) -> None:
             handle(fut.result())
 
 
-def make_executor(workers: int, scheduler: str | None, warm: SceneRef) -> Workers:
+def make_executor(workers: int, scheduler: str | None, warm: SceneRef, kind: str = "threads") -> Workers:
     """Where the run's tasks go. `scheduler` 'tcp://host:port': a dask.distributed cluster.
-    Otherwise `workers` processes on this machine: this one, plus a spawn-started pool of
-    workers - 1 processes, started now; each loads the `warm` scene and builds its BVH right away."""
+    Otherwise `workers` on this machine: this process, plus workers - 1 threads of it (`kind`
+    "threads": they share its scene and BVH) or a spawn-started pool of workers - 1 processes
+    ("processes", started now; each loads the `warm` scene and builds its BVH right away)."""
     if scheduler:
-        try:
-            from distributed import Client
-        except ImportError:
-            raise UsageError("--scheduler needs dask.distributed (pip install 'dask[distributed]')") from None
+        need("distributed", "--scheduler")
+        from distributed import Client
+
         try:
             client = Client(scheduler, timeout=10)
         except Exception as e:
             raise InputError(f"cannot reach the dask scheduler at {scheduler} ({e})") from None
         ex = client.get_executor(pure=False)
-        return Workers(ex, _once(client.close))
+        return Workers(ex, _once(client.close), on_each=client.run)
     if workers <= 1:
         # This process does every task, one by one, handling each result before the next task.
         return Workers(None, lambda: None, started=_NoPool())
+    if kind == "threads":
+        tex = ThreadPoolExecutor(max_workers=workers - 1, thread_name_prefix="strokekit-frames")
+        # (close: the frames a thread is drawing finish; a frame is a fraction of a second)
+        return Workers(tex, _once(lambda: tex.shutdown(wait=True, cancel_futures=True)),
+                       started=_Threads(workers - 1))
     import multiprocessing as mp
     import signal
 

@@ -3,7 +3,16 @@ materials and objects (`Scene`), the tables derived from them on first use (norm
 sizes: `Scene`'s cached properties), and the ray backend that answers ray queries against it
 (`Occluder`)."""
 
-from strokekit.scene.load import SUPPORTED, Material, Scene, build_scene, load_scene
-from strokekit.scene.occluder import Occluder
+from strokekit.lazy import exports
 
-__all__ = ["SUPPORTED", "Material", "Scene", "build_scene", "load_scene", "Occluder"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "SUPPORTED": "strokekit.scene.load",
+    "Material": "strokekit.scene.load",
+    "Scene": "strokekit.scene.load",
+    "build_scene": "strokekit.scene.load",
+    "load_scene": "strokekit.scene.load",
+    "Occluder": "strokekit.scene.occluder",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

@@ -14,16 +14,20 @@ import json
 import os
 import re
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 from urllib.parse import unquote
 
 import numpy as np
 
+from strokekit.animation import GltfData, load_gltf
 from strokekit.errors import InputError, hold_interrupts
 from strokekit.fileio import atomic_write_bytes
-from strokekit.scene.tables import SceneTables
+from strokekit.scene.motion import SceneMotion, ScenePose
+from strokekit.scene.obj_faces import face_past_vertices, short_face_warnings
+from strokekit.scene.tables import SceneTables, dihedral_cos_of, face_normals_of, face_offsets_of
+from strokekit.scene.weld import Welded, weld
 
 SUPPORTED = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
 
@@ -53,6 +57,32 @@ class Scene(SceneTables):
     #: What is wrong with the file but does not change the drawing, one sentence each naming the
     #: file (a .gltf whose texture image is missing): the command line prints them as warnings.
     warnings: tuple[str, ...] = ()
+    #: How the objects move (a glTF file's animations, skins, morph targets), None for a still
+    #: scene; `at` poses the scene.
+    motion: SceneMotion | None = None
+    #: Where the objects are in this scene (None: at rest, as the file places them).
+    pose: ScenePose | None = None
+
+    def framing(self, animation: str | None = None) -> tuple[np.ndarray, float, np.ndarray]:
+        """(centre (3,), radius, points (N, 3)) that frame the scene for a camera: its own, or for
+        a moving scene those over its whole animation `animation` (a name or number; None: the
+        first), the points of its poses at SceneMotion.sample_times."""
+        m = self.motion
+        ai = m.animation(animation) if m is not None else None
+        if m is None or not m.moves(ai):
+            return self.center, self.radius, self.vertices
+        _, c, r = m.extent(ai)
+        times = m.sample_times(ai)
+        pick = times[np.unique(np.linspace(0, len(times) - 1, min(len(times), 64)).round().astype(int))]
+        used = m.rest.vertex_of >= 0
+        return c, r, np.concatenate([m.file_vertices_at(ai, float(t))[used] for t in pick])
+
+    def at(self, time: float, animation: int | None = 0) -> Scene:
+        """The scene at `time` seconds of its motion's animation `animation` (an index; None: no
+        animation, the objects in their rest pose): the scene itself when nothing moves."""
+        if self.motion is None:
+            return self
+        return self.motion.posed(self, animation, time)
 
     # --- geometry --------------------------------------------------------------------------
     @cached_property
@@ -73,11 +103,7 @@ class Scene(SceneTables):
     @cached_property
     def face_normals(self) -> np.ndarray:
         """(F, 3) unit normals from the winding, float64. Degenerate faces were dropped, so no NaN."""
-        v = self.vertices
-        # Relative to the first vertex for precision when the scene is far from the origin.
-        a = v[self.faces[:, 0]]
-        n = np.cross(v[self.faces[:, 1]] - a, v[self.faces[:, 2]] - a)
-        return n / np.linalg.norm(n, axis=1, keepdims=True)
+        return face_normals_of(self.vertices, self.faces)
 
     @cached_property
     def face_normal_rows(self) -> np.ndarray:
@@ -87,8 +113,7 @@ class Scene(SceneTables):
     @cached_property
     def face_offsets(self) -> np.ndarray:
         """(F,) plane offsets n.P for the face centroid: facing(eye) = sign(n.eye - offset)."""
-        c = self.vertices[self.faces].mean(axis=1)
-        return np.einsum("ij,ij->i", self.face_normals, c)
+        return face_offsets_of(self.vertices, self.faces, self.face_normals)
 
     @cached_property
     def face_areas(self) -> np.ndarray:
@@ -133,12 +158,7 @@ class Scene(SceneTables):
     @cached_property
     def dihedral_cos(self) -> np.ndarray:
         """(E,) cosine of the angle between the two face normals of each manifold edge (1 elsewhere)."""
-        ef = self.edge_faces
-        ok = ef[:, 1] >= 0
-        c = np.ones(len(ef))
-        n = self.face_normals
-        c[ok] = np.einsum("ij,ij->i", n[ef[ok, 0]], n[ef[ok, 1]])
-        return c
+        return dihedral_cos_of(self.edge_faces, self.face_normals)
 
     @cached_property
     def is_border(self) -> np.ndarray:
@@ -191,6 +211,9 @@ class Scene(SceneTables):
             "crease_edges_60deg": int(self.crease_mask(60.0).sum()),
             "material_boundary_edges": int(self.is_material_boundary.sum()),
             "line_kinds": self.available_kinds(),
+            **({"animations": [{"index": a.index, "name": a.name, "start": a.start, "end": a.end,
+                                "seconds": a.end - a.start, "moves": self.motion.moves(a.index)}
+                               for a in self.motion.animations]} if self.motion is not None else {}),
         }
 
     def available_kinds(self, crease_deg: float = 60.0) -> list[str]:
@@ -212,47 +235,17 @@ def build_scene(vertices: np.ndarray, faces: np.ndarray, face_object: np.ndarray
     """Weld vertices by position, drop degenerate and duplicate faces, return a Scene.
 
     vertices (V, 3) world units; faces (F, 3) vertex indices."""
-    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if len(f) == 0:
-        raise InputError("scene has no triangle faces", source or None)
-    if f.min() < 0 or f.max() >= len(v):
-        raise InputError("face refers to a vertex that does not exist", source or None)
-    used = np.unique(f)
-    if not np.all(np.isfinite(v[used])):
-        bad = int((~np.isfinite(v[used]).all(axis=1)).sum())
-        raise InputError(f"{bad} {'vertex has' if bad == 1 else 'vertices have'} NaN or infinite coordinates",
-                         source or None)
-    fo = np.zeros(len(f), np.int32) if face_object is None else np.asarray(face_object, np.int32)
-    fm = np.zeros(len(f), np.int32) if face_material is None else np.asarray(face_material, np.int32)
-    # Weld by exact position: seams duplicate vertices with identical coordinates.
-    uniq, inverse = np.unique(v[used], axis=0, return_inverse=True)
-    remap = np.full(len(v), -1, np.int64)
-    remap[used] = inverse.ravel()
-    f = remap[f]
-    # Degenerate: repeated vertex or zero area (relative to the scene's size).
-    a, b, c = uniq[f[:, 0]], uniq[f[:, 1]], uniq[f[:, 2]]
-    area2 = np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    extent = float(np.max(uniq.max(axis=0) - uniq.min(axis=0))) or 1.0
-    degenerate = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]) | (area2 <= (1e-14 * extent) ** 2)
-    keep = ~degenerate
-    # Duplicates: the same three vertices (any order or winding); the first one stays.
-    s = np.sort(f, axis=1)
-    _, first = np.unique(s[keep], axis=0, return_index=True)
-    keep_idx = np.flatnonzero(keep)
-    dup = np.ones(len(keep_idx), bool)
-    dup[first] = False
-    n_dup = int(dup.sum())
-    keep_idx = np.sort(keep_idx[~dup])
-    if len(keep_idx) == 0:
-        raise InputError("every face is degenerate (zero area)", source or None)
-    f, fo, fm = f[keep_idx], fo[keep_idx], fm[keep_idx]
-    # Drop vertices no face uses any more, keeping order.
-    used2, f2 = np.unique(f, return_inverse=True)
-    return Scene(vertices=uniq[used2], faces=f2.reshape(-1, 3).astype(np.int64), face_object=fo, face_material=fm,
-                 objects=tuple(objects), materials=tuple(materials), source=source,
-                 dropped_degenerate=int(degenerate.sum()), dropped_duplicate=n_dup, input_vertices=len(v),
-                 warnings=tuple(warnings))
+    return _scene_of(weld(vertices, faces, source), len(np.asarray(vertices).reshape(-1, 3)), face_object,
+                     face_material, objects=objects, materials=materials, source=source, warnings=warnings)
+
+
+def _scene_of(w: Welded, input_vertices: int, face_object, face_material, **fields) -> Scene:
+    n = len(w.kept) + w.dropped_degenerate + w.dropped_duplicate
+    fo = np.zeros(n, np.int32) if face_object is None else np.asarray(face_object, np.int32)
+    fm = np.zeros(n, np.int32) if face_material is None else np.asarray(face_material, np.int32)
+    return Scene(vertices=w.vertices, faces=w.faces, face_object=fo[w.kept], face_material=fm[w.kept],
+                 dropped_degenerate=w.dropped_degenerate, dropped_duplicate=w.dropped_duplicate,
+                 input_vertices=input_vertices, **{k: tuple(v) if k != "source" else v for k, v in fields.items()})
 
 
 def _material_of(geom) -> Material:
@@ -296,17 +289,23 @@ def load_scene(path: str | Path) -> Scene:
     cached = parts is not None
     if not cached:
         parts = _read_parts(p)
-    scene = build_scene(*parts[:4], objects=parts[4], materials=parts[5], source=str(p),
-                        warnings=tuple(f"{p}: {w}" for w in parts[6]))
+    welded = weld(parts[0], parts[1], str(p))
+    scene = _scene_of(welded, len(parts[0]), parts[2], parts[3], objects=parts[4], materials=parts[5],
+                      source=str(p), warnings=tuple(f"{p}: {w}" for w in parts[6]))
     if not cached:
-        _cache_write(cache, parts)  # once build_scene has accepted it (finite, has faces)
+        _cache_write(cache, parts)  # once the weld has accepted it (finite, has faces)
+    if parts[7]:
+        scene = replace(scene, motion=SceneMotion.read(p, parts[7], parts, welded))
     return scene
 
 
 def _read_parts(p: Path) -> tuple:
-    """(vertices, faces, face_object, face_material, objects, materials, warnings) of a mesh
-    file, world space, through trimesh."""
+    """(vertices, faces, face_object, face_material, objects, materials, warnings, layout) of a
+    mesh file, world space, through trimesh. layout: for a glTF file whose objects move
+    (`moves`), each part's (glTF node, primitive, vertices, faces, mirrored) in the order of the
+    arrays; () otherwise."""
     warnings: tuple[str, ...] = ()
+    doc = None
     if p.suffix.lower() in (".gltf", ".glb"):
         doc = _gltf_document(p)
         _check_gltf(p, doc)
@@ -318,10 +317,13 @@ def _read_parts(p: Path) -> tuple:
     obj = _ObjStatements.of(p) if p.suffix.lower() == ".obj" else None
     if obj is not None:
         warnings = obj.warnings()
+    if p.suffix.lower() == ".obj":
+        warnings += short_face_warnings(p.read_bytes())
     try:
         loaded = _load_holding_interrupts(p, **(obj.load_options() if obj is not None else {}))
     except Exception as e:  # trimesh raises many kinds on bad files
-        raise InputError(f"cannot read mesh ({type(e).__name__}: {e})", p) from None
+        past = face_past_vertices(p.read_bytes()) if p.suffix.lower() == ".obj" else None
+        raise InputError(past or f"cannot read mesh ({type(e).__name__}: {e})", p) from None
     # An OBJ split by its objects (see _ObjStatements): the pieces of one object, one per
     # material, are one object named as the OBJ names it.
     renamed = obj.object_names(loaded) if obj is not None and obj.split else {}
@@ -331,6 +333,7 @@ def _read_parts(p: Path) -> tuple:
     materials: list[Material] = []
     mat_index: dict[tuple, int] = {}
     offset = 0
+    rows = []  # (trimesh node, geometry name, vertices, faces, mirrored) of each part
     for node, name in _nodes_in_stable_order(loaded):
         transform, geom_name = loaded.graph[node]
         geom = loaded.geometry[geom_name]
@@ -364,11 +367,17 @@ def _read_parts(p: Path) -> tuple:
             fobj.append(np.full(len(f), len(objects), np.int32))
             objects.append(name)
         fmat.append(np.full(len(f), mat_index[key], np.int32))
+        rows.append((node, str(geom_name), len(v), len(f), bool(mirrored)))
         offset += len(v)
     if not faces:
         raise InputError("no triangle faces in file (empty, or a point cloud)", p)
+    layout: tuple = ()
+    if doc is not None and moves(doc):
+        layout, why = _gltf_layout(p, loaded, rows)
+        if why:
+            warnings = (*warnings, f"its animation is ignored: {why}")
     return (np.concatenate(verts), np.concatenate(faces), np.concatenate(fobj), np.concatenate(fmat),
-            tuple(objects), tuple(materials), warnings)
+            tuple(objects), tuple(materials), warnings, layout)
 
 
 class _ObjStatements:
@@ -765,6 +774,60 @@ def _check_gltf_accessors(p: Path, doc: dict, meshes: list) -> None:
                              f"{comp}-byte components from byte {offset} need {need} bytes, the view has {length}", p)
 
 
+def moves(doc: dict) -> bool:
+    """Whether a glTF document's objects can move or deform: it has animations, skins or morph
+    targets."""
+    meshes = doc.get("meshes") if isinstance(doc.get("meshes"), list) else []
+    return bool(doc.get("animations") or doc.get("skins") or any(
+        isinstance(prim, dict) and prim.get("targets") for m in meshes if isinstance(m, dict)
+        for prim in (m.get("primitives") if isinstance(m.get("primitives"), list) else [])))
+
+
+def _gltf_layout(p: Path, loaded, rows: list) -> tuple[tuple, str]:
+    """(layout, "") of the parts `rows` ((trimesh node, geometry, vertices, faces, mirrored) in
+    the scene's order): each part's (glTF node, primitive, vertices, faces, mirrored). The glTF
+    node of a trimesh node is found by trimesh's own naming (unique_name over the node names, in
+    file order); the primitive by its positions and face count. ((), reason) when a part is not
+    found so (a file trimesh reads in another way): the scene then stays at rest."""
+    from trimesh.util import unique_name
+
+    g = load_gltf(p)
+    data = GltfData(g, p)
+    nodes = g.nodes or []
+    index, counts = {}, {}
+    for i, n in enumerate(nodes):
+        index[unique_name(n.name if n.name else str(i), index, counts=counts)] = i
+    if "world" in index:  # (trimesh renames a node that takes its base frame's name)
+        index[unique_name("world", set(index))] = index.pop("world")
+    parents = loaded.graph.transforms.parents
+    used: set[tuple[int, int]] = set()
+    layout = []
+    for node, geom_name, nv, nf, mirrored in rows:
+        b = index.get(str(node))
+        if b is None or nodes[b].mesh is None:
+            b = index.get(str(parents.get(node)))
+        if b is None or nodes[b].mesh is None:
+            return (), f"trimesh's node {node} is no mesh node of the file"
+        geom = loaded.geometry[geom_name]
+        mesh = data.item("meshes", nodes[b].mesh, f"node {b}")
+        found = None
+        for k, prim in enumerate(mesh.primitives or []):
+            if (b, k) in used or prim.attributes.POSITION is None:
+                continue
+            try:
+                pos = data.accessor(prim.attributes.POSITION, f"mesh {nodes[b].mesh} primitive {k} POSITION")
+            except InputError:
+                continue
+            if pos.shape == geom.vertices.shape and np.array_equal(pos, np.asarray(geom.vertices, float)):
+                found = k
+                break
+        if found is None:
+            return (), f"no primitive of node {b}'s mesh has the positions trimesh read"
+        used.add((b, found))
+        layout.append((b, found, int(nv), int(nf), bool(mirrored)))
+    return tuple(layout), ""
+
+
 def _gltf_missing_images(p: Path, doc: dict | None) -> tuple[str, ...]:
     """Warnings (one line each, without the file's name: they are cached by content) for texture images the file refers to that are not there.
     Not an error: strokekit draws from the geometry and the material colours and never samples a
@@ -787,7 +850,7 @@ def _gltf_missing_images(p: Path, doc: dict | None) -> tuple[str, ...]:
 # code that read them: the same bytes give the same arrays, so outputs do not change.
 
 #: Bump when the reading of files changes (naming, ordering, materials).
-_CACHE_FORMAT = 6
+_CACHE_FORMAT = 7
 
 
 def _cache_dir() -> Path | None:
@@ -864,7 +927,9 @@ def _cache_read(f: Path | None) -> tuple | None:
             objects = tuple(json.loads(str(z["objects"])))
             materials = tuple(Material(m[0], tuple(m[1])) for m in json.loads(str(z["materials"])))
             warnings = tuple(str(w) for w in json.loads(str(z["warnings"])))
-            return (z["vertices"], z["faces"], z["face_object"], z["face_material"], objects, materials, warnings)
+            layout = tuple(tuple(r) for r in json.loads(str(z["layout"])))
+            return (z["vertices"], z["faces"], z["face_object"], z["face_material"], objects, materials, warnings,
+                    layout)
     except Exception:  # absent, unreadable, truncated (BadZipFile, EOFError, zlib.error) or from
         return None  # another layout: a cache never breaks a load, the file is read again
 
@@ -877,7 +942,7 @@ def _cache_write(f: Path | None, parts: tuple) -> None:
     np.savez(buf, vertices=parts[0], faces=parts[1], face_object=parts[2], face_material=parts[3],
              objects=np.array(json.dumps(list(parts[4]))),
              materials=np.array(json.dumps([[m.name, list(m.base_color)] for m in parts[5]])),
-             warnings=np.array(json.dumps(list(parts[6]))))
+             warnings=np.array(json.dumps(list(parts[6]))), layout=np.array(json.dumps([list(r) for r in parts[7]])))
     try:
         atomic_write_bytes(f, buf.getvalue())
     except OSError:  # a read-only home or a full disk only costs the next run its parse time

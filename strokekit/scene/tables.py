@@ -341,3 +341,29 @@ def view_function(scene, camera: Camera, normals: np.ndarray | None = None,
     c = scene.center
     rel = scene.vertices - c if vertex is None else scene.vertices[vertex] - c
     return np.einsum("ij,ij->i", n, rel) - n @ (np.asarray(camera.eye, float) - c)
+
+
+# The per-row formulas of Scene's face and edge tables: a moving scene's frame computes them again
+# for its moving faces only (scene.motion), with the same operations, so its tables are a static
+# scene's.
+
+def face_normals_of(v: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(F, 3) unit normals of faces (F, 3) over vertices v (Scene.face_normals)."""
+    # Relative to the first vertex for precision when the scene is far from the origin.
+    a = v[faces[:, 0]]
+    n = np.cross(v[faces[:, 1]] - a, v[faces[:, 2]] - a)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def face_offsets_of(v: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(F,) n.P of each face's centroid (Scene.face_offsets)."""
+    c = v[faces].mean(axis=1)
+    return np.einsum("ij,ij->i", normals, c)
+
+
+def dihedral_cos_of(edge_faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(E,) cosine between the normals of each edge's two faces, 1 for an edge with one (Scene.dihedral_cos)."""
+    ok = edge_faces[:, 1] >= 0
+    c = np.ones(len(edge_faces))
+    c[ok] = np.einsum("ij,ij->i", normals[edge_faces[ok, 0]], normals[edge_faces[ok, 1]])
+    return c

@@ -3,18 +3,23 @@ drawing them in a colour, a width and dashes, the width varied along each stroke
 modifiers (`Style`, read from a TOML file by `read_style`); `apply_style` gives a frame's strokes
 their widths per point (`StyledStrokes`), which every writer draws."""
 
-from strokekit.style.file import read_style
-from strokekit.style.linesets import (
-    KIND_COLORS,
-    Along,
-    Calligraphy,
-    Curvature,
-    Depth,
-    LineSet,
-    Noise,
-    Style,
-)
-from strokekit.style.widths import StyleContext, StyledStrokes, apply_style, style_context
+from strokekit.lazy import exports
 
-__all__ = ["KIND_COLORS", "Along", "Calligraphy", "Curvature", "Depth", "LineSet", "Noise", "Style", "StyleContext",
-           "StyledStrokes", "apply_style", "read_style", "style_context"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "KIND_COLORS": "strokekit.style.linesets",
+    "Along": "strokekit.style.linesets",
+    "Calligraphy": "strokekit.style.linesets",
+    "Curvature": "strokekit.style.linesets",
+    "Depth": "strokekit.style.linesets",
+    "LineSet": "strokekit.style.linesets",
+    "Noise": "strokekit.style.linesets",
+    "Style": "strokekit.style.linesets",
+    "StyleContext": "strokekit.style.widths",
+    "StyledStrokes": "strokekit.style.widths",
+    "apply_style": "strokekit.style.widths",
+    "read_style": "strokekit.style.file",
+    "style_context": "strokekit.style.widths",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

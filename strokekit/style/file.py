@@ -26,9 +26,8 @@ from dataclasses import fields
 from pathlib import Path
 
 from strokekit.errors import InputError, UsageError
-from strokekit.model import MAX_OCCLUSION
+from strokekit.kinds import MAX_OCCLUSION
 from strokekit.style.linesets import MODIFIERS, VISIBILITY, LineSet, Style
-from strokekit.style.widths import check_scene_names
 
 try:  # Python 3.11 reads TOML itself; 3.10 with tomli (the same parser, a dependency there)
     import tomllib
@@ -89,6 +88,19 @@ def style_error(style: Style, e: UsageError) -> InputError:
             pass
     msg = _located(text, where, str(e), doc) if text is not None and where else str(e)
     return InputError(msg, style.source)
+
+
+def check_scene_names(style: Style, scene) -> None:
+    """UsageError (option "lineset.<i>.objects" / ".materials") for a set naming an object or
+    material the scene does not have: it would select nothing."""
+    have = {"objects": tuple(scene.objects), "materials": tuple(m.name for m in scene.materials)}
+    for i, s in enumerate(style.sets):
+        for key in ("objects", "materials"):
+            names = getattr(s, key)
+            missing = [n for n in names or () if n not in have[key]]
+            if missing:
+                raise UsageError(f"line set {s.name!r} names {key[:-1]}(s) {', '.join(map(repr, missing))} the scene "
+                                 f"does not have (its {key}: {', '.join(have[key])})", option=f"lineset.{i}.{key}")
 
 
 def check_style_names(style: Style, scene) -> None:

@@ -11,12 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
-
-#: Two ends this close (px) whose line runs on through them, turning at most JOIN_ANGLE_DEG,
-#: are one line drawn as two strokes.
-JOIN_PX = 2.5
-JOIN_ANGLE_DEG = 45.0
 
 
 def stroke_bounds(sid: np.ndarray, n_strokes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -67,6 +61,8 @@ def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.n
     at most join_angle_deg; a stair-step, where a scanned mesh's contour moves from one shingle to
     the next, is one too), and moving both to their middle keeps each ahead of its stroke's next
     point. Each end joins one other, the nearest first (then the straightest)."""
+    from scipy.spatial import cKDTree  # (here: the style and the ribbons load without scipy)
+
     S = n_strokes
     joined = np.zeros((S, 2), bool)
     point = np.zeros((S, 2, 2))

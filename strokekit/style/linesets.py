@@ -13,7 +13,7 @@ import re
 from dataclasses import dataclass, field, fields
 
 from strokekit.errors import UsageError
-from strokekit.model import KINDS, MAX_OCCLUSION
+from strokekit.kinds import KINDS, MAX_OCCLUSION
 from strokekit.options import option
 
 #: Each line kind's colour (sRGB, the SVG's and the ribbons' tint) in the default style.
@@ -26,6 +26,10 @@ KIND_COLORS = {
 MIN_WIDTH_PX = 0.01
 #: The widest line (px): as wide as the largest image (camera.view.MAX_IMAGE_PX).
 MAX_WIDTH_PX = 100_000.0
+#: Two stroke ends this close (px) whose line runs on through them, turning at most
+#: JOIN_ANGLE_DEG, are one line drawn as two strokes (strokekit.style.joins).
+JOIN_PX = 2.5
+JOIN_ANGLE_DEG = 45.0
 
 _HEX = re.compile(r"#[0-9a-fA-F]{6}")
 _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")

@@ -33,8 +33,10 @@ import numpy as np
 from strokekit.errors import UsageError
 from strokekit.model import KINDS, Strokes, kind_of, occlusion_of, row_norm
 from strokekit.sampling import locate, surface_between
-from strokekit.style.joins import JOIN_ANGLE_DEG, JOIN_PX, stroke_joins
+from strokekit.style.joins import stroke_joins
 from strokekit.style.linesets import (
+    JOIN_ANGLE_DEG,
+    JOIN_PX,
     KIND_COLORS,
     MIN_WIDTH_PX,
     Along,
@@ -95,19 +97,6 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
 
 #: The visible depth range is probed every this many px (and at every line point).
 DEPTH_GRID_PX = 8.0
-
-
-def check_scene_names(style: Style, scene) -> None:
-    """UsageError (option "lineset.<i>.objects" / ".materials") for a set naming an object or
-    material the scene does not have: it would select nothing."""
-    have = {"objects": tuple(scene.objects), "materials": tuple(m.name for m in scene.materials)}
-    for i, s in enumerate(style.sets):
-        for key in ("objects", "materials"):
-            names = getattr(s, key)
-            missing = [n for n in names or () if n not in have[key]]
-            if missing:
-                raise UsageError(f"line set {s.name!r} names {key[:-1]}(s) {', '.join(map(repr, missing))} the scene "
-                                 f"does not have (its {key}: {', '.join(have[key])})", option=f"lineset.{i}.{key}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -234,13 +234,15 @@ def _straightest_order(straight: np.ndarray, ra: np.ndarray, rb: np.ndarray, S: 
     return ((t * S + ra) * S + rb).argsort(kind="stable")
 
 
-def touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
+def touching_paths(strokes: Strokes, tol_px: float, angle_deg: float, allow=None):
     """The paths chain_touching makes: join_segments(strokes, arange(S), zeros(S), lengths,
     zeros(S), ones(S), tol_px, angle_deg, straightest_first=True) specialized (same group, rev,
     pos): every run is a whole stroke, all labels agree and all signs are +1, so the ends are the
     open strokes' first and last points, the straightest continuation is linked first where three
-    ends meet, and a path is reversed when most of its strokes are entered at their end. Returns
-    group (S,) (the lowest stroke of each path), rev (S,) and pos (S,)."""
+    ends meet, and a path is reversed when most of its strokes are entered at their end.
+    `allow(ra, rb, a_end, b_end)`, when given, is shown every candidate joint (the strokes of its
+    two ends, and whether each is the stroke's last point) and returns which may be linked. Returns group (S,) (the lowest stroke of each path), rev (S,)
+    and pos (S,)."""
     S = len(strokes)
     group = np.arange(S)
     rev = np.zeros(S, bool)
@@ -267,6 +269,9 @@ def touching_paths(strokes: Strokes, tol_px: float, angle_deg: float):
     dx, dy = d[:, 0], d[:, 1]
     straight = -(dx[a] * dx[b] + dy[a] * dy[b])  # cosine of the turn at the joint
     ok &= straight >= np.cos(np.radians(angle_deg))
+    if allow is not None and ok.any():
+        k = np.flatnonzero(ok)
+        ok[k] = allow(e_run[a[k]], e_run[b[k]], a[k] >= n, b[k] >= n)
     if not ok.any():
         return group, rev, pos
     a, b, straight = a[ok], b[ok], straight[ok]

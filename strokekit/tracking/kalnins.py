@@ -4,10 +4,12 @@ tracking package's tracker module for the whole design)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from strokekit.lines.strokeops import join_arrays, query_tree
-from strokekit.model import Strokes
+from strokekit.model import Strokes, carry_points
 from strokekit.sampling import Samples
 from strokekit.tracking.grid import match_pieces
 from strokekit.tracking.joins import chain_touching, concat_groups, join_segments, turn_loops_to_seams
@@ -30,9 +32,17 @@ class Kalnins:
 
 def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) -> tuple[Strokes, int]:
     P = cur.period_px
+    pose = cur.pose
     if o.chain_touching:
         cur = chain_touching(cur, o.join_tol_px, o.join_angle_deg)
-    votes = resample(prev, o.vote_spacing_px)
+    # In a moving scene the previous frame's surface points move with their objects to where they
+    # are now before they are projected with the new camera (and the new ones back, for the
+    # reverse votes): the correspondence the metrics use.
+    moving = prev.pose is not None or pose is not None
+    carried = carry_points(prev.surface, prev.face, prev.pose, pose) if moving else None
+    votes = resample(prev, o.vote_spacing_px, surface=carried)
+    if moving:
+        prev = prev.replace(surface=carried)  # (its ends, where snap_boundaries projects them)
     dense = resample(cur, o.dense_spacing_px)
     # The previous strokes' ends (snap_boundaries) are matched in the same query as the votes
     # (each point's match is independent of the others; 2+ rows each, so that the projection
@@ -65,7 +75,11 @@ def kalnins_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) 
     if o.reverse_votes and len(votes) and len(dense):
         # The other way too (as the metrics do): every new sample looks back for the nearest
         # old sample of the previous frame and takes its u (refined along the old tangent).
-        rm, rq = match_pieces(dense, prev.camera, votes, o.search_radius_px, o.min_tangent_dot, k=4)
+        back = dense
+        if moving:
+            back = replace(dense, X=resample(cur, o.dense_spacing_px,
+                                             surface=carry_points(cur.surface, cur.face, pose, prev.pose)).X)
+        rm, rq = match_pieces(back, prev.camera, votes, o.search_radius_px, o.min_tangent_dot, k=4)
         rh = np.flatnonzero(rm >= 0)
         src = rm[rh]
         slope = local_slope(votes)

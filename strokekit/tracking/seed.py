@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.lines.strokeops import cut_pieces
-from strokekit.model import Strokes, row_norm
+from strokekit.model import Strokes, carry_points, row_norm
 from strokekit.sampling import resample_strokes
 from strokekit.tracking.options import TrackingOptions
 
@@ -34,7 +34,8 @@ def seed_step(prev: Strokes, cur: Strokes, o: TrackingOptions, next_id: int) -> 
         from scipy.spatial import cKDTree
 
         st0 = prev.offsets[:-1][carried]
-        X0 = prev.surface[st0]
+        # (in a moving scene, where the start's object has taken it since)
+        X0 = carry_points(prev.surface[st0], prev.face[st0], prev.pose, cur.pose)
         d0 = prev.points[np.minimum(st0 + 1, prev.offsets[1:][carried] - 1)] - prev.points[st0]
         d0 = d0 / np.maximum(row_norm(d0), 1e-12)[:, None]
         q, z = cur.camera.project(X0)

@@ -34,25 +34,29 @@ def with_arcs(strokes: Strokes) -> Strokes:
     return strokes
 
 
-def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray) -> np.ndarray:
+def surface_between(strokes: Strokes, i: np.ndarray, j: np.ndarray, a: np.ndarray,
+                    values: np.ndarray | None = None) -> np.ndarray:
     """World points under the screen points p_i + a (p_j - p_i), interpolated
-    perspective-correctly (sampling.surface_between)."""
+    perspective-correctly (sampling.surface_between; `values`: its per-point values mixed instead)."""
     cam = strokes.camera
     if cam is None or cam.is_ortho or len(i) == 0:
-        return numpy_surface_between(strokes, i, j, a)
+        return numpy_surface_between(strokes, i, j, a, values)
     X = strokes.surface
     Xi, Xj = X.take(i, axis=0), X.take(j, axis=0)
     fwd, eye = cam.basis[2], cam.eye_array
-    return kernels().surface_mix(Xi, Xj, (Xi - eye) @ fwd, (Xj - eye) @ fwd, np.asarray(a, float))
+    Vi, Vj = (Xi, Xj) if values is None else (values.take(i, axis=0), values.take(j, axis=0))
+    return kernels().surface_mix(Vi, Vj, (Xi - eye) @ fwd, (Xj - eye) @ fwd, np.asarray(a, float))
 
 
-def resample(strokes: Strokes, step_px: float, with_surface: bool = True) -> Samples:
-    """Samples every `step_px` along the strokes (sampling.resample_strokes)."""
+def resample(strokes: Strokes, step_px: float, with_surface: bool = True, surface: np.ndarray | None = None
+             ) -> Samples:
+    """Samples every `step_px` along the strokes (sampling.resample_strokes; `surface`: their X
+    from these per-point values, the surface points carried to another frame)."""
     if len(strokes) == 0 or len(strokes.points) == 0:
         return resample_strokes(strokes, step_px, with_surface)
     base, G = with_arcs(strokes).global_arc
     stroke, s, w, i, j, a = kernels().resample_at(strokes.lengths, float(step_px), base, G, strokes.offsets)
-    X = surface_between(strokes, i, j, a) if with_surface else np.zeros((len(i), 3))
+    X = surface_between(strokes, i, j, a, surface) if with_surface else np.zeros((len(i), 3))
     p, t, u = kernels().resample_points(strokes.points, strokes.u, i, j, a)
     return Samples(p=p, X=X, u=u, t=t, ids=strokes.ids[stroke], stroke=stroke, s=s, w=w)
 

@@ -118,6 +118,8 @@ class Tracker:
         else:
             with keyboard_interrupts():  # (a Ctrl-C in a compiled loop stays a KeyboardInterrupt)
                 out, self.next_id = self.method.track(self.prev, strokes, o, self.next_id)
+        if strokes.pose is not None:  # (a moving scene: where the frame's objects were, for the next frame)
+            out = out.replace(pose=strokes.pose)
         self.prev = out
         return out
 

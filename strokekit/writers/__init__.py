@@ -1,10 +1,18 @@
 """Writers turn finished strokes, ribbons and raster images into file bytes (SVG, JSON, GLB,
 PNG). They compute no geometry."""
 
-from strokekit.writers.gltf import GltfOptions, glb_for_frame, glb_for_sequence
-from strokekit.writers.png import png_bytes, read_png
-from strokekit.writers.strokes_json import read_strokes_json, strokes_json
-from strokekit.writers.svg import svg_document
+from strokekit.lazy import exports
 
-__all__ = ["GltfOptions", "glb_for_frame", "glb_for_sequence", "png_bytes", "read_png", "read_strokes_json",
-           "strokes_json", "svg_document"]
+#: Public names and their modules, each imported when first used.
+_EXPORTS = {
+    "GltfOptions": "strokekit.writers.options",
+    "glb_for_frame": "strokekit.writers.gltf",
+    "glb_for_sequence": "strokekit.writers.gltf",
+    "png_bytes": "strokekit.writers.png",
+    "read_png": "strokekit.writers.png",
+    "read_strokes_json": "strokekit.writers.strokes_json",
+    "strokes_json": "strokekit.writers.strokes_json",
+    "svg_document": "strokekit.writers.svg",
+}
+__all__ = list(_EXPORTS)
+__getattr__ = exports(__name__, _EXPORTS)

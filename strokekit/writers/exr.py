@@ -15,13 +15,15 @@ run computed it, all (H, W):
 - `lines_<kind>.R/G/B/A` half: that kind's strokes in their SVG colour (linear), premultiplied by
   their coverage; `lines.R/G/B/A` all kinds over each other in the SVG's layer order.
 
-The header holds only what the bindings write plus the Cryptomatte strings: no date or host, so
-the same passes give the same bytes.
+With `--exr-float full` every channel is float32. The header holds only what the bindings write,
+the Cryptomatte strings and `strokekit/layers` (what each layer holds, its pixel type): no date or
+host, so the same passes give the same bytes.
 """
 
 from __future__ import annotations
 
 import io
+import json
 import os
 import threading
 
@@ -54,22 +56,23 @@ def lines_sparse(lines: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np
     return pix, per_kind, total
 
 
-def _half_planes(pix: np.ndarray, values: np.ndarray, shape: tuple) -> list[np.ndarray]:
-    """`shape` (H, W) float16 images, zero but at flat pixels `pix`, where they take the columns of
-    `values`."""
+def _half_planes(pix: np.ndarray, values: np.ndarray, shape: tuple, dtype=np.float16) -> list[np.ndarray]:
+    """`shape` (H, W) images of `dtype`, zero but at flat pixels `pix`, where they take the columns
+    of `values`."""
     out = []
     for c in range(values.shape[1]):
-        plane = np.zeros(shape[0] * shape[1], np.float16)
+        plane = np.zeros(shape[0] * shape[1], dtype)
         plane[pix] = values[:, c]
         out.append(plane.reshape(shape))
     return out
 
 
-def exr_channels(passes: RasterPasses) -> tuple[dict[str, np.ndarray], dict[str, str]]:
-    """(channels by full name, header string attributes) of one frame's EXR."""
+def exr_channels(passes: RasterPasses, precision: str = "half") -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """(channels by full name, header string attributes) of one frame's EXR. `precision` "half":
+    the channels Blender writes in half float are half (see the module); "full": every one float32."""
     ch: dict[str, np.ndarray] = {}
     hdr: dict[str, str] = {}
-    half = np.float16
+    half = np.float16 if precision == "half" else np.float32
     if passes.depth is not None:
         ch["Z"] = passes.depth.astype(np.float32)
     if passes.normal is not None:
@@ -95,9 +98,35 @@ def exr_channels(passes: RasterPasses) -> tuple[dict[str, np.ndarray], dict[str,
         shape = (passes.height, passes.width)
         pix, per_kind, total = lines_sparse(passes.lines)
         for name, rgba in [*((f"lines_{k}", v) for k, v in per_kind.items()), ("lines", total)]:
-            for c, plane in zip("RGBA", _half_planes(pix, rgba, shape)):
+            for c, plane in zip("RGBA", _half_planes(pix, rgba, shape, half)):
                 ch[f"{name}.{c}"] = plane
+    hdr[CONTENTS_KEY] = contents(ch)
     return {k: np.ascontiguousarray(v) for k, v in ch.items()}, hdr
+
+
+#: The header attribute that says what the file holds (`contents`).
+CONTENTS_KEY = "strokekit/layers"
+#: What each layer holds, by the name its channels start with (LAYER.X, or the bare R G B A).
+MEANINGS = {
+    "Z": "view depth in scene units; background 1e10",
+    "N": "view-space unit normal: x right, y up, z toward the camera; 0 on background",
+    "RGBA": "shade colours, linear, premultiplied by A (the covered share of the pixel)",
+    "bands": "band label of the sample nearest the pixel centre: 0 background, 1..N",
+    "Crypto": "Cryptomatte ranks (id as float32 bits, coverage); manifest in the cryptomatte/ keys",
+    "lines": "strokes in their SVG colour, linear, premultiplied by their coverage",
+}
+
+
+def contents(channels: dict[str, np.ndarray]) -> str:
+    """The `strokekit/layers` attribute: a JSON object, for each layer of `channels` (in the
+    file's order), its channels' pixel type (half or float: one for a layer's channels) and what it
+    holds."""
+    layers: dict[str, dict] = {}
+    for name, a in channels.items():
+        layer = name.rsplit(".", 1)[0] if "." in name else ("RGBA" if name in "RGBA" else name)
+        kind = "Crypto" if layer.startswith("Crypto") else ("lines" if layer.startswith("lines") else layer)
+        layers.setdefault(layer, {"type": "half" if a.dtype == np.float16 else "float", "holds": MEANINGS[kind]})
+    return json.dumps(layers, separators=(",", ":"), ensure_ascii=True)
 
 
 _pool_lock = threading.Lock()
@@ -124,10 +153,10 @@ COMPRESSION = {"zip": OpenEXR.ZIP_COMPRESSION, "zips": OpenEXR.ZIPS_COMPRESSION,
                "rle": OpenEXR.RLE_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}
 
 
-def exr_bytes(passes: RasterPasses, codec: str = "zip") -> bytes:
+def exr_bytes(passes: RasterPasses, codec: str = "zip", precision: str = "half") -> bytes:
     """The EXR file of one frame's passes (bytes: the caller writes them atomically), compressed
-    with `codec` (a key of COMPRESSION)."""
-    channels, attrs = exr_channels(passes)
+    with `codec` (a key of COMPRESSION), its float types by `precision` (exr_channels)."""
+    channels, attrs = exr_channels(passes, precision)
     if not channels:
         raise ValueError("no EXR layer to write")
     header = {"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}

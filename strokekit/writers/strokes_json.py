@@ -8,7 +8,7 @@ import numpy as np
 import orjson
 
 from strokekit.camera.view import Camera
-from strokekit.model import KIND_INDEX, KINDS, N_KINDS, BrushPaths, Strokes
+from strokekit.model import KIND_INDEX, KINDS, N_KINDS, BrushPaths, RecordedPose, Strokes
 from strokekit.style.widths import StyledStrokes, apply_style
 
 
@@ -39,6 +39,8 @@ _JOINED = b'"width":[%s],"joined":[%d,%d],'
 #: The lines a brush-path frame keeps beside its strokes are not drawn: no line set, no width.
 _LINE = _STROKE.replace(b'"lineset":"%s",', b"").replace(b'"width":[%s],', b"")
 _LINE_OCCLUSION = _STROKE_OCCLUSION.replace(b'"lineset":"%s",', b"").replace(b'"width":[%s],', b"")
+#: A moving scene's strokes: each point's object and its point in the object's own frame too.
+_POSED = (b'"face":[%s],', b'"face":[%s],"object":[%s],"local":[%s],')
 _KIND_BYTES = [k.encode() for k in KINDS]
 _KIND_BYTES_ARRAY = np.array(_KIND_BYTES, dtype=object)
 _NP = orjson.OPT_SERIALIZE_NUMPY
@@ -55,9 +57,11 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
     level and weight.
     The default style (no line sets: Style.is_default) draws every stroke at one width in its
     kind's colour: its JSON has no "linesets", and its strokes no line set and no widths.
-    Deterministic. Hidden-line runs (`extra` holds "occlusion", the range of levels drawn; or a
-    stroke is hidden) give each stroke its "occlusion" level after its kind (0: visible; "level"
-    is the texture octave).
+    Deterministic. A moving scene's strokes (strokes.pose) also give each point's object and its
+    point in the object's own frame ("object", "local"; scene.motion.ScenePose.object_points).
+    Hidden-line runs (`extra` holds "occlusion", the range of levels drawn; or a stroke is hidden)
+    give each stroke its "occlusion" level after its kind (0: visible; "level" is the texture
+    octave).
 
     styled: the strokes in their style (strokekit.style.apply_style: `strokes` is then not used);
     None: the default style (one set per layer of `layers`, and of any other kind drawn).
@@ -146,6 +150,8 @@ def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion
     if styled is not None and styled.free is not None:
         joined = (~styled.free).astype(int)
         cuts = [*cuts[:2], joined[:, 0].tolist(), joined[:, 1].tolist(), *cuts[2:]]
+    if strokes.pose is not None:
+        template = template.replace(*_POSED)
     cols += [*cuts, _number_texts(strokes.lengths, 4, n), _number_texts(strokes.level, 6, n),
              _number_texts(strokes.level_weight, 6, n)]
     if covers is not None:
@@ -180,10 +186,11 @@ def _number_texts(x: np.ndarray, ndigits: int, n: int) -> list[bytes]:
 
 
 def _stroke_cuts(strokes: Strokes, width: np.ndarray | None = None) -> list[list[bytes]] | None:
-    """Each stroke's points, width (when given), u, surface and face as the JSON text between the
-    brackets of its arrays: orjson's text of the frame's whole array, cut at the stroke starts.
-    None when a stroke is empty, the arrays are not the (N, 2), (N,), (N, 3), (N,) of the offsets
-    or the ids are not integers (%d would write them differently)."""
+    """Each stroke's points, width (when given), u, surface and face (and for a moving scene its
+    objects and object points) as the JSON text between the brackets of its arrays: orjson's text
+    of the frame's whole array, cut at the stroke starts. None when a stroke is empty, the arrays
+    are not the (N, 2), (N,), (N, 3), (N,) of the offsets or the ids are not integers (%d would
+    write them differently)."""
     off = strokes.offsets
     n = len(strokes.points)
     counts = np.diff(off)
@@ -198,6 +205,8 @@ def _stroke_cuts(strokes: Strokes, width: np.ndarray | None = None) -> list[list
     arrays = [np.round(strokes.points, 4) + 0.0, np.round(strokes.u, 5) + 0.0, strokes.surface, strokes.face]
     if width is not None:
         arrays.insert(1, np.round(width, 4) + 0.0)
+    if strokes.pose is not None:
+        arrays += list(strokes.pose.object_points(strokes.surface, strokes.face))
     for arr in arrays:
         text = orjson.dumps(np.ascontiguousarray(arr), option=_NP)  # orjson refuses strided arrays
         b = np.frombuffer(text, np.uint8)
@@ -224,11 +233,16 @@ def _stroke_dicts(strokes: Strokes, occlusion: bool = False, styled: StyledStrok
     names = [styled.sets[k].name for k in styled.lineset.tolist()] if styled is not None else [None] * len(strokes)
     joined = (~styled.free).astype(int).tolist() if styled is not None and styled.free is not None else \
         [None] * len(strokes)
+    obj = local = None
+    if strokes.pose is not None:
+        obj, local = strokes.pose.object_points(surface, face)
     return [{
         "id": i, "kind": KINDS[k % N_KINDS], **({"occlusion": k // N_KINDS} if occlusion else {}),
         **({"lineset": name} if styled is not None else {}), "points": pts[a:b],
         **({"width": wd[a:b]} if styled is not None else {}), **({"joined": j} if j is not None else {}),
-        "u": u[a:b], "surface": surface[a:b], "face": face[a:b], "length_px": ln, "level": lv, "level_weight": w,
+        "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
+        **({"object": obj[a:b], "local": local[a:b]} if obj is not None else {}),
+        "length_px": ln, "level": lv, "level_weight": w,
     } for i, k, name, j, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), names, joined,
                                                 off[:-1], off[1:], lengths, level, weight)]
 
@@ -271,6 +285,9 @@ def read_strokes_json(path, which: str = "strokes") -> Strokes:
     cam = None
     if d.get("camera"):
         cam = Camera.from_json(dict(d["camera"]))
+    pose = None
+    if "objects" in d and ss and "object" in ss[0]:  # a moving scene's frame
+        pose = RecordedPose.from_json(d, np.asarray(cat("object", 1), np.int64), cat("local", 3))
     st = Strokes(points=cat("points", 2), surface=cat("surface", 3),
                  face=np.asarray(cat("face", 1) if ss and "face" in ss[0] else np.full(offsets[-1], -1), np.int64),
                  offsets=offsets,
@@ -278,5 +295,5 @@ def read_strokes_json(path, which: str = "strokes") -> Strokes:
                  ids=np.array([s["id"] for s in ss], np.int64), u=cat("u", 1),
                  level=np.array([s.get("level", 0.0) for s in ss], float),
                  level_weight=np.array([s.get("level_weight", 1.0) for s in ss], float),
-                 camera=cam, frame=int(d["frame"]), period_px=float(d.get("period_px", 30.0)))
+                 camera=cam, frame=int(d["frame"]), period_px=float(d.get("period_px", 30.0)), pose=pose)
     return st

@@ -16,6 +16,7 @@ from strokekit.model import KINDS, N_KINDS, BandRegion, Strokes
 from strokekit.sampling import locate
 from strokekit.style.linesets import KIND_COLORS, Style
 from strokekit.style.widths import StyledStrokes, apply_style
+from strokekit.writers.options import SVG_LINES
 from strokekit.writers.outline import outline_path_data
 from strokekit.writers.text import fixed_point_text
 
@@ -160,11 +161,6 @@ def dash_path_data(strokes: Strokes, members: list[int], phase: np.ndarray, patt
 #: The attribute of an outline path holding its centreline (the stroke's points: what strokekit
 #: diff compares, metrics.svg_reader).
 CENTRELINE = "data-centreline"
-
-#: --svg-lines: strokes whose width varies drawn as filled outlines (their width everywhere), or
-#: every stroke as its centreline at its mean width (plotters).
-SVG_LINES = ("outline", "centreline")
-
 
 def _width_text(w: float) -> str:
     """A stroke-width as written (px, at most 4 decimals)."""

@@ -1,0 +1,201 @@
+"""The run manifest decides what `--skip-existing` may keep: its digests must change with
+everything that changes a frame's bytes and with nothing else (an option a later version added,
+at its default, leaves the digests of older runs as they were), and a manifest must read back
+as it was written."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from strokekit.camera.paths import orbit_path
+from strokekit.options import LineOptions
+from strokekit.raster.options import PassOptions, RasterOptions
+from strokekit.run import RenderRequest, manifest
+from strokekit.run.manifest import RUN_MANIFEST, canonical, read_run_manifest, run_manifest, settings_changed
+from strokekit.run.spec import OutputOptions, RunSpec
+from strokekit.scene.load import load_scene
+from strokekit.style.linesets import LineSet, Style
+from strokekit.writers.options import GltfOptions
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    d = tmp_path_factory.mktemp("scenes")
+    trimesh.creation.box().export(d / "box.obj")
+    trimesh.creation.icosphere(subdivisions=1).export(d / "ball.obj")
+    return {n: load_scene(d / f"{n}.obj") for n in ("box", "ball")}
+
+
+def _spec(scene, n=4, out="out", cams=None, **kw):
+    outputs = kw.pop("outputs", {})
+    request = kw.pop("request", {})
+    cams = cams or tuple(orbit_path(scene.center, scene.radius, n, width=64, height=64).select(range(1, n + 1)))
+    return RunSpec(scene_path="scene.obj", cameras=cams, outputs=OutputOptions(out_dir=Path(out), **outputs),
+                   request=RenderRequest(**{"strokes": "lines", "coherence": "none", **request}), **kw)
+
+
+def _manifest(scenes, scene="box", **kw):
+    return run_manifest(_spec(scenes[scene], **kw), scenes[scene])
+
+
+# Each changes some frame's bytes: each must make another run.
+CHANGES = {
+    "--stroke-width": dict(request=dict(style=Style(width=2.0))),
+    "--decimals": dict(outputs=dict(decimals=3)),
+    "--pattern": dict(outputs=dict(pattern="f_{frame:03d}")),
+    "--no-json": dict(outputs=dict(json=False)),
+    "--gltf": dict(outputs=dict(gltf=True)),
+    "--brush": dict(outputs=dict(gltf=True, gltf_options=GltfOptions(brush="pencil"))),
+    "--hidden-dashes": dict(request=dict(style=Style(dashes=(4.0, 2.0)))),
+    "--dash-paths": dict(outputs=dict(dash_paths=True), request=dict(style=Style(dashes=(4.0, 2.0)))),
+    "--style": dict(request=dict(style=Style(sets=(LineSet(name="outline", kinds=("silhouette",)),)))),
+    "--svg-lines": dict(outputs=dict(svg_lines="centreline")),
+    "--exr": dict(outputs=dict(exr=PassOptions())),
+    "--min-length": dict(request=dict(lines=LineOptions(min_length_px=3.0))),
+    "--kinds": dict(request=dict(lines=LineOptions(kinds=("silhouette",)))),
+    "--bands": dict(request=dict(raster=RasterOptions(bands=4))),
+    "--strokes brush": dict(request=dict(strokes="brush", coherence=None)),
+    "--coherence kalnins": dict(request=dict(coherence="kalnins")),
+}
+
+
+def test_the_same_run_twice_has_the_same_digests(scenes):
+    a, b = _manifest(scenes), _manifest(scenes)
+    assert a == b
+    assert json.loads(json.dumps(a["settings"])) == a["settings"]  # (plain JSON: what the file keeps)
+    assert set(a["frames"]) == {1, 2, 3, 4} and len(set(a["frames"].values())) == 4
+
+
+def test_the_output_folder_is_not_part_of_the_run(scenes):
+    assert _manifest(scenes, out="elsewhere") == _manifest(scenes)
+
+
+@pytest.mark.parametrize("change", sorted(CHANGES))
+def test_each_option_that_changes_bytes_makes_another_run(scenes, change):
+    base, other = _manifest(scenes), _manifest(scenes, **CHANGES[change])
+    assert other["scene"] == base["scene"]
+    assert other["options"] != base["options"] and other["run"] != base["run"], change
+    assert settings_changed(base, other), change  # and the refusal can name it
+
+
+def test_every_option_change_is_its_own_digest(scenes):
+    """No two different changes fall on one digest (a digest that left a part of the options out
+    would merge some of them)."""
+    digests = [_manifest(scenes, **kw)["options"] for kw in CHANGES.values()] + [_manifest(scenes)["options"]]
+    assert len(set(digests)) == len(digests)
+
+
+def test_another_scene_changes_the_scene_digest_alone(scenes):
+    box, ball = _manifest(scenes), run_manifest(_spec(scenes["box"]), scenes["ball"])
+    assert ball["scene"] != box["scene"] and ball["run"] != box["run"]
+    assert ball["options"] == box["options"] and ball["frames"] == box["frames"]
+
+
+def test_options_added_later_at_their_default_leave_older_digests(scenes):
+    """The EXR codec and float type, the dashes and the smooth angle of flat bands entered the
+    options after runs had been made: at their defaults (or where they change no byte) they are
+    not digested; set otherwise, they are."""
+    exr = _manifest(scenes, outputs=dict(exr=PassOptions()))
+    assert "codec" not in json.dumps(exr["settings"]) and "precision" not in json.dumps(exr["settings"])
+    for other in (PassOptions(codec="piz"), PassOptions(precision="full")):
+        assert _manifest(scenes, outputs=dict(exr=other))["options"] != exr["options"]
+    plain = _manifest(scenes)
+    assert not any("hidden_dashes" in k or "dash_paths" in k for k in plain["settings"])
+    flat = [_manifest(scenes, request=dict(raster=RasterOptions(shading="flat", smooth_angle_deg=a)))
+            for a in (20.0, 40.0)]
+    assert flat[0]["options"] == flat[1]["options"]
+    smooth = [_manifest(scenes, request=dict(raster=RasterOptions(shading="smooth", smooth_angle_deg=a)))
+              for a in (20.0, 40.0)]
+    assert smooth[0]["options"] != smooth[1]["options"]
+
+
+def test_a_brush_image_of_ones_own_is_digested_by_its_bytes(scenes, tmp_path):
+    png = tmp_path / "brush.png"
+    png.write_bytes(b"one")
+    one = _manifest(scenes, outputs=dict(gltf=True, gltf_options=GltfOptions(brush=str(png))))
+    png.write_bytes(b"two")
+    two = _manifest(scenes, outputs=dict(gltf=True, gltf_options=GltfOptions(brush=str(png))))
+    assert one["options"] != two["options"] and "brush_sha256" in json.dumps(two["settings"])
+
+
+def test_a_frame_digest_is_its_camera_or_with_carried_strokes_all_before_it(scenes):
+    s = scenes["box"]
+    cams = tuple(orbit_path(s.center, s.radius, 4, width=64, height=64).select(range(1, 5)))
+    moved = cams[:2] + ((3, dataclasses.replace(cams[2][1], fov_y=cams[2][1].fov_y + 1.0)),) + cams[3:]
+    # Lines drawn afresh: a frame's digest is its own camera's.
+    a, b = _manifest(scenes, cams=cams), _manifest(scenes, cams=moved)
+    assert [f for f in a["frames"] if a["frames"][f] != b["frames"][f]] == [3]
+    # Tracked strokes carry over: frame 3's camera changes frames 3 and 4, not 1 and 2; a longer
+    # range of the same path keeps the digests of the frames it shares.
+    carried = dict(request=dict(coherence="kalnins"))
+    a, b = _manifest(scenes, cams=cams, **carried), _manifest(scenes, cams=moved, **carried)
+    assert [f for f in a["frames"] if a["frames"][f] != b["frames"][f]] == [3, 4]
+    head = _manifest(scenes, cams=cams[:2], **carried)
+    assert head["frames"] == {1: a["frames"][1], 2: a["frames"][2]}
+    assert head["frames"][1] != _manifest(scenes, cams=cams[:2])["frames"][1]  # (chained, not the camera's)
+
+
+def test_canonical_is_plain_json_in_a_fixed_form():
+    @dataclasses.dataclass(frozen=True)
+    class Part:
+        a: tuple = (1, 2)
+        b: Path = Path("x/y")
+
+    assert canonical({1: Part(), "n": np.float32(0.5), "i": np.int64(3), "none": None}) == {
+        "1": {"a": [1, 2], "b": "x/y"}, "n": 0.5, "i": 3, "none": None}
+    assert type(canonical(np.int64(3))) is int
+    with pytest.raises(TypeError, match="cannot digest a object"):
+        canonical(object())
+
+
+def test_a_manifest_reads_back_as_written(scenes, tmp_path):
+    m = _manifest(scenes)
+    path = manifest.write_run_manifest(tmp_path, m, {3: "c", 1: "a", 2: "b"})
+    assert path == tmp_path / RUN_MANIFEST
+    text = path.read_text()
+    assert list(json.loads(text)["frames"]) == ["1", "2", "3"] and text.endswith("}\n")
+    back = read_run_manifest(tmp_path)
+    assert back == {"strokekit_run": 1, "run": m["run"], "scene": m["scene"], "options": m["options"],
+                    "settings": m["settings"], "frames": {1: "a", 2: "b", 3: "c"}}
+
+
+@pytest.mark.parametrize("text", [
+    "not json", "[]", '{"strokekit_run": 2, "run": "r", "scene": "s", "options": "o", "frames": {}}',
+    '{"strokekit_run": 1, "run": 5, "scene": "s", "options": "o", "frames": {}}',
+    '{"strokekit_run": 1, "run": "r", "scene": "s", "frames": {}}',
+    '{"strokekit_run": 1, "run": "r", "scene": "s", "options": "o", "frames": {"one": "x"}}',
+    '{"strokekit_run": 1, "run": "r", "scene": "s", "options": "o"}'])
+def test_a_manifest_of_another_version_or_broken_is_none(tmp_path, text):
+    (tmp_path / RUN_MANIFEST).write_text(text)
+    assert read_run_manifest(tmp_path) is None
+
+
+def test_no_manifest_is_none(tmp_path):
+    assert read_run_manifest(tmp_path) is None
+
+
+def test_the_refused_resume_names_changed_cameras_as_ranges():
+    new = {"run": "r1", "scene": "s", "options": "o", "frames": {f: "c" for f in range(1, 12)}}
+    old = {**new, "run": "r0", "frames": {**new["frames"], **{f: "x" for f in (1, 2, 3, 7, 9, 10, 11)}}}
+    said = manifest.not_a_resume(Path("out"), old, new, {1, 2, 3, 4, 7, 9, 10, 11, 12})
+    assert "(.strokekit-run.json differs: cameras of frames 1-3, 7, 9-11);" in said
+    assert "holds frames of another run" in said  # (neither scene nor options differ)
+    one = manifest.not_a_resume(Path("out"), {**new, "run": "r0", "frames": {**new["frames"], 5: "x"}}, new, {5})
+    assert "cameras of frames 5);" in one
+
+
+def test_the_refused_resume_says_at_most_three_settings():
+    old = {"settings": {"lines.min_length_px": 0.0, "outputs.decimals": 2, "outputs.svg": True, "outputs.json": True,
+                        "gone": 1}}
+    new = {"settings": {"lines.min_length_px": 3.0, "outputs.decimals": 3, "outputs.svg": False,
+                        "outputs.json": False}}
+    said = settings_changed(old, new)
+    assert said == ("gone 1 there, none now; --min-length 0.0 there, 3.0 now; --decimals 2 there, 3 now; 2 more")
+    assert settings_changed(old, new, most=5).endswith("--svg true there, false now")
+    assert settings_changed({}, new) == "" and settings_changed(old, {"settings": None}) == ""
