@@ -531,8 +531,9 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: t
         used = of >= 0
         rep = np.empty(n, np.int64)
         rep[of[used]] = np.flatnonzero(used)
-        motion._kinds["rep"] = rep
+        # (area2 first: a worker thread that finds "rep" finds area2 too)
         motion._kinds["area2"] = _area2(motion.file_vertices, motion.file_faces)
+        motion._kinds["rep"] = rep
     rep = motion._kinds["rep"]
     P = V[rep]
     check = np.flatnonzero(rows & (of >= 0))
