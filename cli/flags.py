@@ -13,13 +13,14 @@ from strokekit.paths.options import PathOptions
 from strokekit.raster.options import PassOptions, RasterOptions
 from strokekit.run.request import RenderRequest
 from strokekit.run.spec import OutputOptions, RunSpec
+from strokekit.style.linesets import Style
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.options import GltfOptions
 
 from .common import FINITE, Choice, FiniteFloatRange, floats, split_list
 
 #: The library's options classes whose fields have flags.
-OPTION_CLASSES = (LineOptions, RenderRequest, TrackingOptions, PathOptions, OutputOptions, GltfOptions,
+OPTION_CLASSES = (LineOptions, RenderRequest, TrackingOptions, PathOptions, OutputOptions, Style, GltfOptions,
                   RasterOptions, PassOptions, RunSpec)
 
 

@@ -72,14 +72,23 @@ def test_writers_fast_paths_write_the_plain_bytes():
     import numpy as np
 
     from strokekit.model import Strokes
+    from strokekit.style import LineSet, Noise, Style, apply_style
     from strokekit.writers.strokes_json import _strokes_json_nested, strokes_json
-    from strokekit.writers.svg import _fixed_point_text, point_strings, stroke_path_data
+    from strokekit.writers.svg import point_strings, stroke_path_data
+    from strokekit.writers.text import fixed_point_text
+
+    def nested(s, *args, **kw):
+        return _strokes_json_nested(apply_style(s, ()), *args, **kw)
 
     rng = np.random.default_rng(11)
+    noisy = Style(sets=(LineSet("all", thickness=(Noise(amplitude=0.5, wavelength=200.0),)),))
     for trial in range(40):
         s = _random_strokes(rng, int(rng.integers(1, 40)))
         extra = {"tracking": {"matched": 3}} if trial % 2 else None
-        assert strokes_json(s, 640, 480, trial, extra=extra) == _strokes_json_nested(s, 640, 480, trial, extra=extra)
+        assert strokes_json(s, 640, 480, trial, extra=extra) == nested(s, 640, 480, trial, extra=extra)
+        styled = apply_style(s, (), noisy)  # widths that vary along the strokes, points added
+        assert strokes_json(s, 640, 480, trial, extra=extra, styled=styled) == _strokes_json_nested(
+            styled, 640, 480, trial, extra=extra)
         for d in (0, 2, 3):
             want = [" ".join(point_strings(s.points[a:b], d)) for a, b in zip(s.offsets[:-1], s.offsets[1:])]
             assert stroke_path_data(s, d) == want
@@ -93,13 +102,13 @@ def test_writers_fast_paths_write_the_plain_bytes():
     strided = replace(one, surface=np.c_[one.surface, one.surface][:, :3],
                       face=np.repeat(one.face, 2)[::2])
     assert not strided.surface.flags.c_contiguous and not strided.face.flags.c_contiguous
-    assert strokes_json(strided, 64, 64, 1) == _strokes_json_nested(one, 64, 64, 1)
+    assert strokes_json(strided, 64, 64, 1) == nested(one, 64, 64, 1)
     empty = Strokes.empty()
-    assert strokes_json(empty, 8, 8, 1) == _strokes_json_nested(empty, 8, 8, 1)
+    assert strokes_json(empty, 8, 8, 1) == nested(empty, 8, 8, 1)
     assert stroke_path_data(empty) == []
     for d in range(0, 8):
         v = np.r_[rng.normal(0, 10.0 ** rng.integers(-3, 14 - d, 4000)), -0.0, 0.0, 0.5 / 10**d, -0.5 / 10**d,
                   (rng.integers(-10**6, 10**6, 2000) + 0.5) / 10.0**d]
-        text = _fixed_point_text(v, d, np.full(len(v), 32, np.uint8))
+        text = fixed_point_text(v, d, np.full(len(v), 32, np.uint8))
         assert text.decode() == "".join(f"%.{d}f " % x for x in (np.round(v, d) + 0.0).tolist())
-    assert _fixed_point_text(np.array([1.0, np.nan]), 2, np.zeros(2, np.uint8)) is None
+    assert fixed_point_text(np.array([1.0, np.nan]), 2, np.zeros(2, np.uint8)) is None

@@ -14,7 +14,7 @@ CLI = PKG.parent / "cli"
 
 #: Stages in pipeline order. A stage may import the shared top-level modules and the stages
 #: before it, never one after it; writers and metrics read what the stages make.
-STAGES = ("camera", "scene", "lines", "tracking", "paths", "raster", "ribbons", "writers", "metrics", "run")
+STAGES = ("camera", "scene", "lines", "tracking", "paths", "raster", "style", "ribbons", "writers", "metrics", "run")
 #: What each stage may import besides the top-level modules.
 ALLOWED = {
     "camera": set(),
@@ -23,10 +23,11 @@ ALLOWED = {
     "tracking": {"camera", "lines"},
     "paths": {"camera", "lines", "tracking"},
     "raster": {"scene", "camera"},
-    "ribbons": {"camera"},
-    "writers": {"camera", "ribbons"},
-    "metrics": {"scene", "camera", "lines", "raster", "writers"},
-    "run": {"scene", "camera", "lines", "tracking", "paths", "raster", "ribbons", "writers"},
+    "style": {"camera"},
+    "ribbons": {"camera", "style"},
+    "writers": {"camera", "ribbons", "style"},
+    "metrics": {"scene", "camera", "lines", "raster", "style", "writers"},
+    "run": {"scene", "camera", "lines", "tracking", "paths", "raster", "style", "ribbons", "writers"},
 }
 #: Function-level imports allowed: optional or heavy backends loaded only when used (trimesh:
 #: the mesh parser, skipped when the scene cache answers; open3d: its plotly part is stubbed out

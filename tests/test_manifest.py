@@ -20,6 +20,7 @@ from strokekit.run import RenderRequest, manifest
 from strokekit.run.manifest import RUN_MANIFEST, canonical, read_run_manifest, run_manifest, settings_changed
 from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.scene.load import load_scene
+from strokekit.style.linesets import LineSet, Style
 from strokekit.writers.options import GltfOptions
 
 
@@ -45,14 +46,16 @@ def _manifest(scenes, scene="box", **kw):
 
 # Each changes some frame's bytes: each must make another run.
 CHANGES = {
-    "--stroke-width": dict(outputs=dict(stroke_width_px=2.0)),
+    "--stroke-width": dict(request=dict(style=Style(width=2.0))),
     "--decimals": dict(outputs=dict(decimals=3)),
     "--pattern": dict(outputs=dict(pattern="f_{frame:03d}")),
     "--no-json": dict(outputs=dict(json=False)),
     "--gltf": dict(outputs=dict(gltf=True)),
     "--brush": dict(outputs=dict(gltf=True, gltf_options=GltfOptions(brush="pencil"))),
-    "--hidden-dashes": dict(outputs=dict(hidden_dashes=(4.0, 2.0))),
-    "--dash-paths": dict(outputs=dict(hidden_dashes=(4.0, 2.0), dash_paths=True)),
+    "--hidden-dashes": dict(request=dict(style=Style(dashes=(4.0, 2.0)))),
+    "--dash-paths": dict(outputs=dict(dash_paths=True), request=dict(style=Style(dashes=(4.0, 2.0)))),
+    "--style": dict(request=dict(style=Style(sets=(LineSet(name="outline", kinds=("silhouette",)),)))),
+    "--svg-lines": dict(outputs=dict(svg_lines="centreline")),
     "--exr": dict(outputs=dict(exr=PassOptions())),
     "--min-length": dict(request=dict(lines=LineOptions(min_length_px=3.0))),
     "--kinds": dict(request=dict(lines=LineOptions(kinds=("silhouette",)))),

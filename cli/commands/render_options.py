@@ -5,7 +5,7 @@ cameras come from, the preset, hidden lines, the run's report), when an option m
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from strokekit.camera.limits import MAX_PATH_FRAMES
@@ -16,6 +16,8 @@ from strokekit.paths.options import PathOptions
 from strokekit.raster.options import PassOptions, RasterOptions
 from strokekit.run.request import RenderRequest
 from strokekit.run.spec import OutputOptions
+from strokekit.style.file import read_style, style_error
+from strokekit.style.linesets import Style
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.options import GltfOptions
 
@@ -53,6 +55,10 @@ class RenderCommand:
         name_of_value="occlusion_range")
     dashes: str | None = option(None, "--dashes", "Hidden lines' dash and gap in px (SVG stroke-dasharray), e.g. 6,3, "
                                 "or 'solid' [ISO 128 dashed: 12 and 3 stroke widths].")
+    style: str | None = option(
+        None, "--style", "Line styles from a TOML file: line sets selecting lines by kind, visibility, object or "
+        "material, each with its colour, width, dashes and thickness modifiers (along, depth, curvature, calligraphy, "
+        "noise; docs/styles.md); --stroke-width and --dashes set its defaults.", path=True)
     exr: bool = option(False, "--exr", "Write frame_NNNN.exr: multilayer OpenEXR with float depth Z, normals N, shade "
                        "RGBA (premultiplied), band labels, Cryptomatte (objects, materials) and the lines per kind.",
                        switch=True)
@@ -99,11 +105,13 @@ def wants_raster(values: dict) -> bool:
 
 
 def request_from(values: dict, said: dict) -> RenderRequest:
-    """The RenderRequest the command line says: the --quality preset, the options said over it."""
+    """The RenderRequest the command line says: the --quality preset, the options said over it,
+    the style of --style with --stroke-width and --dashes over it (their shortcuts)."""
     lines = field_values(LineOptions, said)
     occlusion = occlusion_from(values)
     if occlusion is not None:
         lines["occlusion"] = occlusion
+    style = style_from(values, said, occlusion)
     raster = None
     if wants_raster(values) or values["exr"]:
         raster = {**field_values(RasterOptions, said), "pngs": wants_raster(values)}
@@ -114,14 +122,36 @@ def request_from(values: dict, said: dict) -> RenderRequest:
     fields = field_values(RenderRequest, said)
     if values["no_coherence"]:
         fields["coherence"] = "none"
-    request = RenderRequest.preset(values["quality"], lines=lines, raster=raster,
-                                   tracking=TrackingOptions(**field_values(TrackingOptions, said)),
-                                   paths=PathOptions(**field_values(PathOptions, said)), **fields)
+    try:
+        request = RenderRequest.preset(values["quality"], lines=lines, raster=raster,
+                                       tracking=TrackingOptions(**field_values(TrackingOptions, said)),
+                                       paths=PathOptions(**field_values(PathOptions, said)), style=style, **fields)
+    except UsageError as e:
+        if (e.option or "").startswith("lineset."):  # a set that selects nothing the run draws
+            raise style_error(style, e) from None
+        raise
+    if style.sets:
+        ribbon = [flag for flag, dest in (("--ribbon-width", "ribbon_width"), ("--taper", "taper")) if dest in said]
+        if ribbon:
+            raise UsageError(f"{' and '.join(ribbon)} shape the ribbons of the default style: the line sets of "
+                             f"--style {values['style']} give the ribbons their widths (a thickness "
+                             "{ by = \"along\", ... } tapers them)")
     r = raster.get("edge_supersample") if raster is not None else None
     if r and r <= request.raster.supersample:
         raise UsageError(f"--edge-supersample {r} must be above --supersample {request.raster.supersample} (or 0, "
                          "off): the edge pixels would get no more samples than the others")
     return request
+
+
+def style_from(values: dict, said: dict, occlusion: tuple[int, int] | None) -> Style:
+    """The Style of --style (a bad file: an InputError naming its line, before any work), the
+    shortcuts said over its defaults: --stroke-width (its width), --dashes (its hidden dashes)."""
+    style = read_style(values["style"]) if values.get("style") else Style()
+    shortcuts = field_values(Style, said)
+    dashes = dashes_from(values, occlusion)
+    if dashes is not None:
+        shortcuts["dashes"] = dashes
+    return replace(style, **shortcuts) if shortcuts else style
 
 
 def outputs_from(values: dict, said: dict, occlusion: tuple[int, int] | None, fps: float) -> OutputOptions:
@@ -130,8 +160,7 @@ def outputs_from(values: dict, said: dict, occlusion: tuple[int, int] | None, fp
     exr = PassOptions(**field_values(PassOptions, said), stroke_width_px=values["stroke_width"]) \
         if values["exr"] else None
     return OutputOptions(out_dir=Path(values["out"]), **{**field_values(OutputOptions, said), "gltf": gltf},
-                         gltf_options=gltf_options_from(values, said, fps) if gltf else None,
-                         hidden_dashes=dashes_from(values, occlusion), exr=exr)
+                         gltf_options=gltf_options_from(values, said, fps) if gltf else None, exr=exr)
 
 
 def gltf_options_from(values: dict, said: dict, fps: float) -> GltfOptions:
@@ -170,7 +199,7 @@ def occlusion_from(extra: dict) -> tuple[int, int] | None:
 
 
 def dashes_from(extra: dict, occlusion: tuple[int, int] | None) -> tuple[float, ...] | None:
-    """OutputOptions.hidden_dashes from --dashes (None: the ISO 128 default); a usage error when
+    """Style.dashes from --dashes (None: not said, the ISO 128 default); a usage error when
     no hidden line is drawn (the option would be ignored) or the pattern is not one."""
     text = extra.get("dashes")
     for flag, on in (("--dashes", text is not None), ("--dash-paths", extra.get("dash_paths"))):

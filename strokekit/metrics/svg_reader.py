@@ -4,7 +4,8 @@ and what the tests check drawings with.
 Layers are `<g inkscape:groupmode="layer" inkscape:label="KIND">` or `<g id="layer-KIND">`, as
 strokekit.writers.svg writes them. Paths may use M/m, L/l, H/h, V/v and Z/z commands (as other
 tools write them); `<polyline>`, `<polygon>`, `<line>` and `transform` attributes are read too.
-Curves are refused with a clear error.
+Curves are refused with a clear error. A path with a `data-centreline` attribute (the filled
+outline strokekit writes for a stroke whose width varies) is read as that centreline.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from strokekit.errors import InputError
+from strokekit.writers.svg import CENTRELINE
 
 #: Kind name for paths that are not inside any layer.
 NO_LAYER = "(no layer)"
@@ -318,8 +320,8 @@ def read_svg(path: str | Path) -> SvgDrawing:
                         polys.setdefault(layer, [])  # an empty layer is still a kind of the file
                         ids.setdefault(layer, [])
                     walk(ch, layer if layer is not None else kind, cm, st)
-                elif name == "path":
-                    add(kind, parse_path_data(ch.get("d", "")), eid, cm, st)
+                elif name == "path":  # (a filled outline of strokekit's gives its centreline)
+                    add(kind, parse_path_data(ch.get(CENTRELINE) or ch.get("d", "")), eid, cm, st)
                 elif name in ("polyline", "polygon"):
                     v = _numbers(ch.get("points", ""), "points")
                     if len(v) % 2:

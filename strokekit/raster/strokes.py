@@ -1,8 +1,10 @@
 """The strokes as a raster: per line kind, the anti-aliased coverage of its strokes drawn with
-round caps and joins at the SVG's stroke width, for compositing without an SVG renderer.
+round caps and joins at the strokes' widths (per point, linear along each segment, as the SVG
+draws them), for compositing without an SVG renderer.
 
 Coverage of a pixel is the area of the pixel square inside the band of width w around the nearest
-segment of the stroke, as an area-sampling renderer (cairo, Inkscape) draws it: with d the
+segment of the stroke (w the width at the nearest point of the segment), as an area-sampling
+renderer (cairo, Inkscape) draws it: with d the
 distance from the pixel centre to the segment and n the direction from the segment to the centre,
 the square projected on n spreads over a trapezoid, and the coverage is the part of it within
 w / 2 of the segment. Overlapping segments take the larger coverage (not the sum), so joins and
@@ -42,13 +44,15 @@ def _cdf(x: float, a: float, b: float) -> float:
 _cdf_jit = _cdf
 
 
-def _cover(points: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, radius: float, out: np.ndarray) -> None:
-    """Max-composite the coverage of segments points[seg_a] -> points[seg_b] into out (H, W)."""
+def _cover(points: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, radii: np.ndarray, out: np.ndarray) -> None:
+    """Max-composite the coverage of segments points[seg_a] -> points[seg_b] into out (H, W), of
+    half width radii[seg_a] at the start and radii[seg_b] at the end."""
     H, W = out.shape
-    reach = radius + 0.5
     for m in range(len(seg_a)):
         ax, ay = points[seg_a[m], 0], points[seg_a[m], 1]
         bx, by = points[seg_b[m], 0], points[seg_b[m], 1]
+        ra, rb = radii[seg_a[m]], radii[seg_b[m]]
+        reach = max(ra, rb) + 0.5
         x0 = max(0, int(math.floor(min(ax, bx) - reach)))
         x1 = min(W - 1, int(math.ceil(max(ax, bx) + reach)))
         y0 = max(0, int(math.floor(min(ay, by) - reach)))
@@ -64,6 +68,7 @@ def _cover(points: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, radius: flo
                     t = ((px - ax) * dx + (py - ay) * dy) / L2
                     t = min(1.0, max(0.0, t))
                 ex, ey = px - (ax + t * dx), py - (ay + t * dy)
+                radius = ra + t * (rb - ra)
                 d = math.sqrt(ex * ex + ey * ey)
                 if d >= reach + 0.25:  # beyond the projected square's reach (at most sqrt(2) / 2)
                     continue
@@ -92,10 +97,11 @@ def _kernel():
     return _KERNEL
 
 
-def stroke_coverage(strokes: Strokes, width: int, height: int, stroke_width_px: float) -> dict[str, np.ndarray]:
+def stroke_coverage(strokes: Strokes, width: int, height: int, stroke_width_px) -> dict[str, np.ndarray]:
     """{kind: (height, width) float32 coverage in [0, 1]} of every line kind that has visible
-    strokes, in KINDS order; strokes (px) drawn stroke_width_px wide. Hidden lines (occlusion
-    level >= 1, dashed in the SVG) are not drawn."""
+    strokes, in KINDS order; strokes (px) drawn stroke_width_px wide: one width, or (N,) at each
+    point (strokekit.style's). Hidden lines (occlusion level >= 1, dashed in the SVG) are not
+    drawn."""
     out: dict[str, np.ndarray] = {}
     if len(strokes) == 0:
         return out
@@ -107,10 +113,11 @@ def stroke_coverage(strokes: Strokes, width: int, height: int, stroke_width_px: 
     seg_a = np.concatenate([inner, lone]).astype(np.int64)
     seg_b = np.concatenate([inner + 1, lone]).astype(np.int64)
     kind_of_seg = strokes.kind[sop[seg_a]]
+    radii = np.ascontiguousarray(np.broadcast_to(0.5 * np.asarray(stroke_width_px, np.float64), (n,)))
     cover = _kernel()
     for k in np.unique(kind_of_seg[kind_of_seg < N_KINDS]):
         img = np.zeros((int(height), int(width)), np.float32)
         sel = kind_of_seg == k
-        cover(pts, seg_a[sel], seg_b[sel], 0.5 * float(stroke_width_px), img)
+        cover(pts, seg_a[sel], seg_b[sel], radii, img)
         out[KINDS[int(k)]] = img
     return {name: out[name] for name in KINDS if name in out}

@@ -38,7 +38,7 @@ than head + tail); in between the body repeats once per unit of the stroke's own
 are inserted where a region starts and wherever u crosses an integer, and every segment owns its
 vertices, so the texture seams are exact and no texel is stretched across a repeat.
 
-Joins between strokes (`stroke_joins`): where a stroke's end meets the end of another stroke of its
+Joins between strokes (strokekit.style.joins `stroke_joins`): where a stroke's end meets the end of another stroke of its
 kind (or its own other end: a loop) within `join_px`, the line running on through it (tangents
 within `join_angle_deg`), the two are one line drawn as two strokes (a brush path cut where its id
 changes, a loop's seam). There the ribbons neither taper nor show the brush's head or tail (whose
@@ -60,6 +60,8 @@ from strokekit.camera.view import Camera
 from strokekit.errors import UsageError
 from strokekit.model import Strokes
 from strokekit.ribbons.options import RibbonOptions
+from strokekit.style.joins import arc_lengths, stroke_bounds, stroke_joins
+from strokekit.style.widths import along_profile, end_lengths
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,128 +156,19 @@ def _cuts_at(arc: np.ndarray, sid: np.ndarray, starts: np.ndarray, ends: np.ndar
     return j[inside], t[inside]
 
 
-def _stroke_bounds(sid: np.ndarray, n_strokes: int) -> tuple[np.ndarray, np.ndarray]:
-    starts = np.searchsorted(sid, np.arange(n_strokes), side="left")
-    ends = np.searchsorted(sid, np.arange(n_strokes), side="right")
-    return starts, ends
-
-
-def _arc(p: np.ndarray, sid: np.ndarray) -> np.ndarray:
-    """Cumulative arc length (px) from each stroke's start, for points grouped by stroke."""
-    d = np.zeros(len(p))
-    if len(p) > 1:
-        d[1:] = np.linalg.norm(np.diff(p, axis=0), axis=1)
-        d[1:][sid[1:] != sid[:-1]] = 0.0
-    c = np.cumsum(d)
-    first = np.r_[True, sid[1:] != sid[:-1]] if len(p) else np.zeros(0, bool)
-    base = np.maximum.accumulate(np.where(first, c, 0.0)) if len(p) else c
-    return c - base
-
-
-#: A stroke's direction at an end: from its point this many px along it (at most half its length)
-#: to the end (a last segment a fraction of a pixel long says little of where the line goes).
-_END_REACH_PX = 2.0
-
-
-@dataclass(frozen=True, eq=False)
-class StrokeJoins:
-    """The joined stroke ends of one frame (module doc). joined (S, 2): the start (0) and the end
-    (1) of each stroke; point (S, 2, 2) px: where a joined end goes, the middle of the two ends;
-    normal (S, 2, 2): the end edge both ribbons share, across the bisector of the two strokes'
-    directions, oriented as the stroke's own normal at that end and scaled by the miter factor
-    (each ribbon keeps its width square to itself); partner (S, 2): the end joined to, as
-    2 x stroke + (0: start, 1: end), -1 where none."""
-
-    joined: np.ndarray
-    point: np.ndarray
-    normal: np.ndarray
-    partner: np.ndarray
-
-
-def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.ndarray, join_px: float,
-                 join_angle_deg: float) -> StrokeJoins:
-    """Which ends of the strokes (points (N, 2) px grouped by stroke index sid (N,), kind (S,)) are
-    joins: the end of another stroke of the same kind, or the stroke's other end (a loop at least
-    4 join_px long), within join_px, the line running on through both (their directions turning by
-    at most join_angle_deg; a stair-step, where a scanned mesh's contour moves from one shingle to
-    the next, is one too), and moving both to their middle keeps each ahead of its stroke's next
-    point. Each end joins one other, the nearest first (then the straightest)."""
-    from scipy.spatial import cKDTree  # (here: the glTF options load without scipy)
-
-    S = n_strokes
-    joined = np.zeros((S, 2), bool)
-    point = np.zeros((S, 2, 2))
-    normal = np.zeros((S, 2, 2))
-    partner = np.full((S, 2), -1, np.int64)
-    out = StrokeJoins(joined, point, normal, partner)
-    starts, ends = _stroke_bounds(sid, S)
-    arc = _arc(points, sid)
-    L = np.where(ends - starts >= 2, arc[np.maximum(ends - 1, 0)] if len(arc) else 0.0, 0.0)
-    ok = np.flatnonzero(L > 0)
-    if len(ok) < 1 or join_px <= 0:
-        return out
-    # Each end's position and outward direction (away from its stroke), from the point
-    # _END_REACH_PX along it.
-    span = float(L.max()) + 1.0
-    g = arc + sid * span
-    reach = np.minimum(_END_REACH_PX, 0.5 * L[ok])
-    j0 = np.clip(np.searchsorted(g, ok * span + reach, side="left"), starts[ok] + 1, ends[ok] - 1)
-    j1 = np.clip(np.searchsorted(g, ok * span + L[ok] - reach, side="right") - 1, starts[ok], ends[ok] - 2)
-    pos = np.stack([points[starts[ok]], points[ends[ok] - 1]], 1)  # (K, 2 ends, 2)
-    nxt = np.stack([points[starts[ok] + 1], points[ends[ok] - 2]], 1)  # the neighbour of each end
-    d = np.stack([pos[:, 0] - points[j0], pos[:, 1] - points[j1]], 1)
-    d /= np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-300)
-    E, D, NX = pos.reshape(-1, 2), d.reshape(-1, 2), nxt.reshape(-1, 2)
-    owner = np.repeat(ok, 2)
-    pr = cKDTree(E).query_pairs(join_px, output_type="ndarray")
-    if len(pr) == 0:
-        return out
-    a, b = pr[:, 0], pr[:, 1]
-    sa, sb = owner[a], owner[b]
-    dot = np.einsum("ij,ij->i", D[a], D[b])
-    thru = D[a] - D[b]  # the line's direction through the joint, from a's stroke into b's
-    thru /= np.maximum(np.linalg.norm(thru, axis=1, keepdims=True), 1e-300)
-    mid = 0.5 * (E[a] + E[b])
-    ahead = (np.einsum("ij,ij->i", mid - NX[a], D[a]) > 0) & (np.einsum("ij,ij->i", mid - NX[b], D[b]) > 0)
-    keep = ((np.asarray(kind)[sa] == np.asarray(kind)[sb]) & (dot <= -np.cos(np.radians(join_angle_deg)))
-            & ahead & ((sa != sb) | (L[sa] >= 4.0 * join_px)))
-    a, b, dot, thru, mid = a[keep], b[keep], dot[keep], thru[keep], mid[keep]
-    dist = np.linalg.norm(E[b] - E[a], axis=1)
-    used = np.zeros(len(E), bool)
-    take = []
-    for k in np.lexsort((b, a, np.round(dot, 9), np.round(dist, 9))):
-        if not (used[a[k]] or used[b[k]]):
-            used[a[k]] = used[b[k]] = True
-            take.append(k)
-    take = np.asarray(take, np.int64)
-    miter = 1.0 / np.maximum(np.einsum("ij,ij->i", thru[take], D[a[take]]), 1e-3)
-    for e, f in ((a[take], b[take]), (b[take], a[take])):
-        s_e, w_e = owner[e], e % 2
-        # the shared edge across the line, turned to the stroke's own normal: its direction of
-        # travel at the end is D (an end) or -D (a start), the line's is +-thru
-        travel = np.where((w_e == 1)[:, None], D[e], -D[e])
-        t = np.where((np.einsum("ij,ij->i", thru[take], travel) >= 0)[:, None], thru[take], -thru[take])
-        joined[s_e, w_e] = True
-        point[s_e, w_e] = mid[take]
-        normal[s_e, w_e] = np.stack([-t[:, 1], t[:, 0]], 1) * miter[:, None]
-        partner[s_e, w_e] = 2 * owner[f] + f % 2
-    return out
-
-
-def _ease(x: np.ndarray) -> np.ndarray:
-    """0 -> 0, 1 -> 1 with zero slope at 1: the brush reaches full width smoothly."""
-    x = np.clip(x, 0.0, 1.0)
-    return x * (2.0 - x)
-
-
 # --- the ribbon -----------------------------------------------------------------------------------
 
 def build_ribbons(strokes: Strokes, camera: Camera | None = None,
-                  options: RibbonOptions | None = None, surface_depth=None) -> RibbonMesh:
+                  options: RibbonOptions | None = None, surface_depth=None, widths: np.ndarray | None = None
+                  ) -> RibbonMesh:
     """Ribbon triangles for every stroke of one frame (vectorized over all strokes).
 
     strokes: points (N, 2) px, surface (N, 3) world, u (N,) texture periods. camera: the frame's
     camera (default strokes.camera); needed for space "world" and for the image height.
+    widths: (N,) the ribbon's width at each point (px; strokekit.style's, linear between points:
+    the options' width and taper are then not used, and the texture's head and tail scale with
+    each stroke's mean width); None: options.width_px, tapered at the free ends by the along
+    profile (strokekit.style.widths.along_profile) over taper_head_px and taper_tail_px.
     surface_depth (space "world"): f(camera, pixels (V, 2)) -> (V,) view depth of the scene's first
     surface at those pixels (inf: none), e.g. raster.surface_depth_at(occluder). The vertices of a
     stroke point lie at the nearest of its depth and the surface's at any of them: beside a
@@ -293,6 +186,8 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     if not np.all(np.isfinite(u)):  # fall back on arc length for unknown parameters
         u = np.where(np.isfinite(u), u, strokes.arc_length / strokes.period_px)
     arr = {"p": np.asarray(strokes.points, float), "u": u}
+    if widths is not None:
+        arr["w"] = np.asarray(widths, float)
     if o.space == "world":
         z = cam.depth(strokes.surface) if len(strokes.points) else np.zeros(0)
         dist = float(np.linalg.norm(np.subtract(cam.target, cam.eye)))
@@ -305,7 +200,7 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     # Joined ends move to their joint (module doc).
     joins = stroke_joins(arr["p"], sid, n_s, strokes.kind, o.join_px, o.join_angle_deg)
     if joins.joined.any():
-        starts, ends = _stroke_bounds(sid, n_s)
+        starts, ends = stroke_bounds(sid, n_s)
         p = arr["p"].copy()
         for w, at in ((0, starts), (1, ends - 1)):
             js = np.flatnonzero(joins.joined[:, w])
@@ -315,20 +210,21 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     free = ~joins.joined
 
     # --- per-stroke lengths, head/tail and taper regions
-    s = _arc(arr["p"], sid)
-    starts, ends = _stroke_bounds(sid, n_s)
+    s = arc_lengths(arr["p"], sid)
+    starts, ends = stroke_bounds(sid, n_s)
     has = ends - starts >= 2
     L = np.where(has, s[np.maximum(ends - 1, 0)] if len(s) else 0.0, 0.0)
 
-    def _fit(a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
-        # two end regions of a and b px at the free ends (none at a joined one), shrunk together
-        # on strokes shorter than both
-        a, b = a * free[:, 0], b * free[:, 1]
-        k = np.minimum(1.0, L / np.where(a + b > 0, a + b, 1.0))
-        return a * k, b * k
-
-    head, tail = _fit(o.head_px, o.tail_px)
-    thead, ttail = _fit(o.taper_head_px, o.taper_tail_px)
+    # the texture's head and tail, and the taper: end regions at the free ends (none at a joined
+    # one), shrunk together on strokes shorter than both
+    if widths is None:
+        head, tail = end_lengths(o.head_px, o.tail_px, free, L)
+        thead, ttail = end_lengths(o.taper_head_px, o.taper_tail_px, free, L)
+    else:  # texels kept square: the texture's ends scale with the stroke's width
+        n_pt = np.bincount(sid, minlength=n_s)
+        scale = np.bincount(sid, arr["w"], minlength=n_s) / np.maximum(n_pt, 1) / o.width_px
+        head, tail = end_lengths(o.head_px * scale, o.tail_px * scale, free, L)
+        thead = ttail = np.zeros(n_s)
 
     # cuts: region boundaries and the taper profile samples
     steps = int(o.taper_steps)
@@ -375,12 +271,11 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
     tan = d_vec / seg_len[:, None]
     nrm = np.stack([-tan[:, 1], tan[:, 0]], axis=1)
 
-    # half width at every point: tapered at both ends
-    th_p, tt_p = thead[sid], ttail[sid]
-    grow = np.where(th_p > 0, _ease(s / np.maximum(th_p, 1e-300)), 1.0)
-    fade = np.where(tt_p > 0, _ease((L[sid] - s) / np.maximum(tt_p, 1e-300)), 1.0)
-    prof = o.taper_min + (1 - o.taper_min) * np.minimum(grow, fade)
-    half = 0.5 * o.width_px * prof
+    # half width at every point: the widths given, or tapered at both ends
+    if widths is None:
+        half = 0.5 * o.width_px * along_profile(s, L[sid], thead[sid], ttail[sid], o.taper_min)
+    else:
+        half = 0.5 * arr["w"]
 
     # seven vertex slots per segment: rows L, C, R at the start, then at the end, then the outer
     # join vertex M of the turn at its end (unused on the last segment and on straight joins)

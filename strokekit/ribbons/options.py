@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from strokekit.camera.limits import MAX_IMAGE_PX
 from strokekit.errors import UsageError
+from strokekit.style.linesets import JOIN_ANGLE_DEG, JOIN_PX
 
 #: The brushes strokekit draws itself (ribbons.brushes); any other name is a PNG of the user's.
 BUNDLED = ("plain", "ink", "dry")
@@ -40,8 +41,8 @@ class RibbonOptions:
     tex_head: float = 0.25
     tex_tail: float = 0.25
     miter_limit: float = 4.0
-    join_px: float = 2.5
-    join_angle_deg: float = 45.0
+    join_px: float = JOIN_PX
+    join_angle_deg: float = JOIN_ANGLE_DEG
     space: str = "world"
     pull: float = 0.003
 

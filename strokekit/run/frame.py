@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 from strokekit.camera.view import Camera
 from strokekit.cryptomatte import name_to_hex
@@ -14,7 +15,10 @@ from strokekit.model import BrushPaths, Strokes
 from strokekit.paths.stage import PathTracker
 from strokekit.raster.bands import RasterFrame, band_regions, render_raster
 from strokekit.raster.hits import ensure_kernels
+from strokekit.raster.rays import surface_depth_at
 from strokekit.run.request import SequencePlan
+from strokekit.style.linesets import Style
+from strokekit.style.widths import StyleContext, StyledStrokes, apply_style, style_context
 from strokekit.tracking.tracker import Tracker
 from strokekit.writers.strokes_json import strokes_json
 from strokekit.writers.svg import bands_layer, svg_document
@@ -29,8 +33,10 @@ class Frame:
     are drawn); `strokes` is what is drawn. raster: the raster pass (None when not asked, or
     once its images are written); raster_info: what the frame JSON says of it (depth range,
     object and material ids); underlays: SVG layers under the lines (the bands as polygons).
-    json_head: the frame JSON's keys before the strokes; layers: the SVG's layers. timings:
-    seconds per stage of this frame."""
+    json_head: the frame JSON's keys before the strokes; layers: the SVG's layers. style: how
+    the strokes are drawn, style_context: what the style needed of the scene for this frame
+    (strokekit.style.style_context); `styled`: the strokes in their style, as every writer
+    draws them. timings: seconds per stage of this frame."""
 
     number: int
     camera: Camera
@@ -45,11 +51,23 @@ class Frame:
     raster_info: dict = field(default_factory=dict)
     underlays: tuple[str, ...] = ()
     timings: dict = field(default_factory=dict)
+    style: Style = field(default_factory=Style)
+    style_context: StyleContext | None = None
 
     @property
     def strokes(self) -> Strokes:
         """What the frame draws: its brush paths, or its lines."""
         return self.paths.strokes if self.paths is not None else self.lines
+
+    @cached_property
+    def styled(self) -> StyledStrokes:
+        """The frame's strokes in its style: the strokes drawn, their widths and line sets."""
+        return apply_style(self.strokes, self.layers, self.style, self.style_context)
+
+    def styled_lines(self) -> StyledStrokes:
+        """The frame's lines in its style (the raster outputs draw the lines, not brush paths)."""
+        return self.styled if self.paths is None else apply_style(self.lines, self.layers, self.style,
+                                                                  self.style_context)
 
     def to_json(self) -> bytes:
         """The frame JSON (writers.strokes_json), as the run writes it."""
@@ -57,15 +75,16 @@ class Frame:
         if self.strokes.pose is not None:  # a moving scene: where its objects were
             head = {**head, "animation": self.animation, **self.strokes.pose.to_json()}
         cam = self.strokes.camera
-        return strokes_json(self.strokes, cam.width, cam.height, self.number, extra=head, paths=self.paths)
+        return strokes_json(self.strokes, cam.width, cam.height, self.number, extra=head, paths=self.paths,
+                            styled=self.styled, layers=self.layers)
 
-    def to_svg(self, decimals: int = 2, stroke_width_px: float = 1.5, dashes: tuple[float, ...] | None = None,
-               dash_paths: bool = False) -> str:
-        """The frame's SVG (writers.svg.svg_document), as the run writes it with these outputs."""
+    def to_svg(self, decimals: int = 2, dash_paths: bool = False, lines: str = "outline") -> str:
+        """The frame's SVG (writers.svg.svg_document), as the run writes it with these outputs
+        (lines: writers.options.SVG_LINES)."""
         cam = self.strokes.camera
         return svg_document(self.strokes, cam.width, cam.height, self.layers, decimals=decimals,
-                            stroke_width=stroke_width_px, underlays=list(self.underlays) or None, dashes=dashes,
-                            dash_paths=dash_paths)
+                            underlays=list(self.underlays) or None, dash_paths=dash_paths, styled=self.styled,
+                            lines=lines)
 
 
 def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: SequencePlan, work=None) -> Frame:
@@ -82,6 +101,11 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
     renderer = posed
     renderer.check_camera(camera, number)
     lines = renderer.render(camera, number, timings)
+    context = None
+    if plan.style.needs_scene_depths or plan.style.needs_faces:
+        t = time.perf_counter()
+        context = style_context(plan.style, renderer.scene, camera, lines, surface_depth_at(renderer.occluder))
+        timings["style"] = time.perf_counter() - t
     raster, info, underlays = None, {}, ()
     if plan.raster is not None:
         # The kernels' load (a process's first raster frame) is the 'raster kernels' stage, not this frame's.
@@ -94,8 +118,8 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
         timings["raster pass"] = time.perf_counter() - t
     moving = renderer.pose is not None
     return Frame(number, camera, lines, plan.json_head(), plan.lines.layers, raster=raster, raster_info=info,
-                 underlays=underlays, timings=timings, time=time_s if moving else None,
-                 animation=clock.animation if moving else None)
+                 underlays=underlays, timings=timings, style=plan.style, style_context=context,
+                 time=time_s if moving else None, animation=clock.animation if moving else None)
 
 
 def raster_info(raster: RasterFrame) -> dict:

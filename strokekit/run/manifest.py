@@ -16,6 +16,7 @@ from strokekit.raster.options import PassOptions, RasterOptions
 from strokekit.ribbons.options import BUNDLED
 from strokekit.run.spec import OutputOptions, RunSpec
 from strokekit.scene.load import Scene
+from strokekit.style.linesets import Style
 from strokekit.tracking.options import TrackingOptions
 from strokekit.writers.options import GltfOptions
 
@@ -58,10 +59,19 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
                        "materials": [m.base_color for m in scene.materials]})
     o = spec.outputs
     # An option at its default that a later option added is left out of the digest, so that the
-    # digests of runs made before it stay: the dashes, the EXR codec and float types.
-    outputs = {f.name: getattr(o, f.name) for f in fields(o) if f.name != "out_dir"
-               and not (f.name == "hidden_dashes" and o.hidden_dashes is None)
-               and not (f.name == "dash_paths" and not o.dash_paths)}
+    # digests of runs made before it stay: the dash paths, the SVG's outlines, the EXR codec and float
+    # types.
+    # The default style's shortcuts are digested among the outputs, where their options were.
+    shortcuts = _style_shortcuts(plan.style)
+    outputs = {}
+    for f in fields(o):
+        if f.name == "dash_paths":
+            outputs.update({k: v for k, v in shortcuts.items() if k != "stroke_width_px"})
+        if f.name != "out_dir" and not (f.name == "dash_paths" and not o.dash_paths) \
+                and not (f.name == "svg_lines" and o.svg_lines == "outline"):
+            outputs[f.name] = getattr(o, f.name)
+        if f.name == "decimals" and "stroke_width_px" in shortcuts:
+            outputs["stroke_width_px"] = shortcuts["stroke_width_px"]
     outputs["raster_options"] = plan.raster  # (the raster pass is digested with the outputs)
     if plan.raster is not None and plan.raster.shading == "flat":  # (the smooth angle shapes no flat bytes)
         outputs["raster_options"] = {k: v for k, v in canonical(plan.raster).items() if k != "smooth_angle_deg"}
@@ -77,6 +87,8 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
             except OSError:
                 pass  # the run reports it
     opts = {"lines": plan.lines.to_json(), "outputs": outputs, "tracking": plan.tracking}
+    if not plan.style.is_default:
+        opts["style"] = plan.style.to_json()
     if plan.paths is not None:  # (brush runs only: a lines run's digest has no paths)
         opts["paths"] = plan.paths
     options_d = _digest(opts)
@@ -93,6 +105,22 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
         frames[f] = d
     return {"strokekit_run": 1, "run": _digest([scene_d, options_d]), "scene": scene_d, "options": options_d,
             "settings": settings, "frames": frames}
+
+
+#: The default style's shortcuts as the run options named them before line styles (outputs'
+#: names), and their fields of Style.
+_SHORTCUTS = {"stroke_width_px": "width", "hidden_dashes": "dashes"}
+
+
+def _style_shortcuts(style: Style) -> dict:
+    """{outputs' name: value} of the default style's shortcuts ({} for a style file's: it is
+    digested whole); the dashes only where said."""
+    if not style.is_default:
+        return {}
+    out = {"stroke_width_px": style.width}
+    if style.dashes is not None:
+        out["hidden_dashes"] = style.dashes
+    return out
 
 
 def _flat(v, prefix: str = "") -> dict:
@@ -115,6 +143,8 @@ def _setting_name(key: str) -> str:
     """A setting as the user gave it: its flag ('--stroke-width'), else its dotted name."""
     part, _, name = key.rpartition(".")
     cls = _SETTINGS_CLASSES.get(part)
+    if part == "outputs" and name in _SHORTCUTS:
+        cls, name = Style, _SHORTCUTS[name]
     field = next((f for f in fields(cls) if f.name == name), None) if cls is not None else None
     flag = flag_of(field) if field is not None else None
     return flag.name if flag is not None else key

@@ -11,6 +11,7 @@ from strokekit.errors import UsageError
 from strokekit.options import LineOptions, option
 from strokekit.paths.options import PathOptions
 from strokekit.raster.options import RasterOptions
+from strokekit.style.linesets import Style
 from strokekit.tracking.options import METHODS, TrackingOptions
 
 STROKES = ("brush", "lines")
@@ -26,7 +27,9 @@ class RenderRequest:
     over from frame to frame: "kalnins" or "seed" track the lines, "none" carries nothing (brush
     paths are then made afresh every frame); None: kalnins, or carried brush paths. tracking,
     paths: the line tracker's and the brush paths' own settings (their method and history
-    follow `coherence`). raster: the raster pass (bands, masks, ids, depth); None: none."""
+    follow `coherence`). raster: the raster pass (bands, masks, ids, depth); None: none.
+    style: how the strokes are drawn (line sets, widths per point: strokekit.style), by every
+    writer."""
 
     lines: LineOptions = field(default_factory=LineOptions)
     strokes: str | None = option(
@@ -46,6 +49,7 @@ class RenderRequest:
         "frame N shows it at (N - 1) / fps + --time-offset seconds.")
     time_offset: float = option(0.0, "--time-offset", "Seconds added to every frame's time in the scene's animation "
                                 "[0].", show_default=False)
+    style: Style = field(default_factory=Style)
 
     def __post_init__(self):
         if self.strokes not in (None, *STROKES):
@@ -59,6 +63,7 @@ class RenderRequest:
             raise UsageError(f"coherence {self.coherence!r} tracks lines: it goes with strokes 'lines' (brush paths "
                              "carry their own ids; coherence 'none' makes them afresh every frame)",
                              option="coherence")
+        self.style.check_draws(self.lines.kinds, self.lines.occlusion)
 
     @classmethod
     def preset(cls, quality: str = "default", *, lines: dict | None = None, raster: dict | None = None,
@@ -78,9 +83,10 @@ class RenderRequest:
         if strokes == "brush":
             paths = replace(self.paths, history=method != "none")
             return SequencePlan(self.lines, None, paths, self.raster, carried=n_frames >= 2 and paths.history,
-                                clock=clock)
+                                clock=clock, style=self.style)
         tracking = replace(self.tracking, method=method) if n_frames >= 2 and method != "none" else None
-        return SequencePlan(self.lines, tracking, None, self.raster, carried=tracking is not None, clock=clock)
+        return SequencePlan(self.lines, tracking, None, self.raster, carried=tracking is not None, clock=clock,
+                            style=self.style)
 
 
 @dataclass(frozen=True)
@@ -101,7 +107,7 @@ class SequencePlan:
     """A request settled for a number of frames. tracking: the lines are tracked with it (None:
     not); paths: brush paths are drawn, made with it (None: the lines are drawn); carried:
     a frame's strokes depend on the frames before it (which then render in order); clock: each
-    frame's time in the scene's animation."""
+    frame's time in the scene's animation; style: how the strokes are drawn."""
 
     lines: LineOptions
     tracking: TrackingOptions | None
@@ -109,6 +115,7 @@ class SequencePlan:
     raster: RasterOptions | None
     carried: bool
     clock: SceneClock = field(default_factory=lambda: SceneClock())
+    style: Style = field(default_factory=Style)
 
     def json_head(self) -> dict:
         """The frame JSON's keys before its strokes: how the strokes were made. Only brush frames

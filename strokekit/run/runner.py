@@ -34,6 +34,7 @@ from strokekit.run.spec import (
 from strokekit.run.tasks import FrameResult, FrameTask, WriteResult, WriteTask, surface_depth, write_task
 from strokekit.run.workers import SceneRef, Workers, make_executor
 from strokekit.scene.load import Scene, load_scene
+from strokekit.style.file import check_style_names
 from strokekit.writers.gltf import glb_for_sequence
 
 
@@ -91,6 +92,7 @@ def run(spec: RunSpec, progress: Callable[[str, int, int], None] | None = None, 
     try:
         scene = _load_and_plan(spec, res, scene, load_seconds if scene is not None else 0.0)
         check_lines_fit(scene, spec.cameras, spec.lines)  # before anything is written
+        check_style_names(spec.request.style, scene)
         check_workers(spec, workers)  # a cluster's workers see the scene and the output folder
         stage = {s.name: s for s in res.stages}
         resume = plan_resume(spec, scene)
@@ -430,7 +432,7 @@ def write_sequence_glb(spec: RunSpec, scene: Scene, res: RunResult, stage: dict,
         return
     t = time.perf_counter()
     frames = [stream.drawn[f] for f in stream.ordered]
-    seq = [f.strokes for f in frames]
+    seq = [f.styled for f in frames]
     depth_at = surface_depth(out, stream.scene)
     if depth_at is not None and any(f.time is not None for f in frames):
         # Each frame's ribbons lie on the scene as posed in that frame: the depth function of the

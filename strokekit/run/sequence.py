@@ -11,6 +11,7 @@ from strokekit.lines.renderer import LineRenderer
 from strokekit.run.frame import Frame, StrokeCarry, render_frame
 from strokekit.run.request import RenderRequest
 from strokekit.scene.load import Scene, load_scene
+from strokekit.style.file import check_style_names
 
 
 def render_sequence(scene: Scene | str | Path, cameras: CameraPath | Iterable[Camera] | Iterable[tuple[int, Camera]],
@@ -25,6 +26,7 @@ def render_sequence(scene: Scene | str | Path, cameras: CameraPath | Iterable[Ca
     shots = numbered(cameras)
     plan = (request or RenderRequest()).plan(len(shots), fps)
     check_lines_fit(scene, shots, plan.lines)
+    check_style_names(plan.style, scene)
     renderer = LineRenderer(scene, plan.lines)
     carry = StrokeCarry(plan)
     for number, camera in shots:

@@ -16,7 +16,7 @@ from strokekit.options import LineOptions, option
 from strokekit.raster.options import PassOptions, RasterOptions
 from strokekit.ribbons.options import BUNDLED
 from strokekit.run.request import RenderRequest, SequencePlan
-from strokekit.writers.options import GltfOptions
+from strokekit.writers.options import SVG_LINES, GltfOptions
 
 if TYPE_CHECKING:  # (annotations only: the options load without the scene or camera code)
     from strokekit.camera.view import Camera
@@ -46,11 +46,11 @@ class OutputOptions:
     gltf_sequence: bool = option(False, "--gltf-sequence",
                                  "One sequence.glb for all frames (a node per frame) instead.", switch=True)
     decimals: int = option(2, "--decimals", "SVG coordinate decimals.", low=0, high=8, show_default=True, needs="svg")
-    stroke_width_px: float = option(1.5, "--stroke-width", "SVG stroke width in px.", show_default=True)
+    svg_lines: str = option(
+        "outline", "--svg-lines", "How the SVG draws a line whose width varies (a --style): as a filled outline (its "
+        "width everywhere: for viewing and print), or as its centreline at its mean width (for plotters and cutters: "
+        "one path per stroke).", choices=SVG_LINES, show_default=True, needs="svg")
     gltf_options: GltfOptions | None = None  # None: GltfOptions()
-    # Hidden layers' dash pattern (px, on and off: writers.svg.svg_document); None: ISO 128's for
-    # the stroke width, (): solid. On the command line: --dashes.
-    hidden_dashes: tuple[float, ...] | None = None
     dash_paths: bool = option(  # the dashes as geometry (a subpath each), for plotters: svg_document
         False, "--dash-paths", "Write the hidden lines' dashes as geometry (a subpath per dash) instead of a dash "
         "style: for plotters (vpype draws a styled dash pattern solid).", switch=True)

@@ -161,7 +161,7 @@ def write_task(task: WriteTask, occluder: Occluder | None = None) -> WriteResult
         files = []
         timings: dict = {}
         if outputs.svg:
-            text = frame.to_svg(outputs.decimals, outputs.stroke_width_px, outputs.hidden_dashes, outputs.dash_paths)
+            text = frame.to_svg(outputs.decimals, outputs.dash_paths, outputs.svg_lines)
             files.append(_write(outputs.frame_file(frame.number, ".svg"), text.encode()))
             timings["svg"] = time.perf_counter() - t0
         if outputs.json:
@@ -171,7 +171,7 @@ def write_task(task: WriteTask, occluder: Occluder | None = None) -> WriteResult
             if occluder is None and frame.time is not None:  # (world ribbons lie on the posed surface)
                 occluder = _frame_renderer(task.scene.renderer(), frame).occluder
             files.append(_write(outputs.frame_file(frame.number, ".glb"), glb_for_frame(
-                frame.strokes, frame.strokes.camera, outputs.gltf_options,
+                frame.styled, frame.strokes.camera, outputs.gltf_options,
                 surface_depth(outputs, task.scene, occluder))))
             timings["ribbons + glTF"] = time.perf_counter() - t0 - sum(timings.values())
         return WriteResult(frame.number, files, time.perf_counter() - t0, timings)
@@ -200,17 +200,18 @@ def surface_depth(outputs: OutputOptions, scene: SceneRef | None, occluder: Occl
 def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[str]:
     """Write one frame's image passes (PNGs, one folder per pass: its raster pass's images, the
     lines PNG) and EXR; returns the files written. The lines in them are the frame's as drawn,
-    before any carry. `timings` gets the seconds of each part."""
+    before any carry, at their widths in the frame's style. `timings` gets the seconds of each part."""
     files: list[str] = []
-    raster, strokes, camera = frame.raster, frame.lines, frame.camera
+    raster, camera = frame.raster, frame.camera
     stem = outputs.stem(frame.number)
     covered: dict = {}
 
-    def coverage(width_px: float) -> dict:
+    def coverage() -> dict:
         """The strokes' coverage per kind, once for the lines PNG and the EXR's lines layer."""
-        if width_px not in covered:
-            covered[width_px] = stroke_coverage(strokes, int(camera.width), int(camera.height), width_px)
-        return covered[width_px]
+        if not covered:
+            lines = frame.styled_lines()
+            covered[0] = stroke_coverage(lines.strokes, int(camera.width), int(camera.height), lines.width)
+        return covered[0]
 
     if raster is not None:
         t1 = time.perf_counter()
@@ -222,7 +223,7 @@ def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[st
             text["depth"] = {"near": repr(zn), "far": repr(zf)}
         if outputs.lines_png:
             t2 = time.perf_counter()
-            images["lines"] = _lines_image(coverage(outputs.stroke_width_px), camera)
+            images["lines"] = _lines_image(coverage(), camera)
             timings["lines PNG"] = time.perf_counter() - t2
         t2 = time.perf_counter()
         pngs = png_files(images, text)
@@ -233,13 +234,14 @@ def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[st
             - timings.get("lines PNG", 0.0)
         if outputs.exr is not None:
             t1 = time.perf_counter()
-            passes = compositing_passes(raster, strokes, outputs.exr,
-                                        coverage(outputs.exr.stroke_width_px) if "lines" in outputs.exr.passes else None)
-            files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec, outputs.exr.precision)))
+            passes = compositing_passes(raster, frame.lines, outputs.exr,
+                                        coverage() if "lines" in outputs.exr.passes else None)
+            files.append(_write(outputs.frame_file(frame.number, ".exr"), exr_bytes(passes, outputs.exr.codec,
+                                                                                     outputs.exr.precision)))
             timings["EXR"] = time.perf_counter() - t1
     elif outputs.lines_png:
         t1 = time.perf_counter()
-        images = {"lines": _lines_image(coverage(outputs.stroke_width_px), camera)}
+        images = {"lines": _lines_image(coverage(), camera)}
         for name, data in png_files(images).items():
             files.append(_write(outputs.out_dir / name / f"{stem}.png", data))
         timings["lines PNG"] = time.perf_counter() - t1

@@ -41,8 +41,9 @@ from strokekit.errors import UsageError
 from strokekit.model import KINDS, N_KINDS, Strokes, layer_name
 from strokekit.ribbons.brushes import get_brush
 from strokekit.ribbons.mesh import RibbonMesh, build_ribbons
+from strokekit.style.linesets import KIND_COLORS
+from strokekit.style.widths import StyledStrokes
 from strokekit.writers.options import GltfOptions, hex_srgb
-from strokekit.writers.svg import KIND_COLORS
 
 
 def _hex_rgba(c: str) -> list[float]:
@@ -108,17 +109,24 @@ class _Doc:
             acc["min"], acc["max"] = _bounds(flat)
         return self.add("accessors", acc)
 
-    def material(self, kind: int) -> int:
-        if kind in self.materials:
-            return self.materials[kind]
+    def material(self, kind: int, line_set: str | None = None, colour: str | None = None) -> int:
+        """The material of a kind code's ribbons (named as its SVG layer), or of one line set's
+        ribbons of that kind (named <layer>--<set>, in the set's colour)."""
+        key = (kind, line_set)
+        if key in self.materials:
+            return self.materials[key]
         if self.texture is None:
             img = self.add("images", {"bufferView": self.view(self.brush.png), "mimeType": "image/png",
                                       "name": self.brush.name})
             smp = self.add("samplers", {"magFilter": 9729, "minFilter": 9987, "wrapS": 33071, "wrapT": 33071})
             self.texture = self.add("textures", {"source": img, "sampler": smp})
         name = layer_name(kind) if 0 <= kind else f"kind{kind}"  # (hidden-<kind> for hidden lines)
+        if line_set is not None:
+            name = f"{name}--{line_set}"
         if self.opts.color is not None:
             rgba = _hex_rgba(self.opts.color)
+        elif colour is not None and self.brush.tinted:
+            rgba = _hex_rgba(colour)
         elif self.brush.tinted:
             rgba = _hex_rgba(KIND_COLORS.get(name.removeprefix("hidden-"), "#000000"))
         else:
@@ -133,11 +141,12 @@ class _Doc:
             used = self.j.setdefault("extensionsUsed", [])
             if "KHR_materials_unlit" not in used:
                 used.append("KHR_materials_unlit")
-        self.materials[kind] = self.add("materials", m)
-        return self.materials[kind]
+        self.materials[key] = self.add("materials", m)
+        return self.materials[key]
 
-    def ribbon_node(self, mesh: RibbonMesh, name: str) -> int:
-        """A node holding the ribbons (one primitive per line kind); no mesh when there are none."""
+    def ribbon_node(self, mesh: RibbonMesh, name: str, styled: StyledStrokes | None = None) -> int:
+        """A node holding the ribbons (one primitive per line kind, or per line kind and line set
+        of `styled`, the strokes' style: their order is the mesh's); no mesh when there are none."""
         node: dict = {"name": name}
         if len(mesh.indices):
             origin = np.zeros(3)
@@ -149,10 +158,12 @@ class _Doc:
             vo, to = mesh.vertex_offsets, mesh.triangle_offsets
             tcount_all = np.diff(to)
             # strokes come grouped by kind (ribbons_for): each kind is one slice of vertices and triangles
-            kinds, first = np.unique(mesh.kind, return_index=True)
+            group = mesh.kind.astype(np.int64) + (0 if styled is None else 1024 * styled.lineset)
+            _, first = np.unique(group, return_index=True)
             last = np.r_[first[1:], len(mesh.kind)]
             prims = []
-            for k, a, b in zip(kinds, first, last):
+            for a, b in zip(first, last):
+                k = mesh.kind[a]
                 v0, v1, t0, t1 = vo[a], vo[b], to[a], to[b]
                 if t1 == t0:
                     continue
@@ -171,8 +182,15 @@ class _Doc:
                                       "triangle_count": tcount.tolist(),
                                       "level": mesh.level[strokes_k].tolist(),
                                       "level_weight": mesh.level_weight[strokes_k].tolist()}}
-                prims.append({"attributes": attrs, "indices": self.accessor(idx, "SCALAR", _ELEMENTS),
-                              "material": self.material(int(k)), "mode": 4, "extras": extras})
+                indices = self.accessor(idx, "SCALAR", _ELEMENTS)  # (before the material's texture)
+                if styled is None:
+                    material = self.material(int(k))
+                else:
+                    ls = int(styled.lineset[a])
+                    extras["lineset"] = styled.sets[ls].name
+                    material = self.material(int(k), styled.sets[ls].name, styled.color(ls))
+                prims.append({"attributes": attrs, "indices": indices, "material": material, "mode": 4,
+                              "extras": extras})
             node["mesh"] = self.add("meshes", {"name": name, "primitives": prims})
         return self.add("nodes", node)
 
@@ -270,48 +288,78 @@ def _camera_quat(camera: Camera) -> list[float]:
     return [float(x) for x in q]
 
 
-def by_kind(strokes: Strokes) -> Strokes:
-    """The same strokes reordered so each line kind is one run (stable: chain order kept inside a
-    kind); one primitive per kind is then a slice of the ribbon arrays."""
-    order = np.argsort(strokes.kind, kind="stable")
+def by_kind(strokes: Strokes, styled: StyledStrokes | None = None) -> tuple[Strokes, StyledStrokes | None]:
+    """The same strokes reordered so each line kind (and with `styled`, the strokes in their
+    style, each of its line sets within a kind) is one run (stable: chain order kept inside);
+    one primitive per run is then a slice of the ribbon arrays. Returns the strokes and their
+    style in that order."""
+    key = strokes.kind.astype(np.int64) + (0 if styled is None else 1024 * styled.lineset)
+    order = np.argsort(key, kind="stable")
     if np.all(order == np.arange(len(order))):
-        return strokes
+        return strokes, styled
     counts = np.diff(strokes.offsets)[order]
     starts = strokes.offsets[:-1][order]
     new_off = np.r_[0, np.cumsum(counts)].astype(np.int64)
     pidx = np.repeat(starts - new_off[:-1], counts) + np.arange(new_off[-1])
-    return replace(strokes, points=strokes.points[pidx], surface=strokes.surface[pidx], face=strokes.face[pidx],
-                   u=strokes.u[pidx], offsets=new_off, kind=strokes.kind[order], ids=strokes.ids[order],
-                   level=strokes.level[order], level_weight=strokes.level_weight[order])
+    out = replace(strokes, points=strokes.points[pidx], surface=strokes.surface[pidx], face=strokes.face[pidx],
+                  u=strokes.u[pidx], offsets=new_off, kind=strokes.kind[order], ids=strokes.ids[order],
+                  level=strokes.level[order], level_weight=strokes.level_weight[order])
+    if styled is not None:
+        styled = replace(styled, strokes=out, width=styled.width[pidx], lineset=styled.lineset[order])
+    return out, styled
 
 
-def ribbons_for(strokes: Strokes, camera: Camera | None, options: GltfOptions, surface_depth=None) -> RibbonMesh:
-    """The ribbons a GLB holds: strokes grouped by kind, geometry per options and brush
-    (surface_depth: see ribbons.build_ribbons)."""
+def drawn(strokes: Strokes | StyledStrokes) -> tuple[Strokes, StyledStrokes | None]:
+    """(strokes, their style) of a frame's strokes, or of its strokes in their style: a style
+    with line sets gives the ribbons their widths and colours; the default style leaves them the
+    ribbons' own (GltfOptions: --ribbon-width, --taper)."""
+    if isinstance(strokes, StyledStrokes):
+        return strokes.strokes, (None if strokes.style.is_default else strokes)
+    return strokes, None
+
+
+def ribbons_for(strokes: Strokes | StyledStrokes, camera: Camera | None, options: GltfOptions,
+                surface_depth=None) -> RibbonMesh:
+    """The ribbons a GLB holds: strokes grouped by kind (and line set), geometry per options and
+    brush, widths the style's when it has line sets (surface_depth: see ribbons.build_ribbons)."""
+    return styled_ribbons(strokes, camera, options, surface_depth)[0]
+
+
+def styled_ribbons(strokes: Strokes | StyledStrokes, camera: Camera | None, options: GltfOptions, surface_depth=None
+                   ) -> tuple[RibbonMesh, StyledStrokes | None]:
+    """ribbons_for's ribbons and the strokes' style in their order (None without line sets)."""
     brush = get_brush(options.brush)
-    return build_ribbons(by_kind(strokes), camera, options.ribbon_options(brush), surface_depth)
+    st, styled = by_kind(*drawn(strokes))
+    widths = styled.width if styled is not None else None
+    return build_ribbons(st, camera, options.ribbon_options(brush), surface_depth, widths=widths), styled
 
 
-def glb_for_frame(strokes: Strokes, camera: Camera | None = None, options: GltfOptions | None = None,
+def glb_for_frame(strokes: Strokes | StyledStrokes, camera: Camera | None = None, options: GltfOptions | None = None,
                   surface_depth=None) -> bytes:
-    """GLB bytes of one frame: its camera and its strokes as textured ribbons. `surface_depth`
-    (raster.surface_depth_at(occluder)) lays world ribbons on the scene's surface where it comes
-    nearer than the stroke (see ribbons.build_ribbons)."""
+    """GLB bytes of one frame: its camera and its strokes (or its strokes in their style: see
+    `drawn`) as textured ribbons. `surface_depth` (raster.surface_depth_at(occluder)) lays world
+    ribbons on the scene's surface where it comes nearer than the stroke (see
+    ribbons.build_ribbons)."""
     opts = options if options is not None else GltfOptions()
-    cam = camera if camera is not None else strokes.camera
+    st = drawn(strokes)[0]
+    cam = camera if camera is not None else st.camera
     if cam is None:
         raise UsageError("glTF output needs the frame's camera")
     doc = _Doc(opts)
-    mesh = ribbons_for(strokes, cam, opts, surface_depth)
-    strokes_node = doc.ribbon_node(mesh, f"strokes_{int(strokes.frame):04d}")
+    mesh, styled = styled_ribbons(strokes, cam, opts, surface_depth)
+    strokes_node = doc.ribbon_node(mesh, f"strokes_{int(st.frame):04d}", styled)
     cam_node = doc.camera_node(cam, _depth_range([(cam, mesh)]))
     return doc.glb([cam_node, strokes_node])
 
 
-def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, surface_depth=None) -> bytes:
-    """One GLB for a sequence: one node per frame (each Strokes carries its camera and frame number),
-    shown only on its frame (STEP scale keys), the camera moved by STEP keys, at options.fps."""
+def glb_for_sequence(frames: list[Strokes | StyledStrokes], options: GltfOptions | None = None,
+                     surface_depth=None) -> bytes:
+    """One GLB for a sequence: one node per frame (each Strokes carries its camera and frame number;
+    or a frame's strokes in their style, see `drawn`), shown only on its frame (STEP scale keys),
+    the camera moved by STEP keys, at options.fps."""
     opts = options if options is not None else GltfOptions()
+    styles = frames
+    frames = [drawn(f)[0] for f in frames]
     if not frames:
         raise UsageError("a glTF sequence needs at least one frame")
     if any(f.camera is None for f in frames):
@@ -324,9 +372,10 @@ def glb_for_sequence(frames: list[Strokes], options: GltfOptions | None = None, 
     times = (nums if ok else np.arange(len(frames))) / float(opts.fps)
     n = len(frames)
     children, meshes = [], []
-    for f in frames:
-        meshes.append((f.camera, ribbons_for(f, f.camera, opts, surface_depth)))
-        children.append(doc.ribbon_node(meshes[-1][1], f"frame_{int(f.frame):04d}"))
+    for f, given in zip(frames, styles):
+        mesh, styled = styled_ribbons(given, f.camera, opts, surface_depth)
+        meshes.append((f.camera, mesh))
+        children.append(doc.ribbon_node(mesh, f"frame_{int(f.frame):04d}", styled))
     anim: dict = {"name": "sequence", "channels": [], "samplers": []}
     if n > 1:
         for i, node in enumerate(children):

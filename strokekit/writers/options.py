@@ -14,6 +14,10 @@ from strokekit.ribbons.options import RibbonOptions
 if TYPE_CHECKING:
     from strokekit.ribbons.brushes import Brush
 
+#: --svg-lines: strokes whose width varies drawn as filled outlines (their width everywhere), or
+#: every stroke as its centreline at its mean width (plotters).
+SVG_LINES = ("outline", "centreline")
+
 
 @dataclass(frozen=True)
 class GltfOptions:

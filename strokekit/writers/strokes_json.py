@@ -9,6 +9,7 @@ import orjson
 
 from strokekit.camera.view import Camera
 from strokekit.model import KIND_INDEX, KINDS, N_KINDS, BrushPaths, RecordedPose, Strokes
+from strokekit.style.widths import StyledStrokes, apply_style
 
 
 def round_list(x: np.ndarray, ndigits: int) -> list[float]:
@@ -29,9 +30,15 @@ def round_list(x: np.ndarray, ndigits: int) -> list[float]:
     return out
 
 
-_STROKE = (b'{"id":%d,"kind":"%s","points":[%s],"u":[%s],"surface":[%s],"face":[%s],'
+_STROKE = (b'{"id":%d,"kind":"%s","lineset":"%s","points":[%s],"width":[%s],"u":[%s],"surface":[%s],"face":[%s],'
            b'"length_px":%s,"level":%s,"level_weight":%s}')
 _STROKE_OCCLUSION = _STROKE.replace(b'"kind":"%s",', b'"kind":"%s","occlusion":%d,')
+#: With an along modifier, whether each end is joined to the next piece of its line (no head or
+#: tail there: strokekit.style.joins), after the widths.
+_JOINED = b'"width":[%s],"joined":[%d,%d],'
+#: The lines a brush-path frame keeps beside its strokes are not drawn: no line set, no width.
+_LINE = _STROKE.replace(b'"lineset":"%s",', b"").replace(b'"width":[%s],', b"")
+_LINE_OCCLUSION = _STROKE_OCCLUSION.replace(b'"lineset":"%s",', b"").replace(b'"width":[%s],', b"")
 #: A moving scene's strokes: each point's object and its point in the object's own frame too.
 _POSED = (b'"face":[%s],', b'"face":[%s],"object":[%s],"local":[%s],')
 _KIND_BYTES = [k.encode() for k in KINDS]
@@ -40,13 +47,24 @@ _NP = orjson.OPT_SERIALIZE_NUMPY
 
 
 def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra: dict | None = None,
-                 paths: BrushPaths | None = None) -> bytes:
-    """JSON bytes: frame, size, camera and every stroke with points (px, 4 decimals), u, surface
-    (world), face, length_px, self-similar level and weight. Deterministic. A moving scene's
-    strokes (strokes.pose) also give each point's object and its point in the object's own
-    frame ("object", "local"; scene.motion.ScenePose.object_points). Hidden-line runs
-    (`extra` holds "occlusion", the range of levels drawn; or a stroke is hidden) give each stroke
-    its "occlusion" level after its kind (0: visible; "level" is the texture octave).
+                 paths: BrushPaths | None = None, styled: StyledStrokes | None = None,
+                 layers: tuple[str, ...] = ()) -> bytes:
+    """JSON bytes: frame, size, camera, the line sets drawn ("linesets": name, selection,
+    colour, width, modifiers; "depth_range" when a depth modifier took the frame's) and every
+    stroke drawn with its line set, points (px, 4 decimals), width (px at each point, 4
+    decimals; with an along modifier, "joined": [start, end], 1 where the end meets the next
+    piece of its line: no head or tail there), u, surface (world), face, length_px, self-similar
+    level and weight.
+    The default style (no line sets: Style.is_default) draws every stroke at one width in its
+    kind's colour: its JSON has no "linesets", and its strokes no line set and no widths.
+    Deterministic. A moving scene's strokes (strokes.pose) also give each point's object and its
+    point in the object's own frame ("object", "local"; scene.motion.ScenePose.object_points).
+    Hidden-line runs (`extra` holds "occlusion", the range of levels drawn; or a stroke is hidden)
+    give each stroke its "occlusion" level after its kind (0: visible; "level" is the texture
+    octave).
+
+    styled: the strokes in their style (strokekit.style.apply_style: `strokes` is then not used);
+    None: the default style (one set per layer of `layers`, and of any other kind drawn).
 
     `paths` (the frame's brush paths; `strokes` is then paths.strokes): every stroke also lists
     the line pieces it covers, `"covers": [[line id, s0, s1, drawn], ...]` (arc lengths along the
@@ -57,25 +75,47 @@ def strokes_json(strokes: Strokes, width: int, height: int, frame: int, *, extra
     view and an orjson array call per stroke and field (the costly part): orjson writes each
     per-point array of the frame once, the text is cut at the stroke starts and the strokes are
     assembled by one bytes %-operation."""
+    if styled is None:
+        styled = apply_style(strokes, layers)
+    strokes = styled.strokes
     doc = {"frame": int(frame), "width": int(width), "height": int(height),
            "camera": strokes.camera.to_json() if strokes.camera is not None else None,
            "period_px": strokes.period_px}
     if extra:
-        if "strokes" in extra or (paths is not None and "lines" in extra):  # the key would sit where extra puts it
-            return _strokes_json_nested(strokes, width, height, frame, extra=extra, paths=paths)
+        if {"strokes", "linesets"} & extra.keys() or (paths is not None and "lines" in extra):
+            # the key would sit where extra puts it
+            return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths)
         doc.update(extra)
+    doc.update(_sets_json(styled))
     doc["strokes"] = []
     head = orjson.dumps(doc, option=_NP)
-    covers = _cover_texts(paths) if paths is not None else None
-    body = _strokes_body(strokes, covers, _with_occlusion(strokes, extra))
+    covers = _cover_texts(paths, styled.kept) if paths is not None else None
+    body = _strokes_body(strokes, covers, _with_occlusion(strokes, extra), _said(styled))
     if body is None:  # unusual arrays (empty strokes, shapes that do not match): the plain way
-        return _strokes_json_nested(strokes, width, height, frame, extra=extra, paths=paths)
+        return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths)
     if paths is None:
         return b"".join((head[:-2], body, b"]}\n")) if len(strokes) else head + b"\n"
     lines = _strokes_body(paths.lines, None, _with_occlusion(paths.lines, extra))
     if lines is None:
-        return _strokes_json_nested(strokes, width, height, frame, extra=extra, paths=paths)
+        return _strokes_json_nested(styled, width, height, frame, extra=extra, paths=paths)
     return b"".join((head[:-2], body, b'],"lines":[', lines, b"]}\n"))
+
+
+def _said(styled: StyledStrokes) -> StyledStrokes | None:
+    """The style the JSON writes out: None for the default one (module doc of strokes_json)."""
+    return None if styled.style.is_default else styled
+
+
+def _sets_json(styled: StyledStrokes) -> dict:
+    """{"linesets": [...]} (the style's sets, with the colour each is drawn in), and
+    "depth_range" when a depth modifier took the frame's; {} for the default style."""
+    if _said(styled) is None:
+        return {}
+    sets = [dict(s.to_json(styled.style), color=styled.color(k)) for k, s in enumerate(styled.sets)]
+    out: dict = {"linesets": sets}
+    if styled.depth_range is not None:
+        out["depth_range"] = list(styled.depth_range)
+    return out
 
 
 def _with_occlusion(strokes: Strokes, extra: dict | None) -> bool:
@@ -83,21 +123,33 @@ def _with_occlusion(strokes: Strokes, extra: dict | None) -> bool:
     return bool(extra and "occlusion" in extra) or bool(len(strokes.kind) and strokes.kind.max() >= N_KINDS)
 
 
-def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion: bool = False) -> bytes | None:
+def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion: bool = False,
+                  styled: StyledStrokes | None = None) -> bytes | None:
     """The text between the brackets of the strokes array (b"" for no stroke); None where the fast
-    way does not apply (see _stroke_cuts). `occlusion`: each stroke gets its level."""
+    way does not apply (see _stroke_cuts). `occlusion`: each stroke gets its level; `styled`:
+    the strokes' style (their line set and widths; None: lines not drawn, without either)."""
     n = len(strokes)
     if n == 0:
         return b""
-    cuts = _stroke_cuts(strokes)
+    cuts = _stroke_cuts(strokes, styled.width if styled is not None else None)
     if cuts is None:
         return None
     codes = strokes.kind.astype(np.int64)  # (a hidden drawing has thousands: no Python loop over them)
     cols = [strokes.ids.tolist(), _KIND_BYTES_ARRAY.take(codes % N_KINDS).tolist()]
-    template = _STROKE
+    if styled is None:
+        template = _LINE_OCCLUSION if occlusion else _LINE
+    else:
+        template = _STROKE_OCCLUSION if occlusion else _STROKE
+        if styled.free is not None:
+            template = template.replace(b'"width":[%s],', _JOINED)
     if occlusion:
         cols.append((codes // N_KINDS).tolist())
-        template = _STROKE_OCCLUSION
+    if styled is not None:
+        names = np.array([s.name.encode() for s in styled.sets], dtype=object)
+        cols.append(names.take(styled.lineset).tolist())
+    if styled is not None and styled.free is not None:
+        joined = (~styled.free).astype(int)
+        cuts = [*cuts[:2], joined[:, 0].tolist(), joined[:, 1].tolist(), *cuts[2:]]
     if strokes.pose is not None:
         template = template.replace(*_POSED)
     cols += [*cuts, _number_texts(strokes.lengths, 4, n), _number_texts(strokes.level, 6, n),
@@ -108,19 +160,21 @@ def _strokes_body(strokes: Strokes, covers: list[bytes] | None = None, occlusion
     return b",".join([template] * n) % tuple(chain.from_iterable(zip(*cols)))
 
 
-def _covers_lists(paths: BrushPaths) -> list[list]:
-    """Per path, its covers as [[line id, s0, s1, drawn], ...] (s0, s1 rounded to 4 decimals)."""
+def _covers_lists(paths: BrushPaths, kept: np.ndarray | None = None) -> list[list]:
+    """Per path (those `kept`, (S,) bool, None: all), its covers as [[line id, s0, s1, drawn], ...]
+    (s0, s1 rounded to 4 decimals)."""
     line_ids = paths.lines.ids[paths.cover_line].tolist() if len(paths.cover_line) else []
     s0, s1 = round_list(paths.cover_s0, 4), round_list(paths.cover_s1, 4)
     drawn = paths.cover_drawn.astype(int).tolist()
     rows = [[i, a, b, d] for i, a, b, d in zip(line_ids, s0, s1, drawn)]
     off = paths.cover_offsets.tolist()
-    return [rows[a:b] for a, b in zip(off[:-1], off[1:])]
+    out = [rows[a:b] for a, b in zip(off[:-1], off[1:])]
+    return out if kept is None else [c for c, k in zip(out, kept.tolist()) if k]
 
 
-def _cover_texts(paths: BrushPaths) -> list[bytes]:
+def _cover_texts(paths: BrushPaths, kept: np.ndarray | None = None) -> list[bytes]:
     """Per path, the JSON text between the brackets of its covers (orjson's, as the nested document has)."""
-    return [orjson.dumps(c)[1:-1] for c in _covers_lists(paths)]
+    return [orjson.dumps(c)[1:-1] for c in _covers_lists(paths, kept)]
 
 
 def _number_texts(x: np.ndarray, ndigits: int, n: int) -> list[bytes]:
@@ -131,11 +185,12 @@ def _number_texts(x: np.ndarray, ndigits: int, n: int) -> list[bytes]:
     return orjson.dumps(round_list(x, ndigits))[1:-1].split(b",")
 
 
-def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
-    """Each stroke's points, u, surface and face (and for a moving scene its objects and object
-    points) as the JSON text between the brackets of its arrays: orjson's text of the frame's whole array, cut at the stroke starts. None when a stroke
-    is empty, the arrays are not the (N, 2), (N,), (N, 3), (N,) of the offsets or the ids are not
-    integers (%d would write them differently)."""
+def _stroke_cuts(strokes: Strokes, width: np.ndarray | None = None) -> list[list[bytes]] | None:
+    """Each stroke's points, width (when given), u, surface and face (and for a moving scene its
+    objects and object points) as the JSON text between the brackets of its arrays: orjson's text
+    of the frame's whole array, cut at the stroke starts. None when a stroke is empty, the arrays
+    are not the (N, 2), (N,), (N, 3), (N,) of the offsets or the ids are not integers (%d would
+    write them differently)."""
     off = strokes.offsets
     n = len(strokes.points)
     counts = np.diff(off)
@@ -144,8 +199,12 @@ def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
             or strokes.surface.ndim != 2 or strokes.u.ndim != 1 or strokes.face.ndim != 1
             or not len(strokes.surface) == len(strokes.u) == len(strokes.face) == n):
         return None
+    if width is not None and width.shape != (n,):
+        return None
     out = []
     arrays = [np.round(strokes.points, 4) + 0.0, np.round(strokes.u, 5) + 0.0, strokes.surface, strokes.face]
+    if width is not None:
+        arrays.insert(1, np.round(width, 4) + 0.0)
     if strokes.pose is not None:
         arrays += list(strokes.pose.object_points(strokes.surface, strokes.face))
     for arr in arrays:
@@ -163,37 +222,45 @@ def _stroke_cuts(strokes: Strokes) -> list[list[bytes]] | None:
     return out
 
 
-def _stroke_dicts(strokes: Strokes, occlusion: bool = False) -> list[dict]:
+def _stroke_dicts(strokes: Strokes, occlusion: bool = False, styled: StyledStrokes | None = None) -> list[dict]:
     pts = np.round(strokes.points, 4) + 0.0
     u = np.round(strokes.u, 5) + 0.0
     surface, face = strokes.surface, strokes.face
     off = strokes.offsets.tolist()
     lengths = round_list(strokes.lengths, 4)
     level, weight = round_list(strokes.level, 6), round_list(strokes.level_weight, 6)
+    wd = np.round(styled.width, 4) + 0.0 if styled is not None else None
+    names = [styled.sets[k].name for k in styled.lineset.tolist()] if styled is not None else [None] * len(strokes)
+    joined = (~styled.free).astype(int).tolist() if styled is not None and styled.free is not None else \
+        [None] * len(strokes)
     obj = local = None
     if strokes.pose is not None:
         obj, local = strokes.pose.object_points(surface, face)
     return [{
         "id": i, "kind": KINDS[k % N_KINDS], **({"occlusion": k // N_KINDS} if occlusion else {}),
-        "points": pts[a:b], "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
+        **({"lineset": name} if styled is not None else {}), "points": pts[a:b],
+        **({"width": wd[a:b]} if styled is not None else {}), **({"joined": j} if j is not None else {}),
+        "u": u[a:b], "surface": surface[a:b], "face": face[a:b],
         **({"object": obj[a:b], "local": local[a:b]} if obj is not None else {}),
         "length_px": ln, "level": lv, "level_weight": w,
-    } for i, k, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), off[:-1], off[1:],
-                                       lengths, level, weight)]
+    } for i, k, name, j, a, b, ln, lv, w in zip(strokes.ids.tolist(), strokes.kind.tolist(), names, joined,
+                                                off[:-1], off[1:], lengths, level, weight)]
 
 
-def _strokes_json_nested(strokes: Strokes, width: int, height: int, frame: int, *,
+def _strokes_json_nested(styled: StyledStrokes, width: int, height: int, frame: int, *,
                          extra: dict | None = None, paths: BrushPaths | None = None) -> bytes:
     """strokes_json by orjson.dumps of the nested document (a numpy view per stroke and field)."""
-    out = _stroke_dicts(strokes, _with_occlusion(strokes, extra))
+    strokes = styled.strokes
+    out = _stroke_dicts(strokes, _with_occlusion(strokes, extra), _said(styled))
     if paths is not None:
-        for d, c in zip(out, _covers_lists(paths)):
+        for d, c in zip(out, _covers_lists(paths, styled.kept)):
             d["covers"] = c
     doc = {"frame": int(frame), "width": int(width), "height": int(height),
            "camera": strokes.camera.to_json() if strokes.camera is not None else None,
            "period_px": strokes.period_px}
     if extra:
         doc.update(extra)
+    doc.update(_sets_json(styled))
     doc["strokes"] = out
     if paths is not None:
         doc["lines"] = _stroke_dicts(paths.lines, _with_occlusion(paths.lines, extra))

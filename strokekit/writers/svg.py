@@ -14,6 +14,11 @@ import numpy as np
 from strokekit.colour import srgb_encode
 from strokekit.model import KINDS, N_KINDS, BandRegion, Strokes
 from strokekit.sampling import locate
+from strokekit.style.linesets import KIND_COLORS, Style
+from strokekit.style.widths import StyledStrokes, apply_style
+from strokekit.writers.options import SVG_LINES
+from strokekit.writers.outline import outline_path_data
+from strokekit.writers.text import fixed_point_text
 
 
 def _ring_path(coords: np.ndarray, decimals: int) -> str:
@@ -39,11 +44,6 @@ def bands_layer(regions: list[BandRegion], *, decimals: int = 2) -> str:
         paths.append(f'<path d="{d}" fill="{colour}" id="b{r.material}-{r.band}" stroke="{colour}" />')
     return head + (">" + "".join(paths) + "</g>" if paths else " />")
 
-
-KIND_COLORS = {
-    "silhouette": "#000000", "border": "#1f4e9c", "crease": "#b3261e", "material": "#2e7d32",
-    "nonmanifold": "#8e24aa", "smooth_contour": "#000000", "suggestive": "#555555", "intersection": "#e65100",
-}
 
 _HEAD = ('<svg baseProfile="full" height="{h}px" version="1.1" viewBox="0 0 {w} {h}" width="{w}px" '
          'xmlns="http://www.w3.org/2000/svg" xmlns:ev="http://www.w3.org/2001/xml-events" '
@@ -77,7 +77,7 @@ def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
             and len(v) == 2 * strokes.offsets[-1] and min(counts) > 0:
         sep = np.full(len(v), 32, np.uint8)  # ' ' between numbers, NUL after each stroke's last
         sep[2 * strokes.offsets[1:] - 1] = 0
-        text = _fixed_point_text(v, decimals, sep)
+        text = fixed_point_text(v, decimals, sep)
         if text is not None:
             return text[:-1].decode("ascii").split("\0")
     r = (np.round(strokes.points, decimals) + 0.0).ravel().tolist()  # + 0.0 turns -0.0 into 0.0
@@ -93,51 +93,6 @@ def stroke_path_data(strokes: Strokes, decimals: int = 2) -> list[str]:
     return (template % tuple(r)).split("\0")
 
 
-def _fixed_point_text(v: np.ndarray, decimals: int, sep: np.ndarray) -> bytes | None:
-    """The text of f"%.{decimals}f" % x for each x of np.round(v, decimals) + 0.0 (float64 (M,)),
-    each followed by its byte of `sep`; None when a value is not finite or not below 1e15 once
-    scaled. np.round is rint(v 10^d) / 10^d, and %.df of that double is the integer
-    k = rint(v 10^d) written with d decimals (the double is within 1e-3 units of k 10^-d), -0
-    written as 0: so the digits of k, by integer arithmetic, are the text."""
-    t = v * (10.0 ** decimals)
-    with np.errstate(invalid="ignore"):
-        if not (np.abs(t) < 1e15).all():
-            return None
-    k = np.rint(t).astype(np.int64)
-    neg = k < 0
-    a = np.abs(k)
-    ndig = max(decimals + 1, len(str(int(a.max()))))
-    cols = ndig + (decimals > 0) + 2  # sign, digits, point, separator
-    # Right-aligned in a (M, cols) byte table; 0xFF fills the left of each number and is deleted
-    # from the bytes at the end.
-    m = np.empty((len(k), cols), np.uint8)
-    m[:, -1] = sep
-    m[:, 0] = 255
-    c = cols - 2
-    for j in range(ndig):
-        if j == decimals and decimals > 0:
-            m[:, c] = 46  # '.'
-            c -= 1
-        q = a // 10
-        if j <= decimals:
-            m[:, c] = a - 10 * q + 48
-        else:  # a digit left of the first: 255 where a == 0 (no more digits)
-            m[:, c] = _DIGIT_OR_FILL.take(a - 10 * q + 10 * (a == 0))
-        a = q
-        c -= 1
-    if neg.any():  # '-' just left of the first digit
-        rows = np.flatnonzero(neg)
-        first = np.full(len(rows), cols - 2 - decimals - (decimals > 0))  # column of the ones digit
-        a = np.abs(k.take(rows))
-        for j in range(decimals + 1, ndig):
-            first -= a >= 10 ** j
-        m[rows, first - 1] = 45
-    return m.tobytes().translate(None, b"\xff")
-
-
-_DIGIT_OR_FILL = np.array([48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 255], np.uint8)
-
-
 _POINT_FORMATS: dict[int, dict[int, str]] = {}
 
 
@@ -147,12 +102,13 @@ def iso_dashes(stroke_width: float) -> tuple[float, float]:
     return 12.0 * stroke_width, 3.0 * stroke_width
 
 
-def dash_path_data(strokes: Strokes, members: list[int], phase: np.ndarray, pattern: tuple[float, ...],
-                   decimals: int = 2) -> list[str]:
-    """Each member stroke's dashes as the text after "M" of one path, a subpath per dash: the
-    pattern (on, off, ...; px) laid along the stroke from `phase` (px into the pattern at its
-    start), dash ends interpolated on the polyline, the points between kept (a dash follows
-    the curve)."""
+def dash_pieces(strokes: Strokes, members: np.ndarray, phase: np.ndarray, pattern: tuple[float, ...],
+                values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """The dashes of the member strokes as polylines: the pattern (on, off, ...; px) laid along
+    each stroke from `phase` (px into the pattern at its start), dash ends interpolated on the
+    polyline, the points between kept (a dash follows the curve). Returns the dashes' points
+    (M, 2), offsets, the member (index into `members`) each dash belongs to and, for per-point
+    `values` (N,) of the strokes (their widths), those values at the dashes' points."""
     period = sum(pattern)
     on = np.cumsum(pattern)[0::2] - np.asarray(pattern[0::2])  # where each dash starts in the pattern
     on_len = np.asarray(pattern[0::2])
@@ -169,40 +125,80 @@ def dash_path_data(strokes: Strokes, members: list[int], phase: np.ndarray, patt
     st = np.asarray(members, np.int64)[m]
     h0, i0, t0 = locate(strokes, st, a)  # segment h0 -> i0 holds the dash's start
     h1, i1, t1 = locate(strokes, st, b, side="left")  # and h1 -> i1 its end
-    P = strokes.points
+    P = strokes.points if values is None else np.column_stack([strokes.points, values])
     inner = np.maximum(i1 - i0, 0)  # stroke points strictly inside the dash
     counts = inner + 2
     off = np.concatenate([[0], np.cumsum(counts)])
-    pts = np.empty((int(off[-1]), 2))
+    pts = np.empty((int(off[-1]), P.shape[1]))
     pts[off[:-1]] = P[h0] + t0[:, None] * (P[i0] - P[h0])
     pts[off[1:] - 1] = P[h1] + t1[:, None] * (P[i1] - P[h1])
     r = np.repeat(np.arange(len(m)), inner)
     q = np.arange(int(inner.sum())) - np.repeat(np.cumsum(inner) - inner, inner)
     pts[off[:-1][r] + 1 + q] = P[i0[r] + q]
+    if values is None:
+        return pts, off, m, None
+    return np.ascontiguousarray(pts[:, :2]), off, m, pts[:, 2]
+
+
+def _by_member(m: np.ndarray, n: int, texts: list[str], sep: str) -> list[str]:
+    """The texts of the dashes joined per member (m: each dash's member), "" for none."""
+    out: list[list[str]] = [[] for _ in range(n)]
+    for owner, t in zip(m.tolist(), texts):
+        out[owner].append(t)
+    return [sep.join(parts) if parts else "" for parts in out]
+
+
+def dash_path_data(strokes: Strokes, members: list[int], phase: np.ndarray, pattern: tuple[float, ...],
+                   decimals: int = 2) -> list[str]:
+    """Each member stroke's dashes (dash_pieces) as the text after "M" of one path, a subpath
+    per dash."""
+    pts, off, m, _ = dash_pieces(strokes, np.asarray(members, np.int64), phase, pattern)
     text = stroke_path_data(Strokes.build(pts, np.zeros((len(pts), 3)), np.zeros(len(pts)), off,
                                           np.zeros(len(m))), decimals)
-    out = [[] for _ in members]
-    for owner, t in zip(m.tolist(), text):
-        out[owner].append(t)
-    return [" M".join(parts) if parts else "" for parts in out]
+    return _by_member(m, len(members), text, " M")
+
+
+#: The attribute of an outline path holding its centreline (the stroke's points: what strokekit
+#: diff compares, metrics.svg_reader).
+CENTRELINE = "data-centreline"
+
+def _width_text(w: float) -> str:
+    """A stroke-width as written (px, at most 4 decimals)."""
+    return format(round(float(w), 4) + 0.0, "g")
 
 
 def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ...], *, decimals: int = 2,
                  stroke_width: float = 1.5, underlays: list[str] | None = None,
-                 dashes: tuple[float, ...] | None = None, dash_paths: bool = False) -> str:
+                 dashes: tuple[float, ...] | None = None, dash_paths: bool = False,
+                 styled: StyledStrokes | None = None, lines: str = "outline") -> str:
     """The SVG text of one frame. `kinds` lists the layers to write (the kinds, and hidden-<kind>
     for hidden lines: LineOptions.layers), even when empty; hidden layers come first, under the
     visible lines. `underlays` is a list of SVG elements (text) placed under the line layers (e.g.
     `bands_layer`).
 
-    Hidden layers are dashed with `dashes` (px, SVG stroke-dasharray, on the layer; None: the ISO
-    128 pattern for the stroke width, (): solid): the dashes are the viewer's, so the path stays
-    one continuous line (strokekit diff compares it, and a dash that moves is no change). Each
-    hidden path starts its pattern where its texture coordinate says (stroke-dashoffset = u at its
-    first point x the period, modulo the pattern): with tracking on, the dashes stay on the
-    surface as the stroke grows at either end instead of sliding along it. `dash_paths`: the dashes
-    are written as geometry instead (one path per stroke, a subpath per dash, same phase), for
-    tools that ignore stroke-dasharray (vpype draws such a path solid)."""
+    `styled`: the strokes in their style (strokekit.style.apply_style; `strokes` is then not
+    used); None: the default style at `stroke_width`, hidden lines dashed with `dashes`. A layer
+    whose strokes belong to one line set carries that set's colour, width and dashes; a layer of
+    several sets holds a group per set (id <layer>--<set>, not an Inkscape layer). A stroke of
+    one width is its centreline path (stroke-width on the path where it is not the group's); a
+    stroke whose width varies is a filled outline (writers.outline) with its centreline in a
+    `data-centreline` attribute (what strokekit diff compares). lines "centreline": every
+    stroke as its centreline at its mean width (for plotters).
+
+    Dashes (a set's, or for hidden strokes by default the ISO 128 pattern of the set's width): on
+    a centreline, the viewer's stroke-dasharray on its group, so the path stays one continuous
+    line (strokekit diff compares it, and a dash that moves is no change); each path starts its
+    pattern where its texture coordinate says (stroke-dashoffset = u at its first point x the
+    period, modulo the pattern): with tracking on, the dashes stay on the surface as the stroke
+    grows at either end instead of sliding along it. `dash_paths`: the dashes are written as
+    geometry instead (one path per stroke, a subpath per dash, same phase), for tools that ignore
+    stroke-dasharray (vpype draws such a path solid). An outline's dashes are always geometry
+    (one outline per dash)."""
+    if lines not in SVG_LINES:
+        raise ValueError(f"lines must be one of {', '.join(SVG_LINES)}, got {lines!r}")
+    if styled is None:
+        styled = apply_style(strokes, tuple(kinds), Style(width=stroke_width, dashes=dashes))
+    strokes = styled.strokes
     out = [_HEAD.format(w=int(width), h=int(height))]
     out += underlays or []
     data = stroke_path_data(strokes, decimals)
@@ -214,41 +210,127 @@ def svg_document(strokes: Strokes, width: int, height: int, kinds: tuple[str, ..
     present = np.unique(lay_sorted).tolist()
     bounds = np.searchsorted(lay_sorted, present).tolist() + [len(order)]
     by_layer = {k: order[a:b] for k, a, b in zip(present, bounds[:-1], bounds[1:])}
-    # Per-stroke columns gathered per layer by numpy (a hidden drawing has thousands of strokes).
-    data_col = np.array(data, dtype=object)
-    ids = strokes.ids
+    writer = _Paths(styled, data, decimals, dash_paths, lines)
     names = [(N_KINDS + i, "hidden-" + k, k) for i, k in enumerate(KINDS)
              if "hidden-" + k in kinds or N_KINDS + i in by_layer]
     names += [(i, k, k) for i, k in enumerate(KINDS) if k in kinds or i in by_layer]
-    pattern = iso_dashes(stroke_width) if dashes is None else tuple(float(x) for x in dashes)
-    period = sum(pattern)
     for index, name, kind in names:
         hidden = index >= N_KINDS
-        dash = ""
-        if hidden and period > 0 and not dash_paths:
-            dash = ' stroke-dasharray="' + " ".join(f"{x:g}" for x in pattern) + '"'
-        group = (f'<g fill="none" id="layer-{name}" inkscape:groupmode="layer" inkscape:label="{name}" '
-                 f'stroke="{KIND_COLORS.get(kind, "#000000")}"{dash} stroke-linecap="round" stroke-linejoin="round" '
-                 f'stroke-width="{stroke_width:g}"')
-        members = by_layer.get(index, ())
-        if not len(members):
-            out.append(group + " />")
+        members = by_layer.get(index, np.zeros(0, np.int64))
+        sets_here = np.unique(styled.lineset[members]).tolist() if len(members) else []
+        head = f'<g fill="none" id="layer-{name}" inkscape:groupmode="layer" inkscape:label="{name}" '
+        if len(sets_here) <= 1:
+            k = sets_here[0] if sets_here else None
+            colour, w, pattern = writer.look(k, kind, hidden)
+            out.append(head + f'stroke="{colour}"{_dash_attr(pattern, dash_paths)} stroke-linecap="round" '
+                       f'stroke-linejoin="round" stroke-width="{w:g}"')
+            if not len(members):
+                out.append(" />")
+                continue
+            out.append(">")
+            out += writer.paths(members, k, hidden, colour, w, pattern)
+            out.append("</g>")
             continue
-        out.append(group + ">")
-        if hidden and period > 0 and dash_paths:
-            u0 = strokes.u[strokes.offsets[:-1][members]] * strokes.period_px
-            phase = np.mod(np.where(np.isfinite(u0), u0, 0.0), period)
-            d = dash_path_data(strokes, members, phase, pattern, decimals)
-            out += [f'<path d="M{t}" id="s{i}" />' for i, t in zip(ids.take(members).tolist(), d) if t]
-        elif dash:
-            u0 = strokes.u[strokes.offsets[:-1][members]] * strokes.period_px
-            phase = np.round(np.mod(np.where(np.isfinite(u0), u0, 0.0), period), decimals) + 0.0
-            template = f'<path d="M%s" id="s%d" stroke-dashoffset="%.{decimals}f" />'
-            out.append((template * len(members)) % tuple(
-                chain.from_iterable(zip(data_col.take(members).tolist(), ids.take(members).tolist(), phase.tolist()))))
-        else:
-            out.append(('<path d="M%s" id="s%d" />' * len(members)) % tuple(
-                chain.from_iterable(zip(data_col.take(members).tolist(), ids.take(members).tolist()))))
+        out.append(head + 'stroke-linecap="round" stroke-linejoin="round">')
+        set_of = styled.lineset[members]
+        for k in sets_here:
+            colour, w, pattern = writer.look(k, kind, hidden)
+            sname = styled.sets[k].name
+            out.append(f'<g id="{name}--{sname}" inkscape:label="{sname}" stroke="{colour}"'
+                       f'{_dash_attr(pattern, dash_paths)} stroke-width="{w:g}">')
+            out += writer.paths(members[set_of == k], k, hidden, colour, w, pattern)
+            out.append("</g>")
         out.append("</g>")
     out.append("</svg>\n")
     return "".join(out)
+
+
+def _dash_attr(pattern: tuple[float, ...], dash_paths: bool) -> str:
+    if sum(pattern) > 0 and not dash_paths:
+        return ' stroke-dasharray="' + " ".join(f"{x:g}" for x in pattern) + '"'
+    return ""
+
+
+class _Paths:
+    """The <path> elements of one frame's strokes, set by set (svg_document)."""
+
+    def __init__(self, styled: StyledStrokes, data: list[str], decimals: int, dash_paths: bool, lines: str):
+        self.styled, self.decimals, self.dash_paths, self.lines = styled, decimals, dash_paths, lines
+        self.data_col = np.array(data, dtype=object)
+        st = styled.strokes
+        self.ids = st.ids
+        self.outline = ~styled.constant if lines == "outline" else np.zeros(len(st), bool)
+
+    def look(self, k: int | None, kind: str, hidden: bool) -> tuple[str, float, tuple[float, ...]]:
+        """(colour, width, dashes) of set k's strokes in a layer of `kind` (k None: an empty
+        layer, drawn as the default style would)."""
+        st = self.styled
+        if k is None:
+            w = st.style.width
+            d = st.style.dashes if st.style.dashes is not None else iso_dashes(w)
+            return KIND_COLORS.get(kind, "#000000"), w, (d if hidden else ())
+        return st.color(k), st.set_width(k), st.dashes(k, hidden)
+
+    def phase(self, members: np.ndarray, period: float) -> np.ndarray:
+        st = self.styled.strokes
+        u0 = st.u[st.offsets[:-1][members]] * st.period_px
+        return np.mod(np.where(np.isfinite(u0), u0, 0.0), period)
+
+    def paths(self, members: np.ndarray, k: int | None, hidden: bool, colour: str, w: float,
+              pattern: tuple[float, ...]) -> list[str]:
+        """The paths of set k's `members` (stroke indices, in order) in a group of this colour,
+        width and dash pattern."""
+        members = np.asarray(members, np.int64)
+        ids = self.ids.take(members)
+        period = sum(pattern)
+        outline = self.outline[members]
+        widths = self.styled.mean_width[members] if self.lines == "centreline" else \
+            self.styled.width[self.styled.strokes.offsets[:-1][members]]
+        own = [_width_text(x) for x in widths.tolist()]
+        same_width = [t == f"{w:g}" for t in own]
+        if not outline.any() and all(same_width):  # the plain drawing: one % operation a group
+            return self._plain(members, ids, period, pattern)
+        texts: list[str] = [""] * len(members)
+        line = np.flatnonzero(~outline)
+        if len(line):
+            plain = self._plain(members[line], ids[line], period, pattern, one_each=True)
+            for q, t in zip(line.tolist(), plain):
+                wt = "" if same_width[q] else f' stroke-width="{own[q]}"'
+                texts[q] = t.replace(" />", wt + " />", 1) if wt else t
+        ol = np.flatnonzero(outline)
+        if len(ol):
+            for q, t in zip(ol.tolist(), self._outlines(members[ol], period, pattern)):
+                if t:
+                    texts[q] = (f'<path d="{t}" id="s{int(ids[q])}" fill="{colour}" stroke="none" '
+                                f'{CENTRELINE}="M{self.data_col[members[q]]}" />')
+        return [t for t in texts if t]
+
+    def _plain(self, members, ids, period, pattern, one_each: bool = False) -> list[str]:
+        """Centreline paths (dashed as the pattern says), as one text (or one per stroke)."""
+        data = self.data_col.take(members).tolist()
+        ids = ids.tolist()
+        st = self.styled.strokes
+        if period > 0 and self.dash_paths:
+            d = dash_path_data(st, members, self.phase(members, period), pattern, self.decimals)
+            out = [f'<path d="M{t}" id="s{i}" />' if t else "" for i, t in zip(ids, d)]
+            return out if one_each else ["".join(out)]
+        if period > 0:
+            phase = (np.round(self.phase(members, period), self.decimals) + 0.0).tolist()
+            template = f'<path d="M%s" id="s%d" stroke-dashoffset="%.{self.decimals}f" />'
+            cols = list(zip(data, ids, phase))
+        else:
+            template = '<path d="M%s" id="s%d" />'
+            cols = list(zip(data, ids))
+        if one_each:
+            return [template % c for c in cols]
+        return [(template * len(cols)) % tuple(chain.from_iterable(cols))]
+
+    def _outlines(self, members: np.ndarray, period: float, pattern: tuple[float, ...]) -> list[str]:
+        """The filled outlines' path data of the members (their dashes', each dash one outline)."""
+        st, w = self.styled.strokes, self.styled.width
+        if period > 0:
+            pts, off, m, wd = dash_pieces(st, members, self.phase(members, period), pattern, w)
+            return _by_member(m, len(members), outline_path_data(pts, off, 0.5 * wd, self.decimals), " ")
+        sel = st.select(np.isin(np.arange(len(st)), members))  # (members are in stroke order)
+        pm = np.flatnonzero(np.isin(st.stroke_of_point, members))
+        return outline_path_data(sel.points, sel.offsets, 0.5 * w[pm], self.decimals)

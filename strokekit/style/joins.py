@@ -1,0 +1,123 @@
+"""Joins between strokes: where a stroke's end meets the end of another stroke of its kind (or
+its own other end: a loop) within `join_px`, the line running on through it (tangents within
+`join_angle_deg`), the two are one line drawn as two strokes (a brush path cut where its id
+changes, a loop's seam). There a line has no head or tail (the along modifier's taper,
+strokekit.style.widths) and the ribbons (strokekit.ribbons) run their body to the joint: both
+ends move to the middle of the two and share one end edge across the line's bisecting direction.
+The ends left are free ends."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def stroke_bounds(sid: np.ndarray, n_strokes: int) -> tuple[np.ndarray, np.ndarray]:
+    """(starts, ends) (S,): the first and one-past-last point of each stroke, for points grouped by
+    stroke index sid (N,), sorted."""
+    starts = np.searchsorted(sid, np.arange(n_strokes), side="left")
+    ends = np.searchsorted(sid, np.arange(n_strokes), side="right")
+    return starts, ends
+
+
+def arc_lengths(p: np.ndarray, sid: np.ndarray) -> np.ndarray:
+    """Cumulative arc length (px) from each stroke's start, for points grouped by stroke."""
+    d = np.zeros(len(p))
+    if len(p) > 1:
+        d[1:] = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        d[1:][sid[1:] != sid[:-1]] = 0.0
+    c = np.cumsum(d)
+    first = np.r_[True, sid[1:] != sid[:-1]] if len(p) else np.zeros(0, bool)
+    base = np.maximum.accumulate(np.where(first, c, 0.0)) if len(p) else c
+    return c - base
+
+
+#: A stroke's direction at an end: from its point this many px along it (at most half its length)
+#: to the end (a last segment a fraction of a pixel long says little of where the line goes).
+_END_REACH_PX = 2.0
+
+
+@dataclass(frozen=True, eq=False)
+class StrokeJoins:
+    """The joined stroke ends of one frame (strokekit.style.joins). joined (S, 2): the start (0) and the end
+    (1) of each stroke; point (S, 2, 2) px: where a joined end goes, the middle of the two ends;
+    normal (S, 2, 2): the end edge both ribbons share, across the bisector of the two strokes'
+    directions, oriented as the stroke's own normal at that end and scaled by the miter factor
+    (each ribbon keeps its width square to itself); partner (S, 2): the end joined to, as
+    2 x stroke + (0: start, 1: end), -1 where none."""
+
+    joined: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    partner: np.ndarray
+
+
+def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.ndarray, join_px: float,
+                 join_angle_deg: float) -> StrokeJoins:
+    """Which ends of the strokes (points (N, 2) px grouped by stroke index sid (N,), kind (S,)) are
+    joins: the end of another stroke of the same kind, or the stroke's other end (a loop at least
+    4 join_px long), within join_px, the line running on through both (their directions turning by
+    at most join_angle_deg; a stair-step, where a scanned mesh's contour moves from one shingle to
+    the next, is one too), and moving both to their middle keeps each ahead of its stroke's next
+    point. Each end joins one other, the nearest first (then the straightest)."""
+    from scipy.spatial import cKDTree  # (here: the style and the ribbons load without scipy)
+
+    S = n_strokes
+    joined = np.zeros((S, 2), bool)
+    point = np.zeros((S, 2, 2))
+    normal = np.zeros((S, 2, 2))
+    partner = np.full((S, 2), -1, np.int64)
+    out = StrokeJoins(joined, point, normal, partner)
+    starts, ends = stroke_bounds(sid, S)
+    arc = arc_lengths(points, sid)
+    L = np.where(ends - starts >= 2, arc[np.maximum(ends - 1, 0)] if len(arc) else 0.0, 0.0)
+    ok = np.flatnonzero(L > 0)
+    if len(ok) < 1 or join_px <= 0:
+        return out
+    # Each end's position and outward direction (away from its stroke), from the point
+    # _END_REACH_PX along it.
+    span = float(L.max()) + 1.0
+    g = arc + sid * span
+    reach = np.minimum(_END_REACH_PX, 0.5 * L[ok])
+    j0 = np.clip(np.searchsorted(g, ok * span + reach, side="left"), starts[ok] + 1, ends[ok] - 1)
+    j1 = np.clip(np.searchsorted(g, ok * span + L[ok] - reach, side="right") - 1, starts[ok], ends[ok] - 2)
+    pos = np.stack([points[starts[ok]], points[ends[ok] - 1]], 1)  # (K, 2 ends, 2)
+    nxt = np.stack([points[starts[ok] + 1], points[ends[ok] - 2]], 1)  # the neighbour of each end
+    d = np.stack([pos[:, 0] - points[j0], pos[:, 1] - points[j1]], 1)
+    d /= np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-300)
+    E, D, NX = pos.reshape(-1, 2), d.reshape(-1, 2), nxt.reshape(-1, 2)
+    owner = np.repeat(ok, 2)
+    pr = cKDTree(E).query_pairs(join_px, output_type="ndarray")
+    if len(pr) == 0:
+        return out
+    a, b = pr[:, 0], pr[:, 1]
+    sa, sb = owner[a], owner[b]
+    dot = np.einsum("ij,ij->i", D[a], D[b])
+    thru = D[a] - D[b]  # the line's direction through the joint, from a's stroke into b's
+    thru /= np.maximum(np.linalg.norm(thru, axis=1, keepdims=True), 1e-300)
+    mid = 0.5 * (E[a] + E[b])
+    ahead = (np.einsum("ij,ij->i", mid - NX[a], D[a]) > 0) & (np.einsum("ij,ij->i", mid - NX[b], D[b]) > 0)
+    keep = ((np.asarray(kind)[sa] == np.asarray(kind)[sb]) & (dot <= -np.cos(np.radians(join_angle_deg)))
+            & ahead & ((sa != sb) | (L[sa] >= 4.0 * join_px)))
+    a, b, dot, thru, mid = a[keep], b[keep], dot[keep], thru[keep], mid[keep]
+    dist = np.linalg.norm(E[b] - E[a], axis=1)
+    used = np.zeros(len(E), bool)
+    take = []
+    for k in np.lexsort((b, a, np.round(dot, 9), np.round(dist, 9))):
+        if not (used[a[k]] or used[b[k]]):
+            used[a[k]] = used[b[k]] = True
+            take.append(k)
+    take = np.asarray(take, np.int64)
+    miter = 1.0 / np.maximum(np.einsum("ij,ij->i", thru[take], D[a[take]]), 1e-3)
+    for e, f in ((a[take], b[take]), (b[take], a[take])):
+        s_e, w_e = owner[e], e % 2
+        # the shared edge across the line, turned to the stroke's own normal: its direction of
+        # travel at the end is D (an end) or -D (a start), the line's is +-thru
+        travel = np.where((w_e == 1)[:, None], D[e], -D[e])
+        t = np.where((np.einsum("ij,ij->i", thru[take], travel) >= 0)[:, None], thru[take], -thru[take])
+        joined[s_e, w_e] = True
+        point[s_e, w_e] = mid[take]
+        normal[s_e, w_e] = np.stack([-t[:, 1], t[:, 0]], 1) * miter[:, None]
+        partner[s_e, w_e] = 2 * owner[f] + f % 2
+    return out

@@ -1,0 +1,555 @@
+"""A frame's strokes in their style (`apply_style` -> `StyledStrokes`): each stroke drawn by the
+first line set that selects it (the others are not drawn), and a width in px at every point:
+the set's width times its thickness modifiers, in order.
+
+Where the width varies along a segment, points are added on it, so that the width drawn linearly
+between points (the SVG's outline, the ribbons) is the modifiers' width: at the along modifier's
+head and tail ends (its kinks), every half wavelength of a noise, then wherever a segment's
+width in its middle is off the line between its ends by more than WIDTH_TOL_PX (the segment is
+halved, and each half looked at again). The points added lie on the stroke: its centreline
+does not change.
+
+The formulas (strokekit.style.linesets has each modifier's parameters), at a point at arc length
+s of a stroke of length L, u its texture coordinate (periods of P px), id its stroke id:
+- along: tip + (1 - tip) min(ease(s / head), ease((L - s) / tail)), ease(x) = x (2 - x) on
+  [0, 1], head and tail scaled by min(1, L / (head + tail)), none at a joined end (joins);
+- depth: near + (far - near) clip((z - z_near) / (z_far - z_near), 0, 1), z the view depth;
+- curvature: flat + (curved - flat) clip(k radius, 0, 1), k = the angle between the chords
+  P(s - a) -> P(s) and P(s) -> P(s + b) over (a + b) / 2, a = min(span, s), b = min(span, L - s),
+  and 0 where a or b is below END_CHORD_PX (a chord that short has no direction to speak of);
+- calligraphy: thin + (1 - thin) |sin(theta - angle)|, theta the direction of P(s + b) - P(s - a)
+  with a = min(span, s), b = min(span, L - s), y up;
+- noise: 1 + amplitude n(u P / wavelength), n a value noise (values in [-1, 1] at whole
+  numbers, hashed from the seed, the id and frame // boil; smoothstep between);
+and the width is at least MIN_WIDTH_PX."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+
+import numpy as np
+
+from strokekit.errors import UsageError
+from strokekit.model import KINDS, Strokes, kind_of, occlusion_of, row_norm
+from strokekit.sampling import locate, surface_between
+from strokekit.style.joins import stroke_joins
+from strokekit.style.linesets import (
+    JOIN_ANGLE_DEG,
+    JOIN_PX,
+    KIND_COLORS,
+    MIN_WIDTH_PX,
+    Along,
+    Calligraphy,
+    Curvature,
+    Depth,
+    LineSet,
+    Noise,
+    Style,
+)
+
+#: No segment is halved below this length (px).
+MIN_STEP_PX = 0.25
+#: The curvature is 0 this close to a stroke's end (px): a shorter chord's direction is noise.
+END_CHORD_PX = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class StyleContext:
+    """What a frame's style needs of its scene, found where the scene is (run.frame.render_frame):
+    depth_range (near, far) view depth of the visible surface (the depth modifier's default);
+    for selection by object or material, the faces the frame's lines lie on (sorted), the object
+    and material index of each, and the scene's object and material names."""
+
+    depth_range: tuple[float, float] | None = None
+    faces: np.ndarray | None = None
+    face_object: np.ndarray | None = None
+    face_material: np.ndarray | None = None
+    objects: tuple[str, ...] = ()
+    materials: tuple[str, ...] = ()
+
+
+def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=None) -> StyleContext | None:
+    """The StyleContext of a frame (None when the style needs none). `scene`: the scene
+    (face_object, face_material, objects, materials); `lines`: the frame's lines (their faces
+    and surface points); `surface_depth`: f(camera, pixels) -> depth of the first surface
+    (raster.surface_depth_at), probed on a grid every DEPTH_GRID_PX for the visible depth range."""
+    if not (style.needs_scene_depths or style.needs_faces):
+        return None
+    depth_range = None
+    if style.needs_scene_depths:
+        z = [camera.depth(lines.surface)] if len(lines.points) else []
+        if surface_depth is not None:
+            xs = np.arange(0.5 * DEPTH_GRID_PX, camera.width, DEPTH_GRID_PX)
+            ys = np.arange(0.5 * DEPTH_GRID_PX, camera.height, DEPTH_GRID_PX)
+            gx, gy = np.meshgrid(xs, ys)
+            z.append(surface_depth(camera, np.stack([gx.ravel(), gy.ravel()], 1)))
+        z = np.concatenate(z) if z else np.zeros(0)
+        z = z[np.isfinite(z) & (z > 0)]
+        depth_range = (float(z.min()), float(z.max())) if len(z) else None
+    faces = fo = fm = None
+    if style.needs_faces:
+        faces = np.unique(lines.face[lines.face >= 0])
+        fo = np.asarray(scene.face_object)[faces]
+        fm = np.asarray(scene.face_material)[faces]
+    return StyleContext(depth_range, faces, fo, fm, tuple(scene.objects), tuple(m.name for m in scene.materials))
+
+
+#: The visible depth range is probed every this many px (and at every line point).
+DEPTH_GRID_PX = 8.0
+
+
+@dataclass(frozen=True, eq=False)
+class StyledStrokes:
+    """Strokes as drawn: `strokes` those a line set selects (points added where the width needs
+    them, module doc), width (N,) px at each point, lineset (S,) the index of each stroke's set in
+    `sets`, kept (S0,) which of the strokes given were drawn, depth_range: what the depth
+    modifiers took for the frame's visible depths (None: none did), colors: each set's colour,
+    free (S, 2): which stroke ends are free (not joined to the next piece of their line: there
+    the along modifier's head and tail are; None without one)."""
+
+    strokes: Strokes
+    width: np.ndarray
+    lineset: np.ndarray
+    sets: tuple[LineSet, ...]
+    style: Style
+    kept: np.ndarray
+    depth_range: tuple[float, float] | None = None
+    colors: tuple[str, ...] = field(default=())
+    free: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.strokes)
+
+    @cached_property
+    def constant(self) -> np.ndarray:
+        """(S,) whether each stroke has one width all along (drawn as a centreline)."""
+        o = self.strokes.offsets
+        if len(self) == 0:
+            return np.zeros(0, bool)
+        w = self.width
+        starts = o[:-1]
+        hi = np.maximum.reduceat(w, starts) if len(w) else np.zeros(len(self))
+        lo = np.minimum.reduceat(w, starts) if len(w) else np.zeros(len(self))
+        return hi - lo <= 1e-9 * np.maximum(hi, 1.0)
+
+    @cached_property
+    def mean_width(self) -> np.ndarray:
+        """(S,) each stroke's width averaged over its length (the mean of its points' on a stroke
+        with no length)."""
+        st, w = self.strokes, self.width
+        o = st.offsets
+        if len(self) == 0:
+            return np.zeros(0)
+        seg = st.segment_lengths  # (0 at each stroke's first point)
+        area = np.zeros(len(w))
+        area[1:] = 0.5 * (w[1:] + w[:-1]) * seg[1:]
+        area[o[:-1]] = 0.0
+        tot = np.add.reduceat(area, o[:-1])
+        n = np.diff(o)
+        mean_pts = np.add.reduceat(w, o[:-1]) / n
+        L = st.lengths
+        return np.where(L > 0, tot / np.where(L > 0, L, 1.0), mean_pts)
+
+    def set_width(self, k: int) -> float:
+        """The base width of set k (px)."""
+        w = self.sets[k].width
+        return self.style.width if w is None else w
+
+    def color(self, k: int) -> str:
+        """The colour of set k (its own, else its first kind's)."""
+        return self.colors[k]
+
+    def dashes(self, k: int, hidden: bool) -> tuple[float, ...]:
+        """The dash pattern (px; () solid) of set k's strokes, hidden or visible ones: its own, else
+        the style's for hidden strokes (None: ISO 128 at the set's width), solid for visible ones."""
+        d = self.sets[k].dashes
+        if d is not None:
+            return d
+        if not hidden:
+            return ()
+        if self.style.dashes is not None:
+            return self.style.dashes
+        w = self.set_width(k)
+        return (12.0 * w, 3.0 * w)
+
+
+def set_colours(sets: tuple[LineSet, ...]) -> tuple[str, ...]:
+    """Each set's colour: its own, else the first kind it selects (black for every kind)."""
+    return tuple(s.color if s.color is not None else KIND_COLORS[s.kinds[0]] if s.kinds else "#000000"
+                 for s in sets)
+
+
+def apply_style(strokes: Strokes, layers: tuple[str, ...], style: Style | None = None,
+                context: StyleContext | None = None) -> StyledStrokes:
+    """The strokes of a frame drawn in `style` (default: Style()), whose SVG layers are `layers`
+    (LineOptions.layers: the default style's sets); `context`: style_context's (needed to select
+    by object or material; the depth modifier without depths otherwise takes the strokes' own
+    depth range)."""
+    style = style if style is not None else Style()
+    sets = style.line_sets(layers)
+    which = _assign(strokes, sets, context)
+    kept = which >= 0
+    if not kept.all():
+        strokes = strokes.select(kept)
+        which = which[kept]
+    base = np.array([s.width if s.width is not None else style.width for s in sets], float)
+    counts = np.diff(strokes.offsets)
+    if not any(s.thickness for s in sets):
+        width = np.repeat(base[which], counts) if len(which) else np.zeros(len(strokes.points))
+        return StyledStrokes(strokes, width, which, sets, style, kept, colors=set_colours(sets))
+    depth_range = None
+    if any(isinstance(m, Depth) and m.near_depth is None for s in sets for m in s.thickness):
+        depth_range = context.depth_range if context is not None and context.depth_range is not None else \
+            _own_depth_range(strokes)
+    free = _free_ends(strokes, which, sets)
+    strokes, width = _widths(strokes, which, sets, base, free, depth_range)
+    return StyledStrokes(strokes, width, which, sets, style, kept, depth_range, colors=set_colours(sets), free=free)
+
+
+def _assign(strokes: Strokes, sets: tuple[LineSet, ...], context: StyleContext | None) -> np.ndarray:
+    """(S,) the first set selecting each stroke, -1 where none does."""
+    S = len(strokes)
+    which = np.full(S, -1, np.int64)
+    if S == 0:
+        return which
+    kind = kind_of(strokes.kind).astype(np.int64)
+    level = occlusion_of(strokes.kind).astype(np.int64)
+    obj = mat = None
+    for k in range(len(sets) - 1, -1, -1):
+        s = sets[k]
+        sel = np.ones(S, bool)
+        if s.kinds is not None:
+            sel &= np.isin(kind, [KINDS.index(x) for x in s.kinds])
+        if s.occlusion is not None:
+            sel &= (level >= s.occlusion[0]) & (level <= s.occlusion[1])
+        if s.objects is not None or s.materials is not None:
+            if context is None or context.faces is None:
+                raise UsageError(f"line set {s.name!r} selects by object or material: its strokes' faces need the "
+                                 "scene (run.frame.render_frame finds them)")
+            if obj is None:
+                obj = _majority(strokes, context.faces, context.face_object)
+                mat = _majority(strokes, context.faces, context.face_material)
+            if s.objects is not None:
+                sel &= np.isin(obj, [i for i, n in enumerate(context.objects) if n in s.objects])
+            if s.materials is not None:
+                sel &= np.isin(mat, [i for i, n in enumerate(context.materials) if n in s.materials])
+        which[sel] = k
+    return which
+
+
+def _majority(strokes: Strokes, faces: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """(S,) the value (object or material index) most of each stroke's points' faces have
+    (the lowest on a tie; -1 for a stroke with no known face)."""
+    f = strokes.face
+    at = np.searchsorted(faces, f)
+    at = np.minimum(at, max(len(faces) - 1, 0))
+    known = (f >= 0) & (len(faces) > 0)
+    if len(faces):
+        known &= faces[at] == f
+    v = np.where(known, value[at] if len(faces) else -1, -1).astype(np.int64)
+    n_v = int(value.max()) + 2 if len(value) else 1
+    S = len(strokes)
+    counts = np.bincount(strokes.stroke_of_point * n_v + (v + 1), minlength=S * n_v).reshape(S, n_v)
+    counts[:, 0] = 0
+    best = counts.argmax(axis=1) - 1
+    return np.where(counts.max(axis=1) > 0, best, -1)
+
+
+def _own_depth_range(strokes: Strokes) -> tuple[float, float] | None:
+    if strokes.camera is None or not len(strokes.points):
+        return None
+    z = strokes.camera.depth(strokes.surface)
+    z = z[np.isfinite(z)]
+    return (float(z.min()), float(z.max())) if len(z) else None
+
+
+def _free_ends(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...]) -> np.ndarray | None:
+    """(S, 2) whether each stroke's start and end are free (not joined to the next piece of its
+    line, strokekit.style.joins; strokes of different sets never join); None without an along
+    modifier (which alone needs them)."""
+    S = len(strokes)
+    if not any(isinstance(m, Along) for s in sets for m in s.thickness):
+        return None
+    label = strokes.kind.astype(np.int64) + 128 * which
+    joins = stroke_joins(np.asarray(strokes.points, float), strokes.stroke_of_point.astype(np.int64), S, label,
+                         JOIN_PX, JOIN_ANGLE_DEG)
+    return ~joins.joined
+
+
+# --- points added where the width varies ------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Sites:
+    """Places on the strokes where widths are evaluated: stroke index st, arc length s, position
+    P (M, 2), texture coordinate u, view depth z (nan: unknown), on `strokes`."""
+
+    strokes: Strokes
+    st: np.ndarray
+    s: np.ndarray
+    P: np.ndarray
+    u: np.ndarray
+    z: np.ndarray
+
+    @staticmethod
+    def of_points(strokes: Strokes) -> Sites:
+        z = strokes.camera.depth(strokes.surface) if strokes.camera is not None and len(strokes.points) \
+            else np.full(len(strokes.points), np.nan)
+        return Sites(strokes, strokes.stroke_of_point, strokes.arc_length, strokes.points, strokes.u, z)
+
+    def at(self, st: np.ndarray, s: np.ndarray) -> Sites:
+        """Sites at arc lengths s of strokes st: linear on screen, the depth as the surface point
+        between (sampling.surface_between: 1/z linear under perspective)."""
+        i, j, a = locate(self.strokes, st, s)
+        P = self.P[i] + a[:, None] * (self.P[j] - self.P[i])
+        u = self.u[i] + a * (self.u[j] - self.u[i])
+        zi, zj = self.z[i], self.z[j]
+        cam = self.strokes.camera
+        if cam is not None and not cam.is_ortho:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = 1.0 / ((1 - a) / zi + a / zj)
+        else:
+            z = zi + a * (zj - zi)
+        return Sites(self.strokes, st, s, P, u, z)
+
+    def take(self, k: np.ndarray) -> Sites:
+        return Sites(self.strokes, self.st[k], self.s[k], self.P[k], self.u[k], self.z[k])
+
+
+#: The width drawn between two points is linear: points are added until it is within this of
+#: the modifiers' width in the middle of every segment (px).
+WIDTH_TOL_PX = 0.01
+#: Segments are halved at most this many times looking for it.
+MAX_HALVINGS = 8
+
+
+def _widths(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
+            depth_range) -> tuple[Strokes, np.ndarray]:
+    """The strokes with the points their widths need (module doc) and the width at each."""
+    S = len(strokes)
+    if S == 0:
+        return strokes, np.zeros(0)
+    # Fixed points: the along modifiers' head and tail ends (the profile's kinks), and the noise's
+    # every half wavelength (a feature between two points a midpoint cannot see).
+    cut_st, cut_s = [], []
+    sop = strokes.stroke_of_point
+    seg, arc = strokes.segment_lengths, strokes.arc_length
+    step = np.array([min([m.wavelength / 2 for m in s.thickness if isinstance(m, Noise) and m.amplitude > 0],
+                         default=np.inf) for s in sets])[which]
+    n = np.ones(len(seg), np.int64)
+    fin = np.isfinite(step[sop])
+    n[fin] = np.ceil(seg[fin] / step[sop][fin]).astype(np.int64)
+    long = np.flatnonzero(n > 1)
+    if len(long):
+        reps = n[long] - 1
+        owner = np.repeat(long, reps)
+        k = np.arange(int(reps.sum())) - np.repeat(np.cumsum(reps) - reps, reps) + 1
+        cut_st.append(sop[owner])
+        cut_s.append(arc[owner] - seg[owner] + seg[owner] * k / n[owner])
+    for k_set, s in enumerate(sets):
+        for m in s.thickness:
+            st = np.flatnonzero(which == k_set)
+            if isinstance(m, Along) and len(st):
+                head, tail = along_lengths(m, strokes, st, free)
+                L = strokes.lengths[st]
+                cut_st += [st, st]
+                cut_s += [head, L - tail]
+    if cut_st:
+        strokes = insert_points(strokes, np.concatenate(cut_st), np.concatenate(cut_s))[0]
+    sites = Sites.of_points(strokes)
+    w = _width_at(sites, which, sets, base, free, depth_range)
+    # Halving: a segment whose middle's width is off the line between its ends' by more than
+    # WIDTH_TOL_PX gets a point there, and both halves are looked at again.
+    sop, arc = strokes.stroke_of_point, strokes.arc_length
+    a = np.flatnonzero(sop[1:] == sop[:-1]) if len(sop) > 1 else np.zeros(0, np.int64)
+    seg_st, s0, s1, w0, w1 = sop[a], arc[a], arc[a + 1], w[a], w[a + 1]
+    varies = np.array([bool(x.thickness) for x in sets])[which]
+    keep = varies[seg_st] & (s1 - s0 > 2 * MIN_STEP_PX)
+    seg_st, s0, s1, w0, w1 = seg_st[keep], s0[keep], s1[keep], w0[keep], w1[keep]
+    add_st, add_s, add_w = [], [], []
+    for _ in range(MAX_HALVINGS):
+        if not len(seg_st):
+            break
+        mid = 0.5 * (s0 + s1)
+        wm = _width_at(sites.at(seg_st, mid), which, sets, base, free, depth_range)
+        split = np.abs(wm - 0.5 * (w0 + w1)) > WIDTH_TOL_PX
+        if not split.any():
+            break
+        seg_st, s0, s1, w0, w1, mid, wm = (x[split] for x in (seg_st, s0, s1, w0, w1, mid, wm))
+        add_st.append(seg_st)
+        add_s.append(mid)
+        add_w.append(wm)
+        half = s1 - mid > 2 * MIN_STEP_PX
+        seg_st, s0, s1, w0, w1 = (np.r_[x[half], y[half]] for x, y in
+                                  ((seg_st, seg_st), (s0, mid), (mid, s1), (w0, wm), (wm, w1)))
+    if add_st:
+        strokes, w = insert_points(strokes, np.concatenate(add_st), np.concatenate(add_s), w, np.concatenate(add_w))
+    return strokes, w
+
+
+def _width_at(sites: Sites, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
+              depth_range) -> np.ndarray:
+    """The width at each site: its set's width times the set's modifiers, at least MIN_WIDTH_PX."""
+    set_of = which[sites.st]
+    width = base[set_of]
+    for k, s in enumerate(sets):
+        if not s.thickness:
+            continue
+        on = np.flatnonzero(set_of == k) if len(sets) > 1 else np.arange(len(set_of))
+        if not len(on):
+            continue
+        here = sites.take(on) if len(on) < len(set_of) else sites
+        f = np.ones(len(on))
+        for m in s.thickness:
+            f = f * modifier_factor(m, here, free, depth_range)
+        width[on] = width[on] * f
+    return np.maximum(width, MIN_WIDTH_PX)
+
+
+def along_lengths(m: Along, strokes: Strokes, st: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(head, tail) px of strokes `st` for the along modifier `m` (end_lengths)."""
+    scale = strokes.period_px if m.unit == "period" else 1.0
+    return end_lengths(np.full(len(st), m.head * scale), np.full(len(st), m.tail * scale), free[st],
+                       strokes.lengths[st])
+
+
+def end_lengths(head: np.ndarray, tail: np.ndarray, free: np.ndarray, length: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Head and tail lengths (px, per stroke) at free ends (free (S, 2)), none at joined ones,
+    shrunk together on strokes shorter than both."""
+    a, b = head * free[:, 0], tail * free[:, 1]
+    k = np.minimum(1.0, length / np.where(a + b > 0, a + b, 1.0))
+    return a * k, b * k
+
+
+def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray, values: np.ndarray | None = None,
+                  new_values: np.ndarray | None = None) -> tuple[Strokes, np.ndarray | None]:
+    """The strokes with a point added at arc length s (px) of each stroke `stroke`, inside its
+    segments (not at or beyond its points, each position once), position and u interpolated
+    linearly, the surface point as sampling.surface_between, the face of the segment's start;
+    and `values` (N,) of the points with `new_values` (of the points added) in the same order."""
+    L = strokes.lengths[stroke]
+    ok = (s > 0) & (s < L)
+    stroke, s = stroke[ok], s[ok]
+    nv = new_values[ok] if new_values is not None else None
+    if not len(s):
+        return strokes, values
+    order = np.lexsort((s, stroke))
+    stroke, s = stroke[order], s[order]
+    distinct = np.r_[True, (stroke[1:] != stroke[:-1]) | (s[1:] - s[:-1] > 1e-9)]
+    stroke, s = stroke[distinct], s[distinct]
+    if nv is not None:
+        nv = nv[order][distinct]
+    i, j, a = locate(strokes, stroke, s)
+    inside = (a > 1e-9) & (a < 1 - 1e-9) & (j == i + 1)
+    i, j, a, stroke = i[inside], j[inside], a[inside], stroke[inside]
+    if not len(i):
+        return strokes, values
+    P = strokes.points
+    new_p = P[i] + a[:, None] * (P[j] - P[i])
+    new_u = strokes.u[i] + a * (strokes.u[j] - strokes.u[i])
+    new_x = surface_between(strokes, i, j, a)
+    key = np.concatenate([np.arange(len(P), dtype=float), i + a])
+    order = np.argsort(key, kind="stable")
+    counts = np.diff(strokes.offsets) + np.bincount(stroke, minlength=len(strokes))
+    out = replace(strokes, points=np.concatenate([P, new_p])[order],
+                  surface=np.concatenate([strokes.surface, new_x])[order],
+                  face=np.concatenate([strokes.face, strokes.face[i]])[order],
+                  u=np.concatenate([strokes.u, new_u])[order],
+                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    if values is None:
+        return out, None
+    return out, np.concatenate([values, nv[inside]])[order]
+
+
+# --- the modifiers --------------------------------------------------------------------------------
+
+def ease(x: np.ndarray) -> np.ndarray:
+    """0 -> 0, 1 -> 1 with zero slope at 1: the brush reaches full width smoothly."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * (2.0 - x)
+
+
+def along_profile(s: np.ndarray, length: np.ndarray, head: np.ndarray, tail: np.ndarray, tip: float) -> np.ndarray:
+    """The along modifier's factor at arc length s of strokes of `length`, with these head and
+    tail lengths (px, per point; 0: none) and tip factor."""
+    grow = np.where(head > 0, ease(s / np.maximum(head, 1e-300)), 1.0)
+    fade = np.where(tail > 0, ease((length - s) / np.maximum(tail, 1e-300)), 1.0)
+    return tip + (1 - tip) * np.minimum(grow, fade)
+
+
+def modifier_factor(m, sites: Sites, free: np.ndarray, depth_range: tuple[float, float] | None) -> np.ndarray:
+    """The factor of modifier `m` at the sites (module doc for the formulas); free (S, 2): which
+    stroke ends are free (joins)."""
+    strokes, st, s = sites.strokes, sites.st, sites.s
+    L = strokes.lengths[st]
+    if isinstance(m, Along):
+        uniq, inv = np.unique(st, return_inverse=True)
+        head, tail = along_lengths(m, strokes, uniq, free)
+        return along_profile(s, L, head[inv], tail[inv], m.tip)
+    if isinstance(m, Depth):
+        if m.near_depth is not None:
+            zn, zf = m.near_depth, m.far_depth
+        elif depth_range is not None:
+            zn, zf = depth_range
+        else:
+            return np.full(len(st), m.near)
+        t = np.clip((sites.z - zn) / (zf - zn), 0.0, 1.0) if zf > zn else np.zeros(len(st))
+        t = np.where(np.isfinite(t), t, 0.5)
+        return m.near + (m.far - m.near) * t
+    if isinstance(m, Curvature):
+        a, b = np.minimum(m.span, s), np.minimum(m.span, L - s)
+        c1 = sites.P - point_at(strokes, st, s - a)
+        c2 = point_at(strokes, st, s + b) - sites.P
+        ang = np.arctan2(np.abs(c1[:, 0] * c2[:, 1] - c1[:, 1] * c2[:, 0]), np.einsum("ij,ij->i", c1, c2))
+        ok = (a >= END_CHORD_PX) & (b >= END_CHORD_PX) & (row_norm(c1) > 1e-12) & (row_norm(c2) > 1e-12)
+        k = np.where(ok, ang / np.where(ok, 0.5 * (a + b), 1.0), 0.0)
+        return m.flat + (m.curved - m.flat) * np.clip(k * m.radius, 0.0, 1.0)
+    if isinstance(m, Calligraphy):
+        a, b = np.minimum(m.span, s), np.minimum(m.span, L - s)
+        d = point_at(strokes, st, s + b) - point_at(strokes, st, s - a)
+        theta = np.arctan2(-d[:, 1], d[:, 0])
+        f = m.thin + (1 - m.thin) * np.abs(np.sin(theta - np.radians(m.angle)))
+        return np.where(row_norm(d) > 1e-12, f, 1.0)
+    if isinstance(m, Noise):
+        u = np.where(np.isfinite(sites.u), sites.u, s / strokes.period_px)
+        key = int(strokes.frame) // m.boil if m.boil else 0
+        return 1.0 + m.amplitude * value_noise(u * strokes.period_px / m.wavelength, strokes.ids[st], m.seed, key)
+    raise TypeError(f"not a thickness modifier: {m!r}")
+
+
+def point_at(strokes: Strokes, stroke: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """(M, 2) the points at arc length s of strokes `stroke` (held at the ends)."""
+    i, j, a = locate(strokes, stroke, s)
+    P = strokes.points
+    return P[i] + a[:, None] * (P[j] - P[i])
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _mix(x: np.ndarray) -> np.ndarray:
+    """SplitMix64's finalizer: a well-spread 64-bit hash of x (uint64 arrays, wrapping)."""
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
+def _lattice(key: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """The noise's value in [-1, 1) at whole number i for each hash key."""
+    h = _mix(key + i.astype(np.int64).view(np.uint64) * _GOLDEN)
+    return (h >> np.uint64(11)).astype(np.float64) * (2.0 ** -52) - 1.0
+
+
+def value_noise(x: np.ndarray, ids: np.ndarray, seed: int, key: int) -> np.ndarray:
+    """A smooth noise of x in [-1, 1], its own for each stroke id, seed and key (the boil's):
+    values hashed at the whole numbers, smoothstep between."""
+    base = np.full(len(x), seed & 0xFFFFFFFF, np.uint64) * _GOLDEN + np.uint64(key & 0xFFFFFFFF)
+    k = _mix(_mix(base) ^ np.asarray(ids, np.int64).view(np.uint64))
+    i0 = np.floor(x)
+    t = x - i0
+    t = t * t * (3.0 - 2.0 * t)
+    v0 = _lattice(k, i0)
+    v1 = _lattice(k, i0 + 1)
+    return v0 + (v1 - v0) * t
+
