@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from helpers import model_path, run_cli
 
 from strokekit.camera.paths import orbit_path
 from strokekit.options import LineOptions
@@ -199,3 +200,35 @@ def test_the_refused_resume_says_at_most_three_settings():
     assert said == ("gone 1 there, none now; --min-length 0.0 there, 3.0 now; --decimals 2 there, 3 now; 2 more")
     assert settings_changed(old, new, most=5).endswith("--svg true there, false now")
     assert settings_changed({}, new) == "" and settings_changed(old, {"settings": None}) == ""
+
+
+def test_a_folder_rendered_by_an_earlier_version_still_resumes(tmp_path, capsys):
+    """The digests are a contract with the folders users already have: these are the manifest of
+    `render spot.obj --orbit 12 --strokes lines` as the version before this test wrote it (frames
+    1 and 2). A change to the digests' spelling (a key, the order, the length) refuses every one
+    of those folders with --skip-existing."""
+    out = tmp_path / "o"
+    code, _, err = run_cli(["render", model_path("spot.obj"), "--orbit", "12", "--frames", "1-2", "--strokes", "lines",
+                            "--out", out, "-q"], capsys)
+    assert code == 0, err
+    m = read_run_manifest(out)
+    assert (m["run"], m["scene"], m["options"]) == ("d2ce8e07b1cf145f", "1cf18937921a7fd1", "d344e8cf2402895f")
+    assert m["frames"] == {1: "7f94792914b16beb", 2: "e3c9d42360792484"}
+    assert (out / RUN_MANIFEST).read_text().startswith('{\n "strokekit_run": 1,\n "run": "d2ce8e07b1cf145f",')
+
+
+def test_the_refused_resume_is_one_exact_line():
+    out, fix = Path("some/out"), "remove them or render without --skip-existing"
+    new = {"run": "r1", "scene": "s1", "options": "o1", "frames": {1: "a", 2: "b"}}
+    both = {**new, "run": "r0", "scene": "s0", "options": "o0", "frames": {1: "a", 2: "x"}}
+    assert manifest.not_a_resume(out, both, new, {1, 2}) == (
+        "--skip-existing: some/out/ holds frames of another scene or other options (.strokekit-run.json differs: "
+        f"scene, options, cameras of frames 2); {fix}")
+    old = {**new, "run": "r0", "options": "o0", "settings": {"outputs.decimals": 2}}
+    assert manifest.not_a_resume(out, old, {**new, "settings": {"outputs.decimals": 3}}, {1}) == (
+        "--skip-existing: some/out/ holds frames of other options (.strokekit-run.json differs: options "
+        f"(--decimals 2 there, 3 now)); {fix}")
+    # Settings that differ where the options digest does not (an edited file) are not named.
+    same = {**new, "run": "r0", "settings": {"outputs.decimals": 2}}
+    assert manifest.not_a_resume(out, same, {**new, "settings": {"outputs.decimals": 3}}, {1}) == (
+        f"--skip-existing: some/out/ holds frames of another run (.strokekit-run.json differs: run); {fix}")

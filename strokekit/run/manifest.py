@@ -213,4 +213,4 @@ def not_a_resume(out_dir: Path, old: dict | None, new: dict, present: set[int]) 
     what = " or ".join(x for x, p in (("another scene", "scene"), ("other options", "options"))
                        if old[p] != new[p])
     what = what or "another run"  # a run digest that its parts do not explain: an edited file
-    return (f"--skip-existing: {where} holds frames of {what} ({RUN_MANIFEST} differs: {', '.join(parts)}); {fix}")
+    return (f"--skip-existing: {where} holds frames of {what} ({RUN_MANIFEST} differs: {', '.join(parts) or 'run'}); {fix}")
