@@ -32,6 +32,7 @@ import numpy as np
 
 from strokekit.errors import UsageError
 from strokekit.model import KINDS, Strokes, kind_of, occlusion_of, row_norm
+from strokekit.numba_cache import KernelGroup, LazyKernels
 from strokekit.sampling import locate, surface_between
 from strokekit.style.joins import stroke_joins
 from strokekit.style.linesets import (
@@ -356,35 +357,81 @@ def _widths(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base
                 cut_s += [head, L - tail]
     if cut_st:
         strokes = insert_points(strokes, np.concatenate(cut_st), np.concatenate(cut_s))[0]
-    sites = Sites.of_points(strokes)
-    w = _width_at(sites, which, sets, base, free, depth_range)
-    # Halving: a segment whose middle's width is off the line between its ends' by more than
-    # WIDTH_TOL_PX gets a point there, and both halves are looked at again.
-    sop, arc = strokes.stroke_of_point, strokes.arc_length
-    a = np.flatnonzero(sop[1:] == sop[:-1]) if len(sop) > 1 else np.zeros(0, np.int64)
-    seg_st, s0, s1, w0, w1 = sop[a], arc[a], arc[a + 1], w[a], w[a + 1]
-    varies = np.array([bool(x.thickness) for x in sets])[which]
-    keep = varies[seg_st] & (s1 - s0 > 2 * MIN_STEP_PX)
-    seg_st, s0, s1, w0, w1 = seg_st[keep], s0[keep], s1[keep], w0[keep], w1[keep]
-    add_st, add_s, add_w = [], [], []
-    for _ in range(MAX_HALVINGS):
-        if not len(seg_st):
-            break
-        mid = 0.5 * (s0 + s1)
-        wm = _width_at(sites.at(seg_st, mid), which, sets, base, free, depth_range)
-        split = np.abs(wm - 0.5 * (w0 + w1)) > WIDTH_TOL_PX
-        if not split.any():
-            break
-        seg_st, s0, s1, w0, w1, mid, wm = (x[split] for x in (seg_st, s0, s1, w0, w1, mid, wm))
-        add_st.append(seg_st)
-        add_s.append(mid)
-        add_w.append(wm)
-        half = s1 - mid > 2 * MIN_STEP_PX
-        seg_st, s0, s1, w0, w1 = (np.r_[x[half], y[half]] for x, y in
-                                  ((seg_st, seg_st), (s0, mid), (mid, s1), (w0, wm), (wm, w1)))
-    if add_st:
-        strokes, w = insert_points(strokes, np.concatenate(add_st), np.concatenate(add_s), w, np.concatenate(add_w))
-    return strokes, w
+    return _halve(strokes, which, sets, base, free, depth_range)
+
+
+def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
+           depth_range) -> tuple[Strokes, np.ndarray]:
+    """The widths at the strokes' points, and the points added by halving: a segment whose
+    middle's width is off the line between its ends' by more than WIDTH_TOL_PX gets a point
+    there, and both halves are looked at again (compiled: style.compiled.halve)."""
+    K = style_kernels()
+    ALONG, DEPTH, CURVATURE, CALLIGRAPHY, NOISE = K.ALONG, K.DEPTH, K.CURVATURE, K.CALLIGRAPHY, K.NOISE
+    S = len(strokes)
+    rows, starts, ends, keys = [], [0], [], []
+    for s in sets:
+        for m in s.thickness:
+            if isinstance(m, Along):
+                head, tail = along_lengths(m, strokes, np.arange(S), free)
+                rows.append((ALONG, m.tip, len(ends) // 2, 0, 0, 0))
+                ends += [head, tail]
+            elif isinstance(m, Depth):
+                zn, zf = (m.near_depth, m.far_depth) if m.near_depth is not None else \
+                    depth_range if depth_range is not None else (0.0, 0.0)
+                known = m.near_depth is not None or depth_range is not None
+                rows.append((DEPTH, m.near, m.far, zn, zf, float(known)))
+            elif isinstance(m, Curvature):
+                rows.append((CURVATURE, m.flat, m.curved, m.radius, m.span, END_CHORD_PX))
+            elif isinstance(m, Calligraphy):
+                rows.append((CALLIGRAPHY, float(np.radians(m.angle)), m.thin, m.span, 0, 0))
+            elif isinstance(m, Noise):
+                key = int(strokes.frame) // m.boil if m.boil else 0
+                rows.append((NOISE, m.amplitude, m.wavelength, len(keys), 0, 0))
+                keys.append(noise_keys(strokes.ids, m.seed, key))
+            else:
+                raise TypeError(f"not a thickness modifier: {m!r}")
+        starts.append(len(rows))
+    mods = np.array(rows, float).reshape(-1, 6)
+    ends_a = np.ascontiguousarray(np.stack(ends, 1) if ends else np.zeros((S, 0)))
+    keys_a = np.ascontiguousarray(np.stack(keys, 1) if keys else np.zeros((S, 0), np.uint64))
+    cam = strokes.camera
+    N = len(strokes.points)
+    z = cam.depth(strokes.surface) if cam is not None and N else np.full(N, np.nan)
+    persp = cam is not None and not cam.is_ortho
+    seg, frac, w = K.halve(
+        np.ascontiguousarray(strokes.points, float), np.ascontiguousarray(strokes.arc_length, float),
+        np.ascontiguousarray(strokes.u, float), np.ascontiguousarray(z, float),
+        np.ascontiguousarray(strokes.offsets, np.int64), np.ascontiguousarray(which, np.int64),
+        np.ascontiguousarray(strokes.lengths, float), np.ascontiguousarray(base, float), mods,
+        np.asarray(starts, np.int64), ends_a, keys_a, persp, float(strokes.period_px), MIN_WIDTH_PX,
+        WIDTH_TOL_PX, MIN_STEP_PX, MAX_HALVINGS)
+    if len(seg) == N:
+        return strokes, w
+    new = np.flatnonzero(frac > 0)
+    i, a = seg[new], frac[new]
+    P = strokes.points
+    points = P[seg]
+    points[new] = P[i] + a[:, None] * (P[i + 1] - P[i])
+    u = strokes.u[seg]
+    u[new] = strokes.u[i] + a * (strokes.u[i + 1] - strokes.u[i])
+    surface = strokes.surface[seg]
+    surface[new] = surface_between(strokes, i, i + 1, a)
+    counts = np.diff(strokes.offsets) + np.bincount(strokes.stroke_of_point[i], minlength=S)
+    out = replace(strokes, points=points, surface=surface, face=strokes.face[seg], u=u,
+                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    return out, w
+
+
+STYLE_KERNELS = LazyKernels("strokekit.style.compiled")
+#: The thickness modifiers' kernels, loaded (or compiled) before a styled run's frames.
+LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS,), compile_seconds=5)
+style_kernels = STYLE_KERNELS.kernels
+
+
+def noise_keys(ids: np.ndarray, seed: int, key: int) -> np.ndarray:
+    """(S,) uint64: value_noise's hash key of each stroke id, for this seed and boil key."""
+    base = np.full(len(ids), seed & 0xFFFFFFFF, np.uint64) * _GOLDEN + np.uint64(key & 0xFFFFFFFF)
+    return _mix(_mix(base) ^ np.asarray(ids, np.int64).view(np.uint64))
 
 
 def _width_at(sites: Sites, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
@@ -544,8 +591,7 @@ def _lattice(key: np.ndarray, i: np.ndarray) -> np.ndarray:
 def value_noise(x: np.ndarray, ids: np.ndarray, seed: int, key: int) -> np.ndarray:
     """A smooth noise of x in [-1, 1], its own for each stroke id, seed and key (the boil's):
     values hashed at the whole numbers, smoothstep between."""
-    base = np.full(len(x), seed & 0xFFFFFFFF, np.uint64) * _GOLDEN + np.uint64(key & 0xFFFFFFFF)
-    k = _mix(_mix(base) ^ np.asarray(ids, np.int64).view(np.uint64))
+    k = noise_keys(ids, seed, key)
     i0 = np.floor(x)
     t = x - i0
     t = t * t * (3.0 - 2.0 * t)
