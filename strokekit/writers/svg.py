@@ -331,6 +331,4 @@ class _Paths:
         if period > 0:
             pts, off, m, wd = dash_pieces(st, members, self.phase(members, period), pattern, w)
             return _by_member(m, len(members), outline_path_data(pts, off, 0.5 * wd, self.decimals), " ")
-        sel = st.select(np.isin(np.arange(len(st)), members))  # (members are in stroke order)
-        pm = np.flatnonzero(np.isin(st.stroke_of_point, members))
-        return outline_path_data(sel.points, sel.offsets, 0.5 * w[pm], self.decimals)
+        return outline_path_data(st.points, st.offsets, 0.5 * w, self.decimals, members=members)
