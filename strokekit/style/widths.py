@@ -72,9 +72,13 @@ class StyleContext:
 
 def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=None) -> StyleContext | None:
     """The StyleContext of a frame (None when the style needs none). `scene`: the scene
-    (face_object, face_material, objects, materials); `lines`: the frame's lines (their faces
-    and surface points); `surface_depth`: f(camera, pixels) -> depth of the first surface
-    (raster.surface_depth_at), probed on a grid every DEPTH_GRID_PX for the visible depth range."""
+    (vertices, faces, face_object, face_material, objects, materials); `lines`: the frame's lines
+    (their faces and surface points); `surface_depth`: f(camera, pixels) -> depth of the first
+    surface (raster.surface_depth_at), probed on a grid every DEPTH_GRID_PX for the visible depth
+    range. The nearest visible depth is the scene's nearest vertex where that one is in the image
+    and beyond the near plane (nothing can hide it: a triangle is nowhere nearer than its nearest
+    vertex), else the nearest of the probes and line points; the farthest is the farthest probe
+    or line point."""
     if not (style.needs_scene_depths or style.needs_faces):
         return None
     depth_range = None
@@ -85,8 +89,13 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
             ys = np.arange(0.5 * DEPTH_GRID_PX, camera.height, DEPTH_GRID_PX)
             gx, gy = np.meshgrid(xs, ys)
             z.append(surface_depth(camera, np.stack([gx.ravel(), gy.ravel()], 1)))
+        near = _nearest_vertex_depth(scene, camera) if surface_depth is not None else None
+        if near is not None:
+            z.append(np.array([near]))
         z = np.concatenate(z) if z else np.zeros(0)
         z = z[np.isfinite(z) & (z > 0)]
+        if near is not None:
+            z = z[z >= near]  # (a probe's float32 depth a hair nearer than the vertex)
         depth_range = (float(z.min()), float(z.max())) if len(z) else None
     faces = fo = fm = None
     if style.needs_faces:
@@ -96,8 +105,27 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
     return StyleContext(depth_range, faces, fo, fm, tuple(scene.objects), tuple(m.name for m in scene.materials))
 
 
+def _nearest_vertex_depth(scene, camera) -> float | None:
+    """The view depth of the scene's nearest vertex (of a face) when it is visible for sure: in
+    the image and beyond the near plane (then every face lies beyond it too); else None."""
+    V = np.asarray(scene.vertices, float)
+    if not len(V) or not len(scene.faces):
+        return None
+    fwd = np.asarray(camera.basis[2], float)
+    i = int(np.argmin(V @ fwd))
+    if not (np.asarray(scene.faces) == i).any():  # a vertex of no face
+        used = np.unique(scene.faces)
+        i = int(used[np.argmin(V[used] @ fwd)])
+    z = float(camera.depth(V[i:i + 1])[0])
+    if not z > camera.near_distance(scene.radius):
+        return None
+    xy, _ = camera.project(V[i:i + 1])
+    x, y = float(xy[0, 0]), float(xy[0, 1])
+    return z if 0.0 <= x <= camera.width and 0.0 <= y <= camera.height else None
+
+
 #: The visible depth range is probed every this many px (and at every line point).
-DEPTH_GRID_PX = 8.0
+DEPTH_GRID_PX = 16.0
 
 
 @dataclass(frozen=True, eq=False)
