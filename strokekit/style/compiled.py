@@ -22,20 +22,20 @@ _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _mix(x):
     x = (x ^ (x >> np.uint64(30))) * _M1
     x = (x ^ (x >> np.uint64(27))) * _M2
     return x ^ (x >> np.uint64(31))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _lattice(key, i):
     h = _mix(key + np.uint64(i) * _GOLDEN)
     return np.float64(h >> np.uint64(11)) * (2.0 ** -52) - 1.0
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _noise(x, key):
     f = math.floor(x)
     t = x - f
@@ -46,28 +46,27 @@ def _noise(x, key):
     return v0 + (v1 - v0) * t
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _point_at(P, arc, first, last, s):
-    """The point at arc length s of the stroke of points first..last (held at its ends)."""
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _point_at(P, arc, first, last, s, h):
+    """The point at arc length s of the stroke of points first..last (held at its ends), found by
+    walking from point h (s is a few px from it: the walk is a step or two)."""
     if s <= arc[first] or last == first:
         return P[first, 0], P[first, 1]
     if s >= arc[last]:
         return P[last, 0], P[last, 1]
-    lo, hi = first, last  # arc[lo] < s < arc[hi]
-    while hi - lo > 1:
-        m = (lo + hi) >> 1
-        if arc[m] <= s:
-            lo = m
-        else:
-            hi = m
-    d = arc[hi] - arc[lo]
-    a = (s - arc[lo]) / d if d > 0 else 0.0
+    lo = min(max(h, first), last - 1)  # to the last point at or before s: arc[lo] <= s < arc[lo + 1]
+    while lo > first and arc[lo] > s:
+        lo -= 1
+    while lo < last - 1 and arc[lo + 1] <= s:
+        lo += 1
+    hi = lo + 1
+    a = (s - arc[lo]) / (arc[hi] - arc[lo])
     return P[lo, 0] + a * (P[hi, 0] - P[lo, 0]), P[lo, 1] + a * (P[hi, 1] - P[lo, 1])
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _width(k, s, px, py, u, z, P, arc, first, last, L, base, mods, m0, m1, ends, keys, period, min_w):
-    """The width at arc length s of stroke k (position px, py, texture coordinate u, view depth z):
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _width(k, s, h, px, py, u, z, P, arc, first, last, L, base, mods, m0, m1, ends, keys, period, min_w):
+    """The width at arc length s of stroke k, near its point h (position px, py, texture coordinate u, view depth z):
     base times modifiers m0..m1 of the table `mods` in order, at least min_w."""
     f = 1.0
     for r in range(m0, m1):
@@ -97,23 +96,25 @@ def _width(k, s, px, py, u, z, P, arc, first, last, L, base, mods, m0, m1, ends,
         elif code == CURVATURE:
             flat, curved, radius, span = mods[r, 1], mods[r, 2], mods[r, 3], mods[r, 4]
             a, b = min(span, s), min(span, L - s)
-            qx, qy = _point_at(P, arc, first, last, s - a)
+            qx, qy = _point_at(P, arc, first, last, s - a, h)
             c1x, c1y = px - qx, py - qy
-            qx, qy = _point_at(P, arc, first, last, s + b)
+            qx, qy = _point_at(P, arc, first, last, s + b, h)
             c2x, c2y = qx - px, qy - py
             ang = math.atan2(abs(c1x * c2y - c1y * c2x), c1x * c2x + c1y * c2y)
             kap = 0.0
-            if a >= mods[r, 5] and b >= mods[r, 5] and math.hypot(c1x, c1y) > 1e-12 and math.hypot(c2x, c2y) > 1e-12:
+            if a >= mods[r, 5] and b >= mods[r, 5] and c1x * c1x + c1y * c1y > 1e-24 and c2x * c2x + c2y * c2y > 1e-24:
                 kap = ang / (0.5 * (a + b))
             g = flat + (curved - flat) * min(max(kap * radius, 0.0), 1.0)
         elif code == CALLIGRAPHY:
-            angle, thin, span = mods[r, 1], mods[r, 2], mods[r, 3]
+            # |sin(theta - angle)|, theta the direction of d (y up): |sin theta cos angle - cos theta sin angle|
+            thin, span, ca, sa = mods[r, 2], mods[r, 3], mods[r, 4], mods[r, 5]
             a, b = min(span, s), min(span, L - s)
-            qx, qy = _point_at(P, arc, first, last, s + b)
-            ox, oy = _point_at(P, arc, first, last, s - a)
+            qx, qy = _point_at(P, arc, first, last, s + b, h)
+            ox, oy = _point_at(P, arc, first, last, s - a, h)
             dx, dy = qx - ox, qy - oy
-            if math.hypot(dx, dy) > 1e-12:
-                g = thin + (1 - thin) * abs(math.sin(math.atan2(-dy, dx) - angle))
+            d2 = dx * dx + dy * dy
+            if d2 > 1e-24:
+                g = thin + (1 - thin) * min(abs(-dy * ca - dx * sa) / math.sqrt(d2), 1.0)
             else:
                 g = 1.0
         else:  # NOISE
@@ -160,7 +161,7 @@ def halve(P, arc, u, z, offsets, which, length, base, mods, mod_start, ends, key
         m0, m1 = mod_start[ls], mod_start[ls + 1]
         L, b = length[k], base[ls]
         for i in range(first, last + 1):
-            w_pt[i] = _width(k, arc[i], P[i, 0], P[i, 1], u[i], z[i], P, arc, first, last, L, b, mods, m0, m1, ends,
+            w_pt[i] = _width(k, arc[i], i, P[i, 0], P[i, 1], u[i], z[i], P, arc, first, last, L, b, mods, m0, m1, ends,
                              keys, period, min_w)
         for i in range(first, last + 1):
             if m + 1 >= cap:
@@ -190,7 +191,7 @@ def halve(P, arc, u, z, offsets, which, length, base, mods, mod_start, ends, key
                         zz = 1.0 / ((1 - a) / z[i] + a / z[i + 1])
                     else:
                         zz = z[i] + a * (z[i + 1] - z[i])
-                    wm = _width(k, mid, px, py, uu, zz, P, arc, first, last, L, b, mods, m0, m1, ends, keys,
+                    wm = _width(k, mid, i, px, py, uu, zz, P, arc, first, last, L, b, mods, m0, m1, ends, keys,
                                 period, min_w)
                     if not abs(wm - 0.5 * (st_w0[lev] + st_w1[lev])) > tol:
                         lev -= 1
@@ -219,7 +220,7 @@ def halve(P, arc, u, z, offsets, which, length, base, mods, mod_start, ends, key
     return seg[:m].copy(), frac[:m].copy(), wid[:m].copy()
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _grow(a, cap):
     out = np.empty(cap, a.dtype)
     out[:a.shape[0]] = a

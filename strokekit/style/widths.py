@@ -411,7 +411,7 @@ def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base:
             elif isinstance(m, Curvature):
                 rows.append((CURVATURE, m.flat, m.curved, m.radius, m.span, END_CHORD_PX))
             elif isinstance(m, Calligraphy):
-                rows.append((CALLIGRAPHY, float(np.radians(m.angle)), m.thin, m.span, 0, 0))
+                rows.append((CALLIGRAPHY, 0, m.thin, m.span, np.cos(np.radians(m.angle)), np.sin(np.radians(m.angle))))
             elif isinstance(m, Noise):
                 key = int(strokes.frame) // m.boil if m.boil else 0
                 rows.append((NOISE, m.amplitude, m.wavelength, len(keys), 0, 0))
@@ -451,8 +451,10 @@ def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base:
 
 
 STYLE_KERNELS = LazyKernels("strokekit.style.compiled")
-#: The thickness modifiers' kernels, loaded (or compiled) before a styled run's frames.
-LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS,), compile_seconds=5)
+#: The kernels of styles with thickness modifiers (their widths, their SVG outlines), loaded
+#: (or compiled) before a styled run's frames.
+LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, LazyKernels("strokekit.writers.outline_compiled")),
+                         compile_seconds=10)
 style_kernels = STYLE_KERNELS.kernels
 
 
