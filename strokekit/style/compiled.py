@@ -225,3 +225,33 @@ def _grow(a, cap):
     out = np.empty(cap, a.dtype)
     out[:a.shape[0]] = a
     return out
+
+
+@kernel("(f8[:, ::1], f8[::1], f8[:, ::1], f8[::1], i8[::1], f8[::1], b1)", error_model="numpy")
+def spread(P, u, X, z, seg, frac, persp):
+    """The points halve returned (seg, frac): their positions (M, 2), texture coordinates (M,)
+    and surface points (M, 3) from the points P, u, X (view depths z) they lie between: position
+    and u linear, the surface point as sampling.surface_between (1/z linear on screen, where
+    `persp` and both depths are positive)."""
+    M = seg.shape[0]
+    Po = np.empty((M, 2))
+    uo = np.empty(M)
+    Xo = np.empty((M, 3))
+    for q in range(M):
+        i, a = seg[q], frac[q]
+        if a == 0.0:
+            Po[q, 0], Po[q, 1], uo[q] = P[i, 0], P[i, 1], u[i]
+            Xo[q, 0], Xo[q, 1], Xo[q, 2] = X[i, 0], X[i, 1], X[i, 2]
+            continue
+        j = i + 1
+        Po[q, 0] = P[i, 0] + a * (P[j, 0] - P[i, 0])
+        Po[q, 1] = P[i, 1] + a * (P[j, 1] - P[i, 1])
+        uo[q] = u[i] + a * (u[j] - u[i])
+        b = a
+        if persp and z[i] > 0 and z[j] > 0:
+            den = (1 - a) * z[j] + a * z[i]
+            if den > 0:
+                b = a * z[i] / den
+        for c in range(3):
+            Xo[q, c] = X[i, c] * (1 - b) + X[j, c] * b
+    return Po, uo, Xo

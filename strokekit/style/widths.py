@@ -435,16 +435,10 @@ def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base:
         WIDTH_TOL_PX, MIN_STEP_PX, MAX_HALVINGS)
     if len(seg) == N:
         return strokes, w
-    new = np.flatnonzero(frac > 0)
-    i, a = seg[new], frac[new]
-    P = strokes.points
-    points = P[seg]
-    points[new] = P[i] + a[:, None] * (P[i + 1] - P[i])
-    u = strokes.u[seg]
-    u[new] = strokes.u[i] + a * (strokes.u[i + 1] - strokes.u[i])
-    surface = strokes.surface[seg]
-    surface[new] = surface_between(strokes, i, i + 1, a)
-    counts = np.diff(strokes.offsets) + np.bincount(strokes.stroke_of_point[i], minlength=S)
+    points, u, surface = K.spread(np.ascontiguousarray(strokes.points, float), np.ascontiguousarray(strokes.u, float),
+                                  np.ascontiguousarray(strokes.surface, float), np.ascontiguousarray(z, float), seg,
+                                  frac, persp)
+    counts = np.bincount(strokes.stroke_of_point[seg], minlength=S)
     out = replace(strokes, points=points, surface=surface, face=strokes.face[seg], u=u,
                   offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
     return out, w
