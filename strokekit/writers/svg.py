@@ -286,7 +286,8 @@ class _Paths:
         outline = self.outline[members]
         widths = self.styled.mean_width[members] if self.lines == "centreline" else \
             self.styled.width[self.styled.strokes.offsets[:-1][members]]
-        own = [_width_text(x) for x in widths.tolist()]
+        # (an outline's width is its geometry: only centrelines get a stroke-width)
+        own = [_width_text(x) if not o else "" for x, o in zip(widths.tolist(), outline.tolist())]
         same_width = [t == f"{w:g}" for t in own]
         if not outline.any() and all(same_width):  # the plain drawing: one % operation a group
             return self._plain(members, ids, period, pattern)
