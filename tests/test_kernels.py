@@ -17,7 +17,7 @@ from strokekit import numba_cache
 from strokekit.lines.kernels import HIDDEN_LINES
 from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
-from strokekit.style.widths import LINE_STYLE
+from strokekit.run.kernels import LINE_STYLE
 from strokekit.tracking.kernels import TRACKING
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -111,7 +111,7 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit.paths.kernels import BRUSH_PATHS
         from strokekit.raster.hits import RASTER
         from strokekit.scene.occluder import MOVING_SCENE
-        from strokekit.style.widths import LINE_STYLE
+        from strokekit.run.kernels import LINE_STYLE
         from strokekit.tracking.kernels import TRACKING
         from strokekit_cli.main import cli
         import sys

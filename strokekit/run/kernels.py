@@ -13,8 +13,12 @@ from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
 from strokekit.run.spec import RASTER_STAGES, RunSpec
 from strokekit.scene.occluder import MOVING_SCENE
-from strokekit.style.widths import LINE_STYLE
+from strokekit.style.widths import STYLE_KERNELS
 from strokekit.tracking.kernels import TRACKING
+from strokekit.writers.outline import OUTLINE_KERNELS
+
+#: The kernels of styles with thickness modifiers: their widths and their SVG outlines.
+LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, OUTLINE_KERNELS), compile_seconds=10)
 
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",

@@ -32,7 +32,7 @@ import numpy as np
 
 from strokekit.errors import UsageError
 from strokekit.model import KINDS, Strokes, kind_of, occlusion_of, row_norm
-from strokekit.numba_cache import KernelGroup, LazyKernels
+from strokekit.numba_cache import LazyKernels
 from strokekit.sampling import locate, surface_between
 from strokekit.style.joins import stroke_joins
 from strokekit.style.linesets import (
@@ -444,11 +444,8 @@ def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base:
     return out, w
 
 
+#: The widths' kernels (warmed with the outlines' before a styled run's frames: run.kernels.LINE_STYLE).
 STYLE_KERNELS = LazyKernels("strokekit.style.compiled")
-#: The kernels of styles with thickness modifiers (their widths, their SVG outlines), loaded
-#: (or compiled) before a styled run's frames.
-LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, LazyKernels("strokekit.writers.outline_compiled")),
-                         compile_seconds=10)
 style_kernels = STYLE_KERNELS.kernels
 
 
