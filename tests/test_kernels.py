@@ -17,10 +17,29 @@ from strokekit import numba_cache
 from strokekit.lines.kernels import HIDDEN_LINES
 from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
+from strokekit.run.kernels import LINE_STYLE
 from strokekit.tracking.kernels import TRACKING
 
 ROOT = Path(__file__).resolve().parents[1]
-GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING)
+GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE)
+#: A style with every thickness modifier, its creases dashed (outlines cut into dashes).
+FIVE = """\
+[[lineset]]
+name = "creases"
+kinds = ["crease"]
+dashes = [6, 3]
+thickness = [{ by = "along", head = 4, tail = 4 }, { by = "noise", amplitude = 0.2, wavelength = 12 }]
+[[lineset]]
+name = "five"
+width = 2.0
+thickness = [
+  { by = "along", head = 10, tail = 16 },
+  { by = "depth", near = 1.6, far = 0.6 },
+  { by = "curvature", flat = 1.0, curved = 0.5, radius = 8, span = 3 },
+  { by = "calligraphy", angle = 30, thin = 0.4, span = 2 },
+  { by = "noise", amplitude = 0.25, wavelength = 24 },
+]
+"""
 
 
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.label)
@@ -80,7 +99,8 @@ def test_every_kernel_python_calls_says_how_it_is_called(lazy):
 
 def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
     """After the warm-up, drawing frames compiles nothing more: brush paths, tracked lines,
-    hidden lines, the raster pass and a moving scene's rays call their kernels with the declared
+    hidden lines, the raster pass, a moving scene's rays and a style's widths and outlines (its
+    five modifiers, dashed outlines too) call their kernels with the declared
     types only (a kernel
     called with another type would compile during a run's first frame, after the run said
     nothing of a compile). Checked in a fresh interpreter (this one's other tests call the
@@ -91,13 +111,14 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit.paths.kernels import BRUSH_PATHS
         from strokekit.raster.hits import RASTER
         from strokekit.scene.occluder import MOVING_SCENE
+        from strokekit.run.kernels import LINE_STYLE
         from strokekit.tracking.kernels import TRACKING
         from strokekit_cli.main import cli
         import sys
         sys.path.insert(0, {str(ROOT / 'tests')!r})
         from animated import sphere_and_box_glb
         from pathlib import Path
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE)
+        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, LINE_STYLE)
         for g in groups:
             g.warm()
         warm = {{}}
@@ -105,13 +126,16 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
             for m in g.modules:
                 for d in numba_cache._dispatchers(m.kernels()):
                     warm[d] = set(d.signatures)
+        FIVE = {FIVE!r}
         S, M, out = {str(ROOT / 'samples')!r}, {str(ROOT.parent / 'shared' / 'models')!r}, {str(tmp_path)!r}
         runs = [["render", S + "/still_life.glb", "--camera", S + "/orbit.json", "--frames", "1-3", "--gltf",
                  "--bands", "3", "--exr", "--masks", "--objectid", "--depth", "--fill", "--size", "160x120"],
                 ["render", M + "/fandisk.obj", "--orbit", "3", "--hidden", "--size", "240x200"],
                 ["render", M + "/spot.obj", "--orbit", "3", "--strokes", "lines", "--size", "240x200"],
                 ["render", str(sphere_and_box_glb(Path(out) / "sphere.glb", "sphere")), "--orbit", "3",
-                 "--strokes", "lines", "--size", "240x200"]]
+                 "--strokes", "lines", "--size", "240x200"],
+                ["render", M + "/spot.obj", "--orbit", "3", "--style", out + "/five.toml", "--size", "240x200"]]
+        Path(out, "five.toml").write_text(FIVE)
         for k, r in enumerate(runs):
             try:
                 cli.main(args=r + ["--workers", "1", "-q", "--out", out + "/r%d" % k], standalone_mode=False)

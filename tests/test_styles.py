@@ -210,6 +210,91 @@ def test_selection_first_set_wins_and_unselected_strokes_are_not_drawn():
     assert st.lineset.tolist() == [1, 0] and st.width.tolist() == [1.5, 1.5, 3.0, 3.0]
 
 
+def test_the_compiled_widths_are_the_numpy_formulas_and_hold_between_points():
+    """The kernel's widths at every point (the strokes' own and those the halving added) are
+    numpy's modifier_factor product (the formulas' reference), on a perspective frame's curved,
+    joined and short strokes under all five modifiers; and halfway between two points the width
+    drawn (linear between them) is within WIDTH_TOL_PX of the formula, but where a segment
+    reached MIN_STEP_PX or MAX_HALVINGS."""
+    from strokekit.style import widths as W
+
+    cam = Camera(eye=(0, 0, 10), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
+    t = np.linspace(0, 2 * np.pi, 40)
+    a = np.c_[100 + 60 * np.cos(t), 100 + 40 * np.sin(3 * t)]
+    b = np.array([[5.0, 5], [60, 8], [61, 30], [61.2, 30.1]])
+    c = np.array([[150.0, 150], [151, 151.5]])
+    p = np.r_[a, b, c]
+    surface = np.c_[(p - 100) / 40, np.linspace(-2, 2, len(p))]
+    s = Strokes.build(p, surface, np.full(len(p), -1), [0, len(a), len(a) + 4, len(p)], [0, 0, 0], ids=[3, 4, 5],
+                      camera=cam, frame=3)
+    mods = (Along(head=10, tail=16), Depth(near=1.6, far=0.6), Curvature(flat=1, curved=0.5, radius=8, span=3),
+            Calligraphy(angle=30, thin=0.4, span=2), Noise(amplitude=0.25, wavelength=24))
+    st = apply_style(s, (), one_set(*mods))
+    assert len(st.strokes.points) > 2 * len(p)  # (points were added)
+    base = np.array([2.0])
+    ref = W._width_at(W.Sites.of_points(st.strokes), st.lineset, st.sets, base, st.free, st.depth_range)
+    assert np.abs(st.width - ref).max() < 1e-9
+    o = st.strokes.offsets
+    sop, arc = st.strokes.stroke_of_point, st.strokes.arc_length
+    seg = np.flatnonzero(sop[1:] == sop[:-1])
+    mid = W.Sites.of_points(st.strokes).at(sop[seg], 0.5 * (arc[seg] + arc[seg + 1]))
+    wm = W._width_at(mid, st.lineset, st.sets, base, st.free, st.depth_range)
+    off = np.abs(wm - 0.5 * (st.width[seg] + st.width[seg + 1]))
+    short = arc[seg + 1] - arc[seg] <= 2 * W.MIN_STEP_PX * 1.0001
+    assert (off[~short] <= W.WIDTH_TOL_PX + 1e-9).mean() > 0.99 and o[-1] == len(st.width)
+
+
+def test_the_compiled_outline_text_is_the_numpy_writer_s():
+    """writers.outline's compiled writer gives numpy's text to the byte: discs, coincident
+    points, hairpins, turns past 90 degrees, negative and large coordinates, 0 to 3 decimals,
+    and a subset of the strokes (members); numbers it does not take go to numpy's writer."""
+    from strokekit.writers.outline import outline_path_data_numpy
+
+    rng = np.random.default_rng(7)
+    for trial in range(200):
+        n = rng.integers(1, 8, rng.integers(1, 6))
+        pts = rng.normal(0, 20, (n.sum(), 2)) * [1, 0.001, 300][trial % 3]
+        if len(pts) > 2 and trial % 4 == 0:
+            pts[1] = pts[0]  # a point twice
+        if len(pts) > 2 and trial % 5 == 0:
+            pts[2] = pts[0]  # back where it came from
+        r = rng.uniform(0.01, 5, len(pts))
+        off = np.r_[0, np.cumsum(n)]
+        for dec in (0, 2, 3):
+            assert outline_path_data(pts, off, r, dec) == outline_path_data_numpy(pts, off, r, dec)
+        mem = np.sort(rng.choice(len(n), rng.integers(1, len(n) + 1), replace=False))
+        full = outline_path_data_numpy(pts, off, r, 2)
+        assert outline_path_data(pts, off, r, 2, members=mem) == [full[k] for k in mem]
+    huge = np.array([[0.0, 0.0], [3e13, 1.0]])
+    assert outline_path_data(huge, np.array([0, 2]), np.ones(2)) == outline_path_data_numpy(huge, np.array([0, 2]),
+                                                                                         np.ones(2))
+
+
+def test_the_nearest_visible_depth_is_the_nearest_vertex_when_it_is_in_view():
+    """The depth modifier's default range: its near end is the scene's nearest vertex where that
+    one is in the image (not the 16 px probes' nearest, which miss it), the probes' where the
+    nearest vertex is out of the image."""
+    from strokekit.raster.rays import surface_depth_at
+    from strokekit.scene.load import build_scene
+    from strokekit.scene.occluder import Occluder
+    from strokekit.style.widths import style_context
+
+    # a pyramid pointing at the camera: its apex (a vertex) is the nearest visible point
+    V = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0], [0.13, 0.07, 1.0]], float)
+    F = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4], [0, 2, 1], [0, 3, 2]])
+    scene = build_scene(V, F)
+    occ = Occluder(scene)
+    style = one_set(Depth(near=2, far=1))
+    empty = line(np.zeros((0, 2)), offsets=[0])
+    cam = Camera(eye=(0, 0, 5), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
+    ctx = style_context(style, scene, cam, empty, surface_depth_at(occ))
+    assert ctx.depth_range[0] == pytest.approx(4.0)  # the apex, exactly
+    # the apex out of the image: the probes' nearest (farther than the apex)
+    side = Camera(eye=(0, 0, 5), target=(3, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
+    z = style_context(style, scene, side, empty, surface_depth_at(occ)).depth_range
+    assert z is None or z[0] > side.depth(V[4:5])[0]
+
+
 # --- SVG --------------------------------------------------------------------------------------------
 
 def _ink(svg: str, scale: float = 4.0) -> np.ndarray:

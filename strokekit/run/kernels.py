@@ -13,18 +13,24 @@ from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
 from strokekit.run.spec import RASTER_STAGES, RunSpec
 from strokekit.scene.occluder import MOVING_SCENE
+from strokekit.style.widths import STYLE_KERNELS
 from strokekit.tracking.kernels import TRACKING
+from strokekit.writers.outline import OUTLINE_KERNELS
+
+#: The kernels of styles with thickness modifiers: their widths and their SVG outlines.
+LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, OUTLINE_KERNELS), compile_seconds=15)
 
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",
-            TRACKING: "tracking", MOVING_SCENE: "load scene + BVH"}
+            TRACKING: "tracking", MOVING_SCENE: "load scene + BVH", LINE_STYLE: "svg"}
 
 
 def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> list[KernelGroup]:
     """The groups of kernels a run of `spec` uses in this process: those of the stages it runs in
     frame order (brush paths, the tracker), and those of the frames' own work (hidden lines, the
     raster pass, a `moving` scene's rays) where `frames_here` (this process draws frames, or its
-    workers share this machine's cache)."""
+    workers share this machine's cache; a style's thickness modifiers: the frames' widths and
+    outlines)."""
     plan = spec.plan
     out = []
     if frames_here and moving:
@@ -37,6 +43,8 @@ def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> li
         out.append(HIDDEN_LINES)
     if frames_here and spec.raster is not None:
         out.append(RASTER)
+    if frames_here and plan.style.has_thickness:
+        out.append(LINE_STYLE)
     return out
 
 

@@ -102,11 +102,12 @@ def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.n
             & ahead & ((sa != sb) | (L[sa] >= 4.0 * join_px)))
     a, b, dot, thru, mid = a[keep], b[keep], dot[keep], thru[keep], mid[keep]
     dist = np.linalg.norm(E[b] - E[a], axis=1)
-    used = np.zeros(len(E), bool)
+    used = [False] * len(E)
     take = []
-    for k in np.lexsort((b, a, np.round(dot, 9), np.round(dist, 9))):
-        if not (used[a[k]] or used[b[k]]):
-            used[a[k]] = used[b[k]] = True
+    al, bl = a.tolist(), b.tolist()  # (Python ints: the greedy loop indexes them one at a time)
+    for k in np.lexsort((b, a, np.round(dot, 9), np.round(dist, 9))).tolist():
+        if not (used[al[k]] or used[bl[k]]):
+            used[al[k]] = used[bl[k]] = True
             take.append(k)
     take = np.asarray(take, np.int64)
     miter = 1.0 / np.maximum(np.einsum("ij,ij->i", thru[take], D[a[take]]), 1e-3)

@@ -305,6 +305,11 @@ class Style:
         return not self.sets
 
     @property
+    def has_thickness(self) -> bool:
+        """Whether a set has thickness modifiers (its widths are evaluated by the style kernels)."""
+        return any(s.thickness for s in self.sets)
+
+    @property
     def needs_scene_depths(self) -> bool:
         """Whether a depth modifier takes the frame's visible depth range."""
         return any(isinstance(m, Depth) and m.near_depth is None for s in self.sets for m in s.thickness)

@@ -32,6 +32,7 @@ import numpy as np
 
 from strokekit.errors import UsageError
 from strokekit.model import KINDS, Strokes, kind_of, occlusion_of, row_norm
+from strokekit.numba_cache import LazyKernels
 from strokekit.sampling import locate, surface_between
 from strokekit.style.joins import stroke_joins
 from strokekit.style.linesets import (
@@ -71,9 +72,13 @@ class StyleContext:
 
 def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=None) -> StyleContext | None:
     """The StyleContext of a frame (None when the style needs none). `scene`: the scene
-    (face_object, face_material, objects, materials); `lines`: the frame's lines (their faces
-    and surface points); `surface_depth`: f(camera, pixels) -> depth of the first surface
-    (raster.surface_depth_at), probed on a grid every DEPTH_GRID_PX for the visible depth range."""
+    (vertices, faces, face_object, face_material, objects, materials); `lines`: the frame's lines
+    (their faces and surface points); `surface_depth`: f(camera, pixels) -> depth of the first
+    surface (raster.surface_depth_at), probed on a grid every DEPTH_GRID_PX for the visible depth
+    range. The nearest visible depth is the scene's nearest vertex where that one is in the image
+    and beyond the near plane (nothing can hide it: a triangle is nowhere nearer than its nearest
+    vertex), else the nearest of the probes and line points; the farthest is the farthest probe
+    or line point."""
     if not (style.needs_scene_depths or style.needs_faces):
         return None
     depth_range = None
@@ -84,8 +89,13 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
             ys = np.arange(0.5 * DEPTH_GRID_PX, camera.height, DEPTH_GRID_PX)
             gx, gy = np.meshgrid(xs, ys)
             z.append(surface_depth(camera, np.stack([gx.ravel(), gy.ravel()], 1)))
+        near = _nearest_vertex_depth(scene, camera) if surface_depth is not None else None
+        if near is not None:
+            z.append(np.array([near]))
         z = np.concatenate(z) if z else np.zeros(0)
         z = z[np.isfinite(z) & (z > 0)]
+        if near is not None:
+            z = z[z >= near]  # (a probe's float32 depth a hair nearer than the vertex)
         depth_range = (float(z.min()), float(z.max())) if len(z) else None
     faces = fo = fm = None
     if style.needs_faces:
@@ -95,8 +105,27 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
     return StyleContext(depth_range, faces, fo, fm, tuple(scene.objects), tuple(m.name for m in scene.materials))
 
 
+def _nearest_vertex_depth(scene, camera) -> float | None:
+    """The view depth of the scene's nearest vertex (of a face) when it is visible for sure: in
+    the image and beyond the near plane (then every face lies beyond it too); else None."""
+    V = np.asarray(scene.vertices, float)
+    if not len(V) or not len(scene.faces):
+        return None
+    fwd = np.asarray(camera.basis[2], float)
+    i = int(np.argmin(V @ fwd))
+    if not (np.asarray(scene.faces) == i).any():  # a vertex of no face
+        used = np.unique(scene.faces)
+        i = int(used[np.argmin(V[used] @ fwd)])
+    z = float(camera.depth(V[i:i + 1])[0])
+    if not z > camera.near_distance(scene.radius):
+        return None
+    xy, _ = camera.project(V[i:i + 1])
+    x, y = float(xy[0, 0]), float(xy[0, 1])
+    return z if 0.0 <= x <= camera.width and 0.0 <= y <= camera.height else None
+
+
 #: The visible depth range is probed every this many px (and at every line point).
-DEPTH_GRID_PX = 8.0
+DEPTH_GRID_PX = 16.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -356,35 +385,74 @@ def _widths(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base
                 cut_s += [head, L - tail]
     if cut_st:
         strokes = insert_points(strokes, np.concatenate(cut_st), np.concatenate(cut_s))[0]
-    sites = Sites.of_points(strokes)
-    w = _width_at(sites, which, sets, base, free, depth_range)
-    # Halving: a segment whose middle's width is off the line between its ends' by more than
-    # WIDTH_TOL_PX gets a point there, and both halves are looked at again.
-    sop, arc = strokes.stroke_of_point, strokes.arc_length
-    a = np.flatnonzero(sop[1:] == sop[:-1]) if len(sop) > 1 else np.zeros(0, np.int64)
-    seg_st, s0, s1, w0, w1 = sop[a], arc[a], arc[a + 1], w[a], w[a + 1]
-    varies = np.array([bool(x.thickness) for x in sets])[which]
-    keep = varies[seg_st] & (s1 - s0 > 2 * MIN_STEP_PX)
-    seg_st, s0, s1, w0, w1 = seg_st[keep], s0[keep], s1[keep], w0[keep], w1[keep]
-    add_st, add_s, add_w = [], [], []
-    for _ in range(MAX_HALVINGS):
-        if not len(seg_st):
-            break
-        mid = 0.5 * (s0 + s1)
-        wm = _width_at(sites.at(seg_st, mid), which, sets, base, free, depth_range)
-        split = np.abs(wm - 0.5 * (w0 + w1)) > WIDTH_TOL_PX
-        if not split.any():
-            break
-        seg_st, s0, s1, w0, w1, mid, wm = (x[split] for x in (seg_st, s0, s1, w0, w1, mid, wm))
-        add_st.append(seg_st)
-        add_s.append(mid)
-        add_w.append(wm)
-        half = s1 - mid > 2 * MIN_STEP_PX
-        seg_st, s0, s1, w0, w1 = (np.r_[x[half], y[half]] for x, y in
-                                  ((seg_st, seg_st), (s0, mid), (mid, s1), (w0, wm), (wm, w1)))
-    if add_st:
-        strokes, w = insert_points(strokes, np.concatenate(add_st), np.concatenate(add_s), w, np.concatenate(add_w))
-    return strokes, w
+    return _halve(strokes, which, sets, base, free, depth_range)
+
+
+def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
+           depth_range) -> tuple[Strokes, np.ndarray]:
+    """The widths at the strokes' points, and the points added by halving: a segment whose
+    middle's width is off the line between its ends' by more than WIDTH_TOL_PX gets a point
+    there, and both halves are looked at again (compiled: style.compiled.halve)."""
+    K = style_kernels()
+    ALONG, DEPTH, CURVATURE, CALLIGRAPHY, NOISE = K.ALONG, K.DEPTH, K.CURVATURE, K.CALLIGRAPHY, K.NOISE
+    S = len(strokes)
+    rows, starts, ends, keys = [], [0], [], []
+    for s in sets:
+        for m in s.thickness:
+            if isinstance(m, Along):
+                head, tail = along_lengths(m, strokes, np.arange(S), free)
+                rows.append((ALONG, m.tip, len(ends) // 2, 0, 0, 0))
+                ends += [head, tail]
+            elif isinstance(m, Depth):
+                zn, zf = (m.near_depth, m.far_depth) if m.near_depth is not None else \
+                    depth_range if depth_range is not None else (0.0, 0.0)
+                known = m.near_depth is not None or depth_range is not None
+                rows.append((DEPTH, m.near, m.far, zn, zf, float(known)))
+            elif isinstance(m, Curvature):
+                rows.append((CURVATURE, m.flat, m.curved, m.radius, m.span, END_CHORD_PX))
+            elif isinstance(m, Calligraphy):
+                rows.append((CALLIGRAPHY, 0, m.thin, m.span, np.cos(np.radians(m.angle)), np.sin(np.radians(m.angle))))
+            elif isinstance(m, Noise):
+                key = int(strokes.frame) // m.boil if m.boil else 0
+                rows.append((NOISE, m.amplitude, m.wavelength, len(keys), 0, 0))
+                keys.append(noise_keys(strokes.ids, m.seed, key))
+            else:
+                raise TypeError(f"not a thickness modifier: {m!r}")
+        starts.append(len(rows))
+    mods = np.array(rows, float).reshape(-1, 6)
+    ends_a = np.ascontiguousarray(np.stack(ends, 1) if ends else np.zeros((S, 0)))
+    keys_a = np.ascontiguousarray(np.stack(keys, 1) if keys else np.zeros((S, 0), np.uint64))
+    cam = strokes.camera
+    N = len(strokes.points)
+    z = cam.depth(strokes.surface) if cam is not None and N else np.full(N, np.nan)
+    persp = cam is not None and not cam.is_ortho
+    seg, frac, w = K.halve(
+        np.ascontiguousarray(strokes.points, float), np.ascontiguousarray(strokes.arc_length, float),
+        np.ascontiguousarray(strokes.u, float), np.ascontiguousarray(z, float),
+        np.ascontiguousarray(strokes.offsets, np.int64), np.ascontiguousarray(which, np.int64),
+        np.ascontiguousarray(strokes.lengths, float), np.ascontiguousarray(base, float), mods,
+        np.asarray(starts, np.int64), ends_a, keys_a, persp, float(strokes.period_px), MIN_WIDTH_PX,
+        WIDTH_TOL_PX, MIN_STEP_PX, MAX_HALVINGS)
+    if len(seg) == N:
+        return strokes, w
+    points, u, surface = K.spread(np.ascontiguousarray(strokes.points, float), np.ascontiguousarray(strokes.u, float),
+                                  np.ascontiguousarray(strokes.surface, float), np.ascontiguousarray(z, float), seg,
+                                  frac, persp)
+    counts = np.bincount(strokes.stroke_of_point[seg], minlength=S)
+    out = replace(strokes, points=points, surface=surface, face=strokes.face[seg], u=u,
+                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    return out, w
+
+
+#: The widths' kernels (warmed with the outlines' before a styled run's frames: run.kernels.LINE_STYLE).
+STYLE_KERNELS = LazyKernels("strokekit.style.compiled")
+style_kernels = STYLE_KERNELS.kernels
+
+
+def noise_keys(ids: np.ndarray, seed: int, key: int) -> np.ndarray:
+    """(S,) uint64: value_noise's hash key of each stroke id, for this seed and boil key."""
+    base = np.full(len(ids), seed & 0xFFFFFFFF, np.uint64) * _GOLDEN + np.uint64(key & 0xFFFFFFFF)
+    return _mix(_mix(base) ^ np.asarray(ids, np.int64).view(np.uint64))
 
 
 def _width_at(sites: Sites, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
@@ -544,8 +612,7 @@ def _lattice(key: np.ndarray, i: np.ndarray) -> np.ndarray:
 def value_noise(x: np.ndarray, ids: np.ndarray, seed: int, key: int) -> np.ndarray:
     """A smooth noise of x in [-1, 1], its own for each stroke id, seed and key (the boil's):
     values hashed at the whole numbers, smoothstep between."""
-    base = np.full(len(x), seed & 0xFFFFFFFF, np.uint64) * _GOLDEN + np.uint64(key & 0xFFFFFFFF)
-    k = _mix(_mix(base) ^ np.asarray(ids, np.int64).view(np.uint64))
+    k = noise_keys(ids, seed, key)
     i0 = np.floor(x)
     t = x - i0
     t = t * t * (3.0 - 2.0 * t)

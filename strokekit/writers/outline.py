@@ -17,16 +17,57 @@ from __future__ import annotations
 import numpy as np
 
 from strokekit.model import row_norm
+from strokekit.numba_cache import LazyKernels
 from strokekit.writers.text import fixed_point_text
 
 #: A join turning by less than this (radians) is drawn straight.
 _STRAIGHT = 1e-9
 
 
-def outline_path_data(points: np.ndarray, offsets: np.ndarray, radii: np.ndarray, decimals: int = 2) -> list[str]:
+def outline_path_data(points: np.ndarray, offsets: np.ndarray, radii: np.ndarray, decimals: int = 2,
+                      members: np.ndarray | None = None) -> list[str]:
     """The path data ('M ... Z') of each stroke's filled outline (module doc): points (N, 2) px,
-    stroke s = points[offsets[s]:offsets[s+1]], radii (N,) px (half the widths, > 0). A stroke
-    whose points all coincide is a disc."""
+    stroke s = points[offsets[s]:offsets[s+1]], radii (N,) px (half the widths, > 0); of the
+    strokes `members` only (sorted or not; None: every stroke). A stroke whose points all
+    coincide is a disc. Written by a compiled loop (writers.outline_compiled); numbers it does
+    not take go through numpy's writer (`outline_path_data_numpy`, the same text)."""
+    P = np.ascontiguousarray(points, float)
+    R = np.ascontiguousarray(radii, float)
+    off = np.ascontiguousarray(offsets, np.int64)
+    S = len(off) - 1
+    mem = np.arange(S, dtype=np.int64) if members is None else np.ascontiguousarray(members, np.int64)
+    if S == 0 or not len(mem):
+        return [""] * len(mem)
+    scale = 10.0 ** decimals
+    with np.errstate(invalid="ignore"):
+        top = (np.abs(P).max() if len(P) else 0.0) + 2.0 * (R.max() if len(R) else 0.0) + 1.0
+    if not (0 <= decimals <= 9 and np.isfinite(top) and top * scale < 1e15):
+        return _numpy_members(P, R, off, mem, decimals)
+    n_pt = off[mem + 1] - off[mem]
+    tokens = int((5 + 6 * np.maximum(n_pt - 1, 0)).sum())
+    digits = len(str(int(top * scale))) + 1
+    cap = tokens * (16 + 4 * (digits + 2)) + 2 * len(mem) + 16
+    buf, ends = outline_kernels().outline_text(P, off, R, mem, int(decimals), _STRAIGHT, cap)
+    text = buf.tobytes().decode("ascii")
+    starts = np.r_[0, ends[:-1]].tolist()
+    return [text[a:b] for a, b in zip(starts, ends.tolist())]
+
+
+OUTLINE_KERNELS = LazyKernels("strokekit.writers.outline_compiled")
+outline_kernels = OUTLINE_KERNELS.kernels
+
+
+def _numpy_members(P, R, off, mem, decimals) -> list[str]:
+    sel = np.repeat(mem, off[mem + 1] - off[mem])
+    pts = np.concatenate([np.arange(off[s], off[s + 1]) for s in mem.tolist()]) if len(sel) else np.zeros(0, int)
+    sub_off = np.r_[0, np.cumsum(off[mem + 1] - off[mem])]
+    return outline_path_data_numpy(P[pts], sub_off, R[pts], decimals)
+
+
+def outline_path_data_numpy(points: np.ndarray, offsets: np.ndarray, radii: np.ndarray, decimals: int = 2
+                            ) -> list[str]:
+    """outline_path_data of every stroke, by numpy passes over all tokens at once (the reference
+    of the compiled writer; it also takes numbers the compiled one does not)."""
     P = np.asarray(points, float)
     R = np.asarray(radii, float)
     off = np.asarray(offsets, np.int64)

@@ -286,7 +286,8 @@ class _Paths:
         outline = self.outline[members]
         widths = self.styled.mean_width[members] if self.lines == "centreline" else \
             self.styled.width[self.styled.strokes.offsets[:-1][members]]
-        own = [_width_text(x) for x in widths.tolist()]
+        # (an outline's width is its geometry: only centrelines get a stroke-width)
+        own = [_width_text(x) if not o else "" for x, o in zip(widths.tolist(), outline.tolist())]
         same_width = [t == f"{w:g}" for t in own]
         if not outline.any() and all(same_width):  # the plain drawing: one % operation a group
             return self._plain(members, ids, period, pattern)
@@ -331,6 +332,4 @@ class _Paths:
         if period > 0:
             pts, off, m, wd = dash_pieces(st, members, self.phase(members, period), pattern, w)
             return _by_member(m, len(members), outline_path_data(pts, off, 0.5 * wd, self.decimals), " ")
-        sel = st.select(np.isin(np.arange(len(st)), members))  # (members are in stroke order)
-        pm = np.flatnonzero(np.isin(st.stroke_of_point, members))
-        return outline_path_data(sel.points, sel.offsets, 0.5 * w[pm], self.decimals)
+        return outline_path_data(st.points, st.offsets, 0.5 * w, self.decimals, members=members)
