@@ -568,3 +568,39 @@ def test_a_line_cut_for_two_frames_keeps_one_id_and_comes_back_whole():
             assert all(abs(s.lengths[o][0] - out[0].lengths[0]) < 2.0 for s, o in zip(out, outline))
         else:
             assert [len(i) for i in ids] == [1, 2, 2, 2, 2, 2]
+
+
+def test_orphans_are_the_short_paths_of_a_label_that_do_not_get_its_id():
+    from strokekit.paths.stage import orphans
+
+    # Five pieces in four paths (groups): label 7 on paths 0 (30 px) and 2 (10 px), label 9 on
+    # path 3 (12 px) alone, one unclaimed piece (path 4).
+    group = np.array([0, 0, 2, 3, 4])
+    label = np.array([7, 7, 7, 9, -1])
+    plen = np.array([20.0, 10.0, 10.0, 12.0, 5.0])
+    # Path 2 is the orphan: label 7's id goes to path 0, the longer; path 3 is 9's only path.
+    assert orphans(group, label, plen, 15.0).tolist() == [False, False, True, False, False]
+    # Longer than the limit, or no limit: no orphan.
+    assert not orphans(group, label, plen, 9.0).any()
+    assert not orphans(group, label, plen, 0.0).any()
+
+
+@pytest.mark.parametrize("size", [512])
+def test_orphans_keep_spot_whole_without_costing_ids(models_dir, size):
+    """Over a 40-frame orbit of spot, paths whose votes came from a path that runs elsewhere join
+    the path they touch instead of taking fresh ids: the late frames hold fewer paths than with
+    orphan_px 0, and the ids persist as well (M1 not lower)."""
+    from strokekit.scene.load import load_scene
+
+    sc = load_scene(models_dir / "spot.obj")
+    orbit = orbit_path(sc.center, sc.radius, 40, degrees_per_frame=3.0, width=size, height=size)
+    r = LineRenderer(sc, LineOptions())
+    lines = [r.render(c, k + 1) for k, c in enumerate(orbit.cameras)]
+    rows = {}
+    for px in (0.0, PathOptions().orphan_px):
+        out = [b.strokes for b in brush_frames(lines, PathOptions(orphan_px=px))]
+        _, m = sequence_metrics(out)
+        rows[px] = (np.mean([len(s) for s in out[20:]]), m["M1"])
+    (n0, m0), (n1, m1) = rows[0.0], rows[PathOptions().orphan_px]
+    assert n1 < 0.85 * n0, rows
+    assert m1 >= m0 - 0.001, rows

@@ -43,6 +43,11 @@ class PathOptions:
     its length once; without merges every split leaves an id behind for good and the paths
     crumble over a long sequence (0: never merge). Short strands are held back (hold_px), so
     a small merge length does.
+    orphan_px: a path of pieces whose label's id goes to another path (the longest of that
+    label: an orphan, a piece the votes of a path that runs elsewhere reached), at most this
+    long, is linked again as pieces no path claims: it joins the path it touches instead of
+    taking a fresh id of its own (a line that grows at its end, past a junction with another
+    path, grows the path it continues; 0: never).
     hold_px: a new path shorter than this lying beside the drawn paths (within 3 px all along)
     is held back one frame: drawn from the next frame on if it is still there, so that a piece
     that shows for one frame costs no id (0: never hold).
@@ -69,6 +74,7 @@ class PathOptions:
         "it touches [5; 0: never, the highest id persistence, but paths crumble over long sequences].",
         needs="brush")
     hold_px: float = 8.0
+    orphan_px: float = 15.0
     heal_px: float = option(
         6.0, "--path-heal", "With brush paths: a path shorter than N px that meets another end to end on one line "
         "heals into it where the cut is new or lasts two frames [6; 0: never; 20: about half the path ends, a little "

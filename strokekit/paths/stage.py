@@ -19,7 +19,9 @@ The steps, all vectorized over the frame's samples:
    cheapest first (gap + 10 px per radian of turn), then of the longest piece; two paths never
    join. A bridge longer than 2 px is only made where every point of it lies within 1 px of a
    line (the paths invent nothing). A path whose ends meet is closed into a loop. Pieces of a
-   path shorter than `merge_px` (this frame and the last) join like unclaimed pieces.
+   path shorter than `merge_px` (this frame and the last) join like unclaimed pieces, and so do
+   those of an orphan: a path of one label that is not its longest (that one gets the id), at
+   most `orphan_px` long (its votes came from a path that runs elsewhere).
 6. Ids: each previous id goes to one path, the heaviest claims first: the votes of that id a
    path holds, those of the other kind classes too, and a quarter of the length of its pieces of
    that label; the other paths get fresh ids. Each path is turned so that its carried u
@@ -86,9 +88,18 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     ok, vk, s_in = landing(votes.m, cover, smp_piece, D, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
-    group, rev, pos = link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
-                                  lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends)
-    group = one_label_per_path(group, pos, link_label)
+
+    def link(link_label, ends):
+        group, rev, pos = link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
+                                      lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends)
+        return one_label_per_path(group, pos, link_label), rev, pos
+
+    group, rev, pos = link(link_label, ends)
+    orphan = orphans(group, link_label, plen, o.orphan_px)
+    if orphan.any():  # (linked again as unclaimed pieces: an orphan joins the path it touches)
+        link_label = np.where(orphan, -1, link_label)
+        ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
+        group, rev, pos = link(link_label, ends)
     paths, path_of, offset = concat(pieces, group, rev, pos, o.join_angle_deg, HAIRPIN_PX)
     paths = close_loops(paths, o.join_px, o.join_angle_deg, line_grid, D)
     # A hidden path's level: the fewest surfaces that hide any piece of it.
@@ -125,6 +136,26 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         path_of = new_of[path_of]
         covers = (lines, pieces, p_line, p_s0, p_s1, path_of, D, cover, smp_piece)
     return _finish(paths, *covers, hold), next_id
+
+
+def orphans(group: np.ndarray, label: np.ndarray, plen: np.ndarray, max_px: float) -> np.ndarray:
+    """(K,) the pieces of the orphan paths (PathOptions.orphan_px): of the paths (`group` (K,) of
+    pieces, one label each, `plen` their lengths) holding one label, every one but the longest
+    (it is the one that gets the label's id), where it is at most `max_px` long."""
+    k = np.flatnonzero(label >= 0)
+    out = np.zeros(len(group), bool)
+    if len(k) == 0 or max_px <= 0:
+        return out
+    key, inv = np.unique((label[k].astype(np.int64) << 32) | group[k].astype(np.int64), return_inverse=True)
+    inv = inv.ravel()
+    w = np.bincount(inv, weights=plen[k])
+    lab = key >> 32
+    o = np.lexsort((-w, lab))
+    longest = np.zeros(len(key), bool)
+    longest[o[np.r_[True, lab[o][1:] != lab[o][:-1]]]] = True
+    path_px = np.bincount(group, weights=plen, minlength=len(group))
+    out[k] = ~longest[inv] & (path_px[group[k]] <= max_px)
+    return out
 
 
 def _voted_id(vst: np.ndarray, vid: np.ndarray, vw: np.ndarray, which: np.ndarray) -> np.ndarray:
