@@ -20,8 +20,19 @@ from strokekit.numba_cache import kernel
 
 MIN_RUN = 3
 MAX_RUN = 127
-#: A byte repeated over a uint64.
+#: A byte repeated over a uint64, and each byte's high bit.
 _REPEAT = np.uint64(0x0101010101010101)
+_HIGH = np.uint64(0x8080808080808080)
+
+
+@njit(cache=True)
+def _word(pw, i):
+    """The 8 bytes from byte i of pw (uint64 words, little-endian) as one uint64."""
+    k = i >> 3
+    sh = np.uint64(8 * (i & 7))
+    if sh == 0:
+        return pw[k]
+    return (pw[k] >> sh) | (pw[k + 1] << (np.uint64(64) - sh))
 
 
 @njit(cache=True)
@@ -50,30 +61,31 @@ def _reorder(planes, item, width, y0, y1, r, r16):
     e = 0
     for y in range(y0, y1):
         for c in range(len(planes)):
+            # (loops over views from index 0: numba then drops its negative-index checks, and
+            # LLVM vectorizes them)
             if item[c] == 2:
-                a16 = planes[c].view(np.uint16)
-                s = y * width
+                src = planes[c].view(np.uint16)[y * width:(y + 1) * width]
+                lo, hi = r[e:e + width], r[h + e:h + e + width]
                 for x in range(width):
-                    v = a16[s + x]
-                    r[e + x] = v & 0xFF
-                    r[h + e + x] = v >> 8
+                    lo[x] = src[x] & 0xFF
+                    hi[x] = src[x] >> 8
                 e += width
                 continue
-            a32 = planes[c].view(np.uint32)
-            s = y * width
+            src32 = planes[c].view(np.uint32)[y * width:(y + 1) * width]
             if e % 2 == 0 and h % 2 == 0:  # bytes 0, 2 and 1, 3 of a pixel as one uint16 each
-                lo, hi = e // 2, (h + e) // 2
+                lo16, hi16 = r16[e // 2:e // 2 + width], r16[(h + e) // 2:(h + e) // 2 + width]
                 for x in range(width):
-                    v = a32[s + x]
-                    r16[lo + x] = (v & 0xFF) | ((v >> 8) & 0xFF00)
-                    r16[hi + x] = ((v >> 8) & 0xFF) | ((v >> 16) & 0xFF00)
+                    v = src32[x]
+                    lo16[x] = (v & 0xFF) | ((v >> 8) & 0xFF00)
+                    hi16[x] = ((v >> 8) & 0xFF) | ((v >> 16) & 0xFF00)
             else:
+                lo, hi = r[e:e + 2 * width], r[h + e:h + e + 2 * width]
                 for x in range(width):
-                    v = a32[s + x]
-                    r[e + 2 * x] = v & 0xFF
-                    r[e + 2 * x + 1] = (v >> 16) & 0xFF
-                    r[h + e + 2 * x] = (v >> 8) & 0xFF
-                    r[h + e + 2 * x + 1] = v >> 24
+                    v = src32[x]
+                    lo[2 * x] = v & 0xFF
+                    lo[2 * x + 1] = (v >> 16) & 0xFF
+                    hi[2 * x] = (v >> 8) & 0xFF
+                    hi[2 * x + 1] = v >> 24
             e += 2 * width
     return n
 
@@ -87,42 +99,73 @@ def _predict(r, n, p):
 
 
 @njit(cache=True)
+def _stretch_end(p, pw, i, n):
+    """The first index past i whose byte differs from p[i] (n if none): 8 bytes at a time over
+    the aligned words of pw (p viewed as uint64)."""
+    b = p[i]
+    j = i + 1
+    while j < n and j & 7 != 0:
+        if p[j] != b:
+            return j
+        j += 1
+    word = np.uint64(b) * _REPEAT
+    while j + 8 <= n and pw[j >> 3] == word:
+        j += 8
+    while j < n and p[j] == b:
+        j += 1
+    return j
+
+
+@njit(cache=True)
 def _rle(p, pw, n, out):
     """OpenEXR's run-length code of p[:n] into out (room for n + n // 127 + 2 bytes); returns its
-    size. pw: p viewed as uint64, to pass over a run 8 bytes at a time."""
+    size. A stretch of equal bytes is found at once (`_stretch_end`) and written as OpenEXR
+    writes it: runs of 128 bytes, then one of the rest if it has 3 bytes or more, else the rest
+    opens a literal."""
     o = 0
     runs = 0
-    rune = 1
     while runs < n:
-        count = 0
         b = p[runs]
-        word = np.uint64(b) * _REPEAT
-        while rune < n and count < MAX_RUN:
-            if rune & 7 == 0 and rune + 8 <= n and count + 8 <= MAX_RUN and pw[rune >> 3] == word:
-                rune += 8
-                count += 8
-            elif p[rune] == b:
-                rune += 1
+        e = _stretch_end(p, pw, runs, n)
+        length = e - runs
+        if length >= MIN_RUN:
+            while length > MAX_RUN:
+                out[o] = MAX_RUN
+                out[o + 1] = b
+                o += 2
+                length -= MAX_RUN + 1
+            if length >= MIN_RUN:
+                out[o] = length - 1
+                out[o + 1] = b
+                o += 2
+                runs = e
+                continue
+            if length == 0:
+                runs = e
+                continue
+            runs = e - length
+        # a literal: its first `length` bytes are equal, then it runs until 3 equal bytes
+        count = length
+        rune = runs + length
+        while True:
+            if rune + 10 <= n and count + 8 <= MAX_RUN:  # 8 bytes at once where no 3 equal start
+                w1 = _word(pw, rune + 1)
+                x = (_word(pw, rune) ^ w1) | (w1 ^ _word(pw, rune + 2))  # a 0 byte: 3 equal bytes
+                if (x - _REPEAT) & ~x & _HIGH == 0:
+                    count += 8
+                    rune += 8
+                    continue
+            if (rune < n and ((rune + 1 >= n or p[rune] != p[rune + 1])
+                              or (rune + 2 >= n or p[rune + 1] != p[rune + 2])) and count < MAX_RUN):
                 count += 1
-            else:
-                break
-        if count >= MIN_RUN - 1:
-            out[o] = count
-            out[o + 1] = b
-            o += 2
-            runs = rune
-        else:
-            count += 1
-            while (rune < n and ((rune + 1 >= n or p[rune] != p[rune + 1])
-                                 or (rune + 2 >= n or p[rune + 1] != p[rune + 2])) and count < MAX_RUN):
-                count += 1
                 rune += 1
-            out[o] = (256 - count) & 0xFF
-            o += 1
-            out[o:o + rune - runs] = p[runs:rune]
-            o += rune - runs
-            runs = rune
-        rune += 1
+                continue
+            break
+        out[o] = (256 - count) & 0xFF
+        o += 1
+        out[o:o + count] = p[runs:rune]
+        o += count
+        runs = rune
     return o
 
 
