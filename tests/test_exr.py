@@ -192,6 +192,34 @@ def test_cryptomatte_ranks_in_the_exr_go_by_descending_coverage(exr_run):
         assert (ids[cov == 0].view(np.uint32) == 0).all(), t
 
 
+def test_the_frames_cryptomatte_is_the_ranked_matte_of_its_samples():
+    """crypto_layers (rank 0 of the uniform pixels compiled, only the filled upper ranks
+    scattered) gives the ranked matte cryptomatte.ranked_matte makes of the same samples, bit for
+    bit: the object or material of each pixel's representative sample, and the mixed pixels'
+    ranks of their R x R samples; the still life's frame has pixels of two ranks or more."""
+    from strokekit.camera.paths import orbit_path
+    from strokekit.cryptomatte import ranked_matte
+    from strokekit.raster.bands import RasterOptions, render_raster, representative
+    from strokekit.raster.passes import RANKS, crypto_layers
+    from strokekit.scene.load import load_scene
+    from strokekit.scene.occluder import Occluder
+
+    s = load_scene(SAMPLE)
+    cam = orbit_path(s.center, s.radius, 2, width=200, height=150).cameras[1]
+    frame = render_raster(s, cam, Occluder(s), RasterOptions(bands=3, pngs=False))
+    face = representative(frame.hits.face, frame.K)
+    m = frame.mixed
+    layers = crypto_layers(frame)
+    for layer, table, names in zip(layers, (s.face_object, s.face_material),
+                                   (tuple(s.objects), tuple(x.name for x in s.materials))):
+        base = np.where(face >= 0, table[np.maximum(face, 0)], -1)
+        edge = np.where(m.face >= 0, table[np.maximum(m.face, 0)], -1)
+        ref = ranked_matte(base, names, RANKS, m.pixels, edge)
+        assert layer.names == names
+        assert layer.ids.tobytes() == ref.ids.tobytes() and layer.coverage.tobytes() == ref.coverage.tobytes()
+        assert (layer.coverage[..., 1] > 0).sum() > 20, layer.type_name
+
+
 def test_exr_depth_is_the_ray_cast_view_depth(exr_run):
     """Z at pixels away from silhouettes equals the view depth of an Embree ray through the sample
     nearest the pixel centre within 1e-5 relative; background is 1e10."""

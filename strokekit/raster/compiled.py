@@ -10,6 +10,7 @@ loaded on first use (`raster.hits.compiled()`: lines-only runs never import numb
 * `mixed_sums`: per mixed pixel, the samples of each label and the sum of its covered samples'
   linear colours.
 * `view_normals`: the EXR's view-space normal of every pixel's representative sample.
+* `crypto_rank0`: Cryptomatte's rank 0 (id, coverage 1) of every pixel's representative sample.
 """
 
 from __future__ import annotations
@@ -304,3 +305,15 @@ def view_normals(face, bary, K, corner, normals, face_normals, right, up, fwd, r
             out[0, i] = nx * right[0] + ny * right[1] + nz * right[2]
             out[1, i] = nx * up[0] + ny * up[1] + nz * up[2]
             out[2, i] = -(nx * fwd[0] + ny * fwd[1] + nz * fwd[2])
+
+
+@kernel("(i4[::1], i4[::1], f4[::1], f4[::1], f4[::1])")
+def crypto_rank0(face, table, bits, ids, cov):
+    """Cryptomatte's rank 0 of the uniform pixels: at each pixel of face (M,) (its representative
+    sample's face, -1: background), ids gets bits[table[face]] (the id, as float32 bits, of the
+    face's object or material) and cov 1; background pixels are left as they are (0)."""
+    for i in range(face.shape[0]):
+        f = face[i]
+        if f >= 0:
+            ids[i] = bits[table[f]]
+            cov[i] = 1.0
