@@ -328,6 +328,28 @@ def test_the_compiled_writer_writes_the_bytes_openexr_writes(tmp_path, codec):
 
 
 @pytest.mark.parametrize("codec", ["rle", "none"])
+def test_the_compiled_writer_casts_float32_to_half_as_numpy_does(codec):
+    """A float32 plane the file holds in half (the colour, normal and band planes) is cast as the
+    compiled writer writes it: the bytes of the file OpenEXR writes of numpy's cast, for values
+    that round to even, underflow to subnormals and zero, overflow to inf, and NaNs."""
+    from strokekit.writers.exr import _compiled_exr
+
+    rng = np.random.default_rng(5)
+    H, W = 24, 50
+    edge = np.array([0.0, -0.0, 1.0, 65504.0, 65520.0, 1e6, -1e6, np.inf, -np.inf, np.nan, 5.96e-8, 2.98e-8, 1e-9,
+                     6.1e-5, -3e-6, 1.0 + 2 ** -11, 1.0 + 3 * 2 ** -11, 2049.0, 2051.0], np.float32)
+    bits = rng.integers(0, 2 ** 32, H * W, dtype=np.uint64).astype(np.uint32)
+    bits[:edge.size] = edge.view(np.uint32)
+    bits[edge.size:edge.size + 200] = np.arange(0x7F800001, 0x7F800001 + 200 * 4099, 4099, dtype=np.uint32)  # NaNs
+    f32 = bits.view(np.float32).reshape(H, W)
+    smooth = rng.normal(size=(H, W)).astype(np.float32)
+    with np.errstate(over="ignore"):
+        ref = _openexr_bytes({"A": f32.astype(np.float16), "B": smooth.astype(np.float16), "Z": smooth}, {}, codec)
+    assert _compiled_exr({"A": (f32, np.float16), "B": (smooth, np.float16), "Z": (smooth, np.float32)}, {},
+                         codec) == ref
+
+
+@pytest.mark.parametrize("codec", ["rle", "none"])
 def test_a_frame_written_by_the_compiled_writer_is_openexrs_file(tmp_path, codec):
     """A rendered frame with every layer (Cryptomatte manifests, the strokekit/layers header):
     the file the run wrote is byte for byte the one OpenEXR writes of its channels and header."""

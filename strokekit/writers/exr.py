@@ -73,19 +73,32 @@ def _half_planes(pix: np.ndarray, values: np.ndarray, shape: tuple, dtype=np.flo
 def exr_channels(passes: RasterPasses, precision: str = "half") -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """(channels by full name, header string attributes) of one frame's EXR. `precision` "half":
     the channels Blender writes in half float are half (see the module); "full": every one float32."""
-    ch: dict[str, np.ndarray] = {}
+    sources, hdr = channel_sources(passes, precision)
+    return {k: a.astype(t, copy=False) for k, (a, t) in sources.items()}, hdr
+
+
+def channel_sources(passes: RasterPasses, precision: str = "half") -> tuple[dict[str, tuple[np.ndarray, type]],
+                                                                             dict[str, str]]:
+    """exr_channels before its casts: (by channel name, (its contiguous (H, W) plane, float32 or
+    half, and the pixel type the file holds it in), header string attributes). The compiled
+    writer casts float32 planes to half as it writes them."""
+    src: dict[str, tuple[np.ndarray, type]] = {}
     hdr: dict[str, str] = {}
     half = np.float16 if precision == "half" else np.float32
+
+    def plane(a):
+        return np.ascontiguousarray(a, np.float32)  # (the passes' planes are contiguous: no copy)
+
     if passes.depth is not None:
-        ch["Z"] = passes.depth.astype(np.float32)
+        src["Z"] = plane(passes.depth), np.float32
     if passes.normal is not None:
         for i, c in enumerate("XYZ"):
-            ch[f"N.{c}"] = passes.normal[..., i].astype(half)
+            src[f"N.{c}"] = plane(passes.normal[..., i]), half
     if passes.shade is not None:
         for i, c in enumerate("RGBA"):
-            ch[c] = passes.shade[..., i].astype(half)
+            src[c] = plane(passes.shade[..., i]), half
     if passes.bands is not None:
-        ch["bands.V"] = passes.bands.astype(half)
+        src["bands.V"] = plane(passes.bands), half
     for layer in passes.crypto:
         R = layer.ids.shape[2]
         for i, name in enumerate(layer_names(layer.type_name, R)):
@@ -93,18 +106,18 @@ def exr_channels(passes: RasterPasses, precision: str = "half") -> tuple[dict[st
                 k = 2 * i + j
                 ids = layer.ids[..., k] if k < R else np.zeros(layer.ids.shape[:2], np.float32)
                 cov = layer.coverage[..., k] if k < R else np.zeros(layer.ids.shape[:2], np.float32)
-                ch[f"{name}.{idc}"] = ids.astype(np.float32, copy=False)  # (rank planes: contiguous)
-                ch[f"{name}.{covc}"] = cov.astype(np.float32, copy=False)
+                src[f"{name}.{idc}"] = plane(ids), np.float32  # (rank planes: contiguous)
+                src[f"{name}.{covc}"] = plane(cov), np.float32
         hdr.update(header_attributes(layer.type_name, layer.names))
     if passes.lines is not None:
         # Built from the covered pixels only: the lines layers are nearly all zero.
         shape = (passes.height, passes.width)
         pix, per_kind, total = lines_sparse(passes.lines)
         for name, rgba in [*((f"lines_{k}", v) for k, v in per_kind.items()), ("lines", total)]:
-            for c, plane in zip("RGBA", _half_planes(pix, rgba, shape, half)):
-                ch[f"{name}.{c}"] = plane
-    hdr[CONTENTS_KEY] = contents(ch)
-    return {k: np.ascontiguousarray(v) for k, v in ch.items()}, hdr
+            for c, p in zip("RGBA", _half_planes(pix, rgba, shape, half)):
+                src[f"{name}.{c}"] = p, half
+    hdr[CONTENTS_KEY] = contents({k: t for k, (_, t) in src.items()})
+    return src, hdr
 
 
 #: The header attribute that says what the file holds (`contents`).
@@ -120,15 +133,15 @@ MEANINGS = {
 }
 
 
-def contents(channels: dict[str, np.ndarray]) -> str:
-    """The `strokekit/layers` attribute: a JSON object, for each layer of `channels` (in the
-    file's order), its channels' pixel type (half or float: one for a layer's channels) and what it
-    holds."""
+def contents(channels: dict[str, type]) -> str:
+    """The `strokekit/layers` attribute: a JSON object, for each layer of `channels` (pixel type
+    by channel name, in the file's order), its channels' pixel type (half or float: one for a
+    layer's channels) and what it holds."""
     layers: dict[str, dict] = {}
-    for name, a in channels.items():
+    for name, t in channels.items():
         layer = name.rsplit(".", 1)[0] if "." in name else ("RGBA" if name in "RGBA" else name)
         kind = "Crypto" if layer.startswith("Crypto") else ("lines" if layer.startswith("lines") else layer)
-        layers.setdefault(layer, {"type": "half" if a.dtype == np.float16 else "float", "holds": MEANINGS[kind]})
+        layers.setdefault(layer, {"type": "half" if np.dtype(t) == np.float16 else "float", "holds": MEANINGS[kind]})
     return json.dumps(layers, separators=(",", ":"), ensure_ascii=True)
 
 
@@ -164,11 +177,14 @@ def exr_bytes(passes: RasterPasses, codec: str = "zip", precision: str = "half")
     with `codec` (a key of COMPRESSION), its float types by `precision` (exr_channels). RLE and no
     compression are written by strokekit's compiled writer (the bytes OpenEXR writes, several
     times faster), ZIP, ZIPS and PIZ by OpenEXR."""
+    if codec in COMPILED:
+        sources, attrs = channel_sources(passes, precision)
+        if not sources:
+            raise ValueError("no EXR layer to write")
+        return _compiled_exr(sources, attrs, codec)
     channels, attrs = exr_channels(passes, precision)
     if not channels:
         raise ValueError("no EXR layer to write")
-    if codec in COMPILED:
-        return compiled_exr(channels, attrs, codec)
     header = {"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}
     out = io.BytesIO()
     with OpenEXR.File(header, channels, num_threads=_encode_threads()) as f:
@@ -180,18 +196,24 @@ def compiled_exr(channels: dict[str, np.ndarray], attrs: dict[str, str], codec: 
     """A single-part scanline EXR of `channels` (contiguous (H, W) half or float32 planes), one
     scanline a block, RLE-compressed or not (`codec`, a key of COMPILED), with OpenEXR's header:
     the attributes its Python bindings write for such a file, and `attrs` as strings."""
+    return _compiled_exr({k: (a, a.dtype.type) for k, a in channels.items()}, attrs, codec)
+
+
+def _compiled_exr(sources: dict[str, tuple[np.ndarray, type]], attrs: dict[str, str], codec: str) -> bytes:
+    """compiled_exr of channel_sources' planes (a float32 plane held as half: cast as written)."""
     from numba.typed import List
 
     from strokekit.raster.hits import exr_kernels
 
-    names = sorted(channels)  # the file's channel order (OpenEXR's: by name, bytewise)
-    H, W = channels[names[0]].shape
-    planes = List([np.ascontiguousarray(channels[n]).reshape(-1).view(np.uint8) for n in names])
-    item = np.array([channels[n].itemsize for n in names], np.int64)
-    out = np.empty(sum(p.size for p in planes) + 8 * H, np.uint8)  # room for every row stored as it is
+    names = sorted(sources)  # the file's channel order (OpenEXR's: by name, bytewise)
+    H, W = sources[names[0]][0].shape
+    planes = List([np.ascontiguousarray(sources[n][0]).reshape(-1).view(np.uint8) for n in names])
+    item = np.array([np.dtype(sources[n][1]).itemsize for n in names], np.int64)
+    half = np.array([sources[n][0].dtype == np.float32 and item[i] == 2 for i, n in enumerate(names)], bool)
+    out = np.empty(int(item.sum()) * W * H + 8 * H, np.uint8)  # room for every row stored as it is
     sizes = np.zeros(H, np.int64)
-    n = exr_kernels().scanline_chunks(planes, item, W, H, 1, COMPILED[codec], out, sizes)
-    head = _header(names, channels, COMPILED[codec], W, H, attrs)
+    n = exr_kernels().scanline_chunks(planes, item, half, W, H, 1, COMPILED[codec], out, sizes)
+    head = _header(names, {k: t for k, (_, t) in sources.items()}, COMPILED[codec], W, H, attrs)
     table = len(head) + 8 * H + np.concatenate([[0], np.cumsum(sizes + 8)[:-1]])
     return b"".join((head, table.astype("<u8").tobytes(), out[:n].data))
 
@@ -200,14 +222,14 @@ def compiled_exr(channels: dict[str, np.ndarray], attrs: dict[str, str], codec: 
 _PIXEL_TYPE = {np.dtype(np.float16): 1, np.dtype(np.float32): 2}
 
 
-def _header(names: list[str], channels: dict[str, np.ndarray], compression: int, W: int, H: int,
+def _header(names: list[str], types: dict[str, type], compression: int, W: int, H: int,
             attrs: dict[str, str]) -> bytes:
-    """The magic number, version and header of a single-part scanline file, attributes sorted by
-    name as OpenEXR writes them."""
+    """The magic number, version and header of a single-part scanline file of channels `names`
+    (pixel types `types`), attributes sorted by name as OpenEXR writes them."""
     def attribute(name: str, kind: str, value: bytes) -> bytes:
         return name.encode() + b"\0" + kind.encode() + b"\0" + struct.pack("<i", len(value)) + value
 
-    chlist = b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", _PIXEL_TYPE[channels[n].dtype], 0, 1, 1)
+    chlist = b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", _PIXEL_TYPE[np.dtype(types[n])], 0, 1, 1)
                       for n in names) + b"\0"
     box = struct.pack("<4i", 0, 0, W - 1, H - 1)
     a = {"channels": ("chlist", chlist), "compression": ("compression", bytes([compression])),

@@ -8,7 +8,7 @@ replace each byte by its difference from the one before plus 128; RLE then write
 that would not shrink is stored as it is, as OpenEXR does.
 
 The planes are read a whole pixel at a time (a plane: the flat bytes of a contiguous (H, W)
-half or float32 image).
+half or float32 image); a float32 plane may be written as half, converted as numpy converts it.
 """
 
 from __future__ import annotations
@@ -36,20 +36,53 @@ def _word(pw, i):
 
 
 @njit(cache=True)
-def _pack(planes, item, width, y0, y1, out):
+def _half_bits(f):
+    """The half float bits numpy's float32 -> float16 cast gives float32 bits f (int64): rounded
+    to nearest even, overflow to inf, NaN kept NaN with its payload's high bits."""
+    sign = (f >> 16) & 0x8000
+    e = f & 0x7F800000
+    if e >= 0x47800000:
+        if e == 0x7F800000 and f & 0x7FFFFF:
+            r = 0x7C00 + ((f & 0x7FFFFF) >> 13)
+            return sign + (r + 1 if r == 0x7C00 else r)
+        return sign | 0x7C00
+    if e <= 0x38000000:  # subnormal half, or zero
+        if e < 0x33000000:
+            return sign
+        sig = (0x800000 + (f & 0x7FFFFF)) >> (113 - (e >> 23))
+        if (sig & 0x3FFF) != 0x1000 or f & 0x7FF:
+            sig += 0x1000
+        return sign + (sig >> 13)
+    sig = f & 0x7FFFFF
+    if (sig & 0x3FFF) != 0x1000:
+        sig += 0x1000
+    return sign + (sig >> 13) + ((e - 0x38000000) >> 13)
+
+
+@njit(cache=True)
+def _pack(planes, item, half, width, y0, y1, out):
     """Rows y0..y1 - 1 as the file stores them uncompressed into out: each row's channels in file
-    order (plane c: `width` pixels of item[c] bytes a row); returns their size."""
+    order (plane c: `width` pixels of item[c] bytes a row, or float32 pixels written as half
+    where half[c]); returns their size."""
     n = 0
     for y in range(y0, y1):
         for c in range(len(planes)):
             rb = width * item[c]
-            out[n:n + rb] = planes[c][y * rb:(y + 1) * rb]
+            if half[c]:
+                src = planes[c].view(np.uint32)[y * width:(y + 1) * width]
+                dst = out[n:n + rb]
+                for x in range(width):
+                    h = _half_bits(np.int64(src[x]))
+                    dst[2 * x] = h & 0xFF
+                    dst[2 * x + 1] = h >> 8
+            else:
+                out[n:n + rb] = planes[c][y * rb:(y + 1) * rb]
             n += rb
     return n
 
 
 @njit(cache=True)
-def _reorder(planes, item, width, y0, y1, r, r16):
+def _reorder(planes, item, half, width, y0, y1, r, r16):
     """The packed rows y0..y1 - 1 (`_pack`) reordered into r: their even bytes, then their odd
     bytes; returns their size. A half pixel gives one byte to each half, a float32 pixel two.
     r16: r viewed as uint16."""
@@ -63,6 +96,15 @@ def _reorder(planes, item, width, y0, y1, r, r16):
         for c in range(len(planes)):
             # (loops over views from index 0: numba then drops its negative-index checks, and
             # LLVM vectorizes them)
+            if half[c]:
+                src32 = planes[c].view(np.uint32)[y * width:(y + 1) * width]
+                lo, hi = r[e:e + width], r[h + e:h + e + width]
+                for x in range(width):
+                    v = _half_bits(np.int64(src32[x]))
+                    lo[x] = v & 0xFF
+                    hi[x] = v >> 8
+                e += width
+                continue
             if item[c] == 2:
                 src = planes[c].view(np.uint16)[y * width:(y + 1) * width]
                 lo, hi = r[e:e + width], r[h + e:h + e + width]
@@ -169,8 +211,8 @@ def _rle(p, pw, n, out):
     return o
 
 
-@kernel("(ListType(u1[::1]), i8[::1], i8, i8, i8, i8, u1[::1], i8[::1])")
-def scanline_chunks(planes, item, width, height, lines, codec, out, sizes):
+@kernel("(ListType(u1[::1]), i8[::1], b1[::1], i8, i8, i8, i8, u1[::1], i8[::1])")
+def scanline_chunks(planes, item, half, width, height, lines, codec, out, sizes):
     """A scanline image's blocks of `lines` rows, one after another into `out`. Codec 0: chunks
     of the packed rows (`_pack`), each its first row (int32), its data's size (int32) and its
     data; codec 1: the same RLE-compressed (stored packed where that would not shrink it);
@@ -190,22 +232,22 @@ def scanline_chunks(planes, item, width, height, lines, codec, out, sizes):
     for y0 in range(0, height, lines):
         y1 = min(y0 + lines, height)
         if codec == 2:
-            n = _reorder(planes, item, width, y0, y1, r, r16)
+            n = _reorder(planes, item, half, width, y0, y1, r, r16)
             _predict(r, n, out[o:o + n])
             sizes[b] = n
             o += n
             b += 1
             continue
         if codec == 1:
-            n = _reorder(planes, item, width, y0, y1, r, r16)
+            n = _reorder(planes, item, half, width, y0, y1, r, r16)
             _predict(r, n, p)
             size = _rle(p, pw, n, comp)
             if size < n:
                 out[o + 8:o + 8 + size] = comp[:size]
             else:
-                size = _pack(planes, item, width, y0, y1, out[o + 8:])
+                size = _pack(planes, item, half, width, y0, y1, out[o + 8:])
         else:
-            size = _pack(planes, item, width, y0, y1, out[o + 8:])
+            size = _pack(planes, item, half, width, y0, y1, out[o + 8:])
         for k in range(4):
             out[o + k] = (y0 >> (8 * k)) & 0xFF
             out[o + 4 + k] = (size >> (8 * k)) & 0xFF
