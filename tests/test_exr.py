@@ -262,7 +262,7 @@ def test_every_exr_codec_gives_back_the_same_channels(tmp_path, codec):
     channels bit for bit (Cryptomatte ids are float bit patterns: any rounding would lose them)."""
     import OpenEXR
 
-    ref = render(tmp_path, "--size", "64x48", "--exr", "--no-svg", out="zip")
+    ref = render(tmp_path, "--size", "64x48", "--exr", "--exr-codec", "zip", "--no-svg", out="zip")
     out = render(tmp_path, "--size", "64x48", "--exr", "--exr-codec", codec, "--no-svg", out=codec)
     a, _ = read_exr(ref / "frame_0001.exr")
     b, hdr = read_exr(out / "frame_0001.exr")

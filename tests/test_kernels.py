@@ -18,9 +18,10 @@ from strokekit.lines.kernels import HIDDEN_LINES
 from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
 from strokekit.tracking.kernels import TRACKING
+from strokekit.writers.exr import EXR_KERNELS
 
 ROOT = Path(__file__).resolve().parents[1]
-GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING)
+GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, EXR_KERNELS)
 
 
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.label)
@@ -92,12 +93,13 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit.raster.hits import RASTER
         from strokekit.scene.occluder import MOVING_SCENE
         from strokekit.tracking.kernels import TRACKING
+        from strokekit.writers.exr import EXR_KERNELS
         from strokekit_cli.main import cli
         import sys
         sys.path.insert(0, {str(ROOT / 'tests')!r})
         from animated import sphere_and_box_glb
         from pathlib import Path
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE)
+        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, EXR_KERNELS)
         for g in groups:
             g.warm()
         warm = {{}}

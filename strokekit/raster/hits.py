@@ -25,17 +25,14 @@ from strokekit.numba_cache import KernelGroup, LazyKernels
 from strokekit.raster.rays import cast_pixels, cast_samples
 from strokekit.scene.load import Scene
 
-#: The z-buffer, the raster pass's own loops and the EXR writer's.
+#: The z-buffer and the raster pass's own loops.
 ZBUFFER, PASS = LazyKernels("strokekit.raster.zbuffer"), LazyKernels("strokekit.raster.compiled")
-EXR_WRITER = LazyKernels("strokekit.writers.exr_kernels")
-RASTER = KernelGroup("raster", (ZBUFFER, PASS, EXR_WRITER), compile_seconds=20)
+RASTER = KernelGroup("raster", (ZBUFFER, PASS), compile_seconds=20)
 
 #: The z-buffer module, its kernels loaded on first use.
 kernels = ZBUFFER.kernels
 #: The raster pass's own compiled loops, loaded on first use.
 compiled = PASS.kernels
-#: The EXR writer's compiled loops, loaded on first use.
-exr_kernels = EXR_WRITER.kernels
 #: Load (or compile) the raster kernels before any frame: (seconds, compiled).
 warm_kernels = RASTER.warm
 #: Make sure this process has them before its first raster pass: the seconds it loaded them for.

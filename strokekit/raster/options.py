@@ -131,10 +131,10 @@ class RasterOptions:
 
 #: The passes an EXR can hold, in the order they are written.
 PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
-#: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read: ZIP (the
-#: default, as Blender writes) and ZIPS are the smallest, PIZ encodes faster at about twice their
-#: size, RLE in about half ZIP's time at four to eight times the size (docs/compositing.md).
-CODECS = ("zip", "zips", "piz", "rle", "none")
+#: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read: RLE (the
+#: default: strokekit's compiled writer encodes it in a fraction of ZIP's time, at about four times
+#: ZIP's size), ZIP (as Blender writes) and ZIPS the smallest, PIZ between (docs/compositing.md).
+CODECS = ("rle", "zip", "zips", "piz", "none")
 #: --exr-float: half float where Blender writes it (depth and Cryptomatte stay float32), or
 #: float32 everywhere.
 PRECISIONS = ("half", "full")
@@ -150,8 +150,8 @@ class PassOptions:
         text="names", needs="exr")
     stroke_width_px: float = 1.5  # (the SVG's: --stroke-width)
     codec: str = option(
-        "zip", "--exr-codec", "The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at "
-        "about twice their size, rle in about half zip's time at four to eight times the size.", choices=CODECS,
+        "rle", "--exr-codec", "The EXR's lossless compression: rle is the fastest to write (about 4 times zip's "
+        "size), zip and zips the smallest (zip: as Blender writes), piz between.", choices=CODECS,
         show_default=True, needs="exr")
     precision: str = option(
         "half", "--exr-float", "The EXR's float types: half (as Blender writes its passes: colour, normals, band "

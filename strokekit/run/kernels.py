@@ -14,10 +14,11 @@ from strokekit.raster.hits import RASTER
 from strokekit.run.spec import RASTER_STAGES, RunSpec
 from strokekit.scene.occluder import MOVING_SCENE
 from strokekit.tracking.kernels import TRACKING
+from strokekit.writers.exr import COMPILED, EXR_KERNELS
 
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",
-            TRACKING: "tracking", MOVING_SCENE: "load scene + BVH"}
+            TRACKING: "tracking", MOVING_SCENE: "load scene + BVH", EXR_KERNELS: RASTER_STAGES["kernels"][0]}
 
 
 def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> list[KernelGroup]:
@@ -37,6 +38,9 @@ def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> li
         out.append(HIDDEN_LINES)
     if frames_here and spec.raster is not None:
         out.append(RASTER)
+        exr = spec.outputs.exr
+        if exr is not None and exr.codec in COMPILED:
+            out.append(EXR_KERNELS)
     return out
 
 

@@ -60,7 +60,8 @@ def run_manifest(spec: RunSpec, scene: Scene) -> dict:
     o = spec.outputs
     # An option at its default that a later option added is left out of the digest, so that the
     # digests of runs made before it stay: the dash paths, the SVG's outlines, the EXR codec and float
-    # types.
+    # types. The EXR codec left out is zip, the default when it came (RLE, the default since, writes
+    # other bytes: it is digested).
     # The default style's shortcuts are digested among the outputs, where their options were.
     shortcuts = _style_shortcuts(plan.style)
     outputs = {}

@@ -36,6 +36,7 @@ import OpenEXR
 from strokekit.colour import srgb_decode
 from strokekit.cryptomatte import header_attributes, layer_names
 from strokekit.model import RasterPasses
+from strokekit.numba_cache import KernelGroup, LazyKernels
 from strokekit.writers.svg import KIND_COLORS
 
 
@@ -164,6 +165,10 @@ def _encode_threads() -> int:
     return n
 
 
+#: The compiled writer's kernels: loaded on first use, warmed before a run's frames (run.kernels).
+EXR_WRITER = LazyKernels("strokekit.writers.exr_kernels")
+EXR_KERNELS = KernelGroup("EXR writer", (EXR_WRITER,), compile_seconds=4)
+
 #: PassOptions.codec -> OpenEXR's compression.
 COMPRESSION = {"zip": OpenEXR.ZIP_COMPRESSION, "zips": OpenEXR.ZIPS_COMPRESSION, "piz": OpenEXR.PIZ_COMPRESSION,
                "rle": OpenEXR.RLE_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}
@@ -172,7 +177,7 @@ COMPRESSION = {"zip": OpenEXR.ZIP_COMPRESSION, "zips": OpenEXR.ZIPS_COMPRESSION,
 COMPILED = {"none": 0, "rle": 1}
 
 
-def exr_bytes(passes: RasterPasses, codec: str = "zip", precision: str = "half") -> bytes:
+def exr_bytes(passes: RasterPasses, codec: str = "rle", precision: str = "half") -> bytes:
     """The EXR file of one frame's passes (bytes: the caller writes them atomically), compressed
     with `codec` (a key of COMPRESSION), its float types by `precision` (exr_channels). RLE and no
     compression are written by strokekit's compiled writer (the bytes OpenEXR writes, several
@@ -203,8 +208,7 @@ def _compiled_exr(sources: dict[str, tuple[np.ndarray, type]], attrs: dict[str, 
     """compiled_exr of channel_sources' planes (a float32 plane held as half: cast as written)."""
     from numba.typed import List
 
-    from strokekit.raster.hits import exr_kernels
-
+    EXR_KERNELS.ensure()
     names = sorted(sources)  # the file's channel order (OpenEXR's: by name, bytewise)
     H, W = sources[names[0]][0].shape
     planes = List([np.ascontiguousarray(sources[n][0]).reshape(-1).view(np.uint8) for n in names])
@@ -212,7 +216,7 @@ def _compiled_exr(sources: dict[str, tuple[np.ndarray, type]], attrs: dict[str, 
     half = np.array([sources[n][0].dtype == np.float32 and item[i] == 2 for i, n in enumerate(names)], bool)
     out = np.empty(int(item.sum()) * W * H + 8 * H, np.uint8)  # room for every row stored as it is
     sizes = np.zeros(H, np.int64)
-    n = exr_kernels().scanline_chunks(planes, item, half, W, H, 1, COMPILED[codec], out, sizes)
+    n = EXR_WRITER.kernels().scanline_chunks(planes, item, half, W, H, 1, COMPILED[codec], out, sizes)
     head = _header(names, {k: t for k, (_, t) in sources.items()}, COMPILED[codec], W, H, attrs)
     table = len(head) + 8 * H + np.concatenate([[0], np.cumsum(sizes + 8)[:-1]])
     return b"".join((head, table.astype("<u8").tobytes(), out[:n].data))
