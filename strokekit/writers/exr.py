@@ -49,7 +49,10 @@ def lines_sparse(lines: dict[str, np.ndarray]) -> tuple[np.ndarray, dict[str, np
     {kind: (P, 4) premultiplied linear RGBA of its coverage in its SVG colour}, their composite
     (P, 4), each kind over the ones before it in KINDS order)."""
     flat = {kind: np.asarray(cov, np.float32).reshape(-1) for kind, cov in lines.items()}
-    pix = np.unique(np.concatenate([np.flatnonzero(a) for a in flat.values()] or [np.zeros(0, np.int64)]))
+    covered = np.zeros(0 if not flat else next(iter(flat.values())).size, bool)
+    for a in flat.values():
+        covered |= a != 0
+    pix = np.flatnonzero(covered)  # (one pass over a mask: a fifth of a flatnonzero per kind)
     per_kind = {}
     total = np.zeros((len(pix), 4), np.float32)
     for kind, a in flat.items():
