@@ -14,7 +14,7 @@ from strokekit.raster.hits import RASTER
 from strokekit.run.spec import RASTER_STAGES, RunSpec
 from strokekit.scene.occluder import MOVING_SCENE
 from strokekit.tracking.kernels import TRACKING
-from strokekit.writers.exr import COMPILED, EXR_KERNELS
+from strokekit.writers.exr import EXR_KERNELS, WRITTEN_COMPILED
 
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",
@@ -39,7 +39,7 @@ def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> li
     if frames_here and spec.raster is not None:
         out.append(RASTER)
         exr = spec.outputs.exr
-        if exr is not None and exr.codec in COMPILED:
+        if exr is not None and exr.codec in WRITTEN_COMPILED:
             out.append(EXR_KERNELS)
     return out
 
