@@ -11,6 +11,7 @@ loaded on first use (`raster.hits.compiled()`: lines-only runs never import numb
   linear colours.
 * `view_normals`: the EXR's view-space normal of every pixel's representative sample.
 * `crypto_rank0`: Cryptomatte's rank 0 (id, coverage 1) of every pixel's representative sample.
+* `table_planes`: the EXR's shade colours, a table's columns gathered by key into planes.
 """
 
 from __future__ import annotations
@@ -317,3 +318,12 @@ def crypto_rank0(face, table, bits, ids, cov):
         if f >= 0:
             ids[i] = bits[table[f]]
             cov[i] = 1.0
+
+
+@kernel("(i4[::1], f4[:, ::1], f4[:, ::1])")
+def table_planes(key, table, out):
+    """out[c, i] = table[c, key[i]] for every channel c: a (C, M) gather in one pass over key."""
+    for i in range(key.shape[0]):
+        k = key[i]
+        for c in range(table.shape[0]):
+            out[c, i] = table[c, k]

@@ -56,10 +56,9 @@ def linear_shade(frame: RasterFrame) -> np.ndarray:
     table = np.zeros((4, len(lin)), np.float32)
     table[:3] = lin.T
     table[3] = np.arange(len(lin)) % N1 != 0
-    key = np.ascontiguousarray(representative(frame.keys_ss, frame.K)).reshape(-1)
+    key = np.ascontiguousarray(representative(frame.keys_ss, frame.K), np.int32).reshape(-1)
     out = np.empty((4, frame.height * frame.width), np.float32)
-    for c in range(4):
-        np.take(table[c], key, out=out[c])
+    compiled().table_planes(key, table, out)
     m = frame.mixed
     if m is not None:
         n, rgb = frame._mixed_sums(lin)
