@@ -349,6 +349,38 @@ def test_the_compiled_writer_casts_float32_to_half_as_numpy_does(codec):
                          codec) == ref
 
 
+@pytest.mark.parametrize("codec", ["rle", "none"])
+def test_sparse_half_planes_are_written_as_their_dense_planes(codec):
+    """The lines layers reach the compiled writer as their covered pixels only (SparsePlane): the
+    file is the one OpenEXR writes of the dense planes, RLE-coded or stored as they are (none),
+    with a row covered throughout (row 2) and one without a covered pixel (row 5); sparse planes
+    of other pixels than each other's are refused."""
+    from strokekit.writers.exr import SparsePlane, _compiled_exr
+
+    rng = np.random.default_rng(11)
+    H, W = 9, 21
+    pix = np.sort(rng.choice(H * W, 40, replace=False))
+    pix = pix[pix // W != 5]  # row 5: nothing covered
+    noise = rng.integers(0, 2 ** 16, (H, W), dtype=np.uint16).view(np.float16)
+    noise[2] = rng.integers(0, 2 ** 16, W, dtype=np.uint16).view(np.float16)
+    planes, sources = {}, {"N": (noise, np.float16)}
+    for name in ("lines.A", "lines.R"):
+        vals = rng.normal(size=pix.size).astype(np.float16)
+        dense = np.zeros(H * W, np.float16)
+        dense[pix] = vals
+        planes[name] = dense.reshape(H, W)
+        sources[name] = SparsePlane(pix, vals, (H, W)), np.float16
+    planes["lines.A"][2] = noise[2]  # row 2: every pixel of it in the sparse planes
+    row2 = np.arange(2 * W, 3 * W)
+    a_pix = np.union1d(pix, row2)
+    sources["lines.A"] = SparsePlane(a_pix, planes["lines.A"].reshape(-1)[a_pix], (H, W)), np.float16
+    sources["lines.R"] = SparsePlane(a_pix, planes["lines.R"].reshape(-1)[a_pix], (H, W)), np.float16
+    assert _compiled_exr(sources, {}, codec) == _openexr_bytes({"N": noise, **planes}, {}, codec)
+    sources["lines.R"] = SparsePlane(pix, planes["lines.R"].reshape(-1)[pix], (H, W)), np.float16
+    with pytest.raises(ValueError, match="share their pixels"):
+        _compiled_exr(sources, {}, codec)
+
+
 def test_a_frame_written_by_the_compiled_writer_is_openexrs_file(tmp_path):
     """A rendered frame with every layer (Cryptomatte manifests, the strokekit/layers header),
     RLE by default (the compiled writer): the file the run wrote is byte for byte the one OpenEXR

@@ -29,6 +29,7 @@ import json
 import os
 import struct
 import threading
+from typing import NamedTuple
 
 import numpy as np
 import OpenEXR
@@ -81,11 +82,20 @@ def exr_channels(passes: RasterPasses, precision: str = "half") -> tuple[dict[st
     return {k: a.astype(t, copy=False) for k, (a, t) in sources.items()}, hdr
 
 
-def channel_sources(passes: RasterPasses, precision: str = "half") -> tuple[dict[str, tuple[np.ndarray, type]],
-                                                                             dict[str, str]]:
+class SparsePlane(NamedTuple):
+    """An (H, W) half plane zero but at flat pixels `pix` (ascending), where it holds `values`."""
+
+    pix: np.ndarray
+    values: np.ndarray
+    shape: tuple[int, int]
+
+
+def channel_sources(passes: RasterPasses, precision: str = "half", sparse: bool = False) -> tuple[
+        dict[str, tuple[np.ndarray | SparsePlane, type]], dict[str, str]]:
     """exr_channels before its casts: (by channel name, (its contiguous (H, W) plane, float32 or
     half, and the pixel type the file holds it in), header string attributes). The compiled
-    writer casts float32 planes to half as it writes them."""
+    writer casts float32 planes to half as it writes them; with `sparse`, the half lines layers
+    are SparsePlanes (nearly all zero: the writer fills their rows)."""
     src: dict[str, tuple[np.ndarray, type]] = {}
     hdr: dict[str, str] = {}
     half = np.float16 if precision == "half" else np.float32
@@ -118,6 +128,10 @@ def channel_sources(passes: RasterPasses, precision: str = "half") -> tuple[dict
         shape = (passes.height, passes.width)
         pix, per_kind, total = lines_sparse(passes.lines)
         for name, rgba in [*((f"lines_{k}", v) for k, v in per_kind.items()), ("lines", total)]:
+            if sparse and half is np.float16:
+                for c, col in zip("RGBA", rgba.T):
+                    src[f"{name}.{c}"] = SparsePlane(pix, col.astype(np.float16), shape), half
+                continue
             for c, p in zip("RGBA", _half_planes(pix, rgba, shape, half)):
                 src[f"{name}.{c}"] = p, half
     hdr[CONTENTS_KEY] = contents({k: t for k, (_, t) in src.items()})
@@ -189,7 +203,7 @@ def exr_bytes(passes: RasterPasses, codec: str = "rle", precision: str = "half")
     written by strokekit's compiled writer (the bytes OpenEXR writes, about 4 times faster), the
     others by OpenEXR."""
     if codec in WRITTEN_COMPILED:
-        sources, attrs = channel_sources(passes, precision)
+        sources, attrs = channel_sources(passes, precision, sparse=True)
         if not sources:
             raise ValueError("no EXR layer to write")
         return _compiled_exr(sources, attrs, codec)
@@ -217,12 +231,29 @@ def _compiled_exr(sources: dict[str, tuple[np.ndarray, type]], attrs: dict[str, 
     EXR_KERNELS.ensure()
     names = sorted(sources)  # the file's channel order (OpenEXR's: by name, bytewise)
     H, W = sources[names[0]][0].shape
-    planes = List([np.ascontiguousarray(sources[n][0]).reshape(-1).view(np.uint8) for n in names])
+    sparse = [sources[n][0] for n in names if isinstance(sources[n][0], SparsePlane)]
+    pix = sparse[0].pix if sparse else np.zeros(0, np.int64)
+    if any(s.pix is not pix and not np.array_equal(s.pix, pix) for s in sparse):
+        raise ValueError("the sparse planes of one file share their pixels")
+    row = np.full(len(names), -1, np.int64)  # each sparse plane's row of vals
+    none = np.zeros(0, np.uint8)
+    planes, k = List(), 0
+    for i, n in enumerate(names):
+        if isinstance(sources[n][0], SparsePlane):
+            row[i], k = k, k + 1
+            planes.append(none)
+        else:
+            planes.append(np.ascontiguousarray(sources[n][0]).reshape(-1).view(np.uint8))
+    vals = np.ascontiguousarray(np.array([s.values for s in sparse], np.float16).reshape(len(sparse), len(pix))
+                                .view(np.uint16))
+    start = np.searchsorted(pix, np.arange(H + 1) * W).astype(np.int64)
     item = np.array([np.dtype(sources[n][1]).itemsize for n in names], np.int64)
-    half = np.array([sources[n][0].dtype == np.float32 and item[i] == 2 for i, n in enumerate(names)], bool)
+    half = np.array([row[i] < 0 and sources[n][0].dtype == np.float32 and item[i] == 2 for i, n in enumerate(names)],
+                    bool)
     out = np.empty(int(item.sum()) * W * H + 8 * H, np.uint8)  # room for every row stored as it is
     sizes = np.zeros(H, np.int64)
-    n = EXR_WRITER.kernels().scanline_chunks(planes, item, half, W, H, 1, COMPILED[codec], out, sizes)
+    n = EXR_WRITER.kernels().scanline_chunks(planes, item, half, row, np.ascontiguousarray(pix, np.int64), start,
+                                             vals, W, H, 1, COMPILED[codec], out, sizes)
     head = _header(names, {k: t for k, (_, t) in sources.items()}, COMPILED[codec], W, H, attrs)
     table = len(head) + 8 * H + np.concatenate([[0], np.cumsum(sizes + 8)[:-1]])
     return b"".join((head, table.astype("<u8").tobytes(), out[:n].data))

@@ -60,15 +60,23 @@ def _half_bits(f):
 
 
 @njit(cache=True)
-def _pack(planes, item, half, width, y0, y1, out):
+def _pack(planes, item, half, sp, width, y0, y1, out):
     """Rows y0..y1 - 1 as the file stores them uncompressed into out: each row's channels in file
     order (plane c: `width` pixels of item[c] bytes a row, or float32 pixels written as half
-    where half[c]); returns their size."""
+    where half[c], or a sparse half plane: `_sparse_row`); returns their size."""
     n = 0
     for y in range(y0, y1):
         for c in range(len(planes)):
             rb = width * item[c]
-            if half[c]:
+            if sp[0][c] >= 0:
+                lo = np.zeros(width, np.uint8)
+                hi = np.zeros(width, np.uint8)
+                _sparse_row(sp, c, y, width, lo, hi)
+                dst = out[n:n + rb]
+                for x in range(width):
+                    dst[2 * x] = lo[x]
+                    dst[2 * x + 1] = hi[x]
+            elif half[c]:
                 src = planes[c].view(np.uint32)[y * width:(y + 1) * width]
                 dst = out[n:n + rb]
                 for x in range(width):
@@ -82,7 +90,23 @@ def _pack(planes, item, half, width, y0, y1, out):
 
 
 @njit(cache=True)
-def _reorder(planes, item, half, width, y0, y1, r, r16):
+def _sparse_row(sp, c, y, width, lo, hi):
+    """Row y of sparse half plane c into lo, hi (its pixels' low and high bytes, zeroed first):
+    sp = (plane's row of vals or -1 by channel, the planes' pixels (P,) flat and ascending, their
+    first index by row (H + 1,), vals (K, P) half bits)."""
+    k = sp[0][c]
+    pix, start, vals = sp[1], sp[2], sp[3]
+    lo[:] = 0
+    hi[:] = 0
+    for j in range(start[y], start[y + 1]):
+        x = pix[j] - y * width
+        v = vals[k, j]
+        lo[x] = v & 0xFF
+        hi[x] = v >> 8
+
+
+@njit(cache=True)
+def _reorder(planes, item, half, sp, width, y0, y1, r, r16):
     """The packed rows y0..y1 - 1 (`_pack`) reordered into r: their even bytes, then their odd
     bytes; returns their size. A half pixel gives one byte to each half, a float32 pixel two.
     r16: r viewed as uint16."""
@@ -96,6 +120,10 @@ def _reorder(planes, item, half, width, y0, y1, r, r16):
         for c in range(len(planes)):
             # (loops over views from index 0: numba then drops its negative-index checks, and
             # LLVM vectorizes them)
+            if sp[0][c] >= 0:
+                _sparse_row(sp, c, y, width, r[e:e + width], r[h + e:h + e + width])
+                e += width
+                continue
             if half[c]:
                 src32 = planes[c].view(np.uint32)[y * width:(y + 1) * width]
                 lo, hi = r[e:e + width], r[h + e:h + e + width]
@@ -211,13 +239,16 @@ def _rle(p, pw, n, out):
     return o
 
 
-@kernel("(ListType(u1[::1]), i8[::1], b1[::1], i8, i8, i8, i8, u1[::1], i8[::1])")
-def scanline_chunks(planes, item, half, width, height, lines, codec, out, sizes):
+@kernel("(ListType(u1[::1]), i8[::1], b1[::1], i8[::1], i8[::1], i8[::1], u2[:, ::1], i8, i8, i8, i8, u1[::1], "
+        "i8[::1])")
+def scanline_chunks(planes, item, half, sparse, pix, start, vals, width, height, lines, codec, out, sizes):
     """A scanline image's blocks of `lines` rows, one after another into `out`. Codec 0: chunks
     of the packed rows (`_pack`), each its first row (int32), its data's size (int32) and its
     data; codec 1: the same RLE-compressed (stored packed where that would not shrink it);
     codec 2: the blocks reordered and predicted only, no chunk heads (the caller deflates them).
-    sizes[b] gets block b's data size; returns the bytes written to `out`."""
+    sizes[b] gets block b's data size; returns the bytes written to `out`. Sparse half planes
+    (sparse[c] >= 0: planes[c] unused) are zero but at pixels `pix` (`_sparse_row`)."""
+    sp = (sparse, pix, start, vals)
     row = 0
     for c in range(item.shape[0]):
         row += width * item[c]
@@ -232,22 +263,22 @@ def scanline_chunks(planes, item, half, width, height, lines, codec, out, sizes)
     for y0 in range(0, height, lines):
         y1 = min(y0 + lines, height)
         if codec == 2:
-            n = _reorder(planes, item, half, width, y0, y1, r, r16)
+            n = _reorder(planes, item, half, sp, width, y0, y1, r, r16)
             _predict(r, n, out[o:o + n])
             sizes[b] = n
             o += n
             b += 1
             continue
         if codec == 1:
-            n = _reorder(planes, item, half, width, y0, y1, r, r16)
+            n = _reorder(planes, item, half, sp, width, y0, y1, r, r16)
             _predict(r, n, p)
             size = _rle(p, pw, n, comp)
             if size < n:
                 out[o + 8:o + 8 + size] = comp[:size]
             else:
-                size = _pack(planes, item, half, width, y0, y1, out[o + 8:])
+                size = _pack(planes, item, half, sp, width, y0, y1, out[o + 8:])
         else:
-            size = _pack(planes, item, half, width, y0, y1, out[o + 8:])
+            size = _pack(planes, item, half, sp, width, y0, y1, out[o + 8:])
         for k in range(4):
             out[o + k] = (y0 >> (8 * k)) & 0xFF
             out[o + 4 + k] = (size >> (8 * k)) & 0xFF
