@@ -272,6 +272,12 @@ def rank_samples(samples: np.ndarray, names: Sequence[str], ranks: int = DEFAULT
     return RankedMatte(ids, cov)
 
 
+def id_table(names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(slot of each name's id in the ascending table of distinct ids (N,) int64, that table
+    (U,) uint32): the ranking's tie order."""
+    return _id_table(names)
+
+
 def name_bits(names: Sequence[str]) -> np.ndarray:
     """(N,) float32: the Cryptomatte id of each name, as the float32 its bits make (colliding
     names share one id)."""

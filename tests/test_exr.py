@@ -192,6 +192,27 @@ def test_cryptomatte_ranks_in_the_exr_go_by_descending_coverage(exr_run):
         assert (ids[cov == 0].view(np.uint32) == 0).all(), t
 
 
+def test_the_compiled_ranks_of_mixed_pixels_are_rank_samples_ranks():
+    """crypto_ranks (the mixed pixels' ranks, compiled) gives rank_samples' ids and coverages bit
+    for bit on random samples of few ids: ties (broken by ascending id bits), background samples,
+    pixels of more ids than ranks and pixels of background only."""
+    from strokekit.cryptomatte import id_table
+    from strokekit.raster.hits import compiled
+
+    rng = np.random.default_rng(2)
+    names = ["ball", "box", "vase", "ring", "ground"]
+    samples = rng.integers(-1, len(names), (3000, 16)).astype(np.int32)
+    samples[:500] = rng.integers(-1, 2, (500, 16))  # two ids and background: many ties
+    samples[500] = -1
+    ref = rank_samples(samples[None], names, 4)
+    slot_of, uniq = id_table(names)
+    ids, cov = np.zeros((4, 3000), np.float32), np.zeros((4, 3000), np.float32)
+    compiled().crypto_ranks(np.where(samples >= 0, slot_of[np.maximum(samples, 0)], -1).astype(np.int32),
+                            uniq.view(np.float32), ids, cov)
+    assert ids.T.tobytes() == ref.ids[0].tobytes() and cov.T.tobytes() == ref.coverage[0].tobytes()
+    assert (ref.coverage[0, :500, 0] == ref.coverage[0, :500, 1]).sum() > 20  # (ties were there)
+
+
 def test_the_frames_cryptomatte_is_the_ranked_matte_of_its_samples():
     """crypto_layers (rank 0 of the uniform pixels compiled, only the filled upper ranks
     scattered) gives the ranked matte cryptomatte.ranked_matte makes of the same samples, bit for

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from strokekit.cryptomatte import name_bits, rank_samples
+from strokekit.cryptomatte import id_table, name_bits
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
 from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.hits import compiled
@@ -71,7 +71,7 @@ def linear_shade(frame: RasterFrame) -> np.ndarray:
 def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:
     """CryptoObject and CryptoMaterial of the frame: a uniform pixel has its representative
     sample's object (material) at coverage 1, a mixed pixel the ranked shares of its R x R
-    samples (cryptomatte.ranked_matte's matte, rank 0 of the uniform pixels compiled)."""
+    samples (cryptomatte.ranked_matte's matte, compiled)."""
     scene = frame.scene
     H, W = frame.height, frame.width
     face = np.ascontiguousarray(representative(frame.hits.face, frame.K), np.int32).reshape(-1)
@@ -86,13 +86,18 @@ def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:
         if names:
             compiled().crypto_rank0(face, np.ascontiguousarray(table, np.int32), name_bits(names), ids[0], cov[0])
         if m is not None and len(m.pixels):
-            edge = rank_samples(np.where(m.face >= 0, table[np.maximum(m.face, 0)], -1)[None], names, RANKS)
+            slot_of, uniq = id_table(names)
+            face_slot = slot_of[table] if len(names) else np.zeros(len(table), np.int64)
+            slots = np.where(m.face >= 0, face_slot[np.maximum(m.face, 0)], -1).astype(np.int32)
+            e_ids = np.zeros((RANKS, len(m.pixels)), np.float32)
+            e_cov = np.zeros((RANKS, len(m.pixels)), np.float32)
+            compiled().crypto_ranks(slots, uniq.view(np.float32), e_ids, e_cov)
             for r in range(RANKS):  # one rank at a time: numpy's fast 1-D scatter
                 # (the ranks a pixel does not fill stay 0 untouched: writing zeros over the planes
                 # of the upper ranks, mostly empty, would fault in all their memory)
-                at = np.flatnonzero(edge.coverage[0, :, r] > 0) if r else slice(None)
-                ids[r][m.pixels[at]] = edge.ids[0, at, r]
-                cov[r][m.pixels[at]] = edge.coverage[0, at, r]
+                at = np.flatnonzero(e_cov[r] > 0) if r else slice(None)
+                ids[r][m.pixels[at]] = e_ids[r, at]
+                cov[r][m.pixels[at]] = e_cov[r, at]
         out.append(CryptoLayer(type_name, ids.reshape(RANKS, H, W).transpose(1, 2, 0),
                                cov.reshape(RANKS, H, W).transpose(1, 2, 0), names))
     return tuple(out)
