@@ -1,6 +1,5 @@
 """The EXR writer's compiled loops (numba; `writers.exr` loads them on first use): a scanline
-file's chunks, packed from the channel planes and RLE-compressed the way OpenEXR does it, or
-prepared for ZIP's deflate.
+file's chunks, packed from the channel planes and RLE-compressed the way OpenEXR does it.
 
 OpenEXR's RLE and ZIP codecs both first reorder a block's bytes (even bytes, then odd ones) and
 replace each byte by its difference from the one before plus 128; RLE then writes runs of 3 to
@@ -244,8 +243,7 @@ def _rle(p, pw, n, out):
 def scanline_chunks(planes, item, half, sparse, pix, start, vals, width, height, lines, codec, out, sizes):
     """A scanline image's blocks of `lines` rows, one after another into `out`. Codec 0: chunks
     of the packed rows (`_pack`), each its first row (int32), its data's size (int32) and its
-    data; codec 1: the same RLE-compressed (stored packed where that would not shrink it);
-    codec 2: the blocks reordered and predicted only, no chunk heads (the caller deflates them).
+    data; codec 1: the same RLE-compressed (stored packed where that would not shrink it).
     sizes[b] gets block b's data size; returns the bytes written to `out`. Sparse half planes
     (sparse[c] >= 0: planes[c] unused) are zero but at pixels `pix` (`_sparse_row`)."""
     sp = (sparse, pix, start, vals)
@@ -262,13 +260,6 @@ def scanline_chunks(planes, item, half, sparse, pix, start, vals, width, height,
     b = 0
     for y0 in range(0, height, lines):
         y1 = min(y0 + lines, height)
-        if codec == 2:
-            n = _reorder(planes, item, half, sp, width, y0, y1, r, r16)
-            _predict(r, n, out[o:o + n])
-            sizes[b] = n
-            o += n
-            b += 1
-            continue
         if codec == 1:
             n = _reorder(planes, item, half, sp, width, y0, y1, r, r16)
             _predict(r, n, p)
