@@ -8,13 +8,15 @@ temporary folder), for every frame of an orbit, in turns, `--repeats` times:
 - `band PNGs`: render's default raster output (`--bands 3`: bands/ and shade/);
 - `all PNGs`: the PNG passes that carry what the EXR holds (`--bands 3 --masks --objectid --depth
   --lines-png`: labels, band masks, shade colours, object ids, depth, the lines);
-- `EXR`: `--exr` with every layer (depth, normals, shade, bands, Cryptomatte, lines), no PNG;
-  `EXR full`: the same with `--exr-float full` (every channel float32).
+- `EXR`: `--exr` with every layer (depth, normals, shade, bands, Cryptomatte, lines), no PNG,
+  its default codec; `EXR zip`, `EXR rle`: with `--exr-codec zip` / `rle`; `EXR full`: the
+  default codec with `--exr-float full` (every channel float32).
 
 Printed: process CPU ms a frame (all threads; steadier than wall time on a shared machine) and
 wall ms a frame, median over the repeats; what the EXR adds against each PNG variant (the bar:
 at most the time of the PNGs it replaces); the EXR's own parts (compositing passes, channels,
-encoding) with the encoding's CPU and size under each lossless codec Blender 3.4 reads, and with none (the floor).
+encoding) with the encoding's CPU and size under each lossless codec Blender 3.4 reads (RLE and
+none by strokekit's compiled writer and, for comparison, by OpenEXR).
 
     python benchmarks/bench_exr.py [--models bunny,still-life] [--size 1024] [--frames 4] [--repeats 5]
 """
@@ -22,6 +24,7 @@ encoding) with the encoding's CPU and size under each lossless codec Blender 3.4
 from __future__ import annotations
 
 import argparse
+import functools
 import io
 import statistics
 import sys
@@ -42,12 +45,11 @@ from strokekit.raster.passes import PassOptions, compositing_passes  # noqa: E40
 from strokekit.run.frame import Frame  # noqa: E402
 from strokekit.run.spec import OutputOptions  # noqa: E402
 from strokekit.run.tasks import raster_files  # noqa: E402
-from strokekit.writers.exr import exr_bytes, exr_channels  # noqa: E402
+from strokekit.writers.exr import COMPILED, COMPRESSION, compiled_exr, exr_bytes, exr_channels  # noqa: E402
 
 MODELS = {"bunny": ROOT.parent / "shared" / "models" / "stanford-bunny.obj",
           "still-life": ROOT / "samples" / "still_life.glb",
           "truck": ROOT.parent / "shared" / "models" / "CesiumMilkTruck.glb"}
-CODECS = ("NO", "RLE", "ZIPS", "ZIP", "PIZ")  # NO: the floor, copying the channels into scanlines
 
 
 def variants(out: Path) -> dict[str, tuple[RasterOptions, OutputOptions]]:
@@ -56,6 +58,8 @@ def variants(out: Path) -> dict[str, tuple[RasterOptions, OutputOptions]]:
         "band PNGs": (RasterOptions(bands=3), OutputOptions(out)),
         "all PNGs": (RasterOptions(bands=3, masks=True, objectid=True, depth=True), OutputOptions(out, lines_png=True)),
         "EXR": (RasterOptions(bands=3, pngs=False), OutputOptions(out, exr=PassOptions())),
+        "EXR zip": (RasterOptions(bands=3, pngs=False), OutputOptions(out, exr=PassOptions(codec="zip"))),
+        "EXR rle": (RasterOptions(bands=3, pngs=False), OutputOptions(out, exr=PassOptions(codec="rle"))),
         "EXR full": (RasterOptions(bands=3, pngs=False), OutputOptions(out, exr=PassOptions(precision="full"))),
     }
 
@@ -105,36 +109,44 @@ def bench_model(name: str, args) -> None:
         print(f"  EXR / {k}: CPU {med['EXR'][0] / med[k][0]:.2f}x, wall {med['EXR'][1] / med[k][1]:.2f}x")
     # What the files add to the raster pass (the bar: the EXR adds at most 1.5 times what the PNGs add).
     adds = {k: (c - med["no files"][0], w - med["no files"][1]) for k, (c, w) in med.items()}
-    for k in ("EXR", "EXR full"):
+    for k in ("EXR", "EXR zip", "EXR rle", "EXR full"):
         print(f"  {k} adds / all PNGs add: CPU {adds[k][0] / adds['all PNGs'][0]:.2f}x "
               f"({adds[k][0]:.1f} / {adds['all PNGs'][0]:.1f} ms), wall {adds[k][1] / adds['all PNGs'][1]:.2f}x")
 
     # The EXR's parts, on the first frame.
     raster = render_raster(scene, cams[0], occ, RasterOptions(bands=3, pngs=False), work=thread_workspace())
-    parts = {"passes": [], "channels": [], "encode (ZIP)": []}
+    codec = PassOptions().codec
+    parts = {"passes": [], "channels": [], f"encode ({codec})": []}
     for _ in range(args.repeats):
         c, _w = timed(compositing_passes, raster, strokes[0], PassOptions())
         parts["passes"].append(c)
         p = compositing_passes(raster, strokes[0], PassOptions())
         parts["channels"].append(timed(exr_channels, p)[0])
-        parts["encode (ZIP)"].append(timed(exr_bytes, p)[0] - parts["channels"][-1])
+        parts[f"encode ({codec})"].append(timed(exr_bytes, p, codec)[0] - parts["channels"][-1])
     ch, attrs = exr_channels(p)
     print(f"  EXR parts, CPU ms (frame 1, {len(ch)} channels, "
           f"{sum(a.nbytes for a in ch.values()) / 1e6:.0f} MB raw): "
           + ", ".join(f"{k} {1000 * statistics.median(v):.0f}" for k, v in parts.items()))
-    row = []
-    for codec in CODECS:
-        comp = getattr(OpenEXR, f"{codec}_COMPRESSION")
-        ts, size = [], 0
-        for _ in range(args.repeats):
-            buf = io.BytesIO()
+    encoders = {f"{c} (OpenEXR)": functools.partial(openexr_bytes, ch, attrs, c) for c in COMPRESSION}
+    encoders.update({f"{c} (compiled)": functools.partial(compiled_exr, ch, attrs, c) for c in COMPILED})
+    ts = {k: [] for k in encoders}
+    size = {}
+    for _ in range(args.repeats):
+        for k, enc in encoders.items():  # in turns
             t = time.process_time()
-            with OpenEXR.File({"compression": comp, "type": OpenEXR.scanlineimage, **attrs}, ch, num_threads=0) as f:
-                f.write(buf)
-            ts.append(time.process_time() - t)
-            size = len(buf.getvalue())
-        row.append(f"{codec} {1000 * statistics.median(ts):.0f} ms {size / 1e6:.1f} MB")
-    print("  encoding by codec, one thread, CPU (NO: none, the floor): " + ", ".join(row))
+            size[k] = len(enc())
+            ts[k].append(time.process_time() - t)
+    print("  encoding by codec, one thread, CPU: " + ", ".join(
+        f"{k} {1000 * statistics.median(ts[k]):.0f} ms {size[k] / 1e6:.1f} MB" for k in encoders))
+
+
+def openexr_bytes(ch: dict, attrs: dict, codec: str) -> bytes:
+    """The file OpenEXR's bindings write of the channels, on one thread."""
+    buf = io.BytesIO()
+    with OpenEXR.File({"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}, dict(ch),
+                      num_threads=0) as f:
+        f.write(buf)
+    return buf.getvalue()
 
 
 def main() -> None:

@@ -272,13 +272,29 @@ def rank_samples(samples: np.ndarray, names: Sequence[str], ranks: int = DEFAULT
     return RankedMatte(ids, cov)
 
 
+def id_table(names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(slot of each name's id in the ascending table of distinct ids (N,) int64, that table
+    (U,) uint32): the ranking's tie order."""
+    return _id_table(names)
+
+
+def name_bits(names: Sequence[str]) -> np.ndarray:
+    """(N,) float32: the Cryptomatte id of each name, as the float32 its bits make (colliding
+    names share one id)."""
+    slot_of, uniq = _id_table(names)
+    return uniq[slot_of].view(np.float32)
+
+
 def ranked_matte(base: np.ndarray, names: Sequence[str], ranks: int = DEFAULT_RANKS,
-                 edge_pixels: np.ndarray | None = None, edge_samples: np.ndarray | None = None) -> RankedMatte:
+                 edge_pixels: np.ndarray | None = None, edge_samples: np.ndarray | None = None,
+                 table: np.ndarray | None = None) -> RankedMatte:
     """The ranked matte of a raster pass sampled once per pixel and R x R times on edge pixels.
 
-    base: (H, W) integer index into `names` of each pixel's one sample (-1: background);
-    edge_pixels (P,) flat pixel indices whose (P, S) `edge_samples` replace their base sample.
-    A pixel of one sample has its id at coverage 1 (or nothing, on background)."""
+    base: (H, W) integer index into `names` of each pixel's one sample (-1: background), or into
+    `table` when given (e.g. face indices, with table the face's object: index into `names`);
+    edge_pixels (P,) flat pixel indices whose (P, S) `edge_samples` (indices into `names`)
+    replace their base sample. A pixel of one sample has its id at coverage 1 (or nothing, on
+    background)."""
     base = np.asarray(base)
     h, w = base.shape
     flat = base.reshape(-1)
@@ -287,11 +303,11 @@ def ranked_matte(base: np.ndarray, names: Sequence[str], ranks: int = DEFAULT_RA
     # channels as they are written; the (H, W, R) arrays handed out are views of them.
     ids = np.zeros((ranks, h * w), np.float32)
     cov = np.zeros((ranks, h * w), np.float32)
-    hit = flat >= 0
     if len(names):
-        bits = np.append(uniq[slot_of], np.uint32(0)).view(np.float32)  # index -1: no id
-        np.take(bits, flat, out=ids[0])
-    cov[0] = hit
+        by_name = uniq[slot_of]
+        bits = np.append(by_name if table is None else by_name[table], np.uint32(0)).view(np.float32)
+        np.take(bits, flat, out=ids[0])  # (index -1: the last entry, no id)
+    np.greater_equal(flat, 0, out=cov[0], casting="unsafe")
     if edge_pixels is not None and len(edge_pixels):
         edge = rank_samples(np.asarray(edge_samples)[None], names, ranks)
         for r in range(ranks):  # one rank at a time: numpy's fast 1-D scatter

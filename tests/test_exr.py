@@ -192,6 +192,55 @@ def test_cryptomatte_ranks_in_the_exr_go_by_descending_coverage(exr_run):
         assert (ids[cov == 0].view(np.uint32) == 0).all(), t
 
 
+def test_the_compiled_ranks_of_mixed_pixels_are_rank_samples_ranks():
+    """crypto_ranks (the mixed pixels' ranks, compiled) gives rank_samples' ids and coverages bit
+    for bit on random samples of few ids: ties (broken by ascending id bits), background samples,
+    pixels of more ids than ranks and pixels of background only."""
+    from strokekit.cryptomatte import id_table
+    from strokekit.raster.hits import compiled
+
+    rng = np.random.default_rng(2)
+    names = ["ball", "box", "vase", "ring", "ground"]
+    samples = rng.integers(-1, len(names), (3000, 16)).astype(np.int32)
+    samples[:500] = rng.integers(-1, 2, (500, 16))  # two ids and background: many ties
+    samples[500] = -1
+    ref = rank_samples(samples[None], names, 4)
+    slot_of, uniq = id_table(names)
+    ids, cov = np.zeros((4, 3000), np.float32), np.zeros((4, 3000), np.float32)
+    compiled().crypto_ranks(np.where(samples >= 0, slot_of[np.maximum(samples, 0)], -1).astype(np.int32),
+                            uniq.view(np.float32), ids, cov)
+    assert ids.T.tobytes() == ref.ids[0].tobytes() and cov.T.tobytes() == ref.coverage[0].tobytes()
+    assert (ref.coverage[0, :500, 0] == ref.coverage[0, :500, 1]).sum() > 20  # (ties were there)
+
+
+def test_the_frames_cryptomatte_is_the_ranked_matte_of_its_samples():
+    """crypto_layers (rank 0 of the uniform pixels compiled, only the filled upper ranks
+    scattered) gives the ranked matte cryptomatte.ranked_matte makes of the same samples, bit for
+    bit: the object or material of each pixel's representative sample, and the mixed pixels'
+    ranks of their R x R samples; the still life's frame has pixels of two ranks or more."""
+    from strokekit.camera.paths import orbit_path
+    from strokekit.cryptomatte import ranked_matte
+    from strokekit.raster.bands import RasterOptions, render_raster, representative
+    from strokekit.raster.passes import RANKS, crypto_layers
+    from strokekit.scene.load import load_scene
+    from strokekit.scene.occluder import Occluder
+
+    s = load_scene(SAMPLE)
+    cam = orbit_path(s.center, s.radius, 2, width=200, height=150).cameras[1]
+    frame = render_raster(s, cam, Occluder(s), RasterOptions(bands=3, pngs=False))
+    face = representative(frame.hits.face, frame.K)
+    m = frame.mixed
+    layers = crypto_layers(frame)
+    for layer, table, names in zip(layers, (s.face_object, s.face_material),
+                                   (tuple(s.objects), tuple(x.name for x in s.materials))):
+        base = np.where(face >= 0, table[np.maximum(face, 0)], -1)
+        edge = np.where(m.face >= 0, table[np.maximum(m.face, 0)], -1)
+        ref = ranked_matte(base, names, RANKS, m.pixels, edge)
+        assert layer.names == names
+        assert layer.ids.tobytes() == ref.ids.tobytes() and layer.coverage.tobytes() == ref.coverage.tobytes()
+        assert (layer.coverage[..., 1] > 0).sum() > 20, layer.type_name
+
+
 def test_exr_depth_is_the_ray_cast_view_depth(exr_run):
     """Z at pixels away from silhouettes equals the view depth of an Embree ray through the sample
     nearest the pixel centre within 1e-5 relative; background is 1e10."""
@@ -234,7 +283,7 @@ def test_every_exr_codec_gives_back_the_same_channels(tmp_path, codec):
     channels bit for bit (Cryptomatte ids are float bit patterns: any rounding would lose them)."""
     import OpenEXR
 
-    ref = render(tmp_path, "--size", "64x48", "--exr", "--no-svg", out="zip")
+    ref = render(tmp_path, "--size", "64x48", "--exr", "--exr-codec", "zip", "--no-svg", out="zip")
     out = render(tmp_path, "--size", "64x48", "--exr", "--exr-codec", codec, "--no-svg", out=codec)
     a, _ = read_exr(ref / "frame_0001.exr")
     b, hdr = read_exr(out / "frame_0001.exr")
@@ -242,6 +291,129 @@ def test_every_exr_codec_gives_back_the_same_channels(tmp_path, codec):
     assert sorted(a) == sorted(b)
     for name in a:
         assert a[name].dtype == b[name].dtype and a[name].tobytes() == b[name].tobytes(), name
+
+
+def _openexr_bytes(channels: dict, attrs: dict, codec: str) -> bytes:
+    """The file OpenEXR's Python bindings write of `channels` with string attributes `attrs`."""
+    import OpenEXR
+
+    from strokekit.writers.exr import COMPRESSION
+
+    buf = io.BytesIO()
+    with OpenEXR.File({"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}, dict(channels),
+                      num_threads=0) as f:
+        f.write(buf)
+    return buf.getvalue()
+
+
+def _runs(rng, n: int, dtype) -> np.ndarray:
+    """n values in runs of 1 to 300 equal values (RLE's runs and literals of every length)."""
+    out = np.empty(0, dtype)
+    while out.size < n:
+        out = np.concatenate([out, np.full(rng.integers(1, 300), rng.normal(), dtype)])
+    return out[:n]
+
+
+@pytest.mark.parametrize("codec", ["rle", "none"])
+def test_the_compiled_writer_writes_the_bytes_openexr_writes(tmp_path, codec):
+    """RLE and uncompressed files are written by strokekit's compiled writer: the very bytes
+    OpenEXR writes of the same channels and attributes. An odd width (a float32 plane after a
+    half one starts at an odd byte), half and float32 planes, zero, constant and noisy rows, runs
+    of every length, rows RLE would grow (OpenEXR stores them as they are) and an attribute name
+    past 31 bytes (the version's long-names flag); read back, every channel is bit for bit."""
+    from strokekit.writers.exr import compiled_exr
+
+    rng = np.random.default_rng(3)
+    H, W = 19, 37
+    noise = rng.integers(0, 2 ** 16, (H, W), dtype=np.uint16).view(np.float16)
+    ch = {"A": noise, "B": np.zeros((H, W), np.float16), "C": _runs(rng, H * W, np.float16).reshape(H, W),
+          "Z": rng.normal(size=(H, W)).astype(np.float32), "id.R": np.full((H, W), 3.5e-12, np.float32),
+          "id.G": _runs(rng, H * W, np.float32).reshape(H, W)}
+    ch["C"][4] = noise[4]
+    for a in ch.values():  # row 7 all noise: RLE would grow it
+        a[7] = rng.integers(0, 256, a[7].nbytes, dtype=np.uint8).view(a.dtype)
+    attrs = {"strokekit/layers": "{}", "cryptomatte/3ae39a5/a-name-longer-than-31-bytes": "x"}
+    ours = compiled_exr(ch, attrs, codec)
+    assert ours == _openexr_bytes(ch, attrs, codec)
+    if codec == "rle":  # (the test holds what it says: RLE shrank rows, and stored row 7 as it is)
+        table = next(p for p in range(len(ours)) if int.from_bytes(ours[p:p + 8], "little") == p + 8 * H)
+        chunk = [int.from_bytes(ours[table + 8 * y:table + 8 * y + 8], "little") for y in range(H)]
+        size = [int.from_bytes(ours[c + 4:c + 8], "little") for c in chunk]
+        row = sum(a[0].nbytes for a in ch.values())
+        assert size[7] == row and max(size[:7]) < row
+    (tmp_path / "f.exr").write_bytes(ours)
+    back, _ = read_exr(tmp_path / "f.exr")
+    assert sorted(back) == sorted(ch)
+    for n, a in ch.items():
+        assert back[n].dtype == a.dtype and back[n].tobytes() == a.tobytes(), n
+
+
+@pytest.mark.parametrize("codec", ["rle", "none"])
+def test_the_compiled_writer_casts_float32_to_half_as_numpy_does(codec):
+    """A float32 plane the file holds in half (the colour, normal and band planes) is cast as the
+    compiled writer writes it: the bytes of the file OpenEXR writes of numpy's cast, for values
+    that round to even, underflow to subnormals and zero, overflow to inf, and NaNs."""
+    from strokekit.writers.exr import _compiled_exr
+
+    rng = np.random.default_rng(5)
+    H, W = 24, 50
+    edge = np.array([0.0, -0.0, 1.0, 65504.0, 65520.0, 1e6, -1e6, np.inf, -np.inf, np.nan, 5.96e-8, 2.98e-8, 1e-9,
+                     6.1e-5, -3e-6, 1.0 + 2 ** -11, 1.0 + 3 * 2 ** -11, 2049.0, 2051.0], np.float32)
+    bits = rng.integers(0, 2 ** 32, H * W, dtype=np.uint64).astype(np.uint32)
+    bits[:edge.size] = edge.view(np.uint32)
+    bits[edge.size:edge.size + 200] = np.arange(0x7F800001, 0x7F800001 + 200 * 4099, 4099, dtype=np.uint32)  # NaNs
+    f32 = bits.view(np.float32).reshape(H, W)
+    smooth = rng.normal(size=(H, W)).astype(np.float32)
+    with np.errstate(over="ignore"):
+        ref = _openexr_bytes({"A": f32.astype(np.float16), "B": smooth.astype(np.float16), "Z": smooth}, {}, codec)
+    assert _compiled_exr({"A": (f32, np.float16), "B": (smooth, np.float16), "Z": (smooth, np.float32)}, {},
+                         codec) == ref
+
+
+@pytest.mark.parametrize("codec", ["rle", "none"])
+def test_sparse_half_planes_are_written_as_their_dense_planes(codec):
+    """The lines layers reach the compiled writer as their covered pixels only (SparsePlane): the
+    file is the one OpenEXR writes of the dense planes, RLE-coded or stored as they are (none),
+    with a row covered throughout (row 2) and one without a covered pixel (row 5); sparse planes
+    of other pixels than each other's are refused."""
+    from strokekit.writers.exr import SparsePlane, _compiled_exr
+
+    rng = np.random.default_rng(11)
+    H, W = 9, 21
+    pix = np.sort(rng.choice(H * W, 40, replace=False))
+    pix = pix[pix // W != 5]  # row 5: nothing covered
+    noise = rng.integers(0, 2 ** 16, (H, W), dtype=np.uint16).view(np.float16)
+    noise[2] = rng.integers(0, 2 ** 16, W, dtype=np.uint16).view(np.float16)
+    planes, sources = {}, {"N": (noise, np.float16)}
+    for name in ("lines.A", "lines.R"):
+        vals = rng.normal(size=pix.size).astype(np.float16)
+        dense = np.zeros(H * W, np.float16)
+        dense[pix] = vals
+        planes[name] = dense.reshape(H, W)
+        sources[name] = SparsePlane(pix, vals, (H, W)), np.float16
+    planes["lines.A"][2] = noise[2]  # row 2: every pixel of it in the sparse planes
+    row2 = np.arange(2 * W, 3 * W)
+    a_pix = np.union1d(pix, row2)
+    sources["lines.A"] = SparsePlane(a_pix, planes["lines.A"].reshape(-1)[a_pix], (H, W)), np.float16
+    sources["lines.R"] = SparsePlane(a_pix, planes["lines.R"].reshape(-1)[a_pix], (H, W)), np.float16
+    assert _compiled_exr(sources, {}, codec) == _openexr_bytes({"N": noise, **planes}, {}, codec)
+    sources["lines.R"] = SparsePlane(pix, planes["lines.R"].reshape(-1)[pix], (H, W)), np.float16
+    with pytest.raises(ValueError, match="share their pixels"):
+        _compiled_exr(sources, {}, codec)
+
+
+def test_a_frame_written_by_the_compiled_writer_is_openexrs_file(tmp_path):
+    """A rendered frame with every layer (Cryptomatte manifests, the strokekit/layers header),
+    in RLE (`--exr-codec rle`, the compiled writer): the file the run wrote is byte for byte the one
+    OpenEXR writes of its channels and header."""
+    import OpenEXR
+
+    codec = "rle"
+    out = render(tmp_path, "--size", "64x48", "--exr", "--exr-codec", "rle", "--bands", "3", "--no-svg")
+    ch, hdr = read_exr(out / "frame_0001.exr")
+    attrs = {k: v for k, v in hdr.items() if k.startswith(("cryptomatte/", "strokekit/"))}
+    assert len(attrs) == 9 and len(ch) == 41 and hdr["compression"] == OpenEXR.RLE_COMPRESSION
+    assert (out / "frame_0001.exr").read_bytes() == _openexr_bytes(ch, attrs, codec)
 
 
 #: The channels Blender writes in half float in a multilayer EXR ("Float (Half)" colour passes);

@@ -19,9 +19,10 @@ from strokekit.paths.kernels import BRUSH_PATHS
 from strokekit.raster.hits import RASTER
 from strokekit.run.kernels import LINE_STYLE
 from strokekit.tracking.kernels import TRACKING
+from strokekit.writers.exr import EXR_KERNELS
 
 ROOT = Path(__file__).resolve().parents[1]
-GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE)
+GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE, EXR_KERNELS)
 #: A style with every thickness modifier, its creases dashed (outlines cut into dashes).
 FIVE = """\
 [[lineset]]
@@ -113,12 +114,13 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit.scene.occluder import MOVING_SCENE
         from strokekit.run.kernels import LINE_STYLE
         from strokekit.tracking.kernels import TRACKING
+        from strokekit.writers.exr import EXR_KERNELS
         from strokekit_cli.main import cli
         import sys
         sys.path.insert(0, {str(ROOT / 'tests')!r})
         from animated import sphere_and_box_glb
         from pathlib import Path
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, LINE_STYLE)
+        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, LINE_STYLE, EXR_KERNELS)
         for g in groups:
             g.warm()
         warm = {{}}
@@ -129,7 +131,8 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         FIVE = {FIVE!r}
         S, M, out = {str(ROOT / 'samples')!r}, {str(ROOT.parent / 'shared' / 'models')!r}, {str(tmp_path)!r}
         runs = [["render", S + "/still_life.glb", "--camera", S + "/orbit.json", "--frames", "1-3", "--gltf",
-                 "--bands", "3", "--exr", "--masks", "--objectid", "--depth", "--fill", "--size", "160x120"],
+                 "--bands", "3", "--exr", "--exr-codec", "rle", "--masks", "--objectid", "--depth", "--fill",
+                 "--size", "160x120"],
                 ["render", M + "/fandisk.obj", "--orbit", "3", "--hidden", "--size", "240x200"],
                 ["render", M + "/spot.obj", "--orbit", "3", "--strokes", "lines", "--size", "240x200"],
                 ["render", str(sphere_and_box_glb(Path(out) / "sphere.glb", "sphere")), "--orbit", "3",

@@ -10,6 +10,9 @@ loaded on first use (`raster.hits.compiled()`: lines-only runs never import numb
 * `mixed_sums`: per mixed pixel, the samples of each label and the sum of its covered samples'
   linear colours.
 * `view_normals`: the EXR's view-space normal of every pixel's representative sample.
+* `crypto_rank0`: Cryptomatte's rank 0 (id, coverage 1) of every pixel's representative sample.
+* `crypto_ranks`: Cryptomatte's ranks of the mixed pixels from their samples.
+* `table_planes`: the EXR's shade colours, a table's columns gathered by key into planes.
 """
 
 from __future__ import annotations
@@ -304,3 +307,66 @@ def view_normals(face, bary, K, corner, normals, face_normals, right, up, fwd, r
             out[0, i] = nx * right[0] + ny * right[1] + nz * right[2]
             out[1, i] = nx * up[0] + ny * up[1] + nz * up[2]
             out[2, i] = -(nx * fwd[0] + ny * fwd[1] + nz * fwd[2])
+
+
+@kernel("(i4[::1], i4[::1], f4[::1], f4[::1], f4[::1])")
+def crypto_rank0(face, table, bits, ids, cov):
+    """Cryptomatte's rank 0 of the uniform pixels: at each pixel of face (M,) (its representative
+    sample's face, -1: background), ids gets bits[table[face]] (the id, as float32 bits, of the
+    face's object or material) and cov 1; background pixels are left as they are (0)."""
+    for i in range(face.shape[0]):
+        f = face[i]
+        if f >= 0:
+            ids[i] = bits[table[f]]
+            cov[i] = 1.0
+
+
+@kernel("(i4[::1], f4[:, ::1], f4[:, ::1])")
+def table_planes(key, table, out):
+    """out[c, i] = table[c, key[i]] for every channel c: a (C, M) gather in one pass over key."""
+    for i in range(key.shape[0]):
+        k = key[i]
+        for c in range(table.shape[0]):
+            out[c, i] = table[c, k]
+
+
+@kernel("(i4[:, ::1], f4[::1], f4[:, ::1], f4[:, ::1])")
+def crypto_ranks(slots, bits, ids, cov):
+    """Cryptomatte's ranks of P mixed pixels from their S samples: slots (P, S) the slot of each
+    sample's id in the ascending table of distinct ids (-1: background), bits (U,) those ids as
+    float32. ids, cov (R, P), zero on entry, get each pixel's R most-seen ids, by count (then
+    ascending id), at coverage count / S (background counts in S): cryptomatte.rank_samples'
+    ranks with every sample weighing 1."""
+    P, S = slots.shape
+    R = ids.shape[0]
+    s = np.empty(S, np.int32)
+    cand = np.empty(S, np.int32)
+    count = np.empty(S, np.int64)
+    for p in range(P):
+        n = 0
+        for j in range(S):  # the pixel's ids, sorted (insertion: S is small)
+            v = slots[p, j]
+            if v < 0:
+                continue
+            i = n
+            while i > 0 and s[i - 1] > v:
+                s[i] = s[i - 1]
+                i -= 1
+            s[i] = v
+            n += 1
+        m = 0
+        for j in range(n):  # runs of one id: candidates in ascending id order
+            if m > 0 and cand[m - 1] == s[j]:
+                count[m - 1] += 1
+            else:
+                cand[m] = s[j]
+                count[m] = 1
+                m += 1
+        for r in range(min(R, m)):  # the most-seen left, the lowest id among equals
+            best = -1
+            for j in range(m):
+                if count[j] > 0 and (best < 0 or count[j] > count[best]):
+                    best = j
+            ids[r, p] = bits[cand[best]]
+            cov[r, p] = count[best] / S
+            count[best] = 0

@@ -132,8 +132,8 @@ class RasterOptions:
 #: The passes an EXR can hold, in the order they are written.
 PASSES = ("depth", "normal", "shade", "bands", "crypto", "lines")
 #: The EXR's lossless compressions that readers built on OpenEXR < 3.3 (Blender 3.4) read: ZIP (the
-#: default, as Blender writes) and ZIPS are the smallest, PIZ encodes faster at about twice their
-#: size, RLE in about half ZIP's time at four to eight times the size (docs/compositing.md).
+#: default, as Blender writes) and ZIPS the smallest, RLE the fastest (strokekit's compiled writer, in
+#: a fraction of ZIP's time at four to eight times its size), PIZ between (docs/compositing.md).
 CODECS = ("zip", "zips", "piz", "rle", "none")
 #: --exr-float: half float where Blender writes it (depth and Cryptomatte stay float32), or
 #: float32 everywhere.
@@ -150,8 +150,8 @@ class PassOptions:
         text="names", needs="exr")
     stroke_width_px: float = 1.5  # (the SVG's: --stroke-width)
     codec: str = option(
-        "zip", "--exr-codec", "The EXR's lossless compression: zip and zips are the smallest, piz encodes faster at "
-        "about twice their size, rle in about half zip's time at four to eight times the size.", choices=CODECS,
+        "zip", "--exr-codec", "The EXR's lossless compression: zip (as Blender writes) and zips are the smallest, "
+        "rle the fastest to write (four to eight times zip's size), piz between.", choices=CODECS,
         show_default=True, needs="exr")
     precision: str = option(
         "half", "--exr-float", "The EXR's float types: half (as Blender writes its passes: colour, normals, band "

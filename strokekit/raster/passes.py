@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from strokekit.cryptomatte import ranked_matte
+from strokekit.cryptomatte import id_table, name_bits
 from strokekit.model import BACKGROUND_DEPTH, CryptoLayer, RasterPasses, Strokes
 from strokekit.raster.bands import RasterFrame, representative
 from strokekit.raster.hits import compiled
@@ -56,10 +56,9 @@ def linear_shade(frame: RasterFrame) -> np.ndarray:
     table = np.zeros((4, len(lin)), np.float32)
     table[:3] = lin.T
     table[3] = np.arange(len(lin)) % N1 != 0
-    key = np.ascontiguousarray(representative(frame.keys_ss, frame.K)).reshape(-1)
+    key = np.ascontiguousarray(representative(frame.keys_ss, frame.K), np.int32).reshape(-1)
     out = np.empty((4, frame.height * frame.width), np.float32)
-    for c in range(4):
-        np.take(table[c], key, out=out[c])
+    compiled().table_planes(key, table, out)
     m = frame.mixed
     if m is not None:
         n, rgb = frame._mixed_sums(lin)
@@ -72,20 +71,35 @@ def linear_shade(frame: RasterFrame) -> np.ndarray:
 def crypto_layers(frame: RasterFrame) -> tuple[CryptoLayer, ...]:
     """CryptoObject and CryptoMaterial of the frame: a uniform pixel has its representative
     sample's object (material) at coverage 1, a mixed pixel the ranked shares of its R x R
-    samples."""
+    samples (cryptomatte.ranked_matte's matte, compiled)."""
     scene = frame.scene
-    face = representative(frame.hits.face, frame.K)
+    H, W = frame.height, frame.width
+    face = np.ascontiguousarray(representative(frame.hits.face, frame.K), np.int32).reshape(-1)
     m = frame.mixed
     out = []
     for type_name, table, names in (("CryptoObject", scene.face_object, tuple(scene.objects)),
                                     ("CryptoMaterial", scene.face_material, tuple(m_.name for m_ in scene.materials))):
-        base = np.where(face >= 0, table[np.maximum(face, 0)], -1)
+        # Rank-major planes: each rank's ids and coverages are contiguous (H, W) images, the
+        # EXR's channels as they are written; the (H, W, R) arrays handed out are views of them.
+        ids = np.zeros((RANKS, H * W), np.float32)
+        cov = np.zeros((RANKS, H * W), np.float32)
+        if names:
+            compiled().crypto_rank0(face, np.ascontiguousarray(table, np.int32), name_bits(names), ids[0], cov[0])
         if m is not None and len(m.pixels):
-            edge = np.where(m.face >= 0, table[np.maximum(m.face, 0)], -1)
-            r = ranked_matte(base, names, RANKS, m.pixels, edge)
-        else:
-            r = ranked_matte(base, names, RANKS)
-        out.append(CryptoLayer(type_name, r.ids, r.coverage, names))
+            slot_of, uniq = id_table(names)
+            face_slot = slot_of[table] if len(names) else np.zeros(len(table), np.int64)
+            slots = np.where(m.face >= 0, face_slot[np.maximum(m.face, 0)], -1).astype(np.int32)
+            e_ids = np.zeros((RANKS, len(m.pixels)), np.float32)
+            e_cov = np.zeros((RANKS, len(m.pixels)), np.float32)
+            compiled().crypto_ranks(slots, uniq.view(np.float32), e_ids, e_cov)
+            for r in range(RANKS):  # one rank at a time: numpy's fast 1-D scatter
+                # (the ranks a pixel does not fill stay 0 untouched: writing zeros over the planes
+                # of the upper ranks, mostly empty, would fault in all their memory)
+                at = np.flatnonzero(e_cov[r] > 0) if r else slice(None)
+                ids[r][m.pixels[at]] = e_ids[r, at]
+                cov[r][m.pixels[at]] = e_cov[r, at]
+        out.append(CryptoLayer(type_name, ids.reshape(RANKS, H, W).transpose(1, 2, 0),
+                               cov.reshape(RANKS, H, W).transpose(1, 2, 0), names))
     return tuple(out)
 
 

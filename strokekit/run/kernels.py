@@ -15,6 +15,7 @@ from strokekit.run.spec import RASTER_STAGES, RunSpec
 from strokekit.scene.occluder import MOVING_SCENE
 from strokekit.style.widths import STYLE_KERNELS
 from strokekit.tracking.kernels import TRACKING
+from strokekit.writers.exr import EXR_KERNELS, WRITTEN_COMPILED
 from strokekit.writers.outline import OUTLINE_KERNELS
 
 #: The kernels of styles with thickness modifiers: their widths and their SVG outlines.
@@ -22,7 +23,8 @@ LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, OUTLINE_KERNELS), compile
 
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",
-            TRACKING: "tracking", MOVING_SCENE: "load scene + BVH", LINE_STYLE: "svg"}
+            TRACKING: "tracking", MOVING_SCENE: "load scene + BVH", LINE_STYLE: "svg",
+            EXR_KERNELS: RASTER_STAGES["kernels"][0]}
 
 
 def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> list[KernelGroup]:
@@ -43,6 +45,9 @@ def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> li
         out.append(HIDDEN_LINES)
     if frames_here and spec.raster is not None:
         out.append(RASTER)
+        exr = spec.outputs.exr
+        if exr is not None and exr.codec in WRITTEN_COMPILED:
+            out.append(EXR_KERNELS)
     if frames_here and plan.style.has_thickness:
         out.append(LINE_STYLE)
     return out
