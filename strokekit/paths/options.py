@@ -77,7 +77,7 @@ class PathOptions:
         "it touches [5; 0: never, the highest id persistence, but paths crumble over long sequences].",
         needs="brush")
     hold_px: float = 8.0
-    orphan_px: float = 30.0
+    orphan_px: float = 25.0
     other_id_weight: float = 0.2
     heal_px: float = option(
         6.0, "--path-heal", "With brush paths: a path shorter than N px that meets another end to end on one line "
