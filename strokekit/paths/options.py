@@ -48,6 +48,9 @@ class PathOptions:
     long, is linked again as pieces no path claims: it joins the path it touches instead of
     taking a fresh id of its own (a line that grows at its end, past a junction with another
     path, grows the path it continues; 0: never).
+    other_id_weight: in the fit of u along a path that holds votes of its own id, the weight of
+    the votes of other ids (the pieces it took over: orphans, merges, heals): its own texture
+    gives way to theirs only a little, so it does not slide to meet them (1: as its own).
     hold_px: a new path shorter than this lying beside the drawn paths (within 3 px all along)
     is held back one frame: drawn from the next frame on if it is still there, so that a piece
     that shows for one frame costs no id (0: never hold).
@@ -74,7 +77,8 @@ class PathOptions:
         "it touches [5; 0: never, the highest id persistence, but paths crumble over long sequences].",
         needs="brush")
     hold_px: float = 8.0
-    orphan_px: float = 15.0
+    orphan_px: float = 25.0
+    other_id_weight: float = 0.2
     heal_px: float = option(
         6.0, "--path-heal", "With brush paths: a path shorter than N px that meets another end to end on one line "
         "heals into it where the cut is new or lasts two frames [6; 0: never; 20: about half the path ends, a little "
@@ -89,10 +93,13 @@ class PathOptions:
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number > 0, got {v}", option=name)
-        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px", "hold_px", "heal_px", "bridge_px"):
+        for name in ("cover_px", "join_px", "new_join_px", "min_run_px", "merge_px", "hold_px", "heal_px", "bridge_px",
+                     "orphan_px"):
             v = getattr(self, name)
             if not (v >= 0 and math.isfinite(v)):
                 raise UsageError(f"{name} must be a finite number >= 0 px, got {v}", option=name)
+        if not 0 <= self.other_id_weight <= 1:
+            raise UsageError(f"other_id_weight must be in [0, 1], got {self.other_id_weight}", option="other_id_weight")
         for name in ("join_angle_deg",):
             if not 0 < getattr(self, name) <= 180:
                 raise UsageError(f"{name} must be in (0, 180] degrees, got {getattr(self, name)}", option=name)

@@ -198,6 +198,10 @@ def _carried_u(prev: Strokes, paths: Strokes, vst: np.ndarray, vs: np.ndarray, v
             shift = np.zeros(S)
             shift[which] = seam
             vs = np.mod(vs - shift[vst], np.where(L > 0, L, 1.0)[vst])
+    if o.other_id_weight != 1.0:  # (a path with none of its own id's votes fits all alike)
+        own = vid == paths.ids[vst]
+        has_own = np.bincount(vst[own], minlength=S) > 0
+        vw = vw * np.where(own | ~has_own[vst], 1.0, o.other_id_weight)
     paths, u_new, b, _ = fit_u(prev, paths, vst, vs, vu, vid, vw, o.tracking)
     level, weight = levels_from_slope(b, P)
     return paths.replace(u=u_new, level=level, level_weight=weight)
