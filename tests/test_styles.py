@@ -395,11 +395,11 @@ def test_dashed_outlines_are_one_outline_per_dash(tmp_path):
 
 # --- the run: JSON, SVG, ribbons, shortcuts --------------------------------------------------------
 
-def test_the_run_writes_widths_in_the_json_svg_and_ribbons(tmp_path, cli):
+def test_the_run_writes_widths_in_the_json_svg_and_ribbons(tmp_path, cli, models_dir):
     f = tmp_path / "s.toml"
     f.write_text(MINIMAL)
     out = tmp_path / "out"
-    r = cli(["render", str(MODELS / "spot.obj"), "--orbit", "4", "--frames", "1", "--size", "256x256",
+    r = cli(["render", str(models_dir / "spot.obj"), "--orbit", "4", "--frames", "1", "--size", "256x256",
                  "--style", str(f), "--gltf", "--ribbon-space", "image", "--lines-png", "--out", str(out), "-q"])
     assert r.exit_code == 0, r.stderr
     doc = json.loads((out / "frame_0001.json").read_text())
@@ -412,11 +412,11 @@ def test_the_run_writes_widths_in_the_json_svg_and_ribbons(tmp_path, cli):
     assert "data-centreline" in (out / "frame_0001.svg").read_text()
 
 
-def test_the_shortcuts_write_the_same_style_as_a_file(tmp_path, cli):
+def test_the_shortcuts_write_the_same_style_as_a_file(tmp_path, cli, models_dir):
     f = tmp_path / "s.toml"
     f.write_text("width = 2.5\n")
     a, b = tmp_path / "a", tmp_path / "b"
-    common = ["render", str(MODELS / "spot.obj"), "--orbit", "2", "--size", "200x200", "-q"]
+    common = ["render", str(models_dir / "spot.obj"), "--orbit", "2", "--size", "200x200", "-q"]
     assert cli([*common, "--stroke-width", "2.5", "--out", str(a)]).exit_code == 0
     assert cli([*common, "--style", str(f), "--out", str(b)]).exit_code == 0
     for name in ("frame_0001.svg", "frame_0002.json", ".strokekit-run.json"):
