@@ -138,6 +138,20 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     return _finish(paths, *covers, hold), next_id
 
 
+def _heaviest_pairs(a: np.ndarray, b: np.ndarray, w: np.ndarray):
+    """The distinct pairs (a, b) of non-negative ints below 2**31, their summed weights `w`, and
+    for each a the pair of most weight (ties: the lowest b): (pa, pb, weight, heaviest, inv), inv
+    the pair of each input."""
+    key, inv = np.unique((np.asarray(a, np.int64) << 32) | np.asarray(b, np.int64), return_inverse=True)
+    inv = inv.ravel()
+    wt = np.bincount(inv, weights=w)
+    pa, pb = key >> 32, key & 0xFFFFFFFF
+    o = np.lexsort((-wt, pa))
+    heaviest = np.zeros(len(key), bool)
+    heaviest[o[np.r_[True, pa[o][1:] != pa[o][:-1]]]] = True
+    return pa, pb, wt, heaviest, inv
+
+
 def orphans(group: np.ndarray, label: np.ndarray, plen: np.ndarray, max_px: float) -> np.ndarray:
     """(K,) the pieces of the orphan paths (PathOptions.orphan_px): of the paths (`group` (K,) of
     pieces, one label each, `plen` their lengths) holding one label, every one but the longest
@@ -146,13 +160,7 @@ def orphans(group: np.ndarray, label: np.ndarray, plen: np.ndarray, max_px: floa
     out = np.zeros(len(group), bool)
     if len(k) == 0 or max_px <= 0:
         return out
-    key, inv = np.unique((label[k].astype(np.int64) << 32) | group[k].astype(np.int64), return_inverse=True)
-    inv = inv.ravel()
-    w = np.bincount(inv, weights=plen[k])
-    lab = key >> 32
-    o = np.lexsort((-w, lab))
-    longest = np.zeros(len(key), bool)
-    longest[o[np.r_[True, lab[o][1:] != lab[o][:-1]]]] = True
+    *_, longest, inv = _heaviest_pairs(label[k], group[k], plen[k])
     path_px = np.bincount(group, weights=plen, minlength=len(group))
     out[k] = ~longest[inv] & (path_px[group[k]] <= max_px)
     return out
@@ -166,12 +174,8 @@ def _voted_id(vst: np.ndarray, vid: np.ndarray, vw: np.ndarray, which: np.ndarra
     vst, vid, vw = vst[on], vid[on], vw[on]
     if len(vst) == 0:
         return out
-    key, inv = np.unique((np.asarray(vst, np.int64) << 32) | np.asarray(vid, np.int64), return_inverse=True)
-    w = np.bincount(inv.ravel(), weights=vw)
-    path, pid = key >> 32, key & 0xFFFFFFFF
-    o = np.lexsort((-w, path))
-    head = o[np.r_[True, path[o][1:] != path[o][:-1]]]
-    out[path[head]] = pid[head]
+    path, pid, _, heaviest, _ = _heaviest_pairs(vst, vid, vw)
+    out[path[heaviest]] = pid[heaviest]
     return out
 
 
