@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import io
 import statistics
 import sys
 import tempfile
@@ -35,7 +34,6 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import OpenEXR  # noqa: E402
 
 from strokekit import LineOptions, LineRenderer, load_scene  # noqa: E402
 from strokekit.metrics.bench import default_cameras  # noqa: E402
@@ -45,7 +43,7 @@ from strokekit.raster.passes import PassOptions, compositing_passes  # noqa: E40
 from strokekit.run.frame import Frame  # noqa: E402
 from strokekit.run.spec import OutputOptions  # noqa: E402
 from strokekit.run.tasks import raster_files  # noqa: E402
-from strokekit.writers.exr import COMPILED, COMPRESSION, compiled_exr, exr_bytes, exr_channels  # noqa: E402
+from strokekit.writers.exr import COMPILED, COMPRESSION, compiled_exr, exr_bytes, exr_channels, openexr_file  # noqa: E402
 
 MODELS = {"bunny": ROOT.parent / "shared" / "models" / "stanford-bunny.obj",
           "still-life": ROOT / "samples" / "still_life.glb",
@@ -127,7 +125,7 @@ def bench_model(name: str, args) -> None:
     print(f"  EXR parts, CPU ms (frame 1, {len(ch)} channels, "
           f"{sum(a.nbytes for a in ch.values()) / 1e6:.0f} MB raw): "
           + ", ".join(f"{k} {1000 * statistics.median(v):.0f}" for k, v in parts.items()))
-    encoders = {f"{c} (OpenEXR)": functools.partial(openexr_bytes, ch, attrs, c) for c in COMPRESSION}
+    encoders = {f"{c} (OpenEXR)": functools.partial(openexr_file, ch, attrs, c) for c in COMPRESSION}
     encoders.update({f"{c} (compiled)": functools.partial(compiled_exr, ch, attrs, c) for c in COMPILED})
     ts = {k: [] for k in encoders}
     size = {}
@@ -138,15 +136,6 @@ def bench_model(name: str, args) -> None:
             ts[k].append(time.process_time() - t)
     print("  encoding by codec, one thread, CPU: " + ", ".join(
         f"{k} {1000 * statistics.median(ts[k]):.0f} ms {size[k] / 1e6:.1f} MB" for k in encoders))
-
-
-def openexr_bytes(ch: dict, attrs: dict, codec: str) -> bytes:
-    """The file OpenEXR's bindings write of the channels, on one thread."""
-    buf = io.BytesIO()
-    with OpenEXR.File({"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}, dict(ch),
-                      num_threads=0) as f:
-        f.write(buf)
-    return buf.getvalue()
 
 
 def main() -> None:

@@ -28,7 +28,7 @@ from strokekit.cryptomatte import (
 )
 from strokekit.model import BACKGROUND_DEPTH
 from strokekit.options import QUALITY_PRESETS
-from strokekit.writers.exr import read_exr
+from strokekit.writers.exr import openexr_file, read_exr
 from strokekit_cli.main import main
 
 SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "still_life.glb"
@@ -293,19 +293,6 @@ def test_every_exr_codec_gives_back_the_same_channels(tmp_path, codec):
         assert a[name].dtype == b[name].dtype and a[name].tobytes() == b[name].tobytes(), name
 
 
-def _openexr_bytes(channels: dict, attrs: dict, codec: str) -> bytes:
-    """The file OpenEXR's Python bindings write of `channels` with string attributes `attrs`."""
-    import OpenEXR
-
-    from strokekit.writers.exr import COMPRESSION
-
-    buf = io.BytesIO()
-    with OpenEXR.File({"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}, dict(channels),
-                      num_threads=0) as f:
-        f.write(buf)
-    return buf.getvalue()
-
-
 def _runs(rng, n: int, dtype) -> np.ndarray:
     """n values in runs of 1 to 300 equal values (RLE's runs and literals of every length)."""
     out = np.empty(0, dtype)
@@ -334,7 +321,7 @@ def test_the_compiled_writer_writes_the_bytes_openexr_writes(tmp_path, codec):
         a[7] = rng.integers(0, 256, a[7].nbytes, dtype=np.uint8).view(a.dtype)
     attrs = {"strokekit/layers": "{}", "cryptomatte/3ae39a5/a-name-longer-than-31-bytes": "x"}
     ours = compiled_exr(ch, attrs, codec)
-    assert ours == _openexr_bytes(ch, attrs, codec)
+    assert ours == openexr_file(ch, attrs, codec)
     if codec == "rle":  # (the test holds what it says: RLE shrank rows, and stored row 7 as it is)
         table = next(p for p in range(len(ours)) if int.from_bytes(ours[p:p + 8], "little") == p + 8 * H)
         chunk = [int.from_bytes(ours[table + 8 * y:table + 8 * y + 8], "little") for y in range(H)]
@@ -365,7 +352,7 @@ def test_the_compiled_writer_casts_float32_to_half_as_numpy_does(codec):
     f32 = bits.view(np.float32).reshape(H, W)
     smooth = rng.normal(size=(H, W)).astype(np.float32)
     with np.errstate(over="ignore"):
-        ref = _openexr_bytes({"A": f32.astype(np.float16), "B": smooth.astype(np.float16), "Z": smooth}, {}, codec)
+        ref = openexr_file({"A": f32.astype(np.float16), "B": smooth.astype(np.float16), "Z": smooth}, {}, codec)
     assert _compiled_exr({"A": (f32, np.float16), "B": (smooth, np.float16), "Z": (smooth, np.float32)}, {},
                          codec) == ref
 
@@ -396,7 +383,7 @@ def test_sparse_half_planes_are_written_as_their_dense_planes(codec):
     a_pix = np.union1d(pix, row2)
     sources["lines.A"] = SparsePlane(a_pix, planes["lines.A"].reshape(-1)[a_pix], (H, W)), np.float16
     sources["lines.R"] = SparsePlane(a_pix, planes["lines.R"].reshape(-1)[a_pix], (H, W)), np.float16
-    assert _compiled_exr(sources, {}, codec) == _openexr_bytes({"N": noise, **planes}, {}, codec)
+    assert _compiled_exr(sources, {}, codec) == openexr_file({"N": noise, **planes}, {}, codec)
     sources["lines.R"] = SparsePlane(pix, planes["lines.R"].reshape(-1)[pix], (H, W)), np.float16
     with pytest.raises(ValueError, match="share their pixels"):
         _compiled_exr(sources, {}, codec)
@@ -413,7 +400,7 @@ def test_a_frame_written_by_the_compiled_writer_is_openexrs_file(tmp_path):
     ch, hdr = read_exr(out / "frame_0001.exr")
     attrs = {k: v for k, v in hdr.items() if k.startswith(("cryptomatte/", "strokekit/"))}
     assert len(attrs) == 9 and len(ch) == 41 and hdr["compression"] == OpenEXR.RLE_COMPRESSION
-    assert (out / "frame_0001.exr").read_bytes() == _openexr_bytes(ch, attrs, codec)
+    assert (out / "frame_0001.exr").read_bytes() == openexr_file(ch, attrs, codec)
 
 
 #: The channels Blender writes in half float in a multilayer EXR ("Float (Half)" colour passes);

@@ -1,9 +1,9 @@
 """One multilayer OpenEXR per frame (`exr_bytes`).
 
 Single part, scanline, with a lossless compression that readers built on OpenEXR < 3.3 read
-(Blender 3.4 among them: not ZSTD or HTJ2K). RLE (the default) is written by strokekit's own
-compiled writer (`compiled_exr`: the bytes OpenEXR writes, in a fraction of its time), the
-others (ZIP, ZIPS, PIZ, none) by the OpenEXR Python bindings. Channels, each only when the run computed it, all
+(Blender 3.4 among them: not ZSTD or HTJ2K). ZIP by default, as Blender writes; RLE is written by
+strokekit's own compiled writer (`compiled_exr`: the bytes OpenEXR writes, in a fraction of its time),
+the others (ZIP, ZIPS, PIZ, none) by the OpenEXR Python bindings (`openexr_file`). Channels, each only when the run computed it, all
 (H, W):
 
 - `Z` float32: view depth in scene units; background 1e10 (model.BACKGROUND_DEPTH), as Blender
@@ -197,7 +197,7 @@ COMPILED = {"none": 0, "rle": 1}
 WRITTEN_COMPILED = ("rle",)
 
 
-def exr_bytes(passes: RasterPasses, codec: str = "rle", precision: str = "half") -> bytes:
+def exr_bytes(passes: RasterPasses, codec: str = "zip", precision: str = "half") -> bytes:
     """The EXR file of one frame's passes (bytes: the caller writes them atomically), compressed
     with `codec` (a key of COMPRESSION), its float types by `precision` (exr_channels). RLE is
     written by strokekit's compiled writer (the bytes OpenEXR writes, about 4 times faster), the
@@ -210,9 +210,15 @@ def exr_bytes(passes: RasterPasses, codec: str = "rle", precision: str = "half")
     channels, attrs = exr_channels(passes, precision)
     if not channels:
         raise ValueError("no EXR layer to write")
+    return openexr_file(channels, attrs, codec, _encode_threads())
+
+
+def openexr_file(channels: dict[str, np.ndarray], attrs: dict[str, str], codec: str, threads: int = 0) -> bytes:
+    """The single-part scanline file OpenEXR's Python bindings write of `channels` with string
+    attributes `attrs`, compressed with `codec` (a key of COMPRESSION), on `threads` threads."""
     header = {"compression": COMPRESSION[codec], "type": OpenEXR.scanlineimage, **attrs}
     out = io.BytesIO()
-    with OpenEXR.File(header, channels, num_threads=_encode_threads()) as f:
+    with OpenEXR.File(header, dict(channels), num_threads=threads) as f:
         f.write(out)
     return out.getvalue()
 
