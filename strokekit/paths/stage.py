@@ -42,6 +42,7 @@ from strokekit.paths.heal import bridge_splits, heal_paths, touching_pairs
 from strokekit.paths.options import PathOptions
 from strokekit.paths.pieces import (
     HAIRPIN_PX,
+    LinkPairs,
     close_loops,
     concat,
     line_pieces,
@@ -89,9 +90,12 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
 
+    pairs = LinkPairs.of(pieces, max(o.join_px, o.new_join_px), o.join_angle_deg)
+
     def link(link_label, ends):
         group, rev, pos = link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
-                                      lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends)
+                                      lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends,
+                                      pairs=pairs)
         return one_label_per_path(group, pos, link_label), rev, pos
 
     group, rev, pos = link(link_label, ends)
