@@ -752,6 +752,18 @@ def test_vote_groups_are_the_numpy_ones():
         assert np.array_equal(gw2, gw) and np.array_equal(p2, primary)
 
 
+def test_is_in_is_np_isin():
+    """The sorted search the brush paths use for id membership gives np.isin's mask: empty sides,
+    repeats, unsorted values, negative ids (-1: no parent), values past either end."""
+    from strokekit.tracking.votes import is_in
+
+    rng = np.random.default_rng(31)
+    for trial in range(200):
+        x = rng.integers(-2, [5, 50, 10000][trial % 3], int(rng.integers(0, 60)))
+        y = rng.integers(-1, [5, 50, 10000][trial % 3], int(rng.integers(0, 60)))
+        assert np.array_equal(is_in(x, y), np.isin(x, y))
+
+
 def test_inserted_points_are_insert_points():
     rng = np.random.default_rng(23)
     for trial in range(100):
