@@ -17,7 +17,7 @@ from strokekit.model import N_KINDS, Strokes
 from strokekit.paths import cover_kernels, pieces_kernels
 from strokekit.paths import votes_kernels as path_votes_kernels
 from strokekit.paths.cover import covering_samples, on_drawing
-from strokekit.paths.pieces import link_pieces, one_label_per_path
+from strokekit.paths.pieces import LinkPairs, link_pieces, one_label_per_path
 from strokekit.paths.votes import CONTOUR, kind_class
 from strokekit.sampling import Samples, match_samples, resample_strokes
 from strokekit.tracking import grid_kernels, joins_kernels, sort_kernels, strokeops_kernels, ufit_kernels, votes_kernels
@@ -226,6 +226,14 @@ def test_sorts_trends_links_and_hairpins_are_the_numpy_ones():
                                          free_px=free, link=K.link_paths)
             got = link_pieces(kinded, tol, 120.0, label, other, bridge_ok, free_px=free)
             assert all(np.array_equal(x, y) for x, y in zip(ref, got))
+            # linked twice from one LinkPairs (as a frame with orphans is): the second labels' links
+            # are theirs, whatever bridge verdicts the first left
+            pairs = LinkPairs.of(kinded, max(tol, other), 120.0)
+            for lab in (label, np.where(rng.random(S) < 0.5, -1, label)):
+                ref = oracles.touching_paths(kinded, tol, 120.0, label=lab, other_tol_px=other, bridge_ok=bridge_ok,
+                                             free_px=free, link=K.link_paths)
+                got = link_pieces(kinded, tol, 120.0, lab, other, bridge_ok, free_px=free, pairs=pairs)
+                assert all(np.array_equal(x, y) for x, y in zip(ref, got))
         at = rng.integers(0, N, int(rng.integers(0, N + 1)))
         full = st.replace(surface=rng.random((N, 3)), face=rng.integers(0, 99, N), u=rng.random(N))
         for strokes, where in ((full, at), (full, None), (full.replace(u=None), at)):
@@ -742,6 +750,18 @@ def test_vote_groups_are_the_numpy_ones():
         gk, gi, gw2, p2 = K.vote_groups(st, vid, w)
         assert np.array_equal(gk, np.c_[ukey // M, ukey % M]) and np.array_equal(gi, ginv)
         assert np.array_equal(gw2, gw) and np.array_equal(p2, primary)
+
+
+def test_is_in_is_np_isin():
+    """The sorted search the brush paths use for id membership gives np.isin's mask: empty sides,
+    repeats, unsorted values, negative ids (-1: no parent), values past either end."""
+    from strokekit.tracking.votes import is_in
+
+    rng = np.random.default_rng(31)
+    for trial in range(200):
+        x = rng.integers(-2, [5, 50, 10000][trial % 3], int(rng.integers(0, 60)))
+        y = rng.integers(-1, [5, 50, 10000][trial % 3], int(rng.integers(0, 60)))
+        assert np.array_equal(is_in(x, y), np.isin(x, y))
 
 
 def test_inserted_points_are_insert_points():

@@ -3,6 +3,8 @@ degenerate input, uv along the stroke, width in pixels from the frame's camera."
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -90,15 +92,18 @@ def test_corner_join_fills_the_outer_gap_without_inner_overlap(turn_deg):
 
 
 def test_flat_and_square_caps_match_shapely_for_mitred_polyline():
-    """A zig-zag with moderate turns equals shapely's mitred buffer of the same polyline (flat caps)."""
+    """A zig-zag with moderate turns equals shapely's mitred buffer of the same polyline: with square
+    caps by default (free ends run on by half the width, as the SVG's round caps reach), with flat
+    caps at cap 0."""
     from shapely.geometry import LineString
 
     p = np.array([[100, 100], [300, 160], [420, 100], [600, 220], [800, 200]], float)
-    m = build_ribbons(strokes_of([p]), CAM, FLAT)
     pix = np.c_[p[:, 0], CAM.height - p[:, 1]]
-    ref = LineString(pix).buffer(FLAT.width_px / 2, cap_style=2, join_style=2, mitre_limit=FLAT.miter_limit)
-    shape = unary_union([Polygon(x) for x in tri_xy(m, 0)])
-    assert shape.symmetric_difference(ref).area < 1e-6 * ref.area
+    for o, cap_style in ((FLAT, 3), (replace(FLAT, cap=0.0), 2)):
+        m = build_ribbons(strokes_of([p]), CAM, o)
+        ref = LineString(pix).buffer(o.width_px / 2, cap_style=cap_style, join_style=2, mitre_limit=o.miter_limit)
+        shape = unary_union([Polygon(x) for x in tri_xy(m, 0)])
+        assert shape.symmetric_difference(ref).area < 1e-6 * ref.area
 
 
 DEGENERATE = {
@@ -194,7 +199,7 @@ def test_brush_top_row_is_on_the_left_of_the_direction_of_travel():
 def test_head_and_tail_keep_their_size_while_the_body_repeats_with_u():
     """The head region covers the same pixels on a short and a long stroke; in the body the
     texture u is tex_head + body * frac(strokes.u), whatever the offset of u."""
-    o = RibbonOptions(space="image", width_px=4.0, head_px=8.0, tail_px=12.0)
+    o = RibbonOptions(space="image", width_px=4.0, head_px=8.0, tail_px=12.0, cap=0.0)  # (the head at point 0)
     short = np.array([[100.0, 100.0], [180.0, 100.0]])
     long_ = np.array([[100.0, 300.0], [700.0, 300.0]])
     s = strokes_of([short, long_])
@@ -245,7 +250,7 @@ def test_world_ribbons_have_the_requested_pixel_width_from_the_frame_camera(proj
     surf = np.stack([np.cos(t), 0.5 * np.sin(2 * t), np.sin(t)], 1)
     px, _ = cam.project(surf)
     s = strokes_of([px], camera=cam, surface=surf)
-    o = RibbonOptions(space="world", width_px=5.0, taper_head_px=0, taper_tail_px=0, pull=0.01)
+    o = RibbonOptions(space="world", width_px=5.0, taper_head_px=0, taper_tail_px=0, pull=0.01, cap=0.0)
     m = build_ribbons(s, cam, o)
     back, z = cam.project(m.positions)
     assert np.abs(back - m.pixels).max() < 1e-6
@@ -293,7 +298,7 @@ def test_real_strokes_overlap_less_than_half_a_percent():
     cam = orbit_path(sc.center, sc.radius, 8).cameras[1]
     s = LineRenderer(sc, LineOptions()).render(cam, 2)
     assert len(s) > 10
-    m = build_ribbons(s, cam, RibbonOptions(space="image", width_px=3.0, taper_head_px=0, taper_tail_px=0))
+    m = build_ribbons(s, cam, RibbonOptions(space="image", width_px=3.0, taper_head_px=0, taper_tail_px=0, cap=0.0))
     total = union = 0.0
     for k in range(len(s)):
         t = tri_xy(m, k)

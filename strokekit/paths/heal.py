@@ -17,6 +17,7 @@ import numpy as np
 from strokekit.model import Strokes, row_norm
 from strokekit.tracking.joins import gather_paths, touching_paths
 from strokekit.tracking.strokeops import select
+from strokekit.tracking.votes import is_in
 
 #: Ends this close (px) meet; the most the healed path turns where they do (degrees).
 HEAL_TOL_PX = 1.5
@@ -51,7 +52,7 @@ def heal_paths(paths: Strokes, known: np.ndarray, touched: np.ndarray, short_px:
     if S < 2 or short_px <= 0:
         return paths, np.arange(S)
     ids, L = paths.ids, paths.lengths
-    carried = np.isin(ids, known)
+    carried = is_in(ids, known)
 
     def allow(ra, rb, a_end, b_end):
         k = _pair_keys(ids[ra], ids[rb])
@@ -84,13 +85,15 @@ def bridge_splits(paths: Strokes, known: np.ndarray, parent: np.ndarray, gap_px:
     S = len(paths)
     if S < 2 or gap_px <= 0:
         return paths, np.arange(S)
-    carried_all = np.isin(paths.ids, known)
+    carried_all = is_in(paths.ids, known)
     # (Only the fresh paths with a parent drawn this frame, and their parents, can join.)
-    child = ~carried_all & np.isin(parent, paths.ids)
-    sub = np.flatnonzero(child | (carried_all & np.isin(paths.ids, parent[child])))
+    child = ~carried_all & is_in(parent, paths.ids)
+    sub = np.flatnonzero(child | (carried_all & is_in(paths.ids, parent[child])))
     if len(sub) < 2:
         return paths, np.arange(S)
-    part = select(paths, np.isin(np.arange(S), sub))
+    keep = np.zeros(S, bool)
+    keep[sub] = True
+    part = select(paths, keep)
     ids, P, parent, apart, carried = part.ids, part.points, parent[sub], apart[sub], carried_all[sub]
     first, last = part.offsets[:-1], part.offsets[1:] - 1
     cos_max = np.cos(np.radians(HEAL_ANGLE_DEG))

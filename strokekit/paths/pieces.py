@@ -5,6 +5,8 @@ ends meet (`close_loops`). Loops compiled (`pieces_kernels`)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from strokekit.lines.strokeops import join_arrays
@@ -68,9 +70,36 @@ def link_labels(p_label: np.ndarray, p_s0: np.ndarray, p_s1: np.ndarray, prev: S
     return out
 
 
+@dataclass(frozen=True)
+class LinkPairs:
+    """The candidate links of a frame's pieces whatever their labels (paths.pieces_kernels.link_pairs):
+    the open pieces' ends (e_run (2n,) their piece, pt their points), the pairs of ends a < b within
+    `reach_px`, their turn's cosine `straight`, their gap and whether they may link at all (`fits`);
+    `bridged` (int8, one per pair) the bridge test's verdicts, filled as links ask for them (-1: not
+    asked yet): a frame links its pieces twice (orphans) and the second linking tests only its new
+    bridges."""
+
+    n: int
+    e_run: np.ndarray
+    pt: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    straight: np.ndarray
+    gap: np.ndarray
+    fits: np.ndarray
+    bridged: np.ndarray
+
+    @classmethod
+    def of(cls, pieces: Strokes, reach_px: float, angle_deg: float) -> LinkPairs:
+        n, e_run, pt, a, b, straight, gap, fits = kernels().link_pairs(
+            pieces.points, pieces.offsets, np.asarray(pieces.kind, np.int64), float(reach_px),
+            float(np.cos(np.radians(angle_deg))))
+        return cls(n, e_run, pt, a, b, straight, gap, fits, np.full(len(a), -1, np.int8))
+
+
 def link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.ndarray, other_tol_px: float,
-                 bridge_ok, free_px: float = 2.0,
-                 ends: EndVotes | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 bridge_ok, free_px: float = 2.0, ends: EndVotes | None = None,
+                 pairs: LinkPairs | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The pieces joined end to end into paths: (group (K,) the lowest piece of each path, rev
     (K,) whether it runs backwards, pos (K,) its place in the path). Pieces of two labels >= 0
     never join; two of one label join within tol_px, a piece of label -1 (unclaimed) joins any
@@ -79,20 +108,28 @@ def link_pieces(pieces: Strokes, tol_px: float, angle_deg: float, label: np.ndar
     pieces' ends) those that continue the previous path first, then the cheapest (the gap plus
     10 px per radian of turn), then of the longer piece: at a junction of shingles the straight
     continuation wins over a turn onto a longer piece. Ends more than free_px apart join only
-    where bridge_ok(pa, pb) says the bridge may be drawn. Each end is in one link at most."""
+    where bridge_ok(pa, pb) says the bridge may be drawn. Each end is in one link at most.
+    `pairs`: the pieces' LinkPairs within max(tol_px, other_tol_px) at angle_deg, when made
+    already (their bridge verdicts are reused and filled)."""
     S = len(pieces)
-    K = kernels()
-    n, e_run, pt, a, b, ok, straight, gap, tier, far = K.link_candidates(
-        pieces.points, pieces.offsets, np.asarray(pieces.kind, np.int64), np.asarray(label, np.int64),
-        float(tol_px), float(other_tol_px), float(np.cos(np.radians(angle_deg))), float(free_px))
+    if pairs is None:
+        pairs = LinkPairs.of(pieces, max(tol_px, other_tol_px), angle_deg)
+    n, e_run, a, b, gap = pairs.n, pairs.e_run, pairs.a, pairs.b, pairs.gap
     if len(a) == 0:
         return np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
-    far = np.flatnonzero(far)
+    la, lb = label[e_run[a]], label[e_run[b]]
+    same = (la == lb) & (la >= 0)
+    tier = 2 * same + ((la < 0) != (lb < 0))
+    ok = pairs.fits & np.where(same, gap <= tol_px, ((la < 0) | (lb < 0)) & (gap <= other_tol_px))
+    far = np.flatnonzero(ok & (gap > free_px))
     if len(far):
-        ok[far] = bridge_ok(pt.take(a[far], axis=0), pt.take(b[far], axis=0))
+        ask = far[pairs.bridged[far] < 0]
+        if len(ask):
+            pairs.bridged[ask] = bridge_ok(pairs.pt.take(a[ask], axis=0), pairs.pt.take(b[ask], axis=0))
+        ok[far] = pairs.bridged[far] > 0
     if not ok.any():
         return np.arange(S), np.zeros(S, bool), np.zeros(S, np.int64)
-    a, b, straight, gap, tier = a[ok], b[ok], straight[ok], gap[ok], tier[ok]
+    a, b, straight, gap, tier = a[ok], b[ok], pairs.straight[ok], gap[ok], tier[ok]
     heavy = np.maximum(pieces.lengths[e_run[a]], pieces.lengths[e_run[b]])
     # The cost of a link: its gap plus 10 px per radian of turn.
     cost = gap + 10.0 * np.arccos(np.clip(straight, -1.0, 1.0))

@@ -1,5 +1,5 @@
 """The pieces' loops (numba), for paths.pieces: the uncovered stretches of the runs
-(`pieces_of_runs`), cut at the corners (`corner_cuts`), their candidate links (`link_candidates`)
+(`pieces_of_runs`), cut at the corners (`corner_cuts`), their candidate links (`link_pairs`)
 and the cuts that leave one label per path (`one_label`)."""
 
 from __future__ import annotations
@@ -108,15 +108,13 @@ def corner_cuts(P, offsets, arc, cos_min, p_line, p_s0, p_s1, smp_piece, d_s):
     return owner, s0, s1, out
 
 
-@kernel("(f8[:, ::1], i8[::1], i8[::1], i8[::1], f8, f8, f8, f8)")
-def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
-    """paths.pieces.link_pieces' candidate links of labelled strokes (label (S,), -1: none),
-    up to its bridge test: the open strokes' ends (e_run (2n,): starts, then ends), their points
-    pt (2n, 2); the pairs a < b (in _close_pair_arrays' order: by the stable x order of pt, then
-    by partner) within max(tol, other) px; per pair whether it may link (ok: two strokes of one
-    kind, turning by at most acos(cos_min), of one label within tol or one unlabelled within
-    other), its cosine of the turn `straight`, its gap, its tier (2 one label, 1 one of them
-    unlabelled, 0 none), and `far` where ok and the gap exceeds free_px (the bridge decides)."""
+@kernel("(f8[:, ::1], i8[::1], i8[::1], f8, f8)")
+def link_pairs(P, offsets, kind, r, cos_min):
+    """paths.pieces.LinkPairs: the open strokes' ends (e_run (2n,): starts, then ends), their
+    points pt (2n, 2); the pairs a < b (in _close_pair_arrays' order: by the stable x order of pt,
+    then by partner) within r px; per pair its cosine of the turn `straight`, its gap, and whether
+    it may link whatever the labels (`fits`: two strokes of one kind, turning by at most
+    acos(cos_min))."""
     S = offsets.shape[0] - 1
     n = 0
     op = np.empty(S, np.int64)
@@ -149,7 +147,6 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
         nn = max(math.sqrt(dx * dx + dy * dy), 1e-12)
         d[e, 0] = dx / nn
         d[e, 1] = dy / nn
-    r = max(tol, other)
     m = 2 * n
     xs = np.empty(m)
     for e in range(m):
@@ -182,11 +179,9 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
                 a[K] = min(x, y)
                 b[K] = max(x, y)
                 K += 1
-    ok = np.zeros(K, np.bool_)
-    far = np.zeros(K, np.bool_)
+    fits = np.zeros(K, np.bool_)
     straight = np.empty(K)
     gap = np.empty(K)
-    tier = np.empty(K, np.int64)
     for k in range(K):
         x = a[k]
         y = b[k]
@@ -196,15 +191,8 @@ def link_candidates(P, offsets, kind, label, tol, other, cos_min, free_px):
         ddx = pt[x, 0] - pt[y, 0]
         ddy = pt[x, 1] - pt[y, 1]
         gap[k] = math.sqrt(ddx * ddx + ddy * ddy)
-        la = label[ra]
-        lb = label[rb]
-        same = la == lb and la >= 0
-        tier[k] = 2 * same + ((la < 0) != (lb < 0))
-        good = ra != rb and kind[ra] == kind[rb] and straight[k] >= cos_min
-        good = good and ((same and gap[k] <= tol) or ((la < 0 or lb < 0) and gap[k] <= other))
-        ok[k] = good
-        far[k] = good and gap[k] > free_px
-    return n, e_run, pt, a, b, ok, straight, gap, tier, far
+        fits[k] = ra != rb and kind[ra] == kind[rb] and straight[k] >= cos_min
+    return n, e_run, pt, a, b, straight, gap, fits
 
 
 @kernel("(i8[::1], i8[::1], i8[::1])")

@@ -42,6 +42,7 @@ from strokekit.paths.heal import bridge_splits, heal_paths, touching_pairs
 from strokekit.paths.options import PathOptions
 from strokekit.paths.pieces import (
     HAIRPIN_PX,
+    LinkPairs,
     close_loops,
     concat,
     line_pieces,
@@ -57,7 +58,7 @@ from strokekit.tracking.grid import SampleGrid
 from strokekit.tracking.joins import rotate_closed
 from strokekit.tracking.strokeops import cut_pieces, resample, select
 from strokekit.tracking.ufit import fit_u, levels_from_slope
-from strokekit.tracking.votes import segment_by_votes, u_trend
+from strokekit.tracking.votes import is_in, segment_by_votes, u_trend, unique_inverse
 
 
 def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: int,
@@ -89,9 +90,12 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
     ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
 
+    pairs = LinkPairs.of(pieces, max(o.join_px, o.new_join_px), o.join_angle_deg)
+
     def link(link_label, ends):
         group, rev, pos = link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
-                                      lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends)
+                                      lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends,
+                                      pairs=pairs)
         return one_label_per_path(group, pos, link_label), rev, pos
 
     group, rev, pos = link(link_label, ends)
@@ -121,7 +125,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     paths = _carried_u(prev, paths, vst, vs, vu, vid, vw, vsign, o)
     owner = np.where(smp_piece >= 0, path_of[np.maximum(smp_piece, 0)], -1)
     hold = held_back(paths, first_fresh, o, D.p, owner, line_grid)
-    fresh = ~np.isin(paths.ids, known)
+    fresh = ~is_in(paths.ids, known)
     parent = _voted_id(vst, vid, vw, fresh) if o.bridge_px > 0 and fresh.any() else None
     if parent is not None and (parent >= 0).any():  # (only a fresh path with a parent bridges)
         paths, new_of = bridge_splits(paths, known, parent, o.bridge_px, hold,
@@ -142,8 +146,7 @@ def _heaviest_pairs(a: np.ndarray, b: np.ndarray, w: np.ndarray):
     """The distinct pairs (a, b) of non-negative ints below 2**31, their summed weights `w`, and
     for each a the pair of most weight (ties: the lowest b): (pa, pb, weight, heaviest, inv), inv
     the pair of each input."""
-    key, inv = np.unique((np.asarray(a, np.int64) << 32) | np.asarray(b, np.int64), return_inverse=True)
-    inv = inv.ravel()
+    key, inv = unique_inverse((np.asarray(a, np.int64) << 32) | np.asarray(b, np.int64))
     wt = np.bincount(inv, weights=w)
     pa, pb = key >> 32, key & 0xFFFFFFFF
     o = np.lexsort((-wt, pa))

@@ -44,7 +44,9 @@ within `join_angle_deg`), the two are one line drawn as two strokes (a brush pat
 changes, a loop's seam). There the ribbons neither taper nor show the brush's head or tail (whose
 alpha fades to its tip): the body runs to the joint, both ends move to the middle of the two and
 share one end edge across the line's bisecting direction, so the two ribbons meet with neither a
-pinch nor a hole, nor an overlap. The ends left are free ends: tapered, head and tail.
+pinch nor a hole, nor an overlap. The ends left are free ends: tapered, head and tail, and run on
+past the stroke's end by `cap` times the width (half of it by default, as far as the SVG's round
+cap), so that the faint tip of the taper lies beyond the line's end, not on it.
 
 Second texture set (TEXCOORD_1 in the glTF): (level, level_weight) of the stroke's self-similar
 octave, constant along the stroke (`RibbonMesh.level_uv`).
@@ -158,6 +160,21 @@ def _cuts_at(arc: np.ndarray, sid: np.ndarray, starts: np.ndarray, ends: np.ndar
 
 # --- the ribbon -----------------------------------------------------------------------------------
 
+def _capped(p: np.ndarray, sid: np.ndarray, n_s: int, free: np.ndarray, reach) -> np.ndarray:
+    """The points p (N, 2) with the free ends (free (S, 2): start, end) of strokes of two points or
+    more moved outward along their end segment by `reach` px (a number, or (N,) per point)."""
+    starts, ends = stroke_bounds(sid, n_s)
+    two = np.flatnonzero(ends - starts >= 2)
+    reach = np.broadcast_to(np.asarray(reach, float), (len(p),))
+    out = p.copy()
+    for w, at, nb in ((0, starts, starts + 1), (1, ends - 1, ends - 2)):
+        k = two[free[two, w]]
+        d = p[at[k]] - p[nb[k]]
+        d /= np.maximum(np.linalg.norm(d, axis=1), 1e-12)[:, None]
+        out[at[k]] = p[at[k]] + d * reach[at[k]][:, None]
+    return out
+
+
 def build_ribbons(strokes: Strokes, camera: Camera | None = None,
                   options: RibbonOptions | None = None, surface_depth=None, widths: np.ndarray | None = None
                   ) -> RibbonMesh:
@@ -208,6 +225,8 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
         arr["p"] = p
         arr, sid = _drop_short(arr, sid)
     free = ~joins.joined
+    if o.cap > 0:
+        arr["p"] = _capped(arr["p"], sid, n_s, free, o.cap * (arr["w"] if widths is not None else o.width_px))
 
     # --- per-stroke lengths, head/tail and taper regions
     s = arc_lengths(arr["p"], sid)

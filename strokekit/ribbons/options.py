@@ -22,6 +22,9 @@ class RibbonOptions:
     taper_head_px / taper_tail_px: length of the width taper at the start / end (0: none);
       taper_min: width fraction at the very tip (> 0 keeps tip triangles non-degenerate);
       taper_steps: vertices placed inside each taper (1: a linear ramp; more: an eased curve).
+    cap: a free end runs on past the stroke's end point by this fraction of its width (0.5: as far
+      as the SVG's round cap), so that the faint tip of the taper lies beyond the line's end, not
+      on it (0: the ribbon stops at the end point).
     head_px / tail_px: length on screen of the brush texture's head and tail regions;
       tex_head / tex_tail: the share of the texture width those regions occupy.
     miter_limit: largest miter length / half width before the outer join is bevelled (SVG's 4).
@@ -36,6 +39,7 @@ class RibbonOptions:
     taper_tail_px: float = 10.0
     taper_min: float = 0.25
     taper_steps: int = 1
+    cap: float = 0.5
     head_px: float = 3.0
     tail_px: float = 6.0
     tex_head: float = 0.25
@@ -67,5 +71,7 @@ class RibbonOptions:
             raise UsageError(f"ribbon space must be 'world' or 'image', got {self.space!r}")
         if not 0 <= self.pull < 1:
             raise UsageError(f"pull must be in [0, 1), got {self.pull}")
+        if not (math.isfinite(self.cap) and 0 <= self.cap <= 4):
+            raise UsageError(f"ribbon cap must be in [0, 4] widths, got {self.cap}")
         if int(self.taper_steps) < 1:
             raise UsageError(f"taper steps must be >= 1, got {self.taper_steps}")

@@ -95,6 +95,15 @@ def unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return aux[mask], inv
 
 
+def is_in(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """np.isin(x, y) of integer arrays (the same mask) by a sorted search, without np.isin's
+    generic path (the brush paths ask several a frame, of a few hundred ids)."""
+    y = np.sort(np.ravel(y))
+    if len(y) == 0:
+        return np.zeros(np.shape(x), bool)
+    return y[np.minimum(np.searchsorted(y, x), len(y) - 1)] == x
+
+
 def first_max_per_group(group: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """For entries sorted by `group` (runs of equal values, non-empty): the index of the first
     entry of each group holding the group's maximum weight (ties: the earliest), in group order.
