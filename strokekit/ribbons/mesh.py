@@ -160,10 +160,10 @@ def _cuts_at(arc: np.ndarray, sid: np.ndarray, starts: np.ndarray, ends: np.ndar
 
 # --- the ribbon -----------------------------------------------------------------------------------
 
-def _capped(p: np.ndarray, sid: np.ndarray, n_s: int, free: np.ndarray, reach) -> np.ndarray:
-    """The points p (N, 2) with the free ends (free (S, 2): start, end) of strokes of two points or
-    more moved outward along their end segment by `reach` px (a number, or (N,) per point)."""
-    starts, ends = stroke_bounds(sid, n_s)
+def _capped(p: np.ndarray, starts: np.ndarray, ends: np.ndarray, free: np.ndarray, reach) -> np.ndarray:
+    """The points p (N, 2) with the free ends (free (S, 2): start, end) of strokes (points
+    starts..ends) of two points or more moved outward along their end segment by `reach` px (a
+    number, or (N,) per point)."""
     two = np.flatnonzero(ends - starts >= 2)
     reach = np.broadcast_to(np.asarray(reach, float), (len(p),))
     out = p.copy()
@@ -225,12 +225,12 @@ def build_ribbons(strokes: Strokes, camera: Camera | None = None,
         arr["p"] = p
         arr, sid = _drop_short(arr, sid)
     free = ~joins.joined
-    if o.cap > 0:
-        arr["p"] = _capped(arr["p"], sid, n_s, free, o.cap * (arr["w"] if widths is not None else o.width_px))
+    starts, ends = stroke_bounds(sid, n_s)
+    if o.cap > 0:  # (ends moved outward: no segment gets shorter, the bounds hold)
+        arr["p"] = _capped(arr["p"], starts, ends, free, o.cap * (arr["w"] if widths is not None else o.width_px))
 
     # --- per-stroke lengths, head/tail and taper regions
     s = arc_lengths(arr["p"], sid)
-    starts, ends = stroke_bounds(sid, n_s)
     has = ends - starts >= 2
     L = np.where(has, s[np.maximum(ends - 1, 0)] if len(s) else 0.0, 0.0)
 
