@@ -920,3 +920,30 @@ def test_corner_cuts_are_the_numpy_ones():
                 assert np.array_equal(x, y)
             cut += len(got[0]) - Q
     assert cut > 100  # (the inputs do cut pieces)
+
+
+def test_a_line_is_covered_only_by_a_drawn_one():
+    """Three shingles side by side, 1.5 px apart, ranked left to right: the middle one is covered
+    by the left one (drawn), the right one, 3 px from the left, is not covered by the middle one
+    (which is not drawn): it is drawn, so every line stays within the cover's 2 px of a drawn
+    line. Brought within 2 px of the left one, it is covered by it."""
+    def fan(gap):
+        ys = np.arange(0.0, 20.0, 1.0)
+        xs = [0.0, 1.5, 1.5 + gap]
+        p = np.concatenate([np.c_[np.full(len(ys), x), ys] for x in xs])
+        n = len(p)
+        return Samples(p=p, X=np.zeros((n, 3)), u=np.zeros(n), t=np.tile([0.0, 1.0], (n, 1)), ids=np.zeros(n, np.int64),
+                       stroke=np.repeat(np.arange(3), len(ys)), s=np.tile(ys, 3), w=np.ones(n))
+
+    kind = np.zeros(3, np.int64)  # silhouettes
+    for gap, right in ((1.5, "drawn"), (0.4, "covered by the left")):
+        D = fan(gap)
+        run = D.stroke.copy()
+        for tree in (query_tree(D.p), SampleGrid(D.p, 3.0)):
+            out = covering_samples(D, kind, run, np.arange(3), 2.0, tree)
+            mid, rgt = out[run == 1], out[run == 2]
+            assert (run[mid] == 0).all()
+            if right == "drawn":
+                assert (rgt == -1).all()
+            else:
+                assert (rgt >= 0).all() and (run[rgt] == 0).all()

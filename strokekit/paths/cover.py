@@ -101,8 +101,8 @@ def run_cover(D: Samples, kind: np.ndarray, run: np.ndarray, r_line: np.ndarray,
 
 def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.ndarray, radius_px: float,
                      tree=None, crease_run: np.ndarray | None = None) -> np.ndarray:
-    """(N,) for every line sample the index of a sample of a higher-ranked run that covers it (see
-    module doc, step 4), or -1. Only contour kinds are covered, each by its own kind: creases and
+    """(N,) for every line sample the index of a drawn sample of a higher-ranked run that covers
+    it (see module doc, step 4; `by_drawn_samples`), or -1. Only contour kinds are covered, each by its own kind: creases and
     borders are mesh edges, two of them close together are two lines. `rank` (R,): 0 is first.
     `tree`: a k-d tree of D.p, when the caller has one (the pairs of other samples are left out).
     `crease_run` (R,): runs of crease lines that a contour (silhouette) beside them covers too,
@@ -129,7 +129,7 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
                            np.ascontiguousarray(sk, dtype=np.int64), contour, np.ascontiguousarray(run, dtype=np.int64),
                            np.ascontiguousarray(rank, dtype=np.int64), *tree.index, float(radius_px), _COVER_DOT,
                            out):
-            return out
+            return by_drawn_samples(out, D, run, rank, radius_px)
         out[:] = -1
         tree = tree.tree()  # (a pair at the radius, within rounding: as the tree counts it)
     if tree is not None:
@@ -158,6 +158,41 @@ def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.nda
     o = np.lexsort((b, d2, rank[run[b]], a))
     first = o[join_arrays(True, a[o][1:] != a[o][:-1])] if len(o) else o
     out[a[first]] = b[first]
+    return by_drawn_samples(out, D, run, rank, radius_px)
+
+
+def by_drawn_samples(out: np.ndarray, D: Samples, run: np.ndarray, rank: np.ndarray, radius_px: float) -> np.ndarray:
+    """`out` (covering_samples') with every sample covered by a drawn one: where the sample that
+    covers x is covered in turn (a fan of shingles wider than the radius), x is covered by that
+    one's cover if it lies within the radius of x, else x is drawn. So every line stays within
+    the radius of a drawn sample (a cover of a cover was taken for drawn: a fan's far strand
+    went undrawn 3-4 px from the path). Settled rank by rank, the highest first (a cover's rank
+    is higher than what it covers: it is settled before)."""
+    cov = out >= 0
+    second = np.flatnonzero(cov & (out.take(np.where(cov, out, 0)) >= 0))
+    if not len(second):
+        return out
+    r = rank.take(run.take(second))
+    o = np.argsort(r, kind="stable")
+    second, r = second[o], r[o]
+    for x in np.split(second, np.flatnonzero(np.diff(r)) + 1):
+        z = out.take(out.take(x))
+        x, z = x[z >= 0], z[z >= 0]  # (those whose cover is drawn now keep it)
+        dp = D.p.take(z, axis=0) - D.p.take(x, axis=0)
+        out[x] = np.where(np.einsum("ij,ij->i", dp, dp) <= radius_px * radius_px, z, -1)
+    return out
+    r = rank.take(run.take(second))
+    o = np.argsort(r, kind="stable")
+    second, r = second[o], r[o]
+    for x in np.split(second, np.flatnonzero(np.diff(r)) + 1):
+        z = out.take(out.take(x))
+        x, z = x[z >= 0], z[z >= 0]  # (those whose cover is drawn now keep it)
+        dp = D.p.take(z, axis=0) - D.p.take(x, axis=0)
+        tx = D.t.take(x, axis=0)
+        ok = np.einsum("ij,ij->i", dp, dp) <= radius_px * radius_px
+        # (distance only)
+
+        out[x] = np.where(ok, z, -1)
     return out
 
 #: A new path is held back only where all of it lies within this many px of the paths drawn: the
