@@ -27,7 +27,7 @@ from strokekit.animation import (
     time_span,
 )
 from strokekit.errors import InputError
-from strokekit.scene.tables import dihedral_cos_of, face_normals_of, face_offsets_of
+from strokekit.scene.tables import dihedral_cos_of, face_crosses_of, face_normals_of, face_offsets_of
 from strokekit.scene.weld import Welded, weld
 
 #: How a part moves under an animation: not at all (its rest vertices), rigidly (its node's
@@ -385,6 +385,21 @@ class SceneMotion:
             self._kinds[key] = np.isin(rest.face_object, moving)
         return self._kinds[key]
 
+    def _moving_edges(self, rest, ai: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """((E,) the rest scene's edges with an end animation ai moves, (E,) those beside a face
+        it moves), bool masks."""
+        key = ("moving edges", ai)
+        if key not in self._kinds:
+            rows = self._moving(ai)[0]
+            of = self.rest.vertex_of
+            moved = np.zeros(len(rest.vertices), bool)
+            moved[of[rows & (of >= 0)]] = True
+            faces = self._moving_scene_faces(rest, ai)
+            ef = rest.edge_faces
+            beside = faces[ef[:, 0]] | (faces[np.maximum(ef[:, 1], 0)] & (ef[:, 1] >= 0))
+            self._kinds[key] = (moved[rest.edges].any(axis=1), beside)
+        return self._kinds[key]
+
     def _channels(self, ai: int | None) -> Channels:
         return self.channels.get(ai, {}) if ai is not None else {}
 
@@ -452,18 +467,20 @@ class SceneMotion:
             faces = faces.copy()
             for p in flips:
                 faces[p.faces] = faces[p.faces][:, ::-1]
-        fast = None if flips else _posed_weld(self, V, faces, self._moving(ai))
+        moved = self._moving_scene_faces(rest, ai)
+        fast = None if flips else _posed_weld(self, V, faces, ai, self._moving(ai), moved)
         deforming = {k: V[p.vertices] for k, p in enumerate(self.parts) if self.kind(ai, k) == DEFORMING}
         if fast is not None:
-            vertices, new = fast
+            vertices, new, crosses = fast
             pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, None,
                              self.file_face_object, float(t), tuple(rest.objects))
             scene = replace(rest, vertices=vertices, faces=new[rest.faces], pose=pose)
             # The rest scene's topology with the vertices renumbered: the same edges and faces
             # of each edge, the edges sorted again (what Scene._topology makes of these faces),
             # and its face and edge tables, computed again where a face moved.
-            topology, order = _renumbered_topology(rest, new)
-            scene.__dict__.update(_carried_tables(rest, scene, topology, order, self._moving_scene_faces(rest, ai)))
+            topology, order = _renumbered_topology(rest, new, self._moving_edges(rest, ai))
+            scene.__dict__.update(_carried_tables(rest, scene, topology, order, moved, crosses,
+                                                  self._moving_edges(rest, ai)[1]))
             return scene
         w = weld(V, faces, str(self.path))
         pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, w.kept,
@@ -473,32 +490,59 @@ class SceneMotion:
                        dropped_duplicate=w.dropped_duplicate, pose=pose)
 
 
-def _renumbered_topology(rest, new: np.ndarray) -> tuple:
+def _renumbered_topology(rest, new: np.ndarray, moving: tuple | None = None) -> tuple:
     """rest._topology (edges, edge faces, face counts) after renumbering vertex v as new[v]: each
     edge's faces are found in the same order (face order is kept), only the edges' rows and
-    their order change."""
+    their order change. `moving`: (the rest edges with a moving end (E,) bool, ...) (None: sort
+    them all). `new` keeps the order of the still vertices, so the edges between two of them keep
+    theirs: only the others are sorted, and merged in, where they are few."""
     edges, edge_faces, counts = rest._topology
     e = new[edges]
-    e.sort(axis=1)
-    order = np.argsort(e[:, 0] * (len(new) + 1) + e[:, 1], kind="stable")
+    lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    e = np.stack([lo, hi], axis=1)
+    key = lo * (len(new) + 1) + hi  # (unique: the edges are)
+    mv = None if moving is None else moving[0]
+    if mv is None or np.count_nonzero(mv) * 8 > len(key):
+        order = np.argsort(key, kind="stable")
+    else:
+        m, still = np.flatnonzero(mv), np.flatnonzero(~mv)
+        m = m[np.argsort(key[m], kind="stable")]
+        ins = np.searchsorted(key[still], key[m])  # (ascending: still keys keep their order)
+        order = np.empty(len(key), np.int64)
+        at_m = ins + np.arange(len(m))
+        order[at_m] = m
+        filled = np.zeros(len(key), bool)
+        filled[at_m] = True
+        order[~filled] = still
     return (e[order], edge_faces[order], counts[order]), order
 
 
-def _carried_tables(rest, scene, topology: tuple, order: np.ndarray, moved: np.ndarray) -> dict:
+def _carried_tables(rest, scene, topology: tuple, order: np.ndarray, moved: np.ndarray, crosses: tuple | None = None,
+                    beside: np.ndarray | None = None) -> dict:
     """The posed `scene`'s cached tables from the rest scene's (its faces as the rest scene's,
     the edges renumbered in `order`): face normals, plane offsets and dihedral cosines kept for
     the faces that did not move and computed again, with Scene's formulas, for those that did
-    (`moved` (F,)) and the edges beside them: the same values as computed afresh."""
+    (`moved` (F,); `crosses`: their face_crosses_of, made already) and the edges beside them
+    (`beside` (E,): rest edges with a moved face; None: found here): the same values as computed
+    afresh. The rest scene's manifold face pairs are carried (renumbered) where it has them."""
     m = np.flatnonzero(moved)
     n = rest.face_normals.copy()
-    n[m] = face_normals_of(scene.vertices, scene.faces[m])
+    fm = scene.faces[m]
+    n[m] = face_normals_of(scene.vertices, fm, crosses)
     off = rest.face_offsets.copy()
-    off[m] = face_offsets_of(scene.vertices, scene.faces[m], n[m])
+    off[m] = face_offsets_of(scene.vertices, fm, n[m])
     ef = topology[1]
     dc = rest.dihedral_cos[order]
-    touch = np.flatnonzero(moved[ef[:, 0]] | (moved[np.maximum(ef[:, 1], 0)] & (ef[:, 1] >= 0)))
+    if beside is None:
+        touch = np.flatnonzero(moved[ef[:, 0]] | (moved[np.maximum(ef[:, 1], 0)] & (ef[:, 1] >= 0)))
+    else:
+        touch = np.flatnonzero(beside[order])
     dc[touch] = dihedral_cos_of(ef[touch], n)
-    return {"_topology": topology, "face_normals": n, "face_offsets": off, "dihedral_cos": dc}
+    out = {"_topology": topology, "face_normals": n, "face_offsets": off, "dihedral_cos": dc}
+    if "manifold_face_pairs" in rest.__dict__:
+        a, b = rest.manifold_face_pairs
+        out["manifold_face_pairs"] = (a[order], b[order])
+    return out
 
 
 def _area2(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -516,13 +560,17 @@ def _has_area(V: np.ndarray, faces: np.ndarray, extent: float | None = None) -> 
     return _area2(V, faces) > (1e-14 * (extent or 1.0)) ** 2
 
 
-def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: tuple[np.ndarray, np.ndarray]):
-    """(vertices, new index of each rest vertex) when the posed input vertices V keep the rest
-    weld: the input vertices welded together at rest stay together and apart from the others,
-    and every face keeps whether it is dropped (the kept ones keep their area, the dropped ones
-    are still without area or still duplicates); None otherwise (weld V afresh). The vertices are
-    then sorted by position as weld(V) sorts them, so the scene is the one weld(V) makes. Only
-    the rows and faces of the moving parts (`moving`) are looked at again."""
+def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, ai: int | None,
+                moving: tuple[np.ndarray, np.ndarray], moved_scene_faces: np.ndarray):
+    """(vertices, new index of each rest vertex, the moved scene faces' face_crosses_of) when
+    the posed input vertices V keep the rest weld: the input vertices welded together at rest
+    stay together and apart from the others, and every face keeps whether it is dropped (the
+    kept ones keep their area, the dropped ones are still without area or still duplicates);
+    None otherwise (weld V afresh). The vertices are then sorted by position as weld(V) sorts
+    them, so the scene is the one weld(V) makes. Only the rows and faces of the moving parts
+    under animation ai (`moving`; `moved_scene_faces` (F,): the rest scene's faces among them)
+    are looked at again;
+    a kept face's area is the norm of the cross product its normal is made of."""
     rest = motion.rest
     rows, moved_faces = moving
     of = rest.vertex_of
@@ -538,28 +586,34 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: t
     check = np.flatnonzero(rows & (of >= 0))
     if not np.array_equal(V[check], P[of[check]]):
         return None
-    if "moving vertices" not in motion._kinds:
+    key = ("moving weld", ai)
+    if key not in motion._kinds:
         moved = np.zeros(n, bool)
         moved[of[rows & (of >= 0)]] = True
-        motion._kinds["moving vertices"] = (np.flatnonzero(~moved), np.flatnonzero(moved))
-    order = _sorted_order(P, *motion._kinds["moving vertices"])
+        kept = np.zeros(len(motion.file_faces), bool)
+        kept[rest.kept] = True
+        motion._kinds[key] = (np.flatnonzero(~moved), np.flatnonzero(moved), kept,
+                              np.flatnonzero(moved_faces & ~kept), rest.kept[np.flatnonzero(moved_scene_faces)])
+    still, moving_rows, kept, dropped_moving, kept_moving = motion._kinds[key]
+    order = _sorted_order(P, still, moving_rows)
     if order is None:
         return None  # two welded vertices meet
     S = P[order]
     # (the weld's extent: of the vertices of every face, dropped ones included)
     E = V[motion.face_vertices]
     extent = float(np.max(E.max(axis=0) - E.min(axis=0))) or 1.0
+    # The moved kept faces' corners are distinct welded vertices (apart: _sorted_order), so
+    # their area is the cross product's norm (_area2's), on V's rows as on the scene's.
+    crosses = face_crosses_of(V, faces[kept_moving])
     area2 = rest_area2.copy()
-    mf = np.flatnonzero(moved_faces)
-    area2[mf] = _area2(V, faces[mf])
+    area2[kept_moving] = crosses[1]
+    area2[dropped_moving] = _area2(V, faces[dropped_moving])
     alive = area2 > (1e-14 * extent) ** 2
-    kept = np.zeros(len(faces), bool)
-    kept[rest.kept] = True
     if not (alive[kept].all() and np.array_equal(alive & ~kept, motion.rest_duplicates)):
         return None
     new = np.empty(n, np.int64)
     new[order] = np.arange(n)
-    return S, new
+    return S, new, crosses
 
 
 def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray) -> np.ndarray | None:
