@@ -379,6 +379,8 @@ class NodeTree:
         self.g, self.data = g, data
         self.nodes = g.nodes or []
         self._fixed: dict[int, np.ndarray] = {}  # node -> its local matrix, where no channel drives it
+        self._rest: dict[tuple, np.ndarray] = {}  # (node, path) -> its rest translation, rotation or scale
+        self._animated: dict[tuple, tuple] = {}  # (id of channels, node) -> (channels, the paths they drive)
         self.parent: dict[int, int] = {}
         for i, n in enumerate(self.nodes):
             for c in field_of(n, "children") or []:
@@ -401,7 +403,10 @@ class NodeTree:
         """(T, 4, 4) node ni's local matrix at `times` (T,) under `channels`."""
         n, what = self.nodes[ni], f"node {ni}"
         frames = len(times)
-        animated = {p for (node, p) in channels if node == ni and p in GLTF_TRS}
+        key = (id(channels), ni)
+        if key not in self._animated or self._animated[key][0] is not channels:
+            self._animated[key] = (channels, {p for (node, p) in channels if node == ni and p in GLTF_TRS})
+        animated = self._animated[key][1]
         if not animated and ni in self._fixed:
             return np.broadcast_to(self._fixed[ni], (frames, 4, 4))
         fixed = node_matrix(n, what, self.data)
@@ -417,7 +422,9 @@ class NodeTree:
             if p in animated:
                 trs[p] = channels[(ni, p)].at(times, p == "rotation")
             else:
-                trs[p] = np.broadcast_to(rest_trs(n, p, what, self.data), (frames, GLTF_TRS[p]))
+                if (ni, p) not in self._rest:
+                    self._rest[(ni, p)] = rest_trs(n, p, what, self.data)
+                trs[p] = np.broadcast_to(self._rest[(ni, p)], (frames, GLTF_TRS[p]))
         m = trs_matrices(trs["translation"], trs["rotation"], trs["scale"])
         if not animated:
             self._fixed[ni] = m[0]

@@ -27,7 +27,14 @@ from strokekit.animation import (
     time_span,
 )
 from strokekit.errors import InputError
-from strokekit.scene.tables import dihedral_cos_of, face_crosses_of, face_normals_of, face_offsets_of
+from strokekit.scene.tables import (
+    bounds_of,
+    dihedral_cos_of,
+    face_crosses_of,
+    face_normals_of,
+    face_offsets_of,
+    same_rows,
+)
 from strokekit.scene.weld import Welded, weld
 
 #: How a part moves under an animation: not at all (its rest vertices), rigidly (its node's
@@ -524,7 +531,8 @@ def _carried_tables(rest, scene, topology: tuple, order: np.ndarray, moved: np.n
     the faces that did not move and computed again, with Scene's formulas, for those that did
     (`moved` (F,); `crosses`: their face_crosses_of, made already) and the edges beside them
     (`beside` (E,): rest edges with a moved face; None: found here): the same values as computed
-    afresh. The rest scene's manifold face pairs are carried (renumbered) where it has them."""
+    afresh. The rest scene's manifold face pairs and material boundaries are carried
+    (renumbered) where it has them."""
     m = np.flatnonzero(moved)
     n = rest.face_normals.copy()
     fm = scene.faces[m]
@@ -542,21 +550,24 @@ def _carried_tables(rest, scene, topology: tuple, order: np.ndarray, moved: np.n
     if "manifold_face_pairs" in rest.__dict__:
         a, b = rest.manifold_face_pairs
         out["manifold_face_pairs"] = (a[order], b[order])
+    if "is_material_boundary" in rest.__dict__:
+        out["is_material_boundary"] = rest.is_material_boundary[order]
     return out
 
 
 def _area2(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F,) twice each face's area; 0 where two corners are the same point."""
-    fv = V[faces]
-    area2 = np.linalg.norm(np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0]), axis=1)
-    same = (fv[:, 0] == fv[:, 1]).all(1) | (fv[:, 1] == fv[:, 2]).all(1) | (fv[:, 0] == fv[:, 2]).all(1)
+    area2 = face_crosses_of(V, faces)[1]
+    a, b, c = V[faces[:, 0]], V[faces[:, 1]], V[faces[:, 2]]
+    same = same_rows(a, b) | same_rows(b, c) | same_rows(a, c)
     return np.where(same, 0.0, area2)
 
 
 def _has_area(V: np.ndarray, faces: np.ndarray, extent: float | None = None) -> np.ndarray:
     """(F,) faces with three distinct corners and an area above the weld's threshold."""
     if extent is None:
-        extent = float(np.max(V.max(axis=0) - V.min(axis=0))) if len(V) else 1.0
+        lo, hi = bounds_of(V) if len(V) else (np.zeros(3), np.ones(3))
+        extent = float(np.max(hi - lo))
     return _area2(V, faces) > (1e-14 * (extent or 1.0)) ** 2
 
 
@@ -600,8 +611,8 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, ai: int |
         return None  # two welded vertices meet
     S = P[order]
     # (the weld's extent: of the vertices of every face, dropped ones included)
-    E = V[motion.face_vertices]
-    extent = float(np.max(E.max(axis=0) - E.min(axis=0))) or 1.0
+    lo, hi = bounds_of(V[motion.face_vertices])
+    extent = float(np.max(hi - lo)) or 1.0
     # The moved kept faces' corners are distinct welded vertices (apart: _sorted_order), so
     # their area is the cross product's norm (_area2's), on V's rows as on the scene's.
     crosses = face_crosses_of(V, faces[kept_moving])
@@ -624,10 +635,10 @@ def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray) -> np.nd
     if len(moving) * 8 > len(P):
         order = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))
         S = P[order]
-        return None if len(S) > 1 and (S[1:] == S[:-1]).all(axis=1).any() else order
+        return None if len(S) > 1 and same_rows(S[1:], S[:-1]).any() else order
     mv = moving[np.lexsort((P[moving, 2], P[moving, 1], P[moving, 0]))]
     M = P[mv]
-    if len(M) > 1 and (M[1:] == M[:-1]).all(axis=1).any():
+    if len(M) > 1 and same_rows(M[1:], M[:-1]).any():
         return None
     St = P[still]
     lo = np.searchsorted(St[:, 0], M[:, 0], side="left")
