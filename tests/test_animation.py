@@ -168,6 +168,20 @@ def test_two_animations_moving_different_objects_pose_each_as_its_static_scene(t
             assert np.array_equal(getattr(posed, table), getattr(ref, table)), table
 
 
+def test_rows_sorted_by_x_alone_where_x_is_unique_sort_as_lexsort():
+    """_lex_order sorts by x alone where no two rows share it, and by x, y, z otherwise: either
+    way np.lexsort's order (-0.0 and 0.0 count as the same x)."""
+    from strokekit.scene.motion import _lex_order
+    rng = np.random.default_rng(2)
+    for k in range(60):
+        P = rng.normal(size=(300, 3))
+        if k % 3 == 1:
+            P[:, 0] = np.round(P[:, 0], 1)  # shared x
+        if k % 3 == 2:
+            P[:150, 0], P[150:, 0] = 0.0, -0.0
+        assert np.array_equal(_lex_order(P), np.lexsort((P[:, 2], P[:, 1], P[:, 0])))
+
+
 def test_moving_rows_merged_into_the_still_ones_sort_as_the_weld_sorts():
     """Rows sharing x (and y) with still rows are placed by y, then z; a moving row landing on a
     still one is a meeting of welded vertices (None)."""
