@@ -179,7 +179,10 @@ def test_rows_sorted_by_x_alone_where_x_is_unique_sort_as_lexsort():
             P[:, 0] = np.round(P[:, 0], 1)  # shared x
         if k % 3 == 2:
             P[:150, 0], P[150:, 0] = 0.0, -0.0
-        assert np.array_equal(_lex_order(P), np.lexsort((P[:, 2], P[:, 1], P[:, 0])))
+        want = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))
+        memo: dict = {}
+        assert np.array_equal(_lex_order(P), want) and np.array_equal(_lex_order(P, memo), want)
+        assert np.array_equal(_lex_order(P, memo), want)  # (with what the first call remembered)
 
 
 def test_moving_rows_merged_into_the_still_ones_sort_as_the_weld_sorts():

@@ -614,7 +614,7 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, ai: int |
         motion._kinds[key] = (np.flatnonzero(~moved), np.flatnonzero(moved), kept,
                               np.flatnonzero(moved_faces & ~kept), rest.kept[np.flatnonzero(moved_scene_faces)])
     still, moving_rows, kept, dropped_moving, kept_moving = motion._kinds[key]
-    order = _sorted_order(P, still, moving_rows)
+    order = _sorted_order(P, still, moving_rows, motion._kinds.setdefault(("sort", ai), {}))
     if order is None:
         return None  # two welded vertices meet
     S = P.take(order, axis=0)
@@ -636,16 +636,17 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, ai: int |
     return S, new, crosses
 
 
-def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray) -> np.ndarray | None:
+def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray, memo: dict | None = None) -> np.ndarray | None:
     """The order that sorts the rows of P (V, 3) by position (x, then y, then z, as the weld does),
     given that the rows `still` (those that did not move: in sorted order already, the rest
     scene's) and `moving` cover them: the moving rows sorted and merged in (a sort of all the rows
-    where most of them move). None where two rows are equal (welded vertices that meet)."""
+    where most of them move). None where two rows are equal (welded vertices that meet).
+    `memo`: _lex_order's, kept from frame to frame."""
     if len(moving) * 8 > len(P):
-        order = _lex_order(P)
+        order = _lex_order(P, memo)
         S = P.take(order, axis=0)
         return None if len(S) > 1 and same_rows(S[1:], S[:-1]).any() else order
-    mv = moving[_lex_order(P.take(moving, axis=0))]
+    mv = moving[_lex_order(P.take(moving, axis=0), memo)]
     M = P.take(mv, axis=0)
     if len(M) > 1 and same_rows(M[1:], M[:-1]).any():
         return None
@@ -666,16 +667,20 @@ def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray) -> np.nd
     return order
 
 
-def _lex_order(P: np.ndarray) -> np.ndarray:
+def _lex_order(P: np.ndarray, memo: dict | None = None) -> np.ndarray:
     """np.lexsort((P[:, 2], P[:, 1], P[:, 0])): the rows of P (N, 3) by x, then y, then z. Where
     no two rows share x (a turned object's rows, mostly), the sort by x alone, a quarter of the
-    time."""
+    time. `memo` (a dict kept between calls on like rows) remembers that rows shared x (a wheel
+    turning about x keeps it), and sorts by all three at once the next time."""
     x = np.ascontiguousarray(P[:, 0])
-    order = np.argsort(x, kind="stable")
-    xs = x[order]
-    if len(xs) > 1 and (xs[1:] == xs[:-1]).any():
-        return np.lexsort((P[:, 2], P[:, 1], x))
-    return order
+    if memo is None or not memo.get("shared x"):
+        order = np.argsort(x, kind="stable")
+        xs = x[order]
+        if not (len(xs) > 1 and (xs[1:] == xs[:-1]).any()):
+            return order
+        if memo is not None:
+            memo["shared x"] = True
+    return np.lexsort((P[:, 2], P[:, 1], x))
 
 
 def _scene_nodes(g, tree: NodeTree) -> set[int]:
