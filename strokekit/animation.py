@@ -371,6 +371,12 @@ def time_span(channels: Channels) -> tuple[float, float]:
     return (min(float(c.keys[0]) for c in channels.values()), max(float(c.keys[-1]) for c in channels.values()))
 
 
+def _repeated(a: np.ndarray, frames: int) -> np.ndarray:
+    """(frames, *a.shape) read-only rows of a kept array a: a view (np.broadcast_to's cost is in
+    Python, paid by every node at every frame)."""
+    return a[None] if frames == 1 else np.broadcast_to(a, (frames, *a.shape))
+
+
 class NodeTree:
     """The node hierarchy of a glTF file: parents checked (a child that does not exist, a cycle),
     and each node's world matrix at given times under an animation's channels."""
@@ -379,6 +385,8 @@ class NodeTree:
         self.g, self.data = g, data
         self.nodes = g.nodes or []
         self._fixed: dict[int, np.ndarray] = {}  # node -> its local matrix, where no channel drives it
+        self._rest: dict[tuple, np.ndarray] = {}  # (node, path) -> its rest translation, rotation or scale
+        self._animated: dict[tuple, tuple] = {}  # (id of channels, node) -> (channels, the paths they drive)
         self.parent: dict[int, int] = {}
         for i, n in enumerate(self.nodes):
             for c in field_of(n, "children") or []:
@@ -401,25 +409,34 @@ class NodeTree:
         """(T, 4, 4) node ni's local matrix at `times` (T,) under `channels`."""
         n, what = self.nodes[ni], f"node {ni}"
         frames = len(times)
-        animated = {p for (node, p) in channels if node == ni and p in GLTF_TRS}
+        key = (id(channels), ni)
+        if key not in self._animated or self._animated[key][0] is not channels:
+            self._animated[key] = (channels, {p for (node, p) in channels if node == ni and p in GLTF_TRS})
+        animated = self._animated[key][1]
         if not animated and ni in self._fixed:
-            return np.broadcast_to(self._fixed[ni], (frames, 4, 4))
+            return _repeated(self._fixed[ni], frames)
         fixed = node_matrix(n, what, self.data)
         if fixed is not None:
             if animated:
                 raise self.data.error(f"animation targets {what}, which has a matrix (glTF allows only TRS there)")
             if not np.all(np.isfinite(fixed)):
                 raise self.data.error(f"{what} has a non-finite matrix")
+            fixed.setflags(write=False)
             self._fixed[ni] = fixed
-            return np.broadcast_to(fixed, (frames, 4, 4))
+            return _repeated(fixed, frames)
         trs = {}
         for p in ("translation", "rotation", "scale"):
             if p in animated:
                 trs[p] = channels[(ni, p)].at(times, p == "rotation")
             else:
-                trs[p] = np.broadcast_to(rest_trs(n, p, what, self.data), (frames, GLTF_TRS[p]))
+                if (ni, p) not in self._rest:
+                    a = rest_trs(n, p, what, self.data)
+                    a.setflags(write=False)
+                    self._rest[(ni, p)] = a
+                trs[p] = _repeated(self._rest[(ni, p)], frames)
         m = trs_matrices(trs["translation"], trs["rotation"], trs["scale"])
         if not animated:
+            m.setflags(write=False)
             self._fixed[ni] = m[0]
         return m
 

@@ -118,6 +118,73 @@ def test_a_posed_scene_is_the_static_scene_of_its_posed_vertices(which, truck, t
         assert posed.content_hash == ref.content_hash
 
 
+def test_renumbered_edges_merged_into_the_still_ones_sort_as_the_topology_sorts(tmp_path):
+    """A box turning beside a still sphere: its few edges sorted and merged into the still ones'
+    order are the edges of a sort of them all (and the static scene's), with the same faces; the
+    carried manifold face pairs are the rebuilt ones."""
+    from strokekit.scene.motion import _renumbered_topology
+
+    s = load_scene(sphere_and_box_glb(tmp_path / "box.glb", "box"))
+    _ = s.manifold_face_pairs
+    moving = s.motion._moving_edges(s, 0)
+    assert 0 < moving[0].sum() * 8 < len(s.edges)  # (the merge, not the sort of all)
+    for t in (0.1, 0.4):
+        posed, ref = s.at(t, 0), static_of(s, t)
+        # The renumbering: each rest vertex's row among the posed scene's (by its position).
+        P = s.motion.file_vertices_at(0, t)[s.motion._kinds["rest weld"][0]]
+        order = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))
+        new = np.empty(len(order), np.int64)
+        new[order] = np.arange(len(order))
+        merged, _ = _renumbered_topology(s, new, moving)
+        whole, _ = _renumbered_topology(s, new)
+        for a, b, c in zip(merged, whole, ref._topology):
+            assert np.array_equal(a, b) and np.array_equal(a, c)
+        for a, b in zip(posed.manifold_face_pairs, ref.manifold_face_pairs):
+            assert np.array_equal(a, b)
+
+
+def test_two_animations_moving_different_objects_pose_each_as_its_static_scene(tmp_path):
+    """What the posing keeps of one animation's moving objects (their rows, edges and faces) is
+    that animation's: the sphere turned by one and the box by the other, in turns, each frame is
+    the static scene of its posed vertices."""
+    import trimesh
+
+    sph = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    box = trimesh.creation.box(extents=(0.8, 0.8, 0.8))
+    d = Doc()
+    a = d.node(mesh=d.mesh(np.asarray(sph.vertices), np.asarray(sph.faces)), name="sphere")
+    b = d.node(mesh=d.mesh(np.asarray(box.vertices), np.asarray(box.faces)), name="box", translation=[0.2, 1.55, 0.3])
+    k = np.arange(13)
+    for node in (b, a):
+        d.animate([(node, "rotation", k / 24, [[0.0, math.sin(math.radians(5 * i)), 0.0, math.cos(math.radians(5 * i))]
+                                               for i in k])])
+    s = load_scene(d.save(tmp_path / "two.glb"))
+    for t, ai in ((0.1, 0), (0.2, 1), (0.3, 0), (0.4, 1)):
+        posed, ref = s.at(t, ai), static_of(s, t, ai)
+        assert np.array_equal(posed.vertices, ref.vertices) and np.array_equal(posed.faces, ref.faces)
+        for x, y in zip(posed._topology, ref._topology):
+            assert np.array_equal(x, y)
+        for table in ("face_normals", "face_offsets", "dihedral_cos"):
+            assert np.array_equal(getattr(posed, table), getattr(ref, table)), table
+
+
+def test_rows_sorted_by_x_alone_where_x_is_unique_sort_as_lexsort():
+    """_lex_order sorts by x alone where no two rows share it, and by x, y, z otherwise: either
+    way np.lexsort's order (-0.0 and 0.0 count as the same x)."""
+    from strokekit.scene.motion import _lex_order
+    rng = np.random.default_rng(2)
+    for k in range(60):
+        P = rng.normal(size=(300, 3))
+        if k % 3 == 1:
+            P[:, 0] = np.round(P[:, 0], 1)  # shared x
+        if k % 3 == 2:
+            P[:150, 0], P[150:, 0] = 0.0, -0.0
+        want = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))
+        memo: dict = {}
+        assert np.array_equal(_lex_order(P), want) and np.array_equal(_lex_order(P, memo), want)
+        assert np.array_equal(_lex_order(P, memo), want)  # (with what the first call remembered)
+
+
 def test_moving_rows_merged_into_the_still_ones_sort_as_the_weld_sorts():
     """Rows sharing x (and y) with still rows are placed by y, then z; a moving row landing on a
     still one is a meeting of welded vertices (None)."""

@@ -469,3 +469,51 @@ def test_frames_leave_nothing_of_their_camera_in_the_scene():
     r.render(Camera(eye=(3.0, -1.0, 2.0), target=(0.0, 0.0, 0.0), width=300, height=300))
     assert {k: id(v) for k, v in vars(scene).items()} == kept
     assert {k: id(v) for k, v in vars(scene)["_tables_per_value"].items()} == {k: id(v) for k, v in per_value.items()}
+
+
+def test_face_tables_written_out_are_numpys_cross_norm_and_mean():
+    """face_crosses_of, face_normals_of and face_offsets_of write np.cross, np.linalg.norm and
+    np.mean out (Scene's tables and a posed scene's moving faces use them): the same values bit
+    for bit, far from the origin and at every size, and on a model."""
+    from strokekit.scene.tables import face_corners_of, face_crosses_of, face_normals_of, face_offsets_of
+
+    def oracle(v, f):
+        a = v[f[:, 0]]
+        c = np.cross(v[f[:, 1]] - a, v[f[:, 2]] - a)
+        n = c / np.linalg.norm(c, axis=1, keepdims=True)
+        return c, np.linalg.norm(c, axis=1), n, np.einsum("ij,ij->i", n, v[f].mean(axis=1))
+
+    rng = np.random.default_rng(3)
+    cases = []
+    for _ in range(6):
+        v = rng.normal(size=(500, 3)) * 10.0 ** rng.uniform(-4, 4) + rng.normal(size=3) * 10.0 ** rng.uniform(0, 6)
+        f = rng.integers(0, 500, (3000, 3))
+        cases.append((v, f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]))
+    spot = load_scene(model_path("spot.obj"))
+    cases.append((spot.vertices, spot.faces))
+    for v, f in cases:
+        c, norm, n, off = oracle(v, f)
+        crosses = face_crosses_of(v, f)
+        assert np.array_equal(crosses[0], c) and np.array_equal(crosses[1], norm)
+        assert np.array_equal(face_normals_of(v, f), n) and np.array_equal(face_normals_of(v, f, crosses), n)
+        assert np.array_equal(face_offsets_of(v, f, n), off)
+        corners = face_corners_of(v, f)
+        assert np.array_equal(face_crosses_of(v, None, corners)[0], c)
+        assert np.array_equal(face_offsets_of(v, None, n, corners), off)
+
+
+def test_dihedral_cosines_are_the_cosines_of_each_edges_two_normals():
+    """dihedral_cos_of: the dot product of an edge's two face normals (np.einsum's, as computed
+    before the gathers changed), 1 where the edge has one face; every edge with two faces or not."""
+    from strokekit.scene.tables import dihedral_cos_of
+
+    rng = np.random.default_rng(5)
+    n = rng.normal(size=(400, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    for border in (0.0, 0.3):
+        ef = rng.integers(0, 400, (1000, 2))
+        ef[rng.random(1000) < border, 1] = -1
+        ok = ef[:, 1] >= 0
+        want = np.ones(1000)
+        want[ok] = np.einsum("ij,ij->i", n[ef[ok, 0]], n[ef[ok, 1]])
+        assert np.array_equal(dihedral_cos_of(ef, n), want)

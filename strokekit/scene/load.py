@@ -26,7 +26,14 @@ from strokekit.errors import InputError, hold_interrupts
 from strokekit.fileio import atomic_write_bytes
 from strokekit.scene.motion import SceneMotion, ScenePose
 from strokekit.scene.obj_faces import face_past_vertices, short_face_warnings
-from strokekit.scene.tables import SceneTables, dihedral_cos_of, face_normals_of, face_offsets_of
+from strokekit.scene.tables import (
+    SceneTables,
+    bounds_of,
+    dihedral_cos_of,
+    face_normals_of,
+    face_offsets_of,
+    row_norms,
+)
 from strokekit.scene.weld import Welded, weld
 
 SUPPORTED = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
@@ -88,7 +95,7 @@ class Scene(SceneTables):
     @cached_property
     def bounds(self) -> np.ndarray:
         """(2, 3) min and max corners."""
-        return np.stack([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+        return bounds_of(self.vertices)
 
     @cached_property
     def center(self) -> np.ndarray:
@@ -97,7 +104,7 @@ class Scene(SceneTables):
     @cached_property
     def radius(self) -> float:
         """Radius of the bounding sphere around `center` (world units); > 0 for any non-empty scene."""
-        r = float(np.linalg.norm(self.vertices - self.center, axis=1).max())
+        r = float(row_norms(self.vertices - self.center).max())
         return r if r > 0 else 1.0
 
     @cached_property

@@ -27,7 +27,15 @@ from strokekit.animation import (
     time_span,
 )
 from strokekit.errors import InputError
-from strokekit.scene.tables import dihedral_cos_of, face_normals_of, face_offsets_of
+from strokekit.scene.tables import (
+    bounds_of,
+    dihedral_cos_of,
+    face_corners_of,
+    face_crosses_of,
+    face_normals_of,
+    face_offsets_of,
+    same_rows,
+)
 from strokekit.scene.weld import Welded, weld
 
 #: How a part moves under an animation: not at all (its rest vertices), rigidly (its node's
@@ -198,8 +206,10 @@ class SceneMotion:
     _last: tuple | None = None
 
     def __post_init__(self):
-        #: The input vertices some face uses (the weld's extent is theirs).
+        #: The input vertices some face uses (the weld's extent is theirs); None: all of them.
         self.face_vertices = np.unique(self.file_faces)
+        if len(self.face_vertices) == len(self.file_vertices):
+            self.face_vertices = None
         if self.rest_duplicates is None:
             dropped = np.ones(len(self.file_faces), bool)
             dropped[self.rest.kept] = False
@@ -385,6 +395,21 @@ class SceneMotion:
             self._kinds[key] = np.isin(rest.face_object, moving)
         return self._kinds[key]
 
+    def _moving_edges(self, rest, ai: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """((E,) the rest scene's edges with an end animation ai moves, (E,) those beside a face
+        it moves), bool masks."""
+        key = ("moving edges", ai)
+        if key not in self._kinds:
+            rows = self._moving(ai)[0]
+            of = self.rest.vertex_of
+            moved = np.zeros(len(rest.vertices), bool)
+            moved[of[rows & (of >= 0)]] = True
+            faces = self._moving_scene_faces(rest, ai)
+            ef = rest.edge_faces
+            beside = faces[ef[:, 0]] | (faces[np.maximum(ef[:, 1], 0)] & (ef[:, 1] >= 0))
+            self._kinds[key] = (moved[rest.edges].any(axis=1), beside)
+        return self._kinds[key]
+
     def _channels(self, ai: int | None) -> Channels:
         return self.channels.get(ai, {}) if ai is not None else {}
 
@@ -452,18 +477,20 @@ class SceneMotion:
             faces = faces.copy()
             for p in flips:
                 faces[p.faces] = faces[p.faces][:, ::-1]
-        fast = None if flips else _posed_weld(self, V, faces, self._moving(ai))
+        moved = self._moving_scene_faces(rest, ai)
+        fast = None if flips else _posed_weld(self, V, faces, ai, self._moving(ai), moved)
         deforming = {k: V[p.vertices] for k, p in enumerate(self.parts) if self.kind(ai, k) == DEFORMING}
         if fast is not None:
-            vertices, new = fast
+            vertices, new, crosses = fast
             pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, None,
                              self.file_face_object, float(t), tuple(rest.objects))
             scene = replace(rest, vertices=vertices, faces=new[rest.faces], pose=pose)
             # The rest scene's topology with the vertices renumbered: the same edges and faces
             # of each edge, the edges sorted again (what Scene._topology makes of these faces),
             # and its face and edge tables, computed again where a face moved.
-            topology, order = _renumbered_topology(rest, new)
-            scene.__dict__.update(_carried_tables(rest, scene, topology, order, self._moving_scene_faces(rest, ai)))
+            topology, order = _renumbered_topology(rest, new, self._moving_edges(rest, ai))
+            scene.__dict__.update(_carried_tables(rest, scene, topology, order, moved, crosses,
+                                                  self._moving_edges(rest, ai)[1]))
             return scene
         w = weld(V, faces, str(self.path))
         pose = ScenePose(matrices, deforming, self.parts, self.file_faces, self.rest.kept, w.kept,
@@ -473,56 +500,96 @@ class SceneMotion:
                        dropped_duplicate=w.dropped_duplicate, pose=pose)
 
 
-def _renumbered_topology(rest, new: np.ndarray) -> tuple:
+def _renumbered_topology(rest, new: np.ndarray, moving: tuple | None = None) -> tuple:
     """rest._topology (edges, edge faces, face counts) after renumbering vertex v as new[v]: each
     edge's faces are found in the same order (face order is kept), only the edges' rows and
-    their order change."""
+    their order change. `moving`: (the rest edges with a moving end (E,) bool, ...) (None: sort
+    them all). `new` keeps the order of the still vertices, so the edges between two of them keep
+    theirs: only the others are sorted, and merged in, where they are few."""
     edges, edge_faces, counts = rest._topology
     e = new[edges]
-    e.sort(axis=1)
-    order = np.argsort(e[:, 0] * (len(new) + 1) + e[:, 1], kind="stable")
-    return (e[order], edge_faces[order], counts[order]), order
+    lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    e = np.stack([lo, hi], axis=1)
+    key = lo * (len(new) + 1) + hi  # (unique: the edges are)
+    mv = None if moving is None else moving[0]
+    if mv is None or np.count_nonzero(mv) * 8 > len(key):
+        order = np.argsort(key, kind="stable")
+    else:
+        m, still = np.flatnonzero(mv), np.flatnonzero(~mv)
+        m = m[np.argsort(key[m], kind="stable")]
+        ins = np.searchsorted(key[still], key[m])  # (ascending: still keys keep their order)
+        order = np.empty(len(key), np.int64)
+        at_m = ins + np.arange(len(m))
+        order[at_m] = m
+        filled = np.zeros(len(key), bool)
+        filled[at_m] = True
+        order[~filled] = still
+    return (e.take(order, axis=0), edge_faces.take(order, axis=0), counts[order]), order
 
 
-def _carried_tables(rest, scene, topology: tuple, order: np.ndarray, moved: np.ndarray) -> dict:
+def _carried_tables(rest, scene, topology: tuple, order: np.ndarray, moved: np.ndarray, crosses: tuple | None = None,
+                    beside: np.ndarray | None = None) -> dict:
     """The posed `scene`'s cached tables from the rest scene's (its faces as the rest scene's,
     the edges renumbered in `order`): face normals, plane offsets and dihedral cosines kept for
     the faces that did not move and computed again, with Scene's formulas, for those that did
-    (`moved` (F,)) and the edges beside them: the same values as computed afresh."""
+    (`moved` (F,); `crosses`: their face_crosses_of and face_corners_of, made already) and the
+    edges beside them
+    (`beside` (E,): rest edges with a moved face; None: found here): the same values as computed
+    afresh. The rest scene's manifold face pairs and material boundaries are carried
+    (renumbered) where it has them."""
     m = np.flatnonzero(moved)
-    n = rest.face_normals.copy()
-    n[m] = face_normals_of(scene.vertices, scene.faces[m])
-    off = rest.face_offsets.copy()
-    off[m] = face_offsets_of(scene.vertices, scene.faces[m], n[m])
+    fm = scene.faces[m] if crosses is None else None
+    corners = None if crosses is None else crosses[2]
+    nm = face_normals_of(scene.vertices, fm, None if crosses is None else crosses[:2])
+    om = face_offsets_of(scene.vertices, fm, nm, corners)
+    if len(m) == len(moved):  # (every face moved)
+        n, off = nm, om
+    else:
+        n, off = rest.face_normals.copy(), rest.face_offsets.copy()
+        n[m], off[m] = nm, om
     ef = topology[1]
     dc = rest.dihedral_cos[order]
-    touch = np.flatnonzero(moved[ef[:, 0]] | (moved[np.maximum(ef[:, 1], 0)] & (ef[:, 1] >= 0)))
+    if beside is None:
+        touch = np.flatnonzero(moved[ef[:, 0]] | (moved[np.maximum(ef[:, 1], 0)] & (ef[:, 1] >= 0)))
+    else:
+        touch = np.flatnonzero(beside[order])
     dc[touch] = dihedral_cos_of(ef[touch], n)
-    return {"_topology": topology, "face_normals": n, "face_offsets": off, "dihedral_cos": dc}
+    out = {"_topology": topology, "face_normals": n, "face_offsets": off, "dihedral_cos": dc}
+    if "manifold_face_pairs" in rest.__dict__:
+        a, b = rest.manifold_face_pairs
+        out["manifold_face_pairs"] = (a[order], b[order])
+    if "is_material_boundary" in rest.__dict__:
+        out["is_material_boundary"] = rest.is_material_boundary[order]
+    return out
 
 
 def _area2(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(F,) twice each face's area; 0 where two corners are the same point."""
-    fv = V[faces]
-    area2 = np.linalg.norm(np.cross(fv[:, 1] - fv[:, 0], fv[:, 2] - fv[:, 0]), axis=1)
-    same = (fv[:, 0] == fv[:, 1]).all(1) | (fv[:, 1] == fv[:, 2]).all(1) | (fv[:, 0] == fv[:, 2]).all(1)
+    a, b, c = corners = face_corners_of(V, faces)
+    area2 = face_crosses_of(V, faces, corners)[1]
+    same = same_rows(a, b) | same_rows(b, c) | same_rows(a, c)
     return np.where(same, 0.0, area2)
 
 
 def _has_area(V: np.ndarray, faces: np.ndarray, extent: float | None = None) -> np.ndarray:
     """(F,) faces with three distinct corners and an area above the weld's threshold."""
     if extent is None:
-        extent = float(np.max(V.max(axis=0) - V.min(axis=0))) if len(V) else 1.0
+        lo, hi = bounds_of(V) if len(V) else (np.zeros(3), np.ones(3))
+        extent = float(np.max(hi - lo))
     return _area2(V, faces) > (1e-14 * (extent or 1.0)) ** 2
 
 
-def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: tuple[np.ndarray, np.ndarray]):
-    """(vertices, new index of each rest vertex) when the posed input vertices V keep the rest
-    weld: the input vertices welded together at rest stay together and apart from the others,
-    and every face keeps whether it is dropped (the kept ones keep their area, the dropped ones
-    are still without area or still duplicates); None otherwise (weld V afresh). The vertices are
-    then sorted by position as weld(V) sorts them, so the scene is the one weld(V) makes. Only
-    the rows and faces of the moving parts (`moving`) are looked at again."""
+def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, ai: int | None,
+                moving: tuple[np.ndarray, np.ndarray], moved_scene_faces: np.ndarray):
+    """(vertices, new index of each rest vertex, the moved scene faces' face_crosses_of and
+    face_corners_of: cross products, norms, corners) when the posed input vertices V keep the
+    rest weld: the input vertices welded together at rest stay together and apart from the
+    others, and every face keeps whether it is dropped (the kept ones keep their area, the
+    dropped ones are still without area or still duplicates); None otherwise (weld V afresh).
+    The vertices are then sorted by position as weld(V) sorts them, so the scene is the one
+    weld(V) makes. Only the rows and faces of the moving parts under animation ai (`moving`;
+    `moved_scene_faces` (F,): the rest scene's faces among them) are looked at again; a kept
+    face's area is the norm of the cross product its normal is made of."""
     rest = motion.rest
     rows, moved_faces = moving
     of = rest.vertex_of
@@ -534,48 +601,56 @@ def _posed_weld(motion: SceneMotion, V: np.ndarray, faces: np.ndarray, moving: t
         rep[of[used]] = np.flatnonzero(used)
         motion._kinds["rest weld"] = (rep, _area2(motion.file_vertices, motion.file_faces))
     rep, rest_area2 = motion._kinds["rest weld"]
-    P = V[rep]
+    P = V.take(rep, axis=0)
     check = np.flatnonzero(rows & (of >= 0))
-    if not np.array_equal(V[check], P[of[check]]):
+    if not np.array_equal(V.take(check, axis=0), P.take(of[check], axis=0)):
         return None
-    if "moving vertices" not in motion._kinds:
+    key = ("moving weld", ai)
+    if key not in motion._kinds:
         moved = np.zeros(n, bool)
         moved[of[rows & (of >= 0)]] = True
-        motion._kinds["moving vertices"] = (np.flatnonzero(~moved), np.flatnonzero(moved))
-    order = _sorted_order(P, *motion._kinds["moving vertices"])
+        kept = np.zeros(len(motion.file_faces), bool)
+        kept[rest.kept] = True
+        motion._kinds[key] = (np.flatnonzero(~moved), np.flatnonzero(moved), kept,
+                              np.flatnonzero(moved_faces & ~kept), rest.kept[np.flatnonzero(moved_scene_faces)])
+    still, moving_rows, kept, dropped_moving, kept_moving = motion._kinds[key]
+    order = _sorted_order(P, still, moving_rows, motion._kinds.setdefault(("sort", ai), {}))
     if order is None:
         return None  # two welded vertices meet
-    S = P[order]
+    S = P.take(order, axis=0)
     # (the weld's extent: of the vertices of every face, dropped ones included)
-    E = V[motion.face_vertices]
-    extent = float(np.max(E.max(axis=0) - E.min(axis=0))) or 1.0
+    lo, hi = bounds_of(V if motion.face_vertices is None else V.take(motion.face_vertices, axis=0))
+    extent = float(np.max(hi - lo)) or 1.0
+    # The moved kept faces' corners are distinct welded vertices (apart: _sorted_order), so
+    # their area is the cross product's norm (_area2's), on V's rows as on the scene's.
+    corners = face_corners_of(V, faces[kept_moving])
+    crosses = (*face_crosses_of(V, None, corners), corners)
     area2 = rest_area2.copy()
-    mf = np.flatnonzero(moved_faces)
-    area2[mf] = _area2(V, faces[mf])
+    area2[kept_moving] = crosses[1]
+    area2[dropped_moving] = _area2(V, faces[dropped_moving])
     alive = area2 > (1e-14 * extent) ** 2
-    kept = np.zeros(len(faces), bool)
-    kept[rest.kept] = True
     if not (alive[kept].all() and np.array_equal(alive & ~kept, motion.rest_duplicates)):
         return None
     new = np.empty(n, np.int64)
     new[order] = np.arange(n)
-    return S, new
+    return S, new, crosses
 
 
-def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray) -> np.ndarray | None:
+def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray, memo: dict | None = None) -> np.ndarray | None:
     """The order that sorts the rows of P (V, 3) by position (x, then y, then z, as the weld does),
     given that the rows `still` (those that did not move: in sorted order already, the rest
     scene's) and `moving` cover them: the moving rows sorted and merged in (a sort of all the rows
-    where most of them move). None where two rows are equal (welded vertices that meet)."""
+    where most of them move). None where two rows are equal (welded vertices that meet).
+    `memo`: _lex_order's, kept from frame to frame."""
     if len(moving) * 8 > len(P):
-        order = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))
-        S = P[order]
-        return None if len(S) > 1 and (S[1:] == S[:-1]).all(axis=1).any() else order
-    mv = moving[np.lexsort((P[moving, 2], P[moving, 1], P[moving, 0]))]
-    M = P[mv]
-    if len(M) > 1 and (M[1:] == M[:-1]).all(axis=1).any():
+        order = _lex_order(P, memo)
+        S = P.take(order, axis=0)
+        return None if len(S) > 1 and same_rows(S[1:], S[:-1]).any() else order
+    mv = moving[_lex_order(P.take(moving, axis=0), memo)]
+    M = P.take(mv, axis=0)
+    if len(M) > 1 and same_rows(M[1:], M[:-1]).any():
         return None
-    St = P[still]
+    St = P.take(still, axis=0)
     lo = np.searchsorted(St[:, 0], M[:, 0], side="left")
     hi = np.searchsorted(St[:, 0], M[:, 0], side="right")
     ins = lo.copy()
@@ -590,6 +665,22 @@ def _sorted_order(P: np.ndarray, still: np.ndarray, moving: np.ndarray) -> np.nd
     order[ins + np.arange(len(mv))] = mv
     order[np.arange(len(still)) + np.searchsorted(ins, np.arange(len(still)), side="right")] = still
     return order
+
+
+def _lex_order(P: np.ndarray, memo: dict | None = None) -> np.ndarray:
+    """np.lexsort((P[:, 2], P[:, 1], P[:, 0])): the rows of P (N, 3) by x, then y, then z. Where
+    no two rows share x (a turned object's rows, mostly), the sort by x alone, a quarter of the
+    time. `memo` (a dict kept between calls on like rows) remembers that rows shared x (a wheel
+    turning about x keeps it), and sorts by all three at once the next time."""
+    x = np.ascontiguousarray(P[:, 0])
+    if memo is None or not memo.get("shared x"):
+        order = np.argsort(x, kind="stable")
+        xs = x[order]
+        if not (len(xs) > 1 and (xs[1:] == xs[:-1]).any()):
+            return order
+        if memo is not None:
+            memo["shared x"] = True
+    return np.lexsort((P[:, 2], P[:, 1], x))
 
 
 def _scene_nodes(g, tree: NodeTree) -> set[int]:

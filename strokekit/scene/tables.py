@@ -347,23 +347,63 @@ def view_function(scene, camera: Camera, normals: np.ndarray | None = None,
 # for its moving faces only (scene.motion), with the same operations, so its tables are a static
 # scene's.
 
-def face_normals_of(v: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(F, 3) unit normals of faces (F, 3) over vertices v (Scene.face_normals)."""
+def bounds_of(v: np.ndarray) -> np.ndarray:
+    """(2, 3) min and max corners of points v (N, 3), reduced along contiguous rows (numpy's
+    reductions down the three columns of an (N, 3) array are some 20 times slower)."""
+    c = np.ascontiguousarray(v.T)
+    return np.stack([c.min(axis=1), c.max(axis=1)])
+
+
+def row_norms(d: np.ndarray) -> np.ndarray:
+    """(N,) np.linalg.norm(d, axis=1) of rows d (N, 3), written out (the same values)."""
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    return np.sqrt(x * x + y * y + z * z)
+
+
+def same_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) (a == b).all(axis=1) of rows (N, 3), column by column."""
+    return (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1]) & (a[:, 2] == b[:, 2])
+
+
+def face_corners_of(v: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The corners (F, 3) each of faces (F, 3) over vertices v."""
+    return v.take(faces[:, 0], axis=0), v.take(faces[:, 1], axis=0), v.take(faces[:, 2], axis=0)
+
+
+def face_crosses_of(v: np.ndarray, faces: np.ndarray, corners: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """((F, 3) cross products (b - a) x (c - a) of faces (F, 3) over vertices v, (F,) their
+    norms: twice each face's area, as the weld measures it). np.cross and np.linalg.norm's
+    operations written out (the same values, without their overhead). `corners`: their
+    face_corners_of, when gathered already."""
     # Relative to the first vertex for precision when the scene is far from the origin.
-    a = v[faces[:, 0]]
-    n = np.cross(v[faces[:, 1]] - a, v[faces[:, 2]] - a)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+    a, b, c = face_corners_of(v, faces) if corners is None else corners
+    e1, e2 = b - a, c - a
+    x = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]
+    y = e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2]
+    z = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    return np.stack([x, y, z], axis=1), np.sqrt(x * x + y * y + z * z)
 
 
-def face_offsets_of(v: np.ndarray, faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """(F,) n.P of each face's centroid (Scene.face_offsets)."""
-    c = v[faces].mean(axis=1)
-    return np.einsum("ij,ij->i", normals, c)
+def face_normals_of(v: np.ndarray, faces: np.ndarray, crosses: tuple | None = None) -> np.ndarray:
+    """(F, 3) unit normals of faces (F, 3) over vertices v (Scene.face_normals). `crosses`: their
+    face_crosses_of, when made already."""
+    n, norm = face_crosses_of(v, faces) if crosses is None else crosses
+    return n / norm[:, None]
+
+
+def face_offsets_of(v: np.ndarray, faces: np.ndarray, normals: np.ndarray, corners: tuple | None = None) -> np.ndarray:
+    """(F,) n.P of each face's centroid (Scene.face_offsets). `corners`: as face_crosses_of's."""
+    a, b, c = face_corners_of(v, faces) if corners is None else corners
+    return np.einsum("ij,ij->i", normals, (a + b + c) / 3.0)  # (np.mean's sum and division)
 
 
 def dihedral_cos_of(edge_faces: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """(E,) cosine between the normals of each edge's two faces, 1 for an edge with one (Scene.dihedral_cos)."""
     ok = edge_faces[:, 1] >= 0
     c = np.ones(len(edge_faces))
-    c[ok] = np.einsum("ij,ij->i", normals[edge_faces[ok, 0]], normals[edge_faces[ok, 1]])
+    if ok.all():
+        c[:] = np.einsum("ij,ij->i", normals.take(edge_faces[:, 0], axis=0), normals.take(edge_faces[:, 1], axis=0))
+        return c
+    ef = edge_faces[ok]
+    c[ok] = np.einsum("ij,ij->i", normals.take(ef[:, 0], axis=0), normals.take(ef[:, 1], axis=0))
     return c
