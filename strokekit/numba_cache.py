@@ -73,12 +73,12 @@ def _dispatchers(mod):
 
 def declared(mod):
     """(dispatcher, argument types) of every declared signature of module `mod`'s kernels that
-    the warm-up compiles (parallel kernels left out)."""
+    the warm-up compiles (parallel kernels left out unless the module sets WARM_PARALLEL)."""
     from numba.core import sigutils
 
     out = []
     for d in _dispatchers(mod):
-        if d.targetoptions.get("parallel"):
+        if d.targetoptions.get("parallel") and not getattr(mod, "WARM_PARALLEL", False):
             continue
         for s in getattr(d, "declared_signatures", ()):
             out.append((d, sigutils.normalize_signature(s)[0]))

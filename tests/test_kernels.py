@@ -16,13 +16,13 @@ import pytest
 from strokekit import numba_cache
 from strokekit.lines.kernels import HIDDEN_LINES
 from strokekit.paths.kernels import BRUSH_PATHS
-from strokekit.raster.hits import RASTER
+from strokekit.raster.hits import RASTER, RASTER_THREADS
 from strokekit.run.kernels import LINE_STYLE
 from strokekit.tracking.kernels import TRACKING
 from strokekit.writers.exr import EXR_KERNELS
 
 ROOT = Path(__file__).resolve().parents[1]
-GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE, EXR_KERNELS)
+GROUPS = (RASTER, RASTER_THREADS, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE, EXR_KERNELS)
 #: A style with every thickness modifier, its creases dashed (outlines cut into dashes).
 FIVE = """\
 [[lineset]]
@@ -100,7 +100,7 @@ def test_every_kernel_python_calls_says_how_it_is_called(lazy):
 
 def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
     """After the warm-up, drawing frames compiles nothing more: brush paths, tracked lines,
-    hidden lines, the raster pass, a moving scene's rays and a style's widths and outlines (its
+    hidden lines, the raster pass (its z-buffer on threads: the runs draw one frame at a time), a moving scene's rays and a style's widths and outlines (its
     five modifiers, dashed outlines too) call their kernels with the declared
     types only (a kernel
     called with another type would compile during a run's first frame, after the run said
@@ -110,7 +110,7 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit import numba_cache
         from strokekit.lines.kernels import HIDDEN_LINES
         from strokekit.paths.kernels import BRUSH_PATHS
-        from strokekit.raster.hits import RASTER
+        from strokekit.raster.hits import RASTER, RASTER_THREADS
         from strokekit.scene.occluder import MOVING_SCENE
         from strokekit.run.kernels import LINE_STYLE
         from strokekit.tracking.kernels import TRACKING
@@ -120,7 +120,7 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         sys.path.insert(0, {str(ROOT / 'tests')!r})
         from animated import sphere_and_box_glb
         from pathlib import Path
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, LINE_STYLE, EXR_KERNELS)
+        groups = (RASTER, RASTER_THREADS, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, LINE_STYLE, EXR_KERNELS)
         for g in groups:
             g.warm()
         warm = {{}}
@@ -321,3 +321,22 @@ def test_kernels_let_other_threads_run_and_their_options_are_in_the_cache_stamp(
     needed, wakes = run("gil")
     assert needed == "True", "a kernel cached with other options would be loaded as it was"
     assert wakes <= 3, wakes  # holding the lock, the kernel keeps this thread asleep
+
+
+def test_a_run_drawing_one_frame_at_a_time_warms_the_threaded_z_buffer(monkeypatch):
+    """One worker: each frame's z-buffer runs on the machine's cores, so the warm-up compiles its
+    parallel kernels with the others (else the first frame would compile them unsaid); frames
+    drawn several at once keep the serial kernels and never load the parallel ones."""
+    from strokekit.raster.options import RasterOptions
+    from strokekit.run.kernels import kernels_needed
+    from strokekit.run.spec import OutputOptions, RenderRequest, RunSpec
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 4)
+    spec = RunSpec(scene_path="s.obj", cameras=(), outputs=OutputOptions(out_dir=Path("o")),
+                   request=RenderRequest(raster=RasterOptions(bands=2)), workers=1)
+    assert spec.raster_threads == 4 and RASTER_THREADS in kernels_needed(spec, frames_here=True)
+    two = RunSpec(scene_path="s.obj", cameras=(), outputs=OutputOptions(out_dir=Path("o")),
+                  request=RenderRequest(raster=RasterOptions(bands=2)), workers=2)
+    assert two.raster_threads == 1 and RASTER_THREADS not in kernels_needed(two, frames_here=True)
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)
+    assert RASTER_THREADS not in kernels_needed(spec, frames_here=True)
