@@ -235,24 +235,71 @@ def keyboard_interrupts():
 
 
 @contextmanager
-def machine_lock(name: str):
+def machine_lock(name: str, wait: bool = True):
     """An exclusive lock among this machine's processes, by `name` (a file lock in the temporary
-    folder; none where fcntl is missing or the file cannot be opened)."""
+    folder; none where fcntl is missing or the file cannot be opened). Yields whether it is held:
+    with `wait` False, False at once when another holds it."""
     if fcntl is None:
-        yield
+        yield True
         return
     path = Path(tempfile.gettempdir()) / f"strokekit-{name}-{os.getuid()}.lock"
     try:
         fh = open(path, "a")
     except OSError:
-        yield
+        yield True
         return
     with fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
         try:
-            yield
+            fcntl.flock(fh, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
         finally:
             fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+# --- compiling on several cores ------------------------------------------------------------------
+
+def claim_and_compile(modules: list[str], parent: int | None = None) -> None:
+    """Compile the declared kernels of each of `modules` (names, in order) that needs it and that
+    no other process of the machine is compiling (its machine lock is free); skip the others.
+    `parent`: the pid of the process that asked; once it is gone (Ctrl-C), stop."""
+    for name in modules:
+        if parent is not None and os.getppid() != parent:
+            return
+        mod = LazyKernels(name).imported()
+        if compile_needed(mod) is False:
+            continue
+        with machine_lock(name, wait=False) as mine:
+            if mine and compile_needed(mod) is not False:
+                _compile_declared(mod)
+
+
+def compile_side_by_side(modules: list[str], processes: int) -> None:
+    """Compile the kernels of `modules` into numba's disk cache on `processes` cores at once:
+    processes - 1 child interpreters and this thread each take the next module nobody has taken
+    (`claim_and_compile`), so the modules spread over the cores (numba compiles one kernel at a
+    time in a process). The callers then load them from the cache."""
+    import subprocess
+
+    code = ("import sys; from strokekit.numba_cache import claim_and_compile; "
+            "claim_and_compile(sys.argv[2:], int(sys.argv[1]))")
+    # (run where this strokekit is imported from, not a checkout the current folder may hold)
+    home = Path(__file__).resolve().parents[1]
+    kids = [subprocess.Popen([sys.executable, "-c", code, str(os.getpid()), *modules], cwd=home, stdin=subprocess.DEVNULL,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for _ in range(processes - 1)]
+    try:
+        claim_and_compile(modules)
+    except BaseException:
+        for k in kids:
+            k.kill()
+        raise
+    finally:
+        for k in kids:
+            k.wait()
 
 
 # --- loading -------------------------------------------------------------------------------------
@@ -328,15 +375,7 @@ class KernelGroup:
         t = time.perf_counter()
         if compiles is None:
             compiles = self.compile_needed()
-        msg = f"compiling the {self.label} kernels (first run on this machine, about {self.compile_seconds:g} s)"
-        timer = None
-        if notify is not None:
-            if compiles:
-                notify(msg)
-            elif compiles is None:
-                timer = threading.Timer(2.0, notify, (msg,))
-                timer.daemon = True
-                timer.start()
+        timer = self.say_compile(notify, compiles)
         try:
             for m in self.modules:
                 m.load()
@@ -345,6 +384,20 @@ class KernelGroup:
                 timer.cancel()
         self._ready = True
         return time.perf_counter() - t, bool(compiles)
+
+    def say_compile(self, notify: Callable[[str], None] | None, compiles: bool | None):
+        """Tell `notify` that the group compiles (where compile_needed said so; where it could
+        not tell, after 2 s: the timer returned, to cancel once the kernels are there)."""
+        msg = f"compiling the {self.label} kernels (first run on this machine, about {self.compile_seconds:g} s)"
+        if notify is not None:
+            if compiles:
+                notify(msg)
+            elif compiles is None:
+                timer = threading.Timer(2.0, notify, (msg,))
+                timer.daemon = True
+                timer.start()
+                return timer
+        return None
 
     def ensure(self) -> float:
         """Make sure this process has the kernels (before a frame's clock starts): wait for the
@@ -384,8 +437,26 @@ class Warmup:
             said = [g.compile_needed() for g in self.groups]
             self._compiles = True if True in said else (None if None in said else False)
             self._decided.set()
+            todo = [m.module for g, c in zip(self.groups, said) if c is not False for m in g.modules]
+            cores = os.cpu_count() or 1
+            if len(todo) > 1 and cores > 1:
+                # Several modules to compile: side by side on the cores, then loaded as cached.
+                # Each group's share of the wait is counted by its compile estimate.
+                t = time.perf_counter()
+                timers = [g.say_compile(self._notify, c) for g, c in zip(self.groups, said)]
+                try:
+                    compile_side_by_side(todo, min(cores, len(todo)))
+                finally:
+                    for timer in timers:
+                        if timer is not None:
+                            timer.cancel()
+                wait = time.perf_counter() - t
+                weight = {g.label: g.compile_seconds for g, c in zip(self.groups, said) if c is not False}
+                for label, w in weight.items():
+                    self.seconds[label] = wait * w / sum(weight.values())
+                said = [False] * len(said)
             for g, c in zip(self.groups, said):
-                self.seconds[g.label] = g.warm(self._notify, compiles=c)[0]
+                self.seconds[g.label] = self.seconds.get(g.label, 0.0) + g.warm(self._notify, compiles=c)[0]
         except BaseException as e:  # said by the frames that need the kernels
             self.error = e
         finally:

@@ -340,3 +340,55 @@ def test_a_run_drawing_one_frame_at_a_time_warms_the_threaded_z_buffer(monkeypat
     assert two.raster_threads == 1 and RASTER_THREADS not in kernels_needed(two, frames_here=True)
     monkeypatch.setattr(os, "cpu_count", lambda: 1)
     assert RASTER_THREADS not in kernels_needed(spec, frames_here=True)
+
+
+def _forget(*names):
+    for n in names:
+        sys.modules.pop(n, None)
+        numba_cache.LazyKernels._made.pop(n, None)
+
+
+def test_kernels_compile_side_by_side_each_module_once(monkeypatch, tmp_path):
+    """A first run's warm-up spreads the modules to compile over the cores: each process takes
+    the next module whose machine lock is free and skips those another process holds (so no
+    module compiles twice), and the child interpreters' compiles land in numba's disk cache,
+    where this process then finds them."""
+    body = """
+        from strokekit.numba_cache import kernel
+
+        @kernel("(f8[::1],)")
+        def total(a):
+            s = 0.0
+            for x in a:
+                s += x
+            return s
+        """
+    names = ["sk_side_a", "sk_side_b", "sk_side_c"]
+    for n in names:
+        _tiny_module(tmp_path, n, body)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    # Another process holds sk_side_a's lock: this one compiles the other two only.
+    held, release = threading.Event(), threading.Event()
+
+    def holder():
+        with numba_cache.machine_lock("sk_side_a"):
+            held.set()
+            release.wait(30)
+
+    t = threading.Thread(target=holder)
+    t.start()
+    held.wait(10)
+    try:
+        numba_cache.claim_and_compile(names[:2])
+    finally:
+        release.set()
+        t.join()
+    mods = [numba_cache.LazyKernels(n).imported() for n in names]
+    assert not mods[0].total.signatures and len(mods[1].total.signatures) == 1
+    # Side by side with this thread taking nothing: the child interpreter compiles both others.
+    monkeypatch.setattr(numba_cache, "claim_and_compile", lambda modules, parent=None: None)
+    numba_cache.compile_side_by_side(["sk_side_a", "sk_side_c"], 2)
+    _forget(*names)
+    assert [numba_cache.compile_needed(numba_cache.LazyKernels(n).imported()) for n in names] == [False] * 3
+    _forget(*names)
