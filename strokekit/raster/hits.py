@@ -31,8 +31,7 @@ RASTER = KernelGroup("raster", (ZBUFFER, PASS), compile_seconds=20)
 
 #: The z-buffer's parallel kernels: runs that draw their frames one at a time use the cores in
 #: each frame's z-buffer instead (`RunSpec.raster_threads`).
-RASTER_THREADS = KernelGroup("raster threads", (LazyKernels("strokekit.raster.zbuffer_threads"),),
-                             compile_seconds=6)
+RASTER_THREADS = KernelGroup("raster threads", (ZBUFFER,), compile_seconds=6, parallel=True)
 
 #: The z-buffer module, its kernels loaded on first use.
 kernels = ZBUFFER.kernels

@@ -54,8 +54,7 @@ Use
 Per frame, `project` does the vertex transform once (numpy); the first rasterize call on a
 Projected sets up every face once (clipping, screen planes), and later calls on the same
 Projected (other sample counts, the edge pixels) reuse that. threads=1 (default) runs serial
-kernels and never starts numba's thread pool; threads=n > 1 runs the parallel ones
-(`strokekit.raster.zbuffer_threads`, imported then).
+kernels and never starts numba's thread pool; threads=n > 1 runs the parallel ones.
 
 The kernels are compiled once per machine and cached on disk (`strokekit.numba_cache`; the
 parallel ones on their first threaded use).
@@ -68,7 +67,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from strokekit.numba_cache import kernel
 
@@ -286,13 +285,6 @@ def _parallel_call(fn, threads, *args):
             numba.set_num_threads(old)
 
 
-def _threads_module():
-    """The parallel kernels (strokekit.raster.zbuffer_threads), imported on first threaded use."""
-    import importlib
-
-    return importlib.import_module("strokekit.raster.zbuffer_threads")
-
-
 def _setup(proj: Projected, threads: int, work: Workspace | None):
     """Per-face set-up of the frame, in output pixel units, once per Projected: (fbox (F, 4)
     float64 xmin, xmax, ymin, ymax of the drawn part, fn (F,) int8 its triangle count (0: none),
@@ -307,7 +299,7 @@ def _setup(proj: Projected, threads: int, work: Workspace | None):
     args = (proj.vert, proj.faces, int(v.width), int(v.height), float(v.focal_px), v.width / 2.0,
             v.height / 2.0, bool(v.ortho), float(v.near)) + arrays
     if threads > 1:
-        _parallel_call(_threads_module().setup_parallel, threads, *args)
+        _parallel_call(_setup_parallel, threads, *args)
     else:
         _setup_serial(*args)
     holder["setup"] = arrays
@@ -335,7 +327,7 @@ def _pass(proj, S, slots, sat, face, depth, bary, threads, work):
     args = (fbox[:F], fn[:F], ftri, fplane, keep, S, WS, HS, T, bool(v.ortho), slots, active, off, rec, rid,
             face.reshape(-1), depth.reshape(-1), bary.reshape(-1, 2))
     if threads > 1:
-        _parallel_call(_threads_module().draw_parallel, threads, *args)
+        _parallel_call(_draw_parallel, threads, *args)
     else:
         _draw_serial(*args)
 
@@ -523,6 +515,15 @@ def _setup_range(f0, f1, vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri
         error_model="numpy")
 def _setup_serial(vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane):
     _setup_range(0, faces.shape[0], vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane)
+
+
+@kernel("(f8[:, ::1], i4[:, ::1], i8, i8, f8, f8, f8, b1, f8, f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1])",
+        parallel=True, error_model="numpy")
+def _setup_parallel(vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane):
+    F = faces.shape[0]
+    CH = 4096
+    for c in prange((F + CH - 1) // CH):
+        _setup_range(c * CH, min(F, (c + 1) * CH), vp, faces, W, H, f, cx, cy, ortho, near, fbox, fn, ftri, fplane)
 
 
 @kernel("(i4[:, ::1], i4[:, ::1])", error_model="numpy")
@@ -899,3 +900,19 @@ def _draw_serial(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, activ
     for t in range(active.shape[0]):
         if active[t]:
             _do_tile(t, ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)
+
+
+@kernel(("(f8[:, ::1], i1[::1], f8[:, :, ::1], f8[:, ::1], b1[::1], i8, i8, i8, i8, b1, i4[:, ::1], b1[::1], "
+        "i8[::1], f8[:, ::1], i4[::1], i4[::1], f4[::1], f4[:, ::1])"), parallel=True, error_model="numpy")
+def _draw_parallel(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, active, off, rec, rid, face, depth,
+                   bary):
+    _fill(fbox, fn, ftri, fplane, keep, S, WS, HS, T, active, off, rec, rid)
+    ntx = (WS + T - 1) // T
+    nt = active.shape[0]
+    TC = 4  # tiles a chunk (one local buffer a chunk); a tile's result does not depend on its thread
+    for c in prange((nt + TC - 1) // TC):
+        lrec = np.empty(T * T, np.int32)
+        lkey = np.empty(T * T, np.float64)
+        for t in range(c * TC, min(nt, (c + 1) * TC)):
+            if active[t]:
+                _do_tile(t, ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)

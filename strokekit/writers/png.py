@@ -18,6 +18,7 @@ from __future__ import annotations
 import io
 import struct
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -95,8 +96,6 @@ def png_files(images: dict[str, np.ndarray], text: dict[str, dict[str, str]] | N
 
     names = list(images)
     if threads > 1 and len(names) > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
         with ThreadPoolExecutor(min(threads, len(names))) as pool:
             return dict(zip(names, pool.map(encode, names)))
     return {k: encode(k) for k in names}
