@@ -34,6 +34,7 @@ import sys
 import tempfile
 import threading
 import time
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
@@ -349,7 +350,10 @@ class LazyKernels:
         that are cached too, before they are called; `parallel`: its parallel kernels instead of
         its serial ones). Returns the module."""
         mod = self.imported()
-        with self._lock:  # (two threads asking at once compile once)
+        with self._lock, warnings.catch_warnings():  # (two threads asking at once compile once)
+            # (numba says, on its threads' first start, that open3d's older TBB is not used:
+            # it takes OpenMP instead, nothing for the user to do)
+            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
             if compile_needed(mod, parallel) is not False:
                 with machine_lock(self.module):
                     if compile_needed(mod, parallel) is not False:

@@ -392,3 +392,14 @@ def test_kernels_compile_side_by_side_each_module_once(monkeypatch, tmp_path):
     _forget(*names)
     assert [numba_cache.compile_needed(numba_cache.LazyKernels(n).imported()) for n in names] == [False] * 3
     _forget(*names)
+
+
+def test_warming_the_threaded_z_buffer_says_nothing_of_numbas_threading_layer(tmp_path):
+    """A one-worker run compiles the z-buffer's parallel kernels on a machine's first run: numba
+    then finds open3d's TBB too old and takes OpenMP, which must not print a NumbaWarning at the
+    user. (A fresh interpreter and an empty cache: numba says it once, when it compiles.)"""
+    code = "import open3d\nfrom strokekit.raster.hits import RASTER_THREADS\nRASTER_THREADS.warm()\n"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                         env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path)))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "Warning" not in out.stderr, out.stderr[-2000:]
