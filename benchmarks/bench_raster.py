@@ -8,13 +8,17 @@
    frames: for the z-buffer at K = 1, 2, 4, 1+4 and 2+4, the soft IoU per band (and background)
    against the Embree ray-cast reference at K = 4 (sum min / sum max of the per-pixel
    coverages): worst band, pooled, worst 'thick' band (strokekit.raster.bands.mask_agreement).
-3. With --cli: the issue-17 bars end to end from the command line, runs in turns (median of
+3. With --one-worker: issue 32's bar, one worker and no tracking (`--workers 1 --no-coherence`),
+   the bunny at 1024 x 1024: the raster pass a frame, (25 frames with `--bands 3` minus 25
+   without) / 25, against the lines a frame, (25 frames minus 1 frame) / 24; runs in turns,
+   medians of --cli-repeats (wall time of the whole command).
+4. With --cli: the issue-17 bars end to end from the command line, runs in turns (median of
    --cli-repeats): `strokekit render bunny --orbit 120 --size 1024x1024` with and without
    `--bands 3`: ((with) - (without)) / frames against the lines-only ms a frame (the run's wall
    time / frames, and its --explain line stages / frames); and the README's first command (a
    second run, 12 frames of the sample) with and without --bands 3.
 
-Run: python benchmarks/bench_raster.py [--size 1024] [--repeats 3] [--skip-accuracy] [--cli]
+Run: python benchmarks/bench_raster.py [--size 1024] [--repeats 3] [--skip-accuracy] [--one-worker] [--cli]
 """
 
 from __future__ import annotations
@@ -41,6 +45,9 @@ from strokekit.scene.occluder import Occluder  # noqa: E402
 from strokekit.writers.png import png_files  # noqa: E402
 
 MODELS = ROOT.parent / "shared" / "models"
+#: The checkout whose command line the --cli and --one-worker runs time (--root: another one, to
+#: compare two in turns).
+CLI_ROOT = ROOT
 LINE_STAGES = ("feature edges", "visibility", "occlusion levels", "chaining", "tracking", "svg", "json")
 
 
@@ -103,10 +110,10 @@ def accuracy_table(size: int, frames: int, bands: int, shading: str) -> None:
 
 def _render(args: list[str], out: str) -> tuple[float, dict]:
     """Wall seconds of one `strokekit render ... --explain -q` and its stage ms (from --explain)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ, PYTHONPATH=str(CLI_ROOT))
     t = time.perf_counter()
     p = subprocess.run([sys.executable, "-m", "strokekit_cli.main", "render", *args, "--out", out, "--explain", "-q"],
-                       cwd=ROOT, env=env, capture_output=True, text=True)
+                       cwd=CLI_ROOT, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t
     if p.returncode:
         raise SystemExit(p.stderr)
@@ -159,6 +166,29 @@ def cli_bars(repeats: int, frames: int) -> None:
           f"--bands 3: {med['readme bands'] / med['readme']:.2f} x; bar <= 2")
 
 
+def one_worker_bar(repeats: int) -> None:
+    bunny = str(MODELS / "stanford-bunny.obj")
+    base = [bunny, "--size", "1024x1024", "--workers", "1", "--no-coherence"]
+    runs = {"lines 1": ["--orbit", "1"], "lines 25": ["--orbit", "25"], "bands 25": ["--orbit", "25", "--bands", "3"]}
+    res = defaultdict(list)
+    with tempfile.TemporaryDirectory() as tmp:
+        _render(base + ["--orbit", "1", "--bands", "3"], f"{tmp}/warm")  # kernels and scene cache
+        for _ in range(repeats):
+            for name, extra in runs.items():
+                res[name].append(_render(base + extra, f"{tmp}/{name.replace(' ', '')}")[0])
+    lines = [(b - a) / 24 for a, b in zip(res["lines 1"], res["lines 25"])]
+    raster = [(b - a) / 25 for a, b in zip(res["lines 25"], res["bands 25"])]
+    ratio = [r / ln for r, ln in zip(raster, lines)]
+    print(f"\n## issue 32's raster bar: bunny, 1024x1024, --workers 1 --no-coherence, {repeats} runs in turns")
+    print("| run | median s |")
+    print("|---|---|")
+    for k, v in res.items():
+        print(f"| {k} | {statistics.median(v):.3f} |")
+    print(f"lines a frame {1e3 * statistics.median(lines):.1f} ms, raster pass a frame "
+          f"{1e3 * statistics.median(raster):.1f} ms: {statistics.median(ratio):.2f} x (runs "
+          + ", ".join(f"{r:.2f}" for r in ratio) + "); bar <= 5")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=1024)
@@ -169,14 +199,20 @@ def main() -> None:
     ap.add_argument("--skip-accuracy", action="store_true")
     ap.add_argument("--skip-speed", action="store_true")
     ap.add_argument("--cli", action="store_true", help="also the end-to-end bars from the command line")
+    ap.add_argument("--one-worker", action="store_true", help="issue 32's bar: one worker, no tracking")
     ap.add_argument("--cli-repeats", type=int, default=3)
+    ap.add_argument("--root", type=Path, default=ROOT, help="the checkout whose command line is timed")
     ap.add_argument("--cli-frames", type=int, default=120)
     a = ap.parse_args()
+    global CLI_ROOT
+    CLI_ROOT = a.root.resolve()
     if not a.skip_speed:
         speed(a.size, a.repeats)
     if not a.skip_accuracy:
         for sh in (("flat", "smooth") if a.shading == "both" else (a.shading,)):
             accuracy_table(a.size, a.frames, a.bands, sh)
+    if a.one_worker:
+        one_worker_bar(a.cli_repeats)
     if a.cli:
         cli_bars(a.cli_repeats, a.cli_frames)
 

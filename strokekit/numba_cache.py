@@ -29,10 +29,12 @@ import hashlib
 import importlib
 import importlib.util
 import os
+import subprocess
 import sys
 import tempfile
 import threading
 import time
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
@@ -71,14 +73,15 @@ def _dispatchers(mod):
     return [v for v in vars(mod).values() if hasattr(v, "py_func") and v.py_func.__module__ == mod.__name__]
 
 
-def declared(mod):
+def declared(mod, parallel: bool = False):
     """(dispatcher, argument types) of every declared signature of module `mod`'s kernels that
-    the warm-up compiles (parallel kernels left out)."""
+    the warm-up compiles: its serial kernels, or with `parallel` its parallel ones (warmed only
+    for the runs that use them: a group of its own)."""
     from numba.core import sigutils
 
     out = []
     for d in _dispatchers(mod):
-        if d.targetoptions.get("parallel"):
+        if bool(d.targetoptions.get("parallel")) != parallel:
             continue
         for s in getattr(d, "declared_signatures", ()):
             out.append((d, sigutils.normalize_signature(s)[0]))
@@ -147,14 +150,14 @@ def _keep_stamp(mod) -> None:
             pass
 
 
-def compile_needed(mod) -> bool | None:
-    """Whether compiling `mod`'s declared signatures will compile any (False: each is in this
-    process or has a fresh entry in numba's disk cache, and they only load), or None when numba
-    does not tell (its cache internals changed)."""
+def compile_needed(mod, parallel: bool = False) -> bool | None:
+    """Whether compiling `mod`'s declared signatures (`parallel`: its parallel kernels') will
+    compile any (False: each is in this process or has a fresh entry in numba's disk cache, and
+    they only load), or None when numba does not tell (its cache internals changed)."""
     try:
         if _drop_stale(mod):
             return True
-        for d, sig in declared(mod):
+        for d, sig in declared(mod, parallel):
             if sig in d.overloads:
                 continue
             key = d._cache._index_key(sig, d.targetctx.codegen())
@@ -165,9 +168,9 @@ def compile_needed(mod) -> bool | None:
         return None
 
 
-def _compile_declared(mod) -> None:
+def _compile_declared(mod, parallel: bool = False) -> None:
     with keyboard_interrupts():
-        for d, sig in declared(mod):
+        for d, sig in declared(mod, parallel):
             d.compile(sig)
     _keep_stamp(mod)
 
@@ -235,24 +238,76 @@ def keyboard_interrupts():
 
 
 @contextmanager
-def machine_lock(name: str):
+def machine_lock(name: str, wait: bool = True):
     """An exclusive lock among this machine's processes, by `name` (a file lock in the temporary
-    folder; none where fcntl is missing or the file cannot be opened)."""
+    folder; none where fcntl is missing or the file cannot be opened). Yields whether it is held:
+    with `wait` False, False at once when another holds it."""
     if fcntl is None:
-        yield
+        yield True
         return
     path = Path(tempfile.gettempdir()) / f"strokekit-{name}-{os.getuid()}.lock"
     try:
         fh = open(path, "a")
     except OSError:
-        yield
+        yield True
         return
     with fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
         try:
-            yield
+            fcntl.flock(fh, fcntl.LOCK_EX if wait else fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
         finally:
             fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+# --- compiling on several cores ------------------------------------------------------------------
+
+#: A module's parallel kernels, as `claim_and_compile` names them: "module" + PARALLEL.
+PARALLEL = "+parallel"
+
+
+def claim_and_compile(modules: list[str], parent: int | None = None) -> None:
+    """Compile the declared kernels of each of `modules` (names, in order; "name+parallel": its
+    parallel kernels) that needs it and that no other process of the machine is compiling (its
+    machine lock is free); skip the others. `parent`: the pid of the process that asked; once it
+    is gone (Ctrl-C), stop."""
+    for spec in modules:
+        if parent is not None and os.getppid() != parent:
+            return
+        name = spec.removesuffix(PARALLEL)
+        parallel = name != spec
+        mod = LazyKernels(name).imported()
+        if compile_needed(mod, parallel) is False:
+            continue
+        with machine_lock(name, wait=False) as mine:
+            if mine and compile_needed(mod, parallel) is not False:
+                _compile_declared(mod, parallel)
+
+
+def compile_side_by_side(modules: list[str], processes: int) -> None:
+    """Compile the kernels of `modules` into numba's disk cache on `processes` cores at once:
+    processes - 1 child interpreters and this thread each take the next module nobody has taken
+    (`claim_and_compile`), so the modules spread over the cores (numba compiles one kernel at a
+    time in a process). The callers then load them from the cache."""
+    code = ("import sys; from strokekit.numba_cache import claim_and_compile; "
+            "claim_and_compile(sys.argv[2:], int(sys.argv[1]))")
+    # (run where this strokekit is imported from, not a checkout the current folder may hold)
+    home = Path(__file__).resolve().parents[1]
+    kids = [subprocess.Popen([sys.executable, "-c", code, str(os.getpid()), *modules], cwd=home, stdin=subprocess.DEVNULL,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for _ in range(processes - 1)]
+    try:
+        claim_and_compile(modules)
+    except BaseException:
+        for k in kids:
+            k.kill()
+        raise
+    finally:
+        for k in kids:
+            k.wait()
 
 
 # --- loading -------------------------------------------------------------------------------------
@@ -290,18 +345,23 @@ class LazyKernels:
             self.load(every=False)
         return self._module
 
-    def load(self, every: bool = True):
+    def load(self, every: bool = True, parallel: bool = False):
         """Compile, or load from the cache, the module's declared kernels (`every`: load those
-        that are cached too, before they are called). Returns the module."""
+        that are cached too, before they are called; `parallel`: its parallel kernels instead of
+        its serial ones). Returns the module."""
         mod = self.imported()
-        with self._lock:  # (two threads asking at once compile once)
-            if compile_needed(mod) is not False:
+        with self._lock, warnings.catch_warnings():  # (two threads asking at once compile once)
+            # (numba says, on its threads' first start, that open3d's older TBB is not used:
+            # it takes OpenMP instead, nothing for the user to do)
+            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
+            if compile_needed(mod, parallel) is not False:
                 with machine_lock(self.module):
-                    if compile_needed(mod) is not False:
-                        _compile_declared(mod)
+                    if compile_needed(mod, parallel) is not False:
+                        _compile_declared(mod, parallel)
             elif every:
-                _compile_declared(mod)
-            self._module = mod
+                _compile_declared(mod, parallel)
+            if not parallel:
+                self._module = mod
         return mod
 
 
@@ -310,14 +370,15 @@ class KernelGroup:
     names them in the compile notice, `compile_seconds` is about how long their first compile
     takes (s, on a 2-core machine)."""
 
-    def __init__(self, label: str, modules: tuple[LazyKernels, ...], compile_seconds: float):
+    def __init__(self, label: str, modules: tuple[LazyKernels, ...], compile_seconds: float, parallel: bool = False):
         self.label, self.modules, self.compile_seconds = label, tuple(modules), compile_seconds
+        self.parallel = parallel  # the modules' parallel kernels, not their serial ones
         self._ready = False
         self._warming: Warmup | None = None
 
     def compile_needed(self) -> bool | None:
         """Whether warming the group up compiles (True), only loads (False), or cannot tell (None)."""
-        said = [compile_needed(m.imported()) for m in self.modules]
+        said = [compile_needed(m.imported(), self.parallel) for m in self.modules]
         return True if True in said else (None if None in said else False)
 
     def warm(self, notify: Callable[[str], None] | None = None, compiles=None) -> tuple[float, bool]:
@@ -328,8 +389,20 @@ class KernelGroup:
         t = time.perf_counter()
         if compiles is None:
             compiles = self.compile_needed()
+        timer = self.say_compile(notify, compiles)
+        try:
+            for m in self.modules:
+                m.load(parallel=self.parallel)
+        finally:
+            if timer is not None:
+                timer.cancel()
+        self._ready = True
+        return time.perf_counter() - t, bool(compiles)
+
+    def say_compile(self, notify: Callable[[str], None] | None, compiles: bool | None):
+        """Tell `notify` that the group compiles (where compile_needed said so; where it could
+        not tell, after 2 s: the timer returned, to cancel once the kernels are there)."""
         msg = f"compiling the {self.label} kernels (first run on this machine, about {self.compile_seconds:g} s)"
-        timer = None
         if notify is not None:
             if compiles:
                 notify(msg)
@@ -337,14 +410,8 @@ class KernelGroup:
                 timer = threading.Timer(2.0, notify, (msg,))
                 timer.daemon = True
                 timer.start()
-        try:
-            for m in self.modules:
-                m.load()
-        finally:
-            if timer is not None:
-                timer.cancel()
-        self._ready = True
-        return time.perf_counter() - t, bool(compiles)
+                return timer
+        return None
 
     def ensure(self) -> float:
         """Make sure this process has the kernels (before a frame's clock starts): wait for the
@@ -384,8 +451,27 @@ class Warmup:
             said = [g.compile_needed() for g in self.groups]
             self._compiles = True if True in said else (None if None in said else False)
             self._decided.set()
+            todo = [m.module + (PARALLEL if g.parallel else "") for g, c in zip(self.groups, said) if c is not False
+                    for m in g.modules]
+            cores = os.cpu_count() or 1
+            if len(todo) > 1 and cores > 1:
+                # Several modules to compile: side by side on the cores, then loaded as cached.
+                # Each group's share of the wait is counted by its compile estimate.
+                t = time.perf_counter()
+                timers = [g.say_compile(self._notify, c) for g, c in zip(self.groups, said)]
+                try:
+                    compile_side_by_side(todo, min(cores, len(todo)))
+                finally:
+                    for timer in timers:
+                        if timer is not None:
+                            timer.cancel()
+                wait = time.perf_counter() - t
+                weight = {g.label: g.compile_seconds for g, c in zip(self.groups, said) if c is not False}
+                for label, w in weight.items():
+                    self.seconds[label] = wait * w / sum(weight.values())
+                said = [False] * len(said)
             for g, c in zip(self.groups, said):
-                self.seconds[g.label] = g.warm(self._notify, compiles=c)[0]
+                self.seconds[g.label] = self.seconds.get(g.label, 0.0) + g.warm(self._notify, compiles=c)[0]
         except BaseException as e:  # said by the frames that need the kernels
             self.error = e
         finally:

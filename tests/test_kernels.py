@@ -16,13 +16,13 @@ import pytest
 from strokekit import numba_cache
 from strokekit.lines.kernels import HIDDEN_LINES
 from strokekit.paths.kernels import BRUSH_PATHS
-from strokekit.raster.hits import RASTER
+from strokekit.raster.hits import RASTER, RASTER_THREADS
 from strokekit.run.kernels import LINE_STYLE
 from strokekit.tracking.kernels import TRACKING
 from strokekit.writers.exr import EXR_KERNELS
 
 ROOT = Path(__file__).resolve().parents[1]
-GROUPS = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE, EXR_KERNELS)
+GROUPS = (RASTER, RASTER_THREADS, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE, EXR_KERNELS)
 #: A style with every thickness modifier, its creases dashed (outlines cut into dashes).
 FIVE = """\
 [[lineset]]
@@ -100,7 +100,7 @@ def test_every_kernel_python_calls_says_how_it_is_called(lazy):
 
 def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
     """After the warm-up, drawing frames compiles nothing more: brush paths, tracked lines,
-    hidden lines, the raster pass, a moving scene's rays and a style's widths and outlines (its
+    hidden lines, the raster pass (its z-buffer on threads: the runs draw one frame at a time), a moving scene's rays and a style's widths and outlines (its
     five modifiers, dashed outlines too) call their kernels with the declared
     types only (a kernel
     called with another type would compile during a run's first frame, after the run said
@@ -110,7 +110,7 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         from strokekit import numba_cache
         from strokekit.lines.kernels import HIDDEN_LINES
         from strokekit.paths.kernels import BRUSH_PATHS
-        from strokekit.raster.hits import RASTER
+        from strokekit.raster.hits import RASTER, RASTER_THREADS
         from strokekit.scene.occluder import MOVING_SCENE
         from strokekit.run.kernels import LINE_STYLE
         from strokekit.tracking.kernels import TRACKING
@@ -120,7 +120,7 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
         sys.path.insert(0, {str(ROOT / 'tests')!r})
         from animated import sphere_and_box_glb
         from pathlib import Path
-        groups = (RASTER, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, LINE_STYLE, EXR_KERNELS)
+        groups = (RASTER, RASTER_THREADS, HIDDEN_LINES, BRUSH_PATHS, TRACKING, MOVING_SCENE, LINE_STYLE, EXR_KERNELS)
         for g in groups:
             g.warm()
         warm = {{}}
@@ -321,3 +321,85 @@ def test_kernels_let_other_threads_run_and_their_options_are_in_the_cache_stamp(
     needed, wakes = run("gil")
     assert needed == "True", "a kernel cached with other options would be loaded as it was"
     assert wakes <= 3, wakes  # holding the lock, the kernel keeps this thread asleep
+
+
+def test_a_run_drawing_one_frame_at_a_time_warms_the_threaded_z_buffer(monkeypatch):
+    """One worker: each frame's z-buffer runs on the machine's cores, so the warm-up compiles its
+    parallel kernels with the others (else the first frame would compile them unsaid); frames
+    drawn several at once keep the serial kernels and never load the parallel ones."""
+    from strokekit.raster.options import RasterOptions
+    from strokekit.run.kernels import kernels_needed
+    from strokekit.run.spec import OutputOptions, RenderRequest, RunSpec
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 4)
+    spec = RunSpec(scene_path="s.obj", cameras=(), outputs=OutputOptions(out_dir=Path("o")),
+                   request=RenderRequest(raster=RasterOptions(bands=2)), workers=1)
+    assert spec.raster_threads == 4 and RASTER_THREADS in kernels_needed(spec, frames_here=True)
+    two = RunSpec(scene_path="s.obj", cameras=(), outputs=OutputOptions(out_dir=Path("o")),
+                  request=RenderRequest(raster=RasterOptions(bands=2)), workers=2)
+    assert two.raster_threads == 1 and RASTER_THREADS not in kernels_needed(two, frames_here=True)
+    monkeypatch.setattr(os, "cpu_count", lambda: 1)
+    assert RASTER_THREADS not in kernels_needed(spec, frames_here=True)
+
+
+def _forget(*names):
+    for n in names:
+        sys.modules.pop(n, None)
+        numba_cache.LazyKernels._made.pop(n, None)
+
+
+def test_kernels_compile_side_by_side_each_module_once(monkeypatch, tmp_path):
+    """A first run's warm-up spreads the modules to compile over the cores: each process takes
+    the next module whose machine lock is free and skips those another process holds (so no
+    module compiles twice), and the child interpreters' compiles land in numba's disk cache,
+    where this process then finds them."""
+    body = """
+        from strokekit.numba_cache import kernel
+
+        @kernel("(f8[::1],)")
+        def total(a):
+            s = 0.0
+            for x in a:
+                s += x
+            return s
+        """
+    names = ["sk_side_a", "sk_side_b", "sk_side_c"]
+    for n in names:
+        _tiny_module(tmp_path, n, body)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    # Another process holds sk_side_a's lock: this one compiles the other two only.
+    held, release = threading.Event(), threading.Event()
+
+    def holder():
+        with numba_cache.machine_lock("sk_side_a"):
+            held.set()
+            release.wait(30)
+
+    t = threading.Thread(target=holder)
+    t.start()
+    held.wait(10)
+    try:
+        numba_cache.claim_and_compile(names[:2])
+    finally:
+        release.set()
+        t.join()
+    mods = [numba_cache.LazyKernels(n).imported() for n in names]
+    assert not mods[0].total.signatures and len(mods[1].total.signatures) == 1
+    # Side by side with this thread taking nothing: the child interpreter compiles both others.
+    monkeypatch.setattr(numba_cache, "claim_and_compile", lambda modules, parent=None: None)
+    numba_cache.compile_side_by_side(["sk_side_a", "sk_side_c"], 2)
+    _forget(*names)
+    assert [numba_cache.compile_needed(numba_cache.LazyKernels(n).imported()) for n in names] == [False] * 3
+    _forget(*names)
+
+
+def test_warming_the_threaded_z_buffer_says_nothing_of_numbas_threading_layer(tmp_path):
+    """A one-worker run compiles the z-buffer's parallel kernels on a machine's first run: numba
+    then finds open3d's TBB too old and takes OpenMP, which must not print a NumbaWarning at the
+    user. (A fresh interpreter and an empty cache: numba says it once, when it compiles.)"""
+    code = "import open3d\nfrom strokekit.raster.hits import RASTER_THREADS\nRASTER_THREADS.warm()\n"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
+                         env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path)))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "Warning" not in out.stderr, out.stderr[-2000:]

@@ -522,7 +522,7 @@ def label_polygons(key: np.ndarray, tolerance_px: float = 0.5) -> dict[int, obje
 
 def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, options: RasterOptions,
                   vnormals: np.ndarray | None = None, *, reference: bool = False,
-                  work=None, timings: dict | None = None) -> RasterFrame:
+                  work=None, timings: dict | None = None, threads: int = 1) -> RasterFrame:
     """Sample one frame and label its bands. Call only when a raster output is asked for.
 
     The z-buffer rasterizer samples it (`raster.hits.ZBufferHits`); `reference=True` casts Embree
@@ -532,7 +532,8 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
     them by given vertex normals, interpolated without splitting.
     `work`: a zbuffer.Workspace whose buffers the frame then uses (until the next frame drawn
     with it; `raster.hits.thread_workspace()`). `timings`: {stage: seconds} gets 'rasterize'
-    (the sample grid), 'shading' (labels, mixed pixels) and 'edge samples' (their R x R samples)."""
+    (the sample grid), 'shading' (labels, mixed pixels) and 'edge samples' (their R x R samples).
+    `threads`: the z-buffer's (the same arrays for any count)."""
     ensure_kernels()  # (loaded, or compiled, before the frame's clock starts)
     t0 = time.perf_counter()
     if reference:
@@ -540,7 +541,7 @@ def render_raster(scene: Scene, camera: Camera, occluder: Occluder | None, optio
             occluder = Occluder(scene)
         src = RayHits(scene, camera, occluder)
     else:
-        src = ZBufferHits(scene, camera, work)
+        src = ZBufferHits(scene, camera, work, threads)
     K = int(options.supersample)
     face, bary, depth = src.grid(K)
     W, H, f = int(camera.width), int(camera.height), camera.focal_px

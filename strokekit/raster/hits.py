@@ -29,6 +29,10 @@ from strokekit.scene.load import Scene
 ZBUFFER, PASS = LazyKernels("strokekit.raster.zbuffer"), LazyKernels("strokekit.raster.compiled")
 RASTER = KernelGroup("raster", (ZBUFFER, PASS), compile_seconds=20)
 
+#: The z-buffer's parallel kernels: runs that draw their frames one at a time use the cores in
+#: each frame's z-buffer instead (`RunSpec.raster_threads`).
+RASTER_THREADS = KernelGroup("raster threads", (ZBUFFER,), compile_seconds=6, parallel=True)
+
 #: The z-buffer module, its kernels loaded on first use.
 kernels = ZBUFFER.kernels
 #: The raster pass's own compiled loops, loaded on first use.
@@ -51,8 +55,9 @@ class ZBufferHits:
     camera draws it, keeps z (the depth along fwd the rays report) and, being affine, keeps
     every barycentric coordinate."""
 
-    def __init__(self, scene: Scene, camera: Camera, work=None):
+    def __init__(self, scene: Scene, camera: Camera, work=None, threads: int = 1):
         zb = kernels()
+        self.threads = threads
         self.camera = camera
         self.near = camera.near_distance(scene.radius)
         v = scene.vertices
@@ -74,11 +79,11 @@ class ZBufferHits:
     def grid(self, K: int, own: bool = False):
         """(face, bary, depth) of the K x K grid; `own`: in new arrays, not the workspace's (a
         second grid of the frame, which must not take the first one's buffers)."""
-        h = self._zb.rasterize_grid(self.proj, K, work=None if own else self.work)
+        h = self._zb.rasterize_grid(self.proj, K, threads=self.threads, work=None if own else self.work)
         return h.face, h.bary, h.depth
 
     def pixels(self, pixels: np.ndarray, R: int):
-        h = self._zb.rasterize_pixels(self.proj, pixels, R, work=self.work)
+        h = self._zb.rasterize_pixels(self.proj, pixels, R, threads=self.threads, work=self.work)
         return h.face, h.bary, h.depth
 
 

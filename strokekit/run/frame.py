@@ -87,10 +87,11 @@ class Frame:
                             lines=lines)
 
 
-def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: SequencePlan, work=None) -> Frame:
+def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: SequencePlan, work=None,
+                 raster_threads: int = 1) -> Frame:
     """What a frame draws without the frames before it: its lines and raster pass. `work`: a
     z-buffer workspace (raster.hits.thread_workspace) the raster pass reuses; the frame's
-    raster then lives until the next pass in that workspace."""
+    raster then lives until the next pass in that workspace. `raster_threads`: the z-buffer's."""
     timings: dict = {}
     clock = plan.clock
     time_s = clock.time(number)
@@ -111,7 +112,8 @@ def render_frame(renderer: LineRenderer, number: int, camera: Camera, plan: Sequ
         # The kernels' load (a process's first raster frame) is the 'raster kernels' stage, not this frame's.
         timings["kernels"] = ensure_kernels()
         t = time.perf_counter()
-        raster = render_raster(renderer.scene, camera, renderer.occluder, plan.raster, work=work, timings=timings)
+        raster = render_raster(renderer.scene, camera, renderer.occluder, plan.raster, work=work, timings=timings,
+                               threads=raster_threads)
         info = raster_info(raster)
         if plan.raster.band_polygons:
             underlays = (bands_layer(band_regions(raster)),)

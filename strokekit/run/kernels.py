@@ -10,7 +10,7 @@ from typing import Callable
 from strokekit.lines.kernels import HIDDEN_LINES
 from strokekit.numba_cache import KernelGroup, Warmup
 from strokekit.paths.kernels import BRUSH_PATHS
-from strokekit.raster.hits import RASTER
+from strokekit.raster.hits import RASTER, RASTER_THREADS
 from strokekit.run.spec import RASTER_STAGES, RunSpec
 from strokekit.scene.occluder import MOVING_SCENE
 from strokekit.style.widths import STYLE_KERNELS
@@ -24,6 +24,7 @@ LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, OUTLINE_KERNELS), compile
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",
             TRACKING: "tracking", MOVING_SCENE: "load scene + BVH", LINE_STYLE: "svg",
+            RASTER_THREADS: RASTER_STAGES["kernels"][0],
             EXR_KERNELS: RASTER_STAGES["kernels"][0]}
 
 
@@ -45,6 +46,8 @@ def kernels_needed(spec: RunSpec, frames_here: bool, moving: bool = False) -> li
         out.append(HIDDEN_LINES)
     if frames_here and spec.raster is not None:
         out.append(RASTER)
+        if spec.raster_threads > 1:
+            out.append(RASTER_THREADS)
         exr = spec.outputs.exr
         if exr is not None and exr.codec in WRITTEN_COMPILED:
             out.append(EXR_KERNELS)

@@ -297,7 +297,8 @@ class FrameStream:
         # here, in frame order, even one frame at a time).
         self.write_in_task = not self.carry.needed
         self.pending = deque(FrameTask(self.scene, plan, f, cams[f], out if f not in done_before else None,
-                                       write=self.write_in_task, keep_frame=self.keep_frames)
+                                       write=self.write_in_task, keep_frame=self.keep_frames,
+                                       raster_threads=spec.raster_threads)
                              for f in self.need_lines)
         self.n_lines = len(self.pending)
         self.drawn: dict[int, Frame | None] = {}  # frames drawn, then carried over, until written

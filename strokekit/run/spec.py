@@ -148,6 +148,12 @@ class RunSpec:
             object.__setattr__(self, "scene_path", os.path.abspath(self.scene_path))
             object.__setattr__(self, "outputs", replace(o, out_dir=Path(os.path.abspath(o.out_dir)), gltf_options=g))
 
+    @property
+    def raster_threads(self) -> int:
+        """Threads of each frame's z-buffer: the machine's cores where the frames are drawn one at
+        a time (one worker, no cluster), else 1 (the workers share the cores)."""
+        return (os.cpu_count() or 1) if self.workers == 1 and not self.scheduler else 1
+
     @cached_property
     def plan(self) -> SequencePlan:
         """The request settled for this run's frames."""

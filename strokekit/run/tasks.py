@@ -93,6 +93,7 @@ class FrameTask:
     outputs: OutputOptions | None
     write: bool = False
     keep_frame: bool = False
+    raster_threads: int = 1  # the z-buffer's threads (RunSpec.raster_threads)
 
     def __call__(self) -> FrameResult:
         return frame_task(self)
@@ -133,9 +134,10 @@ def frame_task(task: FrameTask) -> FrameResult:
     try:
         r = task.scene.renderer()
         plan = task.plan if task.outputs is not None else replace(task.plan, raster=None)
-        frame = render_frame(r, n, task.camera, plan, work=thread_workspace() if plan.raster is not None else None)
+        frame = render_frame(r, n, task.camera, plan, work=thread_workspace() if plan.raster is not None else None,
+                             raster_threads=task.raster_threads)
         timings = dict(frame.timings)
-        files = raster_files(frame, task.outputs, timings) \
+        files = raster_files(frame, task.outputs, timings, task.raster_threads) \
             if task.outputs is not None else []
         frame = replace(frame, raster=None)
         written = None
@@ -197,10 +199,11 @@ def surface_depth(outputs: OutputOptions, scene: SceneRef | None, occluder: Occl
     return surface_depth_at(occluder)
 
 
-def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[str]:
+def raster_files(frame: Frame, outputs: OutputOptions, timings: dict, threads: int = 1) -> list[str]:
     """Write one frame's image passes (PNGs, one folder per pass: its raster pass's images, the
     lines PNG) and EXR; returns the files written. The lines in them are the frame's as drawn,
-    before any carry, at their widths in the frame's style. `timings` gets the seconds of each part."""
+    before any carry, at their widths in the frame's style. `timings` gets the seconds of each part;
+    `threads`: the PNGs encoded at once."""
     files: list[str] = []
     raster, camera = frame.raster, frame.camera
     stem = outputs.stem(frame.number)
@@ -226,7 +229,7 @@ def raster_files(frame: Frame, outputs: OutputOptions, timings: dict) -> list[st
             images["lines"] = _lines_image(coverage(), camera)
             timings["lines PNG"] = time.perf_counter() - t2
         t2 = time.perf_counter()
-        pngs = png_files(images, text)
+        pngs = png_files(images, text, threads)
         timings["png"] = timings.get("png", 0.0) + (time.perf_counter() - t2)
         for name, data in pngs.items():
             files.append(_write(outputs.out_dir / name / f"{stem}.png", data))

@@ -18,6 +18,7 @@ from __future__ import annotations
 import io
 import struct
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -81,14 +82,20 @@ def read_png(data: bytes) -> np.ndarray:
     return np.asarray(img)
 
 
-def png_files(images: dict[str, np.ndarray], text: dict[str, dict[str, str]] | None = None) -> dict[str, bytes]:
+def png_files(images: dict[str, np.ndarray], text: dict[str, dict[str, str]] | None = None,
+              threads: int = 1) -> dict[str, bytes]:
     """{pass: PNG bytes} of {pass: image} (RasterFrame.images), in the same order: colour passes
     (COLOUR_PASSES) with an sRGB chunk, data passes marked Non-Color; `text` adds chunks per pass
-    (e.g. the depth range)."""
-    out = {}
-    for k, v in images.items():
+    (e.g. the depth range). `threads` > 1 encodes that many images at once (zlib lets go of
+    Python's lock; each image's bytes are its own)."""
+    def encode(k: str) -> bytes:
         srgb = k in COLOUR_PASSES
         chunks = {} if srgb else {"colorspace": "Non-Color"}
         chunks.update((text or {}).get(k, {}))
-        out[k] = png_bytes(v, srgb=srgb, text=chunks)
-    return out
+        return png_bytes(images[k], srgb=srgb, text=chunks)
+
+    names = list(images)
+    if threads > 1 and len(names) > 1:
+        with ThreadPoolExecutor(min(threads, len(names))) as pool:
+            return dict(zip(names, pool.map(encode, names)))
+    return {k: encode(k) for k in names}
