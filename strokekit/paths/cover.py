@@ -181,19 +181,7 @@ def by_drawn_samples(out: np.ndarray, D: Samples, run: np.ndarray, rank: np.ndar
         dp = D.p.take(z, axis=0) - D.p.take(x, axis=0)
         out[x] = np.where(np.einsum("ij,ij->i", dp, dp) <= radius_px * radius_px, z, -1)
     return out
-    r = rank.take(run.take(second))
-    o = np.argsort(r, kind="stable")
-    second, r = second[o], r[o]
-    for x in np.split(second, np.flatnonzero(np.diff(r)) + 1):
-        z = out.take(out.take(x))
-        x, z = x[z >= 0], z[z >= 0]  # (those whose cover is drawn now keep it)
-        dp = D.p.take(z, axis=0) - D.p.take(x, axis=0)
-        tx = D.t.take(x, axis=0)
-        ok = np.einsum("ij,ij->i", dp, dp) <= radius_px * radius_px
-        # (distance only)
 
-        out[x] = np.where(ok, z, -1)
-    return out
 
 #: A new path is held back only where all of it lies within this many px of the paths drawn: the
 #: lines stay within 3 px of a path everywhere.
