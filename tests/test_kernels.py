@@ -156,6 +156,19 @@ def test_the_warm_up_compiles_every_signature_the_pipelines_call(tmp_path):
     assert out.stdout == "", out.stdout
 
 
+#: A kernel module of one tiny kernel, for the tests of compiling and caching.
+TINY_TOTAL = """
+        from strokekit.numba_cache import kernel
+
+        @kernel("(f8[::1],)")
+        def total(a):
+            s = 0.0
+            for x in a:
+                s += x
+            return s
+        """
+
+
 def _tiny_module(folder: Path, name: str, body: str) -> None:
     (folder / f"{name}.py").write_text(textwrap.dedent(body))
 
@@ -165,16 +178,7 @@ def test_kernels_compile_under_a_machine_lock_and_only_when_needed(monkeypatch, 
     the machine-wide lock of that module, so a dask cluster's workers on one machine compile
     once; when they are cached, first use neither compiles nor waits for the lock."""
     name = "sk_tiny_kernels"
-    _tiny_module(tmp_path, name, """
-        from strokekit.numba_cache import kernel
-
-        @kernel("(f8[::1],)")
-        def total(a):
-            s = 0.0
-            for x in a:
-                s += x
-            return s
-        """)
+    _tiny_module(tmp_path, name, TINY_TOTAL)
     monkeypatch.syspath_prepend(str(tmp_path))
     held, release, got = threading.Event(), threading.Event(), []
 
@@ -353,19 +357,9 @@ def test_kernels_compile_side_by_side_each_module_once(monkeypatch, tmp_path):
     the next module whose machine lock is free and skips those another process holds (so no
     module compiles twice), and the child interpreters' compiles land in numba's disk cache,
     where this process then finds them."""
-    body = """
-        from strokekit.numba_cache import kernel
-
-        @kernel("(f8[::1],)")
-        def total(a):
-            s = 0.0
-            for x in a:
-                s += x
-            return s
-        """
     names = ["sk_side_a", "sk_side_b", "sk_side_c"]
     for n in names:
-        _tiny_module(tmp_path, n, body)
+        _tiny_module(tmp_path, n, TINY_TOTAL)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), str(ROOT), os.environ.get("PYTHONPATH", "")]))
     # Another process holds sk_side_a's lock: this one compiles the other two only.
