@@ -102,8 +102,9 @@ def run_cover(D: Samples, kind: np.ndarray, run: np.ndarray, r_line: np.ndarray,
 def covering_samples(D: Samples, kind: np.ndarray, run: np.ndarray, rank: np.ndarray, radius_px: float,
                      tree=None, crease_run: np.ndarray | None = None) -> np.ndarray:
     """(N,) for every line sample the index of a drawn sample of a higher-ranked run that covers
-    it (see module doc, step 4; `by_drawn_samples`), or -1. Only contour kinds are covered, each by its own kind: creases and
-    borders are mesh edges, two of them close together are two lines. `rank` (R,): 0 is first.
+    it (see module doc, step 4; `by_drawn_samples`), or -1. Only contour kinds are covered, each
+    by its own kind: creases and borders are mesh edges, two of them close together are two
+    lines. `rank` (R,): 0 is first.
     `tree`: a k-d tree of D.p, when the caller has one (the pairs of other samples are left out).
     `crease_run` (R,): runs of crease lines that a contour (silhouette) beside them covers too,
     whatever the ranks (a crease never covers)."""
