@@ -265,7 +265,7 @@ def test_the_compiled_widths_are_the_numpy_formulas_and_hold_between_points():
 
 def test_the_compiled_outline_text_is_the_numpy_writer_s():
     """writers.outline's compiled writer gives numpy's text to the byte: discs, coincident
-    points, hairpins, turns past 90 degrees, negative and large coordinates, 0 to 3 decimals,
+    points, hairpins, turns past 90 degrees, negative and large coordinates, 0 to 4 decimals,
     and a subset of the strokes (members); numbers it does not take go to numpy's writer."""
     from strokekit.writers.outline import outline_path_data_numpy
 
@@ -279,7 +279,7 @@ def test_the_compiled_outline_text_is_the_numpy_writer_s():
             pts[2] = pts[0]  # back where it came from
         r = rng.uniform(0.01, 5, len(pts))
         off = np.r_[0, np.cumsum(n)]
-        for dec in (0, 2, 3):
+        for dec in (0, 1, 2, 3, 4):
             assert outline_path_data(pts, off, r, dec) == outline_path_data_numpy(pts, off, r, dec)
         mem = np.sort(rng.choice(len(n), rng.integers(1, len(n) + 1), replace=False))
         full = outline_path_data_numpy(pts, off, r, 2)

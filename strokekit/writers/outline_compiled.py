@@ -15,7 +15,7 @@ from strokekit.numba_cache import kernel
 _M, _L, _A = 0, 1, 2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _number(buf, n, v, scale, decimals):
     """Write "%.{decimals}f" % (np.round(v, decimals) + 0.0) at buf[n:]: the integer
     rint(v 10^decimals) with `decimals` decimals (-0 written as 0). Returns the new end."""
@@ -24,26 +24,34 @@ def _number(buf, n, v, scale, decimals):
         buf[n] = 45
         n += 1
         k = -k
-    nd = 1
-    q = k // 10
-    while q > 0:
+    u = np.uint64(k)  # (unsigned: plain division by 10, no floor rounding of negatives)
+    ten = np.uint64(10)
+    nd = 1  # its digits, at least decimals + 1
+    p = ten
+    while nd < 19 and u >= p:
         nd += 1
-        q //= 10
+        p *= ten
     if nd < decimals + 1:
         nd = decimals + 1
-    width = nd + (1 if decimals > 0 else 0)
-    c = n + width - 1
-    for j in range(nd):
-        if j == decimals and decimals > 0:
-            buf[c] = 46
-            c -= 1
-        buf[c] = 48 + k % 10
-        k //= 10
+    c = n + nd + (1 if decimals > 0 else 0) - 1
+    end = c + 1
+    for _ in range(decimals):
+        q = u // ten
+        buf[c] = np.uint8(48 + (u - q * ten))
+        u = q
         c -= 1
-    return n + width
+    if decimals > 0:
+        buf[c] = 46
+        c -= 1
+    while c >= n:
+        q = u // ten
+        buf[c] = np.uint8(48 + (u - q * ten))
+        u = q
+        c -= 1
+    return end
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _token(buf, n, first, prev_cmd, cmd, x, y, r, cx, cy, px, py, scale, decimals):
     """One token of a path (after its separator from the one before): M/L x y, A r r 0 0 f x y."""
     if not first:
