@@ -25,7 +25,7 @@ and the width is at least MIN_WIDTH_PX."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -463,8 +463,8 @@ def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base:
                                   np.ascontiguousarray(strokes.surface, float), np.ascontiguousarray(z, float), seg,
                                   frac, persp)
     counts = np.bincount(strokes.stroke_of_point[seg], minlength=S)
-    out = replace(strokes, points=points, surface=surface, face=strokes.face[seg], u=u,
-                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    out = strokes.replace(points=points, surface=surface, face=strokes.face[seg], u=u,
+                          offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64))
     return out, w
 
 
@@ -544,11 +544,11 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray, values: n
     key = np.concatenate([np.arange(len(P), dtype=float), i + a])
     order = np.argsort(key, kind="stable")
     counts = np.diff(strokes.offsets) + np.bincount(stroke, minlength=len(strokes))
-    out = replace(strokes, points=np.concatenate([P, new_p])[order],
-                  surface=np.concatenate([strokes.surface, new_x])[order],
-                  face=np.concatenate([strokes.face, strokes.face[i]])[order],
-                  u=np.concatenate([strokes.u, new_u])[order],
-                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    out = strokes.replace(points=np.concatenate([P, new_p])[order],
+                          surface=np.concatenate([strokes.surface, new_x])[order],
+                          face=np.concatenate([strokes.face, strokes.face[i]])[order],
+                          u=np.concatenate([strokes.u, new_u])[order],
+                          offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64))
     if values is None:
         return out, None
     return out, np.concatenate([values, nv[inside]])[order]
