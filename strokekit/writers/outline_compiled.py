@@ -51,7 +51,7 @@ def _number(buf, n, v, scale, decimals):
     return end
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _token(buf, n, first, prev_cmd, cmd, x, y, r, cx, cy, px, py, scale, decimals):
     """One token of a path (after its separator from the one before): M/L x y, A r r 0 0 f x y."""
     if not first:
