@@ -357,29 +357,6 @@ def test_the_depth_probes_outside_the_scene_s_screen_box_are_skipped_without_cha
         assert (sum(cast) < gx.size) if fewer else (sum(cast) == gx.size)  # (the second eye is inside the box)
 
 
-def test_the_farthest_depth_is_the_farthest_line_point_without_probes():
-    """With the nearest vertex in view and lines drawn, the depth range casts no probe: its far
-    end is the lines' farthest point (the bowl's deepest point, inside it, is farther)."""
-    from strokekit.scene.load import build_scene
-    from strokekit.style.widths import style_context
-
-    g = np.linspace(-1, 1, 9)
-    X, Y = np.meshgrid(g, g)
-    V = np.c_[X.ravel(), Y.ravel(), 0.5 * (X.ravel() ** 2 + Y.ravel() ** 2)]
-    F = [[9 * r + c, 9 * r + c + 1, 9 * r + c + 10] for r in range(8) for c in range(8)]
-    F += [[9 * r + c, 9 * r + c + 10, 9 * r + c + 9] for r in range(8) for c in range(8)]
-    scene = build_scene(V, np.array(F))
-    cam = Camera(eye=(0, 0, 5), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
-    rim = V[[0, 4, 8]]  # a line along the bowl's rim
-    xy, _ = cam.project(rim)
-    lines = Strokes.build(xy, rim, np.zeros(3, np.int64), [0, 3], np.full(1, KIND_INDEX["border"]), camera=cam)
-
-    def probes(camera, px):
-        raise AssertionError("no probe is needed")
-
-    z = style_context(one_set(Depth(near=2, far=1)), scene, cam, lines, probes).depth_range
-    assert z == (pytest.approx(4.0), float(cam.depth(rim).max()))
-
 def test_the_nearest_vertex_leaves_out_vertices_of_no_face():
     """A vertex no face uses is no visible point: the nearest visible depth is the nearest vertex
     of a face."""

@@ -75,20 +75,16 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
     (vertices, faces, face_object, face_material, objects, materials); `lines`: the frame's lines
     (their faces and surface points); `surface_depth`: f(camera, pixels) -> depth of the first
     surface (raster.surface_depth_at), probed on a grid every DEPTH_GRID_PX for the visible depth
-    range where needed. The nearest visible depth is the scene's nearest vertex where that one is
-    in the image and beyond the near plane (nothing can hide it: a triangle is nowhere nearer
-    than its nearest vertex), else the nearest of the probes and line points; the farthest is
-    the farthest line point (the widths are drawn on the lines: the farthest of them gets the
-    far width), the probes' where there is no line."""
+    range. The nearest visible depth is the scene's nearest vertex where that one is in the image
+    and beyond the near plane (nothing can hide it: a triangle is nowhere nearer than its nearest
+    vertex), else the nearest of the probes and line points; the farthest is the farthest probe
+    or line point."""
     if not (style.needs_scene_depths or style.needs_faces):
         return None
     depth_range = None
     if style.needs_scene_depths:
-        zl = camera.depth(lines.surface) if len(lines.points) else np.zeros(0)
-        zl = zl[np.isfinite(zl) & (zl > 0)]
-        near = _nearest_vertex_depth(scene, camera) if surface_depth is not None else None
-        zp = np.zeros(0)
-        if surface_depth is not None and (near is None or not len(zl)):
+        z = [camera.depth(lines.surface)] if len(lines.points) else []
+        if surface_depth is not None:
             xs = np.arange(0.5 * DEPTH_GRID_PX, camera.width, DEPTH_GRID_PX)
             ys = np.arange(0.5 * DEPTH_GRID_PX, camera.height, DEPTH_GRID_PX)
             box = _screen_box(scene, camera)
@@ -97,18 +93,15 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
                 ys = ys[(ys >= box[1]) & (ys <= box[3])]
             gx, gy = np.meshgrid(xs, ys)
             if gx.size:
-                zp = surface_depth(camera, np.stack([gx.ravel(), gy.ravel()], 1))
-                zp = zp[np.isfinite(zp) & (zp > 0)]
+                z.append(surface_depth(camera, np.stack([gx.ravel(), gy.ravel()], 1)))
+        near = _nearest_vertex_depth(scene, camera) if surface_depth is not None else None
         if near is not None:
-            zl, zp = zl[zl >= near], zp[zp >= near]  # (a float32 depth a hair nearer than the vertex)
-        far_of = zl if len(zl) else zp
-        if near is None:
-            near_of = np.concatenate([zl, zp])
-            near = float(near_of.min()) if len(near_of) else None
-        if near is not None and len(far_of):
-            depth_range = (near, float(far_of.max()))
-        elif near is not None:
-            depth_range = (near, near)
+            z.append(np.array([near]))
+        z = np.concatenate(z) if z else np.zeros(0)
+        z = z[np.isfinite(z) & (z > 0)]
+        if near is not None:
+            z = z[z >= near]  # (a probe's float32 depth a hair nearer than the vertex)
+        depth_range = (float(z.min()), float(z.max())) if len(z) else None
     faces = fo = fm = None
     if style.needs_faces:
         faces = np.unique(lines.face[lines.face >= 0])
@@ -147,8 +140,7 @@ def _screen_box(scene, camera) -> tuple[float, float, float, float] | None:
             float(xy[:, 1].max()) + 1.0)
 
 
-#: Where the nearest vertex is out of view, the nearest visible depth is probed every this many px
-#: (and at every line point).
+#: The visible depth range is probed every this many px (and at every line point).
 DEPTH_GRID_PX = 16.0
 
 
