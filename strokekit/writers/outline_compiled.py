@@ -15,7 +15,7 @@ from strokekit.numba_cache import kernel
 _M, _L, _A = 0, 1, 2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _number(buf, n, v, scale, decimals):
     """Write "%.{decimals}f" % (np.round(v, decimals) + 0.0) at buf[n:]: the integer
     rint(v 10^decimals) with `decimals` decimals (-0 written as 0). Returns the new end."""
