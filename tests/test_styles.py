@@ -153,6 +153,25 @@ def test_no_head_or_tail_where_two_strokes_of_a_line_meet():
     assert w[0] == pytest.approx(0.5) and w[-1] == pytest.approx(0.5)  # the free ends
 
 
+def test_the_close_ends_are_the_k_d_tree_s_pairs():
+    """The joins' candidate pairs (joins.close_pairs, a sort on x) are scipy's cKDTree.query_pairs
+    (distance <= r), clusters, coincident points and points exactly r apart included."""
+    from scipy.spatial import cKDTree
+
+    from strokekit.style.joins import close_pairs
+
+    rng = np.random.default_rng(3)
+    for n, spread in ((0, 10.0), (1, 10.0), (40, 5.0), (400, 300.0), (2000, 1000.0)):
+        E = rng.uniform(0, spread, (n, 2))
+        if n > 4:
+            E[1] = E[0]  # coincident
+            E[3] = E[2] + [2.5, 0.0]  # exactly r apart
+            E[4] = E[2] + [0.0, 2.5]
+        a, b = close_pairs(E, 2.5)
+        want = cKDTree(E).query_pairs(2.5, output_type="ndarray") if n else np.zeros((0, 2), int)
+        assert (a < b).all()
+        assert sorted(zip(a.tolist(), b.tolist())) == sorted(map(tuple, want.tolist()))
+
 def test_depth_width_between_near_and_far():
     cam = Camera(eye=(0, 0, 10), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
     p = np.array([[10.0, 100], [190, 100]])
@@ -246,7 +265,7 @@ def test_the_compiled_widths_are_the_numpy_formulas_and_hold_between_points():
 
 def test_the_compiled_outline_text_is_the_numpy_writer_s():
     """writers.outline's compiled writer gives numpy's text to the byte: discs, coincident
-    points, hairpins, turns past 90 degrees, negative and large coordinates, 0 to 3 decimals,
+    points, hairpins, turns past 90 degrees, negative and large coordinates, 0 to 4 decimals,
     and a subset of the strokes (members); numbers it does not take go to numpy's writer."""
     from strokekit.writers.outline import outline_path_data_numpy
 
@@ -260,7 +279,7 @@ def test_the_compiled_outline_text_is_the_numpy_writer_s():
             pts[2] = pts[0]  # back where it came from
         r = rng.uniform(0.01, 5, len(pts))
         off = np.r_[0, np.cumsum(n)]
-        for dec in (0, 2, 3):
+        for dec in (0, 1, 2, 3, 4):
             assert outline_path_data(pts, off, r, dec) == outline_path_data_numpy(pts, off, r, dec)
         mem = np.sort(rng.choice(len(n), rng.integers(1, len(n) + 1), replace=False))
         full = outline_path_data_numpy(pts, off, r, 2)
@@ -294,6 +313,62 @@ def test_the_nearest_visible_depth_is_the_nearest_vertex_when_it_is_in_view():
     z = style_context(style, scene, side, empty, surface_depth_at(occ)).depth_range
     assert z is None or z[0] > side.depth(V[4:5])[0]
 
+
+
+def test_the_depth_probes_outside_the_scene_s_screen_box_are_skipped_without_changing_the_range():
+    """style_context casts its 16 px probes only inside the image of the scene's bounding box (a
+    probe outside it hits nothing): the probes it casts hit the same depths as the whole grid,
+    and the range is the whole grid's; a box reaching behind the near plane casts them all."""
+    from strokekit.raster.rays import surface_depth_at
+    from strokekit.scene.load import build_scene
+    from strokekit.scene.occluder import Occluder
+    from strokekit.style.widths import DEPTH_GRID_PX, style_context
+
+    # a bowl facing the camera (its deepest point inside, no line there), off the image centre
+    g = np.linspace(-1, 1, 9)
+    X, Y = np.meshgrid(g, g)
+    V = np.c_[X.ravel() + 0.4, Y.ravel() - 0.2, 0.5 * (X.ravel() ** 2 + Y.ravel() ** 2)]
+    F = []
+    for r in range(8):
+        for c in range(8):
+            a = 9 * r + c
+            F += [[a, a + 1, a + 10], [a, a + 10, a + 9]]
+    scene = build_scene(V, np.array(F))
+    occ = Occluder(scene)
+    style = one_set(Depth(near=2, far=1))
+    empty = line(np.zeros((0, 2)), offsets=[0])
+    cast = []
+
+    def probes(camera, px):
+        cast.append(len(px))
+        return surface_depth_at(occ)(camera, px)
+
+    for cam, fewer in ((Camera(eye=(0, 0, 5), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=160), True),
+                       (Camera(eye=(0.4, -0.2, 0.3), target=(0.4, -0.2, 0), up=(0, 1, 0), fov_y=60, width=64,
+                               height=64), False)):
+        cast.clear()
+        z = style_context(style, scene, cam, empty, probes).depth_range
+        xs = np.arange(0.5 * DEPTH_GRID_PX, cam.width, DEPTH_GRID_PX)
+        ys = np.arange(0.5 * DEPTH_GRID_PX, cam.height, DEPTH_GRID_PX)
+        gx, gy = np.meshgrid(xs, ys)
+        every = surface_depth_at(occ)(cam, np.stack([gx.ravel(), gy.ravel()], 1))
+        every = every[np.isfinite(every)]
+        assert len(every) and z[1] == float(every.max())
+        assert (sum(cast) < gx.size) if fewer else (sum(cast) == gx.size)  # (the second eye is inside the box)
+
+
+def test_the_nearest_vertex_leaves_out_vertices_of_no_face():
+    """A vertex no face uses is no visible point: the nearest visible depth is the nearest vertex
+    of a face."""
+    from strokekit.scene.load import Scene
+    from strokekit.style.widths import _nearest_vertex_depth
+
+    V = np.array([[-1, -1, 0], [1, -1, 0], [0, 1, 0], [0, 0, 2.0], [0.2, 0.1, 0.5]], float)
+    F = np.array([[0, 1, 4], [1, 2, 4], [2, 0, 4]])
+    scene = Scene(V, F, np.zeros(3, np.int32), np.zeros(3, np.int32))
+    cam = Camera(eye=(0, 0, 5), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
+    assert list(scene.face_vertex_ids) == [0, 1, 2, 4]
+    assert _nearest_vertex_depth(scene, cam) == pytest.approx(4.5)  # not the free vertex's 3.0
 
 # --- SVG --------------------------------------------------------------------------------------------
 

@@ -108,6 +108,17 @@ class Scene(SceneTables):
         return r if r > 0 else 1.0
 
     @cached_property
+    def face_vertex_ids(self) -> np.ndarray:
+        """(U,) the vertices some face uses, ascending."""
+        return np.unique(self.faces)
+
+    @cached_property
+    def face_vertices(self) -> np.ndarray:
+        """(U, 3) those vertices' coordinates (all of `vertices` when every one is used)."""
+        ids = self.face_vertex_ids
+        return self.vertices if len(ids) == len(self.vertices) else self.vertices[ids]
+
+    @cached_property
     def face_normals(self) -> np.ndarray:
         """(F, 3) unit normals from the winding, float64. Degenerate faces were dropped, so no NaN."""
         return face_normals_of(self.vertices, self.faces)

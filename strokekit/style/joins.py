@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from strokekit.model import row_norm
+
 
 def stroke_bounds(sid: np.ndarray, n_strokes: int) -> tuple[np.ndarray, np.ndarray]:
     """(starts, ends) (S,): the first and one-past-last point of each stroke, for points grouped by
@@ -54,15 +56,14 @@ class StrokeJoins:
 
 
 def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.ndarray, join_px: float,
-                 join_angle_deg: float) -> StrokeJoins:
+                 join_angle_deg: float, arc: np.ndarray | None = None) -> StrokeJoins:
     """Which ends of the strokes (points (N, 2) px grouped by stroke index sid (N,), kind (S,)) are
     joins: the end of another stroke of the same kind, or the stroke's other end (a loop at least
     4 join_px long), within join_px, the line running on through both (their directions turning by
     at most join_angle_deg; a stair-step, where a scanned mesh's contour moves from one shingle to
     the next, is one too), and moving both to their middle keeps each ahead of its stroke's next
-    point. Each end joins one other, the nearest first (then the straightest)."""
-    from scipy.spatial import cKDTree  # (here: the style and the ribbons load without scipy)
-
+    point. Each end joins one other, the nearest first (then the straightest). `arc`: the points'
+    arc_lengths where the caller has them (Strokes.arc_length, the same values)."""
     S = n_strokes
     joined = np.zeros((S, 2), bool)
     point = np.zeros((S, 2, 2))
@@ -70,38 +71,43 @@ def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.n
     partner = np.full((S, 2), -1, np.int64)
     out = StrokeJoins(joined, point, normal, partner)
     starts, ends = stroke_bounds(sid, S)
-    arc = arc_lengths(points, sid)
+    arc = arc_lengths(points, sid) if arc is None else arc
     L = np.where(ends - starts >= 2, arc[np.maximum(ends - 1, 0)] if len(arc) else 0.0, 0.0)
     ok = np.flatnonzero(L > 0)
     if len(ok) < 1 or join_px <= 0:
         return out
     # Each end's position and outward direction (away from its stroke), from the point
-    # _END_REACH_PX along it.
+    # _END_REACH_PX along it; rows 2k, 2k + 1: stroke ok[k]'s start and end.
     span = float(L.max()) + 1.0
     g = arc + sid * span
+    s0, e1 = starts[ok], ends[ok] - 1
     reach = np.minimum(_END_REACH_PX, 0.5 * L[ok])
-    j0 = np.clip(np.searchsorted(g, ok * span + reach, side="left"), starts[ok] + 1, ends[ok] - 1)
-    j1 = np.clip(np.searchsorted(g, ok * span + L[ok] - reach, side="right") - 1, starts[ok], ends[ok] - 2)
-    pos = np.stack([points[starts[ok]], points[ends[ok] - 1]], 1)  # (K, 2 ends, 2)
-    nxt = np.stack([points[starts[ok] + 1], points[ends[ok] - 2]], 1)  # the neighbour of each end
-    d = np.stack([pos[:, 0] - points[j0], pos[:, 1] - points[j1]], 1)
-    d /= np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-300)
-    E, D, NX = pos.reshape(-1, 2), d.reshape(-1, 2), nxt.reshape(-1, 2)
+    j0 = np.clip(np.searchsorted(g, ok * span + reach, side="left"), s0 + 1, e1)
+    j1 = np.clip(np.searchsorted(g, ok * span + L[ok] - reach, side="right") - 1, s0, e1 - 1)
+    K = len(ok)
+    at, back, nx = np.empty(2 * K, np.int64), np.empty(2 * K, np.int64), np.empty(2 * K, np.int64)
+    at[0::2], at[1::2] = s0, e1
+    back[0::2], back[1::2] = j0, j1
+    nx[0::2], nx[1::2] = s0 + 1, e1 - 1  # the neighbour of each end
+    E, NX = points[at], points[nx]
+    D = E - points[back]
+    D /= np.maximum(row_norm(D), 1e-300)[:, None]
     owner = np.repeat(ok, 2)
-    pr = cKDTree(E).query_pairs(join_px, output_type="ndarray")
-    if len(pr) == 0:
+    a, b = close_pairs(E, join_px)
+    if len(a) == 0:
         return out
-    a, b = pr[:, 0], pr[:, 1]
     sa, sb = owner[a], owner[b]
-    dot = np.einsum("ij,ij->i", D[a], D[b])
+    dot = D[a, 0] * D[b, 0] + D[a, 1] * D[b, 1]
     thru = D[a] - D[b]  # the line's direction through the joint, from a's stroke into b's
-    thru /= np.maximum(np.linalg.norm(thru, axis=1, keepdims=True), 1e-300)
+    thru /= np.maximum(row_norm(thru), 1e-300)[:, None]
     mid = 0.5 * (E[a] + E[b])
-    ahead = (np.einsum("ij,ij->i", mid - NX[a], D[a]) > 0) & (np.einsum("ij,ij->i", mid - NX[b], D[b]) > 0)
-    keep = ((np.asarray(kind)[sa] == np.asarray(kind)[sb]) & (dot <= -np.cos(np.radians(join_angle_deg)))
+    ma, mb = mid - NX[a], mid - NX[b]
+    ahead = (ma[:, 0] * D[a, 0] + ma[:, 1] * D[a, 1] > 0) & (mb[:, 0] * D[b, 0] + mb[:, 1] * D[b, 1] > 0)
+    kind = np.asarray(kind)
+    keep = ((kind[sa] == kind[sb]) & (dot <= -np.cos(np.radians(join_angle_deg)))
             & ahead & ((sa != sb) | (L[sa] >= 4.0 * join_px)))
     a, b, dot, thru, mid = a[keep], b[keep], dot[keep], thru[keep], mid[keep]
-    dist = np.linalg.norm(E[b] - E[a], axis=1)
+    dist = row_norm(E[b] - E[a])
     used = [False] * len(E)
     take = []
     al, bl = a.tolist(), b.tolist()  # (Python ints: the greedy loop indexes them one at a time)
@@ -110,15 +116,35 @@ def stroke_joins(points: np.ndarray, sid: np.ndarray, n_strokes: int, kind: np.n
             used[al[k]] = used[bl[k]] = True
             take.append(k)
     take = np.asarray(take, np.int64)
-    miter = 1.0 / np.maximum(np.einsum("ij,ij->i", thru[take], D[a[take]]), 1e-3)
-    for e, f in ((a[take], b[take]), (b[take], a[take])):
-        s_e, w_e = owner[e], e % 2
-        # the shared edge across the line, turned to the stroke's own normal: its direction of
-        # travel at the end is D (an end) or -D (a start), the line's is +-thru
-        travel = np.where((w_e == 1)[:, None], D[e], -D[e])
-        t = np.where((np.einsum("ij,ij->i", thru[take], travel) >= 0)[:, None], thru[take], -thru[take])
-        joined[s_e, w_e] = True
-        point[s_e, w_e] = mid[take]
-        normal[s_e, w_e] = np.stack([-t[:, 1], t[:, 0]], 1) * miter[:, None]
-        partner[s_e, w_e] = 2 * owner[f] + f % 2
+    tt, ta = thru[take], D[a[take]]
+    miter = 1.0 / np.maximum(tt[:, 0] * ta[:, 0] + tt[:, 1] * ta[:, 1], 1e-3)
+    # both ends of every join at once: end e joined to end f
+    e, f = np.concatenate([a[take], b[take]]), np.concatenate([b[take], a[take]])
+    tt, miter, mid = np.concatenate([tt, tt]), np.concatenate([miter, miter]), np.concatenate([mid[take], mid[take]])
+    s_e, w_e = owner[e], e % 2
+    # the shared edge across the line, turned to the stroke's own normal: its direction of
+    # travel at the end is D (an end) or -D (a start), the line's is +-thru
+    De = D[e]
+    along = (tt[:, 0] * De[:, 0] + tt[:, 1] * De[:, 1]) * np.where(w_e == 1, 1.0, -1.0)
+    t = np.where((along >= 0)[:, None], tt, -tt)
+    joined[s_e, w_e] = True
+    point[s_e, w_e] = mid
+    normal[s_e, w_e] = np.stack([-t[:, 1], t[:, 0]], 1) * miter[:, None]
+    partner[s_e, w_e] = 2 * owner[f] + f % 2
     return out
+
+
+def close_pairs(E: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """(a, b): every pair a < b of the points E (M, 2) at most r apart (squared distance <= r^2,
+    as scipy's cKDTree.query_pairs), in no particular order: after a sort on x, each point
+    against those after it within r in x."""
+    order = np.argsort(E[:, 0], kind="stable")
+    x = E[order, 0]
+    n = np.searchsorted(x, x + r, side="right") - np.arange(len(x)) - 1  # the points after each within r in x
+    i = np.repeat(np.arange(len(x)), n)
+    j = i + 1 + (np.arange(len(i)) - np.repeat(np.cumsum(n) - n, n))
+    p, q = order[i], order[j]
+    d = E[p] - E[q]
+    near = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] <= r * r
+    p, q = p[near], q[near]
+    return np.minimum(p, q), np.maximum(p, q)

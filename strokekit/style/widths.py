@@ -25,7 +25,7 @@ and the width is at least MIN_WIDTH_PX."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -87,8 +87,13 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
         if surface_depth is not None:
             xs = np.arange(0.5 * DEPTH_GRID_PX, camera.width, DEPTH_GRID_PX)
             ys = np.arange(0.5 * DEPTH_GRID_PX, camera.height, DEPTH_GRID_PX)
+            box = _screen_box(scene, camera)
+            if box is not None:  # (a probe outside the scene's screen box hits nothing)
+                xs = xs[(xs >= box[0]) & (xs <= box[2])]
+                ys = ys[(ys >= box[1]) & (ys <= box[3])]
             gx, gy = np.meshgrid(xs, ys)
-            z.append(surface_depth(camera, np.stack([gx.ravel(), gy.ravel()], 1)))
+            if gx.size:
+                z.append(surface_depth(camera, np.stack([gx.ravel(), gy.ravel()], 1)))
         near = _nearest_vertex_depth(scene, camera) if surface_depth is not None else None
         if near is not None:
             z.append(np.array([near]))
@@ -108,20 +113,31 @@ def style_context(style: Style, scene, camera, lines: Strokes, surface_depth=Non
 def _nearest_vertex_depth(scene, camera) -> float | None:
     """The view depth of the scene's nearest vertex (of a face) when it is visible for sure: in
     the image and beyond the near plane (then every face lies beyond it too); else None."""
-    V = np.asarray(scene.vertices, float)
-    if not len(V) or not len(scene.faces):
+    if not len(scene.vertices) or not len(scene.faces):
         return None
     fwd = np.asarray(camera.basis[2], float)
-    i = int(np.argmin(V @ fwd))
-    if not (np.asarray(scene.faces) == i).any():  # a vertex of no face
-        used = np.unique(scene.faces)
-        i = int(used[np.argmin(V[used] @ fwd)])
+    i = int(scene.face_vertex_ids[np.argmin(np.asarray(scene.face_vertices, float) @ fwd)])
+    V = np.asarray(scene.vertices, float)
     z = float(camera.depth(V[i:i + 1])[0])
     if not z > camera.near_distance(scene.radius):
         return None
     xy, _ = camera.project(V[i:i + 1])
     x, y = float(xy[0, 0]), float(xy[0, 1])
     return z if 0.0 <= x <= camera.width and 0.0 <= y <= camera.height else None
+
+
+def _screen_box(scene, camera) -> tuple[float, float, float, float] | None:
+    """(x0, y0, x1, y1) px, grown by 1 px: a box holding the image of every scene point (that of
+    the corners of its bounding box, all beyond the near plane); None where there is none."""
+    lo, hi = scene.bounds
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    xy, z = camera.project(corners)
+    if not camera.is_ortho and not (z > camera.near_distance(scene.radius)).all():
+        return None
+    if not np.isfinite(xy).all():
+        return None
+    return (float(xy[:, 0].min()) - 1.0, float(xy[:, 1].min()) - 1.0, float(xy[:, 0].max()) + 1.0,
+            float(xy[:, 1].max()) + 1.0)
 
 
 #: The visible depth range is probed every this many px (and at every line point).
@@ -302,7 +318,7 @@ def _free_ends(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...]) -
         return None
     label = strokes.kind.astype(np.int64) + 128 * which
     joins = stroke_joins(np.asarray(strokes.points, float), strokes.stroke_of_point.astype(np.int64), S, label,
-                         JOIN_PX, JOIN_ANGLE_DEG)
+                         JOIN_PX, JOIN_ANGLE_DEG, arc=strokes.arc_length)
     return ~joins.joined
 
 
@@ -439,8 +455,8 @@ def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base:
                                   np.ascontiguousarray(strokes.surface, float), np.ascontiguousarray(z, float), seg,
                                   frac, persp)
     counts = np.bincount(strokes.stroke_of_point[seg], minlength=S)
-    out = replace(strokes, points=points, surface=surface, face=strokes.face[seg], u=u,
-                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    out = strokes.replace(points=points, surface=surface, face=strokes.face[seg], u=u,
+                          offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64))
     return out, w
 
 
@@ -520,11 +536,11 @@ def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray, values: n
     key = np.concatenate([np.arange(len(P), dtype=float), i + a])
     order = np.argsort(key, kind="stable")
     counts = np.diff(strokes.offsets) + np.bincount(stroke, minlength=len(strokes))
-    out = replace(strokes, points=np.concatenate([P, new_p])[order],
-                  surface=np.concatenate([strokes.surface, new_x])[order],
-                  face=np.concatenate([strokes.face, strokes.face[i]])[order],
-                  u=np.concatenate([strokes.u, new_u])[order],
-                  offsets=np.r_[0, np.cumsum(counts)].astype(np.int64))
+    out = strokes.replace(points=np.concatenate([P, new_p])[order],
+                          surface=np.concatenate([strokes.surface, new_x])[order],
+                          face=np.concatenate([strokes.face, strokes.face[i]])[order],
+                          u=np.concatenate([strokes.u, new_u])[order],
+                          offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64))
     if values is None:
         return out, None
     return out, np.concatenate([values, nv[inside]])[order]

@@ -24,23 +24,31 @@ def _number(buf, n, v, scale, decimals):
         buf[n] = 45
         n += 1
         k = -k
-    nd = 1
-    q = k // 10
-    while q > 0:
+    u = np.uint64(k)  # (unsigned: plain division by 10, no floor rounding of negatives)
+    ten = np.uint64(10)
+    nd = 1  # its digits, at least decimals + 1
+    p = ten
+    while nd < 19 and u >= p:
         nd += 1
-        q //= 10
+        p *= ten
     if nd < decimals + 1:
         nd = decimals + 1
-    width = nd + (1 if decimals > 0 else 0)
-    c = n + width - 1
-    for j in range(nd):
-        if j == decimals and decimals > 0:
-            buf[c] = 46
-            c -= 1
-        buf[c] = 48 + k % 10
-        k //= 10
+    c = n + nd + (1 if decimals > 0 else 0) - 1
+    end = c + 1
+    for _ in range(decimals):
+        q = u // ten
+        buf[c] = np.uint8(48 + (u - q * ten))
+        u = q
         c -= 1
-    return n + width
+    if decimals > 0:
+        buf[c] = 46
+        c -= 1
+    while c >= n:
+        q = u // ten
+        buf[c] = np.uint8(48 + (u - q * ten))
+        u = q
+        c -= 1
+    return end
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -87,6 +95,8 @@ def outline_text(P, offsets, R, members, decimals, straight, cap):
     ends = np.empty(members.shape[0], np.int64)
     scale = 10.0 ** decimals
     idx = np.empty(P.shape[0], np.int64)
+    TX = np.empty(P.shape[0], np.float64)  # each segment's unit direction, found once
+    TY = np.empty(P.shape[0], np.float64)
     n = 0
     for q in range(members.shape[0]):
         s = members[q]
@@ -121,25 +131,27 @@ def outline_text(P, offsets, R, members, decimals, straight, cap):
             ends[q] = n
             continue
         m = cnt - 1
+        for k in range(m):
+            TX[k], TY[k] = _unit(P, idx[k], idx[k + 1])
         # the left side forward, with the joins at its points
         a0 = idx[0]
-        tx, ty = _unit(P, a0, idx[1])
+        tx, ty = TX[0], TY[0]
         x, y = P[a0, 0] + -ty * R[a0], P[a0, 1] + tx * R[a0]
         n = _token(buf, n, True, _M, _M, x, y, 0.0, 0.0, 0.0, 0.0, 0.0, scale, decimals)
         prev = _M
         for k in range(m):
             a, b = idx[k], idx[k + 1]
-            tx, ty = _unit(P, a, b)
+            tx, ty = TX[k], TY[k]
             x, y = P[b, 0] + -ty * R[b], P[b, 1] + tx * R[b]
             n = _token(buf, n, False, prev, _L, x, y, 0.0, 0.0, 0.0, 0.0, 0.0, scale, decimals)
             prev = _L
             px, py = x, y
             if k < m - 1:
-                n, prev, px, py = _join(buf, n, prev, P, R, a, b, idx[k + 2], 1.0, px, py, straight, scale,
-                                        decimals)
+                n, prev, px, py = _join(buf, n, prev, P, R, TX[k], TY[k], b, TX[k + 1], TY[k + 1], 1.0, px, py,
+                                        straight, scale, decimals)
         # the round cap at the end
-        a, b = idx[m - 1], idx[m]
-        tx, ty = _unit(P, a, b)
+        b = idx[m]
+        tx, ty = TX[m - 1], TY[m - 1]
         r = R[b]
         cx, cy = P[b, 0], P[b, 1]
         x, y = cx + tx * r, cy + ty * r
@@ -151,18 +163,18 @@ def outline_text(P, offsets, R, members, decimals, straight, cap):
         px, py = x, y
         # the right side back
         for k in range(m - 1, -1, -1):
-            a, b = idx[k], idx[k + 1]
-            tx, ty = _unit(P, a, b)
+            a = idx[k]
+            tx, ty = TX[k], TY[k]
             x, y = P[a, 0] - -ty * R[a], P[a, 1] - tx * R[a]
             n = _token(buf, n, False, prev, _L, x, y, 0.0, 0.0, 0.0, 0.0, 0.0, scale, decimals)
             prev = _L
             px, py = x, y
             if k > 0:
-                n, prev, px, py = _join(buf, n, prev, P, R, idx[k - 1], a, b, -1.0, px, py, straight, scale,
-                                        decimals)
+                n, prev, px, py = _join(buf, n, prev, P, R, TX[k - 1], TY[k - 1], a, TX[k], TY[k], -1.0, px, py,
+                                        straight, scale, decimals)
         # the round cap at the start
-        a, b = idx[0], idx[1]
-        tx, ty = _unit(P, a, b)
+        a = idx[0]
+        tx, ty = TX[0], TY[0]
         r = R[a]
         cx, cy = P[a, 0], P[a, 1]
         x, y = cx - tx * r, cy - ty * r
@@ -177,12 +189,11 @@ def outline_text(P, offsets, R, members, decimals, straight, cap):
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _join(buf, n, prev, P, R, i0, v, i1, side, px, py, straight, scale, decimals):
-    """The join at point v between the segments i0 -> v and v -> i1, on the left (side 1, walking
-    forward) or the right (side -1, walking back): the outer side an arc (two past 90 degrees),
-    the inner side through the point itself. Returns (end, last command, pen x, pen y)."""
-    tax, tay = _unit(P, i0, v)
-    tbx, tby = _unit(P, v, i1)
+def _join(buf, n, prev, P, R, tax, tay, v, tbx, tby, side, px, py, straight, scale, decimals):
+    """The join at point v between the segments of directions (tax, tay) into v and (tbx, tby) out
+    of it, on the left (side 1, walking forward) or the right (side -1, walking back): the outer
+    side an arc (two past 90 degrees), the inner side through the point itself. Returns (end,
+    last command, pen x, pen y)."""
     nax, nay = -tay, tax
     nbx, nby = -tby, tbx
     cross = tax * tby - tay * tbx
