@@ -301,7 +301,7 @@ class BrushPaths:
 
 
 #: Cached properties that depend only on points and offsets (see Strokes.replace).
-_GEOMETRY_CACHE = ("segment_lengths", "arc_length", "lengths")
+_GEOMETRY_CACHE = ("segment_lengths", "arc_length", "lengths", "global_arc")
 _STROKES_FIELDS = tuple(f.name for f in fields(Strokes))  # (in order: the same __dict__ as __init__ makes)
 _STROKES_FIELD_SET = frozenset(_STROKES_FIELDS)
 

@@ -517,3 +517,18 @@ def test_dihedral_cosines_are_the_cosines_of_each_edges_two_normals():
         want = np.ones(1000)
         want[ok] = np.einsum("ij,ij->i", n[ef[ok, 0]], n[ef[ok, 1]])
         assert np.array_equal(dihedral_cos_of(ef, n), want)
+
+
+def test_replace_keeps_the_arc_caches_only_while_points_and_offsets_are_the_same():
+    """Strokes.replace carries the arc caches (global_arc among them) over to strokes with the
+    same points and offsets arrays, and leaves them to be computed again for new points."""
+    V, F = box_mesh((-1, -1, -1), (1, 1, 1))
+    cam = Camera(eye=(3, 2, 4), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
+    st = LineRenderer(build_scene(V, F), LineOptions()).render(cam)
+    base, G = st.global_arc
+    same = st.replace(kind=st.kind.copy())
+    assert same.__dict__["global_arc"][1] is G and same.__dict__["lengths"] is st.lengths
+    moved = st.replace(points=st.points * 2.0)
+    assert "global_arc" not in moved.__dict__
+    np.testing.assert_allclose(moved.lengths, 2.0 * st.lengths)
+    np.testing.assert_allclose(moved.global_arc[0][1:], 2.0 * base[1:] - np.arange(1, len(st)))

@@ -84,7 +84,7 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
         return _empty(lines), next_id
     p_line, p_label = r_line[p_run], r_label[p_run]
     link_label = link_labels(p_label, p_s0, p_s1, prev if history else None, o.merge_px)
-    pieces = cut_pieces(_with_kind(lines, drawn_kind), p_line, p_s0, p_s1)
+    pieces = cut_pieces(lines.replace(kind=drawn_kind), p_line, p_s0, p_s1)
     plen = p_s1 - p_s0
     ok, vk, s_in = landing(votes.m, cover, smp_piece, D, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
@@ -239,15 +239,6 @@ def _finish(paths: Strokes, lines: Strokes, pieces: Strokes, p_line, p_s0, p_s1,
     off, line, s0, s1, drawn = covered_runs(cover, smp_piece, path_of, D, p_line, p_s0, p_s1, len(paths))
     return BrushPaths(strokes=paths, lines=lines, cover_offsets=off, cover_line=line, cover_s0=s0, cover_s1=s1,
                       cover_drawn=drawn, held=held)
-
-
-def _with_kind(strokes: Strokes, kind: np.ndarray) -> Strokes:
-    """strokes.replace(kind=kind), its global arc kept (it depends on the points and offsets
-    alone, which Strokes.replace keeps the other geometry for)."""
-    out = strokes.replace(kind=kind)
-    if "global_arc" in strokes.__dict__:
-        out.__dict__["global_arc"] = strokes.__dict__["global_arc"]
-    return out
 
 
 def concat_two(a: Strokes, b: Strokes) -> Strokes:
