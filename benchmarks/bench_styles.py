@@ -27,18 +27,8 @@ from same_bytes import strokekit  # (this folder: the CLI in a subprocess, quiet
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT.parent / "shared" / "models"
 
-FIVE = """\
-[[lineset]]
-name = "five"
-width = 2.0
-thickness = [
-  { by = "along", head = 10, tail = 16 },
-  { by = "depth", near = 1.6, far = 0.6 },
-  { by = "curvature", flat = 1.0, curved = 0.5, radius = 8, span = 3 },
-  { by = "calligraphy", angle = 30, thin = 0.4, span = 2 },
-  { by = "noise", amplitude = 0.25, wavelength = 24 },
-]
-"""
+#: Every thickness modifier in one line set (the sample style file).
+FIVE = (ROOT / "samples" / "five.toml").read_text()
 NOISE = """\
 [[lineset]]
 name = "noise"

@@ -44,11 +44,9 @@ MODULES: dict[str, tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]] = {
                                                     "-k", "readable or pattern or unwritable or report_where or "
                                                     "read_only or atomic or empty_output or failed_write or "
                                                     "small_filesystem or temporaries or interrupted or removes")),
-    "resume": (("strokekit/run/runner.py", "strokekit/run/manifest.py"),
-               tuple(f"strokekit.run.runner.{f}__mutmut_*" for f in (
-                   "x_plan_resume", "x_lines_needed", "x_run_files", "x_check_files_apart", "x_clean_up",
-                   "x__file_states", "x__written_by_run", "x__frames_found_whole", "x__remove_partial_frames",
-                   "x_remove_temp_files", "xǁFrameStreamǁenter_written")) + ("strokekit.run.manifest.*",),
+    "resume": (("strokekit/run/resume.py", "strokekit/run/runner.py", "strokekit/run/manifest.py"),
+               ("strokekit.run.resume.*",) + tuple(f"strokekit.run.runner.{f}__mutmut_*" for f in (
+                   "x_check_files_apart", "xǁFrameStreamǁenter_written")) + ("strokekit.run.manifest.*",),
                ("tests/test_pipeline.py", "tests/test_faults_units.py", "tests/test_manifest.py", "-k",
                 "test_manifest or skip_existing or temporaries or failed_run_removes or two_runs or stopped_rerun or interrupted or "
                 "whole_just_before or resume_after or write_error or over_an_input or sequence_after")),

@@ -23,24 +23,15 @@ from strokekit.writers.exr import EXR_KERNELS
 
 ROOT = Path(__file__).resolve().parents[1]
 GROUPS = (RASTER, RASTER_THREADS, HIDDEN_LINES, BRUSH_PATHS, TRACKING, LINE_STYLE, EXR_KERNELS)
-#: A style with every thickness modifier, its creases dashed (outlines cut into dashes).
+#: A style with every thickness modifier (the sample style file), its creases dashed (outlines
+#: cut into dashes).
 FIVE = """\
 [[lineset]]
 name = "creases"
 kinds = ["crease"]
 dashes = [6, 3]
 thickness = [{ by = "along", head = 4, tail = 4 }, { by = "noise", amplitude = 0.2, wavelength = 12 }]
-[[lineset]]
-name = "five"
-width = 2.0
-thickness = [
-  { by = "along", head = 10, tail = 16 },
-  { by = "depth", near = 1.6, far = 0.6 },
-  { by = "curvature", flat = 1.0, curved = 0.5, radius = 8, span = 3 },
-  { by = "calligraphy", angle = 30, thin = 0.4, span = 2 },
-  { by = "noise", amplitude = 0.25, wavelength = 24 },
-]
-"""
+""" + (ROOT / "samples" / "five.toml").read_text()
 
 
 @pytest.mark.parametrize("group", GROUPS, ids=lambda g: g.label)

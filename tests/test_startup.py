@@ -19,7 +19,7 @@ from test_cli import CUBE_OBJ
 #: What a command's --help must not load: the numeric and geometry backends, and the stages.
 HEAVY = ("numpy", "scipy", "open3d", "trimesh", "numba", "shapely", "PIL", "pygltflib", "dask", "distributed",
          "matplotlib", "rich", "strokekit.model", "strokekit.scene.load", "strokekit.lines.renderer",
-         "strokekit.run.runner", "strokekit.metrics", "strokekit.style.widths", "strokekit.style.joins")
+         "strokekit.run.runner", "strokekit.run.resume", "strokekit.metrics", "strokekit.style.widths", "strokekit.style.joins")
 
 COMMANDS = [[], ["render"], ["camera"], ["camera", "orbit"], ["camera", "dolly"], ["camera", "parallel"], ["info"],
             ["diff"], ["coherence"], ["bench"]]
