@@ -108,6 +108,38 @@ def test_pool_and_inline_give_identical_bytes(tmp_path, capsys, kind):
     assert tree_bytes(tmp_path / "one") == tree_bytes(tmp_path / "two")
 
 
+def test_the_default_pool_is_threads_with_a_raster_pass_and_processes_for_long_line_runs(monkeypatch):
+    """Unsaid --workers/--worker-kind: threads on every core with a raster pass (from 2 frames);
+    without one, one worker below PROCESSES_FROM frames and processes on every core from there;
+    a said kind or count is kept, and a RunSpec of kind "auto" settles on the same kind."""
+    import os
+
+    from strokekit.run.spec import PROCESSES_FROM, OutputOptions, RunSpec, pool_for
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 4)
+    assert pool_for(1, True) == (1, "threads") and pool_for(12, True) == (4, "threads")
+    assert pool_for(PROCESSES_FROM - 1, False) == (1, "threads")
+    assert pool_for(PROCESSES_FROM, False) == (4, "processes")
+    assert pool_for(PROCESSES_FROM, False, kind="threads") == (4, "threads")
+    assert pool_for(24, False, workers=3) == (3, "threads") and pool_for(120, False, 2) == (2, "processes")
+    cams = tuple((k, None) for k in range(1, PROCESSES_FROM + 1))
+    spec = RunSpec(scene_path="x.obj", cameras=cams, outputs=OutputOptions(out_dir=Path("o")), workers=2)
+    assert spec.worker_kind == "processes"
+
+
+def test_a_closed_process_pool_leaves_no_manager_thread_for_the_exit_hook():
+    """Closing a process pool joins its manager thread: one still closing its pipes when the
+    interpreter exits races concurrent.futures' exit hook, which then prints a traceback."""
+    from strokekit.options import LineOptions
+    from strokekit.run.workers import SceneRef, make_executor
+
+    w = make_executor(2, None, warm=SceneRef(str(SAMPLES / "still_life.glb"), "", LineOptions()), kind="processes")
+    manager = w.executor._executor_manager_thread
+    assert manager is not None and manager.is_alive()
+    w.close()
+    assert not manager.is_alive()
+
+
 def test_dask_local_cluster_gives_identical_bytes(tmp_path, capsys):
     distributed = pytest.importorskip("distributed")
     args = ["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1-3", "-q"]

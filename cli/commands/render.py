@@ -81,11 +81,13 @@ def _render(scene: str, o: dict, given: dict, size, request: RenderRequest, path
     from strokekit.run.kernels import RunKernels
     from strokekit.run.report import run_report
     from strokekit.run.runner import check_files_apart
-    from strokekit.run.workers import SceneRef, default_workers, make_executor
+    from strokekit.run.spec import pool_for
+    from strokekit.run.workers import SceneRef, make_executor
     from strokekit.scene.load import load_scene
 
     lines = request.lines
-    workers = min(o["workers"] or default_workers(len(frames), wants_raster(o), o["worker_kind"]), len(frames))
+    workers, kind = pool_for(len(frames), wants_raster(o), o["workers"], o["worker_kind"])
+    workers = min(workers, len(frames))
     # The workers start before this process loads the scene: their start-up (imports, scene,
     # BVH: about a second) overlaps ours.
     if not Path(scene).is_file():
@@ -99,7 +101,7 @@ def _render(scene: str, o: dict, given: dict, size, request: RenderRequest, path
     # The kernels load (or compile, on a machine's first run): the raster ones beside the scene's
     # load (not beside a dask cluster: there the workers draw every frame).
     kernels = RunKernels(notice, raster=wants_raster(o) and not o["scheduler"])
-    pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines), kind=o["worker_kind"])
+    pool = make_executor(workers, o["scheduler"], warm=SceneRef(str(scene), "", lines), kind=kind)
     spec = None
     write_error: RunWriteError | None = None
     try:
@@ -117,7 +119,7 @@ def _render(scene: str, o: dict, given: dict, size, request: RenderRequest, path
                               width=width, height=height, up_axis=o["up"])
         spec = RunSpec(scene_path=str(scene), cameras=tuple(path.select(frames)), request=request,
                        outputs=outputs_from(o, given, lines.occlusion, path.fps), workers=workers,
-                       worker_kind=o["worker_kind"],
+                       worker_kind=kind,
                        scheduler=o["scheduler"], skip_existing=o["skip_existing"], fail_fast=o["fail_fast"],
                        camera_source=str(o["camera"]) if o["camera"] else path.source, fps=path.fps)
         check_files_apart(spec, also_written=[("--report", o["report"])])

@@ -25,8 +25,28 @@ if TYPE_CHECKING:  # (annotations only: the options load without the scene or ca
 #: The most processes a local run starts (--workers): each loads the scene and its BVH, and more
 #: than a few per core only share the cores.
 MAX_WORKERS = max(8, 4 * (os.cpu_count() or 1))
-#: --worker-kind: threads of this process, or a pool of processes.
-WORKER_KINDS = ("threads", "processes")
+#: --worker-kind: threads of this process, or a pool of processes; "auto": the kind `pool_for` picks.
+WORKER_KINDS = ("auto", "threads", "processes")
+#: Without a raster pass, processes pay from this many frames on: threads there share Python's
+#: lock with the frame-order tracking and lose to one worker, a process starts in about a second.
+PROCESSES_FROM = 48
+
+
+def pool_for(n_frames: int, raster: bool, workers: int | None = None, kind: str = "auto") -> tuple[int, str]:
+    """(workers, kind) of a run of `n_frames` where --workers (None) or --worker-kind ("auto") is
+    unsaid. With a raster pass, threads (its kernels let go of Python's lock, and they start at
+    once); without one, processes from PROCESSES_FROM frames on, else one worker. A said kind
+    keeps the old counts: threads on every core for a sequence; processes from 8 frames on,
+    from 16 with a raster pass (each process starts numba for its kernels)."""
+    cores = os.cpu_count() or 1
+    if kind == "auto":
+        kind = "threads" if raster or n_frames < PROCESSES_FROM else "processes"
+        if workers is None:
+            workers = cores if (raster and n_frames >= 2) or n_frames >= PROCESSES_FROM else 1
+    if workers is None:
+        least = 2 if kind == "threads" else (16 if raster else 8)
+        workers = cores if n_frames >= least else 1
+    return workers, kind
 
 #: The longest file name (bytes) of Linux, macOS and Windows file systems.
 NAME_MAX = 255
@@ -119,12 +139,14 @@ class RunSpec:
     request: RenderRequest = field(default_factory=RenderRequest)
     workers: int = option(
         1, "--workers", "Frames drawn at once: by this process and N-1 workers beside it (--worker-kind; default: "
-        "the machine's cores for a sequence, 1 for one frame; at most 4 per core, 8 on smaller machines).",
+        "the machine's cores for a sequence with a raster pass or of at least "
+        f"{PROCESSES_FROM} frames, else 1; at most 4 per core, 8 on smaller machines).",
         low=1, high=MAX_WORKERS, needs="no scheduler")
     worker_kind: str = option(
-        "threads", "--worker-kind", "What the workers are: threads of this process (they share its scene and BVH and "
+        "auto", "--worker-kind", "What the workers are: threads of this process (they share its scene and BVH and "
         "start at once) or processes (each imports strokekit and loads the scene, about a second, then draws frames "
-        "without sharing Python's lock with the others: for long runs on many cores).",
+        "without sharing Python's lock with the others: for long runs); auto: threads with a raster pass, processes "
+        f"without one from {PROCESSES_FROM} frames on.",
         choices=WORKER_KINDS, show_default=True, needs="no scheduler")
     scheduler: str | None = option(None, "--scheduler", "dask.distributed scheduler address, e.g. tcp://host:8786.")
     skip_existing: bool = option(  # resume: see run(); frames of another scene or options are a UsageError
@@ -137,6 +159,9 @@ class RunSpec:
     fps: float = 24.0  # the camera path's frame rate: frame N shows the scene's animation at (N - 1) / fps
 
     def __post_init__(self):
+        if self.worker_kind == "auto":
+            kind = pool_for(len(self.cameras), self.raster is not None, self.workers)[1]
+            object.__setattr__(self, "worker_kind", kind)
         # A cluster's workers resolve a relative name in their own folders (frames written on
         # their disks, the scene not found): a run on one names every file the tasks read or
         # write by its absolute path.

@@ -5,7 +5,6 @@ keeps its renderer."""
 
 from __future__ import annotations
 
-import os
 import threading
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, Executor, ProcessPoolExecutor, ThreadPoolExecutor, wait
@@ -17,16 +16,6 @@ from strokekit.extras import need
 from strokekit.lines.renderer import LineRenderer
 from strokekit.options import LineOptions
 from strokekit.scene.load import Scene, load_scene
-
-
-def default_workers(n_frames: int, raster: bool, kind: str = "threads") -> int:
-    """Workers for a run of `n_frames` when none is said: the machine's cores for a sequence of
-    threads (a thread starts at once, with the scene already loaded); for processes, from 8
-    frames on, from 16 with a raster output (each process also starts numba for the raster
-    kernels), else 1."""
-    least = 2 if kind == "threads" else (16 if raster else 8)
-    return (os.cpu_count() or 1) if n_frames >= least else 1
-
 
 # --- worker side -----------------------------------------------------------------------------------
 
@@ -312,11 +301,17 @@ def make_executor(workers: int, scheduler: str | None, warm: SceneRef, kind: str
         # or error ends the run anyway); a worker may still be in its initializer, as a short
         # run can end before the pool is up. Waiting would add its whole start-up to the run, so
         # idle or starting workers are stopped instead (ProcessPoolExecutor has no public way).
+        # The pool's manager thread is joined here: shutdown forgets it too, and one still closing
+        # its pipes at interpreter exit races the exit hook's wake-up ("Bad file descriptor").
         procs = list((getattr(ex, "_processes", None) or {}).values())  # shutdown forgets them
+        manager, results = getattr(ex, "_executor_manager_thread", None), getattr(ex, "_result_queue", None)
         ex.shutdown(wait=False, cancel_futures=True)
         for proc in procs:
             proc.terminate()
-        ex.shutdown(wait=True)
+        if manager is not None:
+            manager.join()
+        if results is not None:
+            results.close()
 
     return Workers(ex, _once(close), started=started)
 
