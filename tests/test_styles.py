@@ -431,6 +431,25 @@ def test_a_constant_width_stroke_stays_a_centreline_and_the_default_svg_is_uncha
     assert 'stroke="#123456"' in wide and 'stroke-width="4"' in wide and "fill=\"#123456\"" not in wide
 
 
+def test_a_set_without_a_colour_draws_each_kind_in_its_own():
+    """A line set with no `color` draws its silhouettes, creases and borders in their kinds'
+    colours (as without a style), in the SVG and the ribbons' materials; its JSON colour is null."""
+    from strokekit.style.linesets import KIND_COLORS
+    from strokekit.writers.strokes_json import strokes_json
+
+    s = line([[10, 10], [100, 10], [10, 40], [100, 40]], ids=[1, 2], offsets=[0, 2, 4])
+    s = s.replace(kind=np.array([KIND_INDEX["silhouette"], KIND_INDEX["crease"]], s.kind.dtype))
+    styled = apply_style(s, ("silhouette", "crease"), Style(sets=(LineSet("all", width=2.0),)))
+    svg = svg_document(s, 120, 60, ("silhouette", "crease"), styled=styled)
+    sil, crease = svg.index('id="layer-silhouette"'), svg.index('id="layer-crease"')
+    assert f'stroke="{KIND_COLORS["silhouette"]}"' in svg[sil:sil + 200]
+    assert f'stroke="{KIND_COLORS["crease"]}"' in svg[crease:crease + 200]
+    assert json.loads(strokes_json(s, 120, 60, 1, styled=styled))["linesets"][0]["color"] is None
+    assert styled.color(0, "border") == KIND_COLORS["border"]
+    own = apply_style(s, ("silhouette", "crease"), Style(sets=(LineSet("all", color="#123456"),)))
+    assert own.color(0, "crease") == "#123456"
+
+
 def test_the_default_json_has_no_widths_and_a_style_file_s_has():
     """Without a style file the frame JSON keeps the keys it always had (its bytes: same_bytes)."""
     from strokekit.writers.strokes_json import strokes_json

@@ -25,7 +25,7 @@ and the width is at least MIN_WIDTH_PX."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -149,8 +149,7 @@ class StyledStrokes:
     """Strokes as drawn: `strokes` those a line set selects (points added where the width needs
     them, module doc), width (N,) px at each point, lineset (S,) the index of each stroke's set in
     `sets`, kept (S0,) which of the strokes given were drawn, depth_range: what the depth
-    modifiers took for the frame's visible depths (None: none did), colors: each set's colour,
-    free (S, 2): which stroke ends are free (not joined to the next piece of their line: there
+    modifiers took for the frame's visible depths (None: none did), free (S, 2): which stroke ends are free (not joined to the next piece of their line: there
     the along modifier's head and tail are; None without one)."""
 
     strokes: Strokes
@@ -160,7 +159,6 @@ class StyledStrokes:
     style: Style
     kept: np.ndarray
     depth_range: tuple[float, float] | None = None
-    colors: tuple[str, ...] = field(default=())
     free: np.ndarray | None = None
 
     def __len__(self) -> int:
@@ -201,9 +199,11 @@ class StyledStrokes:
         w = self.sets[k].width
         return self.style.width if w is None else w
 
-    def color(self, k: int) -> str:
-        """The colour of set k (its own, else its first kind's)."""
-        return self.colors[k]
+    def color(self, k: int, kind: str) -> str:
+        """The colour of set k's strokes of `kind` (a name in KINDS): the set's own, else the
+        kind's (KIND_COLORS), as the default style draws it."""
+        own = self.sets[k].color
+        return own if own is not None else KIND_COLORS[kind]
 
     def dashes(self, k: int, hidden: bool) -> tuple[float, ...]:
         """The dash pattern (px; () solid) of set k's strokes, hidden or visible ones: its own, else
@@ -217,12 +217,6 @@ class StyledStrokes:
             return self.style.dashes
         w = self.set_width(k)
         return (12.0 * w, 3.0 * w)
-
-
-def set_colours(sets: tuple[LineSet, ...]) -> tuple[str, ...]:
-    """Each set's colour: its own, else the first kind it selects (black for every kind)."""
-    return tuple(s.color if s.color is not None else KIND_COLORS[s.kinds[0]] if s.kinds else "#000000"
-                 for s in sets)
 
 
 def apply_style(strokes: Strokes, layers: tuple[str, ...], style: Style | None = None,
@@ -242,14 +236,14 @@ def apply_style(strokes: Strokes, layers: tuple[str, ...], style: Style | None =
     counts = np.diff(strokes.offsets)
     if not any(s.thickness for s in sets):
         width = np.repeat(base[which], counts) if len(which) else np.zeros(len(strokes.points))
-        return StyledStrokes(strokes, width, which, sets, style, kept, colors=set_colours(sets))
+        return StyledStrokes(strokes, width, which, sets, style, kept)
     depth_range = None
     if any(isinstance(m, Depth) and m.near_depth is None for s in sets for m in s.thickness):
         depth_range = context.depth_range if context is not None and context.depth_range is not None else \
             _own_depth_range(strokes)
     free = _free_ends(strokes, which, sets)
     strokes, width = _widths(strokes, which, sets, base, free, depth_range)
-    return StyledStrokes(strokes, width, which, sets, style, kept, depth_range, colors=set_colours(sets), free=free)
+    return StyledStrokes(strokes, width, which, sets, style, kept, depth_range, free=free)
 
 
 def _assign(strokes: Strokes, sets: tuple[LineSet, ...], context: StyleContext | None) -> np.ndarray:

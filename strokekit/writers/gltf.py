@@ -188,7 +188,7 @@ class _Doc:
                 else:
                     ls = int(styled.lineset[a])
                     extras["lineset"] = styled.sets[ls].name
-                    material = self.material(int(k), styled.sets[ls].name, styled.color(ls))
+                    material = self.material(int(k), styled.sets[ls].name, styled.color(ls, KINDS[int(k) % N_KINDS]))
                 prims.append({"attributes": attrs, "indices": indices, "material": material, "mode": 4,
                               "extras": extras})
             node["mesh"] = self.add("meshes", {"name": name, "primitives": prims})

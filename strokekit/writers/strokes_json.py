@@ -107,11 +107,12 @@ def _said(styled: StyledStrokes) -> StyledStrokes | None:
 
 
 def _sets_json(styled: StyledStrokes) -> dict:
-    """{"linesets": [...]} (the style's sets, with the colour each is drawn in), and
+    """{"linesets": [...]} (the style's sets, with their colour: null where each kind is drawn in
+    its own), and
     "depth_range" when a depth modifier took the frame's; {} for the default style."""
     if _said(styled) is None:
         return {}
-    sets = [dict(s.to_json(styled.style), color=styled.color(k)) for k, s in enumerate(styled.sets)]
+    sets = [dict(s.to_json(styled.style), color=s.color) for s in styled.sets]
     out: dict = {"linesets": sets}
     if styled.depth_range is not None:
         out["depth_range"] = list(styled.depth_range)

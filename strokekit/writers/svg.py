@@ -269,7 +269,7 @@ class _Paths:
             w = st.style.width
             d = st.style.dashes if st.style.dashes is not None else iso_dashes(w)
             return KIND_COLORS.get(kind, "#000000"), w, (d if hidden else ())
-        return st.color(k), st.set_width(k), st.dashes(k, hidden)
+        return st.color(k, kind), st.set_width(k), st.dashes(k, hidden)
 
     def phase(self, members: np.ndarray, period: float) -> np.ndarray:
         st = self.styled.strokes
