@@ -95,6 +95,15 @@ def test_report_has_versions_hashes_frames_outputs(tmp_path, capsys):
     assert rep["options"]["strokes"] == "brush" and rep["options"]["paths_options"]["history"] is True
     assert rep["options"]["tracking"] == "none" and rep["options"]["tracking_options"] is None
     assert {s["stage"]: s["ran"] for s in rep["stages"]}["brush paths"] is True
+    # The scene's clock and the style are options too: without them a moving scene or a styled
+    # run could not be drawn again from its report.
+    assert (rep["options"]["animation"], rep["options"]["time_offset"], rep["options"]["style"]) == (None, 0.0, None)
+    assert rep["options"]["fps"] == load_camera_path(SAMPLES / "orbit.json").fps
+    code, _, _ = run_cli(["render", SAMPLES / "still_life.glb", "--camera", SAMPLES / "orbit.json", "--frames", "1",
+                          "--time-offset", "0.5", "--style", SAMPLES / "five.toml", "--out", tmp_path / "s", "-q",
+                          "--report", tmp_path / "s.json"], capsys)
+    styled = json.loads((tmp_path / "s.json").read_text())["options"]
+    assert code == 0 and styled["time_offset"] == 0.5 and styled["style"]["sets"][0]["name"] == "five"
 
 
 @pytest.mark.parametrize("kind", ["threads", "processes"])
@@ -122,6 +131,7 @@ def test_the_default_pool_is_threads_with_a_raster_pass_and_processes_for_long_l
     assert pool_for(PROCESSES_FROM, False) == (4, "processes")
     assert pool_for(PROCESSES_FROM, False, kind="threads") == (4, "threads")
     assert pool_for(24, False, workers=3) == (3, "threads") and pool_for(120, False, 2) == (2, "processes")
+    assert pool_for(120, False, 1) == (1, "threads")  # (no pool: not said to be processes)
     cams = tuple((k, None) for k in range(1, PROCESSES_FROM + 1))
     spec = RunSpec(scene_path="x.obj", cameras=cams, outputs=OutputOptions(out_dir=Path("o")), workers=2)
     assert spec.worker_kind == "processes"

@@ -40,9 +40,10 @@ def pool_for(n_frames: int, raster: bool, workers: int | None = None, kind: str 
     from 16 with a raster pass (each process starts numba for its kernels)."""
     cores = os.cpu_count() or 1
     if kind == "auto":
-        kind = "threads" if raster or n_frames < PROCESSES_FROM else "processes"
         if workers is None:
             workers = cores if (raster and n_frames >= 2) or n_frames >= PROCESSES_FROM else 1
+        # (one worker runs no pool: said as threads, the kind whose one worker is this process)
+        kind = "threads" if raster or n_frames < PROCESSES_FROM or workers == 1 else "processes"
     if workers is None:
         least = 2 if kind == "threads" else (16 if raster else 8)
         workers = cores if n_frames >= least else 1
