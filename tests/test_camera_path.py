@@ -410,3 +410,15 @@ def test_gltf_camera_nodes_out_of_range_say_so_without_a_numpy_warning(tmp_path)
                                                      {"camera": 0, "scale": [1e300] * 3}]))
         with pytest.raises(InputError, match=r"cam\.gltf: camera at node 0: camera eye \(1e\+160, 0, 5\) is out"):
             load_camera_path(_gltf_camera(tmp_path, [{"camera": 0, "translation": [1e160, 0, 5]}]))
+
+
+def test_frames_past_the_path_s_end_are_all_named():
+    """A frame range running past the camera path names every frame beyond it, not its last one."""
+    from strokekit.camera.frames import parse_frames
+    from strokekit.errors import UsageError
+
+    assert parse_frames("28-30", 30) == [28, 29, 30]
+    for spec, said in (("40-45", "frames 40-45 are"), ("25-33", "frames 31-33 are"), ("31", "frame 31 is"),
+                       ("1,30-31", "frame 31 is")):
+        with pytest.raises(UsageError, match=said):
+            parse_frames(spec, 30)

@@ -24,7 +24,9 @@ def parse_frames(spec: str | None, count: int) -> list[int]:
             raise UsageError(f"bad frame selection {spec!r}: frames count from 1")
         if hi < lo:
             raise UsageError(f"bad frame range {part!r} in {spec!r}: the first frame must not exceed the last")
-        if hi > count:
-            raise UsageError(f"frame {hi} is beyond the camera path's {count} frames")
+        if hi > count:  # (every frame of the part that lies past the path's end, named)
+            first = max(lo, count + 1)
+            beyond = f"frame {hi} is" if first == hi else f"frames {first}-{hi} are"
+            raise UsageError(f"{beyond} beyond the camera path's {count} frames (--frames {spec})")
         out.update(range(lo, hi + 1))
     return sorted(out)
