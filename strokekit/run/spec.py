@@ -49,6 +49,7 @@ def pool_for(n_frames: int, raster: bool, workers: int | None = None, kind: str 
         workers = cores if n_frames >= least else 1
     return workers, kind
 
+
 #: The longest file name (bytes) of Linux, macOS and Windows file systems.
 NAME_MAX = 255
 

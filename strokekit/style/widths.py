@@ -149,8 +149,9 @@ class StyledStrokes:
     """Strokes as drawn: `strokes` those a line set selects (points added where the width needs
     them, module doc), width (N,) px at each point, lineset (S,) the index of each stroke's set in
     `sets`, kept (S0,) which of the strokes given were drawn, depth_range: what the depth
-    modifiers took for the frame's visible depths (None: none did), free (S, 2): which stroke ends are free (not joined to the next piece of their line: there
-    the along modifier's head and tail are; None without one)."""
+    modifiers took for the frame's visible depths (None: none did), free (S, 2): which stroke
+    ends are free (not joined to the next piece of their line: there the along modifier's head
+    and tail are; None without one)."""
 
     strokes: Strokes
     width: np.ndarray
