@@ -1,7 +1,7 @@
 """The pieces a frame's brush paths are made of, and the paths they make: the uncovered parts of
 the runs of one label, cut where their line turns past the join angle (`line_pieces`); joined end
-to end into paths (`link_pieces`, `one_label_per_path`, `concat`); closed into loops where the
-ends meet (`close_loops`). Loops compiled (`pieces_kernels`)."""
+to end into paths (`link_pieces`, `one_label_per_path`, `interior_paths`, `concat`); closed into
+loops where the ends meet (`close_loops`). Loops compiled (`pieces_kernels`)."""
 
 from __future__ import annotations
 
@@ -148,6 +148,59 @@ def one_label_per_path(group: np.ndarray, pos: np.ndarray, label: np.ndarray) ->
     that joined both. (The fills and cuts compiled: one_label.)"""
     out, cuts = kernels().one_label(np.lexsort((pos, group)), group, np.asarray(label, np.int64))
     return out if cuts else group
+
+
+def interior_paths(group: np.ndarray, rev: np.ndarray, pos: np.ndarray, label: np.ndarray, plen: np.ndarray,
+                   pairs: LinkPairs) -> np.ndarray:
+    """(K,) per piece the label its path gives way to, -1 where none. A path of pieces (group,
+    rev, pos as link_pieces gives them, one label each, `plen` (K,) their lengths) whose two ends
+    each meet an end of a longer path of one other label (within 2 px, fit to link by `pairs`)
+    lies within that label's line: a strand of shingles the contour has moved onto, or the part
+    a gap cut off a loop, now closed. Drawn apart it would keep that line cut for good."""
+    K = len(group)
+    out = np.full(K, -1, np.int64)
+    if K < 2 or len(pairs.a) == 0:
+        return out
+    n, e_run = pairs.n, pairs.e_run
+    glen = np.bincount(group, weights=plen, minlength=K)
+    glab = np.full(K, -1, np.int64)
+    np.maximum.at(glab, group, label)
+    # The two ends of each path: its first piece's start (end if reversed), its last piece's end.
+    last_pos = np.full(K, -1, np.int64)
+    np.maximum.at(last_pos, group, pos)
+    end_of_piece = np.full((K, 2), -1, np.int64)  # (the LinkPairs end of each piece's start, end)
+    j = np.arange(2 * n)
+    end_of_piece[e_run[j], (j >= n).astype(np.int64)] = j
+    k = np.arange(K)
+    first, last = pos == 0, pos == last_pos[group]
+    t = np.r_[end_of_piece[k[first], rev[first].astype(np.int64)],
+              end_of_piece[k[last], (~rev[last]).astype(np.int64)]]
+    terminal = np.zeros(2 * n, bool)
+    terminal[t[t >= 0]] = True
+    a, b = pairs.a, pairs.b
+    ok = pairs.fits & (pairs.gap <= 2.0) & terminal[a] & terminal[b]
+    ga, gb = group[e_run[a]], group[e_run[b]]
+    ok &= (ga != gb) & (glab[ga] >= 0) & (glab[gb] >= 0) & (glab[ga] != glab[gb])
+    a, b, ga, gb = a[ok], b[ok], ga[ok], gb[ok]
+    # Each end of a short path: the label of the longest path it meets.
+    e_small = np.r_[a, b]
+    g_small = np.r_[ga, gb]
+    g_other = np.r_[gb, ga]
+    keep = glen[g_other] > glen[g_small]
+    e_small, g_small, g_other = e_small[keep], g_small[keep], g_other[keep]
+    if len(e_small) == 0:
+        return out
+    o = np.lexsort((-glen[g_other], e_small))
+    head = np.r_[True, e_small[o][1:] != e_small[o][:-1]]
+    e_small, g_small, g_other = e_small[o][head], g_small[o][head], g_other[o][head]
+    met = glab[g_other]
+    # Both ends meet one label.
+    o = np.lexsort((met, g_small))
+    gs, lab = g_small[o], met[o]
+    same = (gs[1:] == gs[:-1]) & (lab[1:] == lab[:-1])
+    gz = np.full(K, -1, np.int64)
+    gz[gs[1:][same]] = lab[1:][same]
+    return gz[group]
 
 
 def reverse(strokes: Strokes, which: np.ndarray) -> Strokes:

@@ -21,7 +21,10 @@ The steps, all vectorized over the frame's samples:
    line (the paths invent nothing). A path whose ends meet is closed into a loop. Pieces of a
    path shorter than `merge_px` (this frame and the last) join like unclaimed pieces, and so do
    those of an orphan: a path of one label that is not its longest (that one gets the id), at
-   most `orphan_px` long (its votes came from a path that runs elsewhere).
+   most `orphan_px` long (its votes came from a path that runs elsewhere). A path whose two
+   ends meet ends of longer paths of one other label lies within that label's line (a strand
+   of shingles the contour moved onto, the part a gap cut off a loop): it takes that label and
+   joins them (paths.pieces.interior_paths).
 6. Ids: each previous id goes to one path, the heaviest claims first: the votes of that id a
    path holds, those of the other kind classes too, and a quarter of the length of its pieces of
    that label; the other paths get fresh ids. Each path is turned so that its carried u
@@ -45,6 +48,7 @@ from strokekit.paths.pieces import (
     LinkPairs,
     close_loops,
     concat,
+    interior_paths,
     line_pieces,
     link_labels,
     link_pieces,
@@ -102,6 +106,11 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     orphan = orphans(group, link_label, plen, o.orphan_px)
     if orphan.any():  # (linked again as unclaimed pieces: an orphan joins the path it touches)
         link_label = np.where(orphan, -1, link_label)
+        ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
+        group, rev, pos = link(link_label, ends)
+    inner = interior_paths(group, rev, pos, link_label, plen, pairs)
+    if (inner >= 0).any():  # (linked again: a path within another's line takes its label)
+        link_label = np.where(inner >= 0, inner, link_label)
         ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
         group, rev, pos = link(link_label, ends)
     paths, path_of, offset = concat(pieces, group, rev, pos, o.join_angle_deg, HAIRPIN_PX)
