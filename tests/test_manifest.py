@@ -202,6 +202,16 @@ def test_the_refused_resume_says_at_most_three_settings():
     assert settings_changed({}, new) == "" and settings_changed(old, {"settings": None}) == ""
 
 
+def test_an_output_turned_off_is_said_by_its_switch_alone():
+    """A run without --gltf against frames with GLBs: the refusal names --gltf, not each of the
+    ribbons' options (none now)."""
+    old = {"settings": {"outputs.gltf": True, "outputs.gltf_options.taper": 8.0, "outputs.gltf_options.unlit": True,
+                        "lines.min_length_px": 0.0}}
+    new = {"settings": {"outputs.gltf": False, "outputs.gltf_options": None, "lines.min_length_px": 0.0}}
+    assert settings_changed(old, new) == "--gltf true there, false now"
+    assert settings_changed(new, old) == "--gltf false there, true now"
+
+
 def test_a_folder_rendered_by_an_earlier_version_still_resumes(tmp_path, capsys):
     """The digests are a contract with the folders users already have: these are the manifest of
     `render spot.obj --orbit 12 --strokes lines` as the version before this test wrote it (frames

@@ -156,6 +156,13 @@ def _setting_value(v) -> str:
     return v if isinstance(v, str) else "none" if v is None else json.dumps(v)
 
 
+def _group_off(settings: dict, key: str) -> bool:
+    """Whether a group of settings that holds `key` ('outputs.gltf_options' of
+    'outputs.gltf_options.taper') is none in `settings`."""
+    parts = key.split(".")
+    return any(settings.get(".".join(parts[:i]), 0) is None for i in range(1, len(parts)))
+
+
 def settings_changed(old: dict, new: dict, most: int = 3) -> str:
     """The settings that differ between two manifests' ('--stroke-width 1.5 there, 2 now'), the
     first `most` of them; "" when the old manifest has none (written before they were kept)."""
@@ -163,6 +170,8 @@ def settings_changed(old: dict, new: dict, most: int = 3) -> str:
     if not isinstance(a, dict) or not isinstance(b, dict):
         return ""
     changed = [k for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)]
+    # The options of an output that one run has off (none there): said by its switch alone.
+    changed = [k for k in changed if not (_group_off(a, k) or _group_off(b, k))] or changed
     said = [f"{_setting_name(k)} {_setting_value(a.get(k))} there, {_setting_value(b.get(k))} now"
             for k in changed[:most]]
     return "; ".join(said) + (f"; {len(changed) - most} more" if len(changed) > most else "")
