@@ -95,6 +95,24 @@ def test_coherence_reports_m8_against_a_fresh_folder(tmp_path, capsys):
     assert code == 0 and json.loads(out)["overall"]["M8"] == pytest.approx(8000 / 300) and "M8_fresh" not in out
 
 
+def test_coherence_refuses_fresh_lines_against_brush_paths(tmp_path, capsys):
+    """M8 compares the strokes of a folder with the same strokes drawn afresh: fresh lines (what
+    --no-coherence alone renders) against brush paths are an input error that says how to render
+    them, not a ratio of unlike things."""
+    _write(tmp_path / "tracked", [_strokes(_pieces(2), frame=f + 1) for f in range(4)])
+    for f in (tmp_path / "tracked").glob("*.json"):  # (brush paths: each stroke lists its covers)
+        doc = json.loads(f.read_text())
+        for st in doc["strokes"]:
+            st["covers"] = []
+        f.write_text(json.dumps(doc))
+    _write(tmp_path / "lines", [_strokes(_pieces(1), frame=f + 1) for f in range(4)])
+    code, _, err = run_cli(["coherence", tmp_path / "tracked", "--fresh", tmp_path / "lines"], capsys)
+    assert code == 1 and len(err.strip().splitlines()) == 1
+    assert "holds lines" in err and "--no-coherence --strokes brush" in err and str(tmp_path / "lines") in err
+    code, _, err = run_cli(["coherence", tmp_path / "lines", "--fresh", tmp_path / "tracked"], capsys)
+    assert code == 1 and "holds brush paths" in err
+
+
 def test_coherence_fresh_folder_missing_frames_is_said(tmp_path, capsys):
     _write(tmp_path / "tracked", [_strokes(_pieces(2), frame=f + 1) for f in range(4)])
     _write(tmp_path / "part", [_strokes(_pieces(1), frame=4)])

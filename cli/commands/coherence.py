@@ -54,6 +54,8 @@ def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern:
     if scene_path is not None:
         frames = posed_frames(frames, load_scene(scene_path), animation, out_dir)
     fresh = read_frames(fresh_dir, pattern, occlusion=levels, at_least=1) if fresh_dir is not None else None
+    if fresh is not None:
+        _same_strokes(out_dir, fresh_dir, pattern)
     pairs, total = sequence_metrics(frames, radius_px=radius, min_tangent_dot=min_dot)
     for p in pairs:
         if p.frame - p.prev_frame != 1:
@@ -111,3 +113,17 @@ def command(out_dir: str, as_json: bool, radius: float, min_dot: float, pattern:
         line += (f", drawn afresh {whole['M8_fresh']:.2f}: {whole['M8_ratio']:.2f} x fresh "
                  f"(over {whole['M8_frames']} frames)")
     click.echo(line)
+
+
+def _same_strokes(out_dir: str, fresh_dir: str, pattern: str) -> None:
+    """The fresh frames must be the strokes of OUT_DIR drawn afresh: brush paths against brush
+    paths (`--no-coherence` alone renders lines)."""
+    from strokekit.metrics.coherence import holds_brush_paths
+
+    tracked, fresh = holds_brush_paths(out_dir, pattern), holds_brush_paths(fresh_dir, pattern)
+    if tracked is None or fresh is None or tracked == fresh:
+        return
+    name = {True: "brush paths", False: "lines"}
+    redo = "render them with --no-coherence --strokes brush" if tracked else "render them with --no-coherence"
+    raise InputError(f"holds {name[fresh]} and {out_dir} {name[tracked]}: M8 compares the same strokes drawn "
+                     f"afresh ({redo})", fresh_dir)

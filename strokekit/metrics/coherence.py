@@ -240,6 +240,21 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}", at_least: int = 2) 
     return files
 
 
+def holds_brush_paths(out_dir, pattern: str = "frame_{frame:04d}") -> bool | None:
+    """Whether the frames of a folder are brush paths (their JSON strokes list the lines they
+    cover) rather than lines; None where no frame holds a stroke to tell."""
+    import json
+
+    for f in frame_files(out_dir, pattern, at_least=0):
+        try:
+            strokes = json.loads(f.read_text()).get("strokes") or []
+        except (OSError, ValueError, AttributeError):
+            continue  # (read_frames says what is wrong with it)
+        if strokes and isinstance(strokes[0], dict):
+            return "covers" in strokes[0]
+    return None
+
+
 def read_frames(out_dir, pattern: str = "frame_{frame:04d}", occlusion: tuple[int, int] | None = None,
                 at_least: int = 2) -> list[Strokes]:
     """The strokes of every frame JSON of `out_dir` named by `pattern` (strokekit.writers.strokes_json
