@@ -27,6 +27,7 @@ the screen position of the projected point, never on identical surface points.
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -243,8 +244,6 @@ def frame_files(out_dir, pattern: str = "frame_{frame:04d}", at_least: int = 2) 
 def holds_brush_paths(out_dir, pattern: str = "frame_{frame:04d}") -> bool | None:
     """Whether the frames of a folder are brush paths (their JSON strokes list the lines they
     cover) rather than lines; None where no frame holds a stroke to tell."""
-    import json
-
     for f in frame_files(out_dir, pattern, at_least=0):
         try:
             strokes = json.loads(f.read_text()).get("strokes") or []
