@@ -108,8 +108,7 @@ def _said(styled: StyledStrokes) -> StyledStrokes | None:
 
 def _sets_json(styled: StyledStrokes) -> dict:
     """{"linesets": [...]} (the style's sets, with their colour: null where each kind is drawn in
-    its own), and
-    "depth_range" when a depth modifier took the frame's; {} for the default style."""
+    its own), and "depth_range" when a depth modifier took the frame's; {} for the default style."""
     if _said(styled) is None:
         return {}
     sets = [dict(s.to_json(styled.style), color=s.color) for s in styled.sets]
