@@ -192,24 +192,111 @@ def test_the_refused_resume_names_changed_cameras_as_ranges():
 
 
 def test_the_refused_resume_says_at_most_three_settings():
-    old = {"settings": {"lines.min_length_px": 0.0, "outputs.decimals": 2, "outputs.svg": True, "outputs.json": True,
-                        "gone": 1}}
-    new = {"settings": {"lines.min_length_px": 3.0, "outputs.decimals": 3, "outputs.svg": False,
-                        "outputs.json": False}}
+    """...and not an output turned off beside them (that alone would resume): --no-json here."""
+    old = {"settings": {"lines.min_length_px": 0.0, "lines.split_angle_deg": 90.0, "outputs.decimals": 2,
+                        "outputs.svg": True, "outputs.json": True, "gone": 1}}
+    new = {"settings": {"lines.min_length_px": 3.0, "lines.split_angle_deg": 45.0, "outputs.decimals": 3,
+                        "outputs.svg": True, "outputs.json": False}}
     said = settings_changed(old, new)
-    assert said == ("gone 1 there, none now; --min-length 0.0 there, 3.0 now; --decimals 2 there, 3 now; 2 more")
-    assert settings_changed(old, new, most=5).endswith("--svg true there, false now")
+    assert said == ("gone 1 there, none now; --min-length 0.0 there, 3.0 now; --split-angle 90.0 there, 45.0 now; "
+                    "1 more")
+    assert settings_changed(old, new, most=5).endswith("--split-angle 90.0 there, 45.0 now; --decimals 2 there, 3 now")
     assert settings_changed({}, new) == "" and settings_changed(old, {"settings": None}) == ""
 
 
-def test_an_output_turned_off_is_said_by_its_switch_alone():
-    """A run without --gltf against frames with GLBs: the refusal names --gltf, not each of the
-    ribbons' options (none now)."""
+def test_an_output_turned_on_again_is_said_by_its_switch_alone():
+    """A run with --gltf against a manifest without it (GLBs of an earlier run may be there): the
+    refusal names --gltf, not each of the ribbons' options (none there); a raster pass or EXR
+    on in one run only is said as one setting."""
     old = {"settings": {"outputs.gltf": True, "outputs.gltf_options.taper": 8.0, "outputs.gltf_options.unlit": True,
                         "lines.min_length_px": 0.0}}
     new = {"settings": {"outputs.gltf": False, "outputs.gltf_options": None, "lines.min_length_px": 0.0}}
-    assert settings_changed(old, new) == "--gltf true there, false now"
     assert settings_changed(new, old) == "--gltf false there, true now"
+    assert settings_changed(old, new) == "--gltf true there, false now"
+    bands = {"settings": {"outputs.json": True, "outputs.raster_options.bands": 3, "outputs.raster_options.shade": True,
+                          "outputs.exr": None}}
+    exr = {"settings": {"outputs.json": True, "outputs.raster_options": None, "outputs.exr.passes": ["depth"]}}
+    assert settings_changed(bands, exr) == "--exr none there, on now; a raster pass on there, none now"
+
+
+# --- a resume with outputs turned off -------------------------------------------------------------
+
+#: Outputs a run may turn off and still resume, each with options only it reads set otherwise than
+#: the run that turns it off has them: {name: (the earlier run's options, the resuming run's)}.
+DROPS = {
+    "--gltf": (dict(outputs=dict(gltf=True, gltf_options=GltfOptions(taper=2.0, brush="dry"))), {}),
+    "--gltf-sequence": (dict(outputs=dict(gltf=True, gltf_sequence=True, gltf_options=GltfOptions())), {}),
+    "--no-svg": (dict(outputs=dict(decimals=4, svg_lines="centreline")), dict(outputs=dict(svg=False))),
+    "--no-json": ({}, dict(outputs=dict(json=False))),
+    "--exr": (dict(outputs=dict(exr=PassOptions(codec="piz")), request=dict(raster=RasterOptions(bands=4))),
+              dict(request=dict(raster=RasterOptions(bands=4)))),
+    "--lines-png": (dict(outputs=dict(lines_png=True)), {}),
+    "--bands with --no-json": (dict(outputs=dict(json=False), request=dict(raster=RasterOptions(bands=3))),
+                               dict(outputs=dict(json=False))),
+    "--gltf and --exr": (dict(outputs=dict(gltf=True, gltf_options=GltfOptions(), exr=PassOptions()),
+                              request=dict(raster=RasterOptions(bands=3))),
+                         dict(request=dict(raster=RasterOptions(bands=3)))),
+}
+
+
+def _through_a_file(m: dict) -> dict:
+    """A manifest as the next run reads it from the folder."""
+    return {**json.loads(json.dumps({k: v for k, v in m.items() if k != "frames"})), "frames": m["frames"]}
+
+
+@pytest.mark.parametrize("drop", sorted(DROPS))
+def test_a_run_that_only_turns_outputs_off_resumes(scenes, drop):
+    """Its digests differ (a folder's manifest tells the runs apart), yet the frames of the run
+    before count as its own; turning the output on again is no resume (the manifest no longer
+    holds that output's options)."""
+    before, now = (_manifest(scenes, **kw) for kw in DROPS[drop])
+    assert before["options"] != now["options"]
+    assert manifest.resumes_from(_through_a_file(before), now), drop
+    assert not manifest.resumes_from(_through_a_file(now), before), drop
+
+
+#: Runs that turn an output off and change what a kept output holds: {what: (before, now, said)}.
+NOT_DROPS = {
+    "--stroke-width": (dict(outputs=dict(gltf=True, gltf_options=GltfOptions())),
+                       dict(request=dict(style=Style(width=2.0))), "--stroke-width 1.5 there, 2.0 now"),
+    "--decimals": (dict(outputs=dict(gltf=True)), dict(outputs=dict(decimals=3)), "--decimals 2 there, 3 now"),
+    "--kinds": ({}, dict(outputs=dict(json=False), request=dict(
+        lines=LineOptions(kinds=("silhouette",)))), "--kinds silhouette,border,crease,material,nonmanifold there, "
+        "silhouette now"),
+    # The frame JSON says what the raster pass saw (objects, materials): kept, it keeps the raster pass.
+    "--bands with the JSON": (dict(request=dict(raster=RasterOptions(bands=3))), {},
+                              "a raster pass on there, none now"),
+    # The EXR reads the raster pass: only its PNGs turned off is another raster pass.
+    "--bands with --exr": (dict(outputs=dict(exr=PassOptions()), request=dict(raster=RasterOptions(bands=4))),
+                           dict(outputs=dict(exr=PassOptions()), request=dict(raster=RasterOptions(pngs=False))),
+                           "--bands 4 there, 3 now; the raster PNGs true there, false now"),
+    "--exr with the JSON": (dict(outputs=dict(exr=PassOptions()), request=dict(raster=RasterOptions(pngs=False))),
+                            {}, "a raster pass on there, none now"),
+    "--pattern": (dict(outputs=dict(gltf=True)), dict(outputs=dict(pattern="f_{frame:03d}")),
+                  "--pattern frame_{frame:04d} there, f_{frame:03d} now"),
+}
+
+
+@pytest.mark.parametrize("what", sorted(NOT_DROPS))
+def test_turning_an_output_off_with_a_shared_change_is_another_run(scenes, what):
+    """Refused, naming the change and not the output turned off."""
+    before, now, said = NOT_DROPS[what]
+    old, new = _through_a_file(_manifest(scenes, **before)), _manifest(scenes, **now)
+    assert not manifest.resumes_from(old, new), what
+    assert settings_changed(old, new) == said
+
+
+def test_a_resume_trusts_only_settings_that_are_the_options_digested(scenes):
+    """An edited manifest (settings that no longer give its options digest) or one written
+    before settings were kept is no resume with an output turned off."""
+    old = _through_a_file(_manifest(scenes, outputs=dict(gltf=True)))
+    new = _manifest(scenes)
+    assert manifest.resumes_from(old, new)
+    edited = {**old, "settings": {**old["settings"], "outputs.gltf_sequence": True}}
+    assert not manifest.resumes_from(edited, new)
+    assert not manifest.resumes_from({k: v for k, v in old.items() if k != "settings"}, new)
+    assert not manifest.resumes_from(old, _manifest(scenes, "ball"))  # (another scene)
+    assert not manifest.resumes_from(None, new)
 
 
 def test_a_folder_rendered_by_an_earlier_version_still_resumes(tmp_path, capsys):

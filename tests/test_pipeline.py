@@ -673,6 +673,38 @@ def test_skip_existing_names_the_option_that_differs(tmp_path, capsys):
            "silhouette,crease now; --stroke-width 1.5 there, 2.0 now)" in err, err
 
 
+def _files(d: Path) -> dict[str, tuple[bytes, int]]:
+    """{path under d: (bytes, mtime_ns)} of every file in d, its pass folders' too."""
+    return {str(p.relative_to(d)): (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def test_skip_existing_keeps_the_frames_of_a_run_with_an_output_more(tmp_path, capsys):
+    """A long render with --gltf stopped after 2 of 4 frames, restarted without --gltf: the 2
+    frames are kept (every file of them untouched: bytes and mtime, their GLBs too) and the
+    other 2 rendered without GLBs; the folder but its GLBs equals one run without --gltf, its
+    manifest included. Turning --gltf off while changing a shared option (the stroke width:
+    every writer's) is refused naming that option alone, nothing touched; so is turning --gltf
+    on again (the manifest no longer holds the ribbons' options)."""
+    cube, _ = _scenes(tmp_path)
+    base = ["render", cube, "--orbit", "4", "--bands", "3"] + SMALL
+    out, ref = tmp_path / "o", tmp_path / "ref"
+    assert run_cli(base + ["--out", ref, "-q"], capsys)[0] == 0
+    assert run_cli(base + ["--out", out, "--frames", "1-2", "--gltf", "-q"], capsys)[0] == 0
+    first = _files(out)
+    assert "frame_0002.glb" in first and "shade/frame_0002.png" in first
+    code, _, err = run_cli(base + ["--out", out, "--skip-existing", "--stroke-width", "2"], capsys)
+    assert code == 2 and "differs: options (--stroke-width 1.5 there, 2.0 now)); remove them" in err, err
+    assert _files(out) == first
+    code, _, err = run_cli(base + ["--out", out, "--skip-existing"], capsys)
+    assert code == 0 and "wrote 2 frame(s)" in err and "(2 already there, skipped)" in err, err
+    now = _files(out)
+    assert all(now[n] == v for n, v in first.items() if n != ".strokekit-run.json")
+    assert sorted(n for n in now if n.endswith(".glb")) == ["frame_0001.glb", "frame_0002.glb"]
+    assert {n: b for n, (b, _) in now.items() if not n.endswith(".glb")} == {n: b for n, (b, _) in _files(ref).items()}
+    code, _, err = run_cli(base + ["--out", out, "--skip-existing", "--gltf"], capsys)
+    assert code == 2 and "differs: options (--gltf false there, true now)); remove them" in err, err
+
+
 def test_skip_existing_refuses_frames_without_a_manifest(tmp_path, capsys):
     cube, _ = _scenes(tmp_path)
     out = tmp_path / "o"

@@ -156,24 +156,130 @@ def _setting_value(v) -> str:
     return v if isinstance(v, str) else "none" if v is None else json.dumps(v)
 
 
-def _group_off(settings: dict, key: str) -> bool:
-    """Whether a group of settings that holds `key` ('outputs.gltf_options' of
-    'outputs.gltf_options.taper') is none in `settings`."""
+def _off_group(settings: dict, key: str) -> str | None:
+    """The group of settings holding `key` that is none in `settings` ('outputs.gltf_options'
+    of 'outputs.gltf_options.taper'), or None."""
     parts = key.split(".")
-    return any(settings.get(".".join(parts[:i]), 0) is None for i in range(1, len(parts)))
+    return next((g for g in (".".join(parts[:i]) for i in range(1, len(parts))) if settings.get(g, 0) is None), None)
+
+
+#: A group of settings that one run has off is said by its output's switch, else by its name;
+#: the names of settings that no flag sets.
+_GROUP_SWITCH = {"outputs.gltf_options": "outputs.gltf"}
+_NAMES = {"outputs.raster_options": "a raster pass", "outputs.exr": "--exr",
+          "outputs.raster_options.pngs": "the raster PNGs"}
+
+
+def _group_value(settings: dict, key: str):
+    """A setting's value; "on" for a group of settings that is not none."""
+    return settings.get(key) if key in settings or not _is_on(settings, key) else "on"
+
+
+# --- outputs turned off: a resume keeps the outputs still asked for -----------------------------------
+
+#: The outputs a resume may turn off: {their switch: the settings that only they read (writers.svg
+#: alone takes the decimals, the SVG line form and the dash paths; the ribbons' options and brush
+#: go into the GLBs alone)}. The style and its shortcuts (--stroke-width, --dashes) are every
+#: writer's, the pattern names every file: shared. The raster pass: `_raster_only`.
+_OUTPUT_ONLY = {
+    "outputs.svg": ("outputs.decimals", "outputs.svg_lines", "outputs.dash_paths"),
+    "outputs.json": (),
+    "outputs.gltf": ("outputs.gltf_sequence", "outputs.gltf_options", "outputs.brush_sha256"),
+    "outputs.exr": (),
+    "outputs.lines_png": (),
+}
+_RASTER = "outputs.raster_options"
+
+
+def _is_on(settings: dict, switch: str) -> bool:
+    """Whether the output of `switch` is asked for in `settings` (a switch, or a group of options)."""
+    return settings.get(switch) is True or any(k.startswith(switch + ".") for k in settings)
+
+
+def _within(key: str, groups) -> bool:
+    return any(key == g or key.startswith(g + ".") for g in groups)
+
+
+def _raster_only(a: dict, b: dict) -> bool:
+    """Whether the raster pass of `a` (the old settings) is read by no output still asked for in
+    `b`: none now, and neither the JSON (its "raster" part: the objects, materials and depth
+    range) nor the SVG of band polygons is kept."""
+    return (_is_on(a, _RASTER) and b.get(_RASTER, 0) is None and b.get("outputs.json") is False
+            and (b.get("outputs.svg") is False or a.get(_RASTER + ".band_polygons") is False))
+
+
+def _unflat(flat: dict) -> dict | None:
+    """The nested settings that `_flat` made `flat` of (None: none make it)."""
+    out: dict = {}
+    try:
+        for key, v in flat.items():
+            *parents, name = key.split(".")
+            d = out
+            for p in parents:
+                d = d.setdefault(p, {})
+            if name in d:
+                return None
+            d[name] = v
+    except (AttributeError, TypeError):  # (a part both a value and a group)
+        return None
+    return out
+
+
+def outputs_turned_off(old: dict, new: dict) -> tuple[list[str], set[str]]:
+    """(The switches of the outputs on in `old`'s settings and off in `new`'s, the settings that
+    differ between them only because of it: the switches and the settings those outputs alone
+    read.) Empty when either manifest has no settings."""
+    a, b = old.get("settings"), new.get("settings")
+    if not isinstance(a, dict) or not isinstance(b, dict):
+        return [], set()
+    off = [s for s in _OUTPUT_ONLY if _is_on(a, s) and not _is_on(b, s)]
+    owned = [g for s in off for g in (s, *_OUTPUT_ONLY[s])]
+    if _raster_only(a, b):
+        off.append(_RASTER)
+        owned.append(_RASTER)
+    return off, {k for k in a.keys() | b.keys() if a.get(k) != b.get(k) and _within(k, owned)}
+
+
+def resumes_from(old: dict | None, new: dict) -> bool:
+    """Whether the frames that `old` (the folder's manifest) lists count as `new`'s run: the same
+    run, or the same scene and options but for outputs turned off now (every setting that shapes
+    the kept outputs' bytes is equal). The settings must be the options digested (an edited
+    or older file's are not trusted: another run)."""
+    if old is None:
+        return False
+    if old["run"] == new["run"]:
+        return True
+    if old["scene"] != new["scene"] or "settings" not in new:
+        return False
+    off, explained = outputs_turned_off(old, new)
+    if not off:
+        return False
+    a, b = old["settings"], new["settings"]
+    return all(a.get(k) == b.get(k) for k in a.keys() | b.keys() if k not in explained) \
+        and all(_unflat(m["settings"]) is not None and _digest(_unflat(m["settings"])) == m["options"]
+                for m in (old, new)) and _digest([old["scene"], old["options"]]) == old["run"]
 
 
 def settings_changed(old: dict, new: dict, most: int = 3) -> str:
     """The settings that differ between two manifests' ('--stroke-width 1.5 there, 2 now'), the
-    first `most` of them; "" when the old manifest has none (written before they were kept)."""
+    first `most` of them; "" when the old manifest has none (written before they were kept).
+    Outputs turned off are not said beside other changes (those alone would resume)."""
     a, b = old.get("settings"), new.get("settings")
     if not isinstance(a, dict) or not isinstance(b, dict):
         return ""
     changed = [k for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k)]
+    explained = outputs_turned_off(old, new)[1]
+    changed = [k for k in changed if k not in explained] or changed
     # The options of an output that one run has off (none there): said by its switch alone.
-    changed = [k for k in changed if not (_group_off(a, k) or _group_off(b, k))] or changed
-    said = [f"{_setting_name(k)} {_setting_value(a.get(k))} there, {_setting_value(b.get(k))} now"
-            for k in changed[:most]]
+    keys: list[str] = []
+    for k in changed:
+        group = _off_group(a, k) or _off_group(b, k)
+        k = _GROUP_SWITCH.get(group, group) if group is not None else k
+        if k not in keys:
+            keys.append(k)
+    said = [f"{_NAMES.get(k) or _setting_name(k)} {_setting_value(_group_value(a, k))} there, "
+            f"{_setting_value(_group_value(b, k))} now" for k in keys[:most]]
+    changed = keys
     return "; ".join(said) + (f"; {len(changed) - most} more" if len(changed) > most else "")
 
 

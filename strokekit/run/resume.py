@@ -10,7 +10,7 @@ from pathlib import Path
 
 from strokekit.errors import UsageError
 from strokekit.fileio import temp_file_target
-from strokekit.run.manifest import RUN_MANIFEST, not_a_resume, read_run_manifest, run_manifest
+from strokekit.run.manifest import RUN_MANIFEST, not_a_resume, read_run_manifest, resumes_from, run_manifest
 from strokekit.run.spec import RunResult, RunSpec
 from strokekit.scene.load import Scene
 
@@ -37,31 +37,33 @@ def plan_resume(spec: RunSpec, scene: Scene) -> ResumePlan:
     scene and options with this frame's camera (the manifest says so), are not written again
     with spec.skip_existing (when strokes carry over their lines are still computed: a frame's
     strokes depend on every earlier frame, so a resumed run gives the same bytes as an
-    uninterrupted one).
+    uninterrupted one). A run that only turns outputs off resumes too (manifest.resumes_from:
+    the files of those outputs stay as they are, the manifest then describes this run).
     Frame files there with a manifest of another scene or options, or none, raise UsageError."""
     out = spec.outputs
     out.out_dir.mkdir(parents=True, exist_ok=True)
     # Temporary files of an interrupted earlier run are ours to remove (their final names never existed).
-    for folder in [out.out_dir, *(out.out_dir / p for p in spec.pass_folders())]:
+    for folder in _folders(spec):
         for stale in folder.glob(".*.part"):
             stale.unlink(missing_ok=True)
     frames = [f for f, _ in spec.cameras]
     manifest = run_manifest(spec, scene)
     old = read_run_manifest(out.out_dir)
-    same_run = old is not None and old["run"] == manifest["run"]
+    resumes = resumes_from(old, manifest)  # (the same run, or it with outputs turned off)
     before = _file_states(p for f in frames for p in spec.frame_files(f))
     on_disk = {f: [str(p) in before for p in spec.frame_files(f)] for f in frames}
     done_before = set()
     if spec.skip_existing:
         present = {f for f in frames if all(on_disk[f])}
-        if present and not same_run:
+        if present and not resumes:
             raise UsageError(not_a_resume(out.out_dir, old, manifest, present))
         done_before = {f for f in present if old["frames"].get(f) == manifest["frames"][f]}
-    # The manifest is written before any frame file: the same run's entries are kept (merged),
-    # another run's replaced. A frame of this run is entered now unless files of it from
-    # something else are there (they stay until rewritten): it is entered once written, so
-    # a run stopped before that never leaves such a file looking like this run's.
-    entries = dict(old["frames"]) if same_run else {}
+    # The manifest is written before any frame file: the same run's entries are kept (merged; also
+    # by a run that turned outputs off: the kept files are its own), another run's replaced. A
+    # frame of this run is entered now unless files of it from something else are there (they
+    # stay until rewritten): it is entered once written, so a run stopped before that never
+    # leaves such a file looking like this run's.
+    entries = dict(old["frames"]) if resumes else {}
     enter_later: set[int] = set()
     for f in frames:
         new = manifest["frames"][f]
@@ -107,6 +109,12 @@ def clean_up(spec: RunSpec, res: RunResult, resume: ResumePlan | None, interrupt
         remove_temp_files(spec)
         _frames_found_whole(spec, res, before)
     _remove_partial_frames(spec, res, before)
+
+
+def _folders(spec: RunSpec) -> list[Path]:
+    """The folders the run writes frame files into: the output folder and its PNG passes'."""
+    out_dir = spec.outputs.out_dir
+    return [out_dir, *(out_dir / p for p in spec.pass_folders())]
 
 
 def _file_states(paths) -> dict[str, tuple]:
@@ -176,8 +184,7 @@ def remove_temp_files(spec: RunSpec) -> list[Path]:
     names = {str(p) for p in run_files(spec)} | {str(out.out_dir / "sequence.glb")}
     removed = []
     try:
-        temps = [t for folder in [out.out_dir, *(out.out_dir / p for p in spec.pass_folders())]
-                 for t in folder.glob(".*.part")]
+        temps = [t for folder in _folders(spec) for t in folder.glob(".*.part")]
     except OSError:
         return removed
     for tmp in temps:

@@ -153,8 +153,8 @@ class RunSpec:
     scheduler: str | None = option(None, "--scheduler", "dask.distributed scheduler address, e.g. tcp://host:8786.")
     skip_existing: bool = option(  # resume: see run(); frames of another scene or options are a UsageError
         False, "--skip-existing", "Resume: do not rewrite frames whose files all exist and were rendered from the "
-        "same scene, options and camera (OUT/.strokekit-run.json says so); frames of another scene or other options "
-        "are a usage error.", switch=True)
+        "same scene, options and camera (OUT/.strokekit-run.json says so; with fewer outputs than then, the others' "
+        "files stay as they are); frames of another scene or other options are a usage error.", switch=True)
     fail_fast: bool = option(False, "--fail-fast", "Stop at the first failed frame (frames already written stay; the "
                              "run streams them out in order).", switch=True)
     camera_source: str = ""  # where the cameras come from (a camera file's path, "orbit"): for the report
