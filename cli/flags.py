@@ -101,6 +101,13 @@ def options_of(*classes):
     return decorate
 
 
+def field_option(cls, name: str):
+    """The click option of field `name` of `cls`, for a command that takes it beside others of
+    its own (`info --crease-angle`: LineOptions'); its value is None when not said."""
+    option, = (click_option(flag, default) for field, flag, default in flags_of(cls) if field == name)
+    return option
+
+
 def said(values: dict) -> dict:
     """The values of `values` (a command's parameters) given on the command line."""
     ctx = click.get_current_context()

@@ -723,6 +723,15 @@ def test_non_finite_numbers_are_usage_errors_naming_the_option(cube, tmp_path, c
     assert not out and not (tmp_path / "o").exists()
 
 
+def test_info_takes_the_crease_angle_as_render_does(cube, capsys):
+    """One declaration of --crease-angle (LineOptions'): info checks it as render does (200 was
+    taken, and counted no crease) and has its default, 60 degrees."""
+    code, out, err = run_cli(["info", cube, "--crease-angle", "200"], capsys)
+    assert code == 2 and err == "strokekit: error: --crease-angle must be in (0, 180) degrees, got 200.0\n", err
+    code, out, _ = run_cli(["info", cube], capsys)
+    assert code == 0 and "crease (> 60 deg)" in out
+
+
 def test_camera_values_are_said_as_numbers_and_fps_is_checked(cube, tmp_path, capsys):
     from strokekit.camera.paths import orbit_path
     from strokekit.errors import UsageError as SkUsageError

@@ -4,18 +4,23 @@ from __future__ import annotations
 
 import click
 
-from ..common import FINITE, echo_json, say_warnings
+from strokekit.options import LineOptions
+
+from ..common import echo_json, say_warnings
+from ..flags import field_option
 
 
 @click.command("info", short_help="What a scene holds and which lines it can have.")
 @click.argument("scene", type=click.Path())
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
-@click.option("--crease-angle", type=FINITE, default=60.0, show_default=True, help="Crease threshold, degrees.")
-def command(scene: str, as_json: bool, crease_angle: float):
+@field_option(LineOptions, "crease_angle_deg")
+def command(scene: str, as_json: bool, crease_angle: float | None):
     """Meshes, faces, materials, bounds, borders and non-manifold edges, and the line kinds present."""
     from strokekit.camera.gltf import gltf_camera_count
     from strokekit.scene.load import load_scene
 
+    # (render's check and default: a crease angle in (0, 180) degrees)
+    crease_angle = LineOptions(**({} if crease_angle is None else {"crease_angle_deg": crease_angle})).crease_angle_deg
     s = load_scene(scene)
     say_warnings(s)
     d = s.summary()
