@@ -529,6 +529,20 @@ def test_obj_cut_short_mid_face_warns_with_the_line(cut, tmp_path, capsys):
                             "it looks cut short"], e
 
 
+@pytest.mark.parametrize("kind", [["orbit"], ["dolly"], ["parallel", "--projection", "isometric"]])
+def test_camera_paths_say_the_scenes_warnings(kind, tmp_path, capsys):
+    """Every `strokekit camera` kind frames the scene it loads and says its warnings, as render
+    does (`camera parallel` said none: the same file framed without a word)."""
+    p = tmp_path / "cut.obj"
+    p.write_text(obj_text() + "f 4 5")
+    code, out, e = run_cli(["camera", *kind, p], capsys)
+    assert code == 0, e
+    assert [ln for ln in err_lines(e) if ln.startswith("strokekit: warning:")] == [
+        f"strokekit: warning: {p}: line 21 'f 4 5' is a face of 2 vertex indexes (a face needs 3): dropped; "
+        "the file ends there: it looks cut short"], e
+    assert json.loads(out)["frames"]
+
+
 def test_obj_short_face_lines_inside_the_file_are_counted(tmp_path):
     """Short face lines anywhere: the first named, the others counted; a whole file: no warning."""
     from strokekit.scene.load import load_scene

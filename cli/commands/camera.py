@@ -17,6 +17,18 @@ def _up_given() -> bool:
     return click.get_current_context().get_parameter_source("up") == click.core.ParameterSource.COMMANDLINE
 
 
+def _framed(scene, out, animation):
+    """The scene's centre, radius and points to frame over `animation` (its load warnings said,
+    an up-axis hint given), after checking that `out` is not the scene itself."""
+    from strokekit.scene.load import load_scene
+
+    check_not_an_input("--out", out, [("scene", scene)])
+    s = load_scene(scene)
+    say_warnings(s)
+    hint_up_axis(s, scene, _up_given())
+    return s.framing(animation)
+
+
 def _emit(path, out):
     text = json.dumps(path.to_json(), indent=1) + "\n"
     if out:
@@ -59,13 +71,8 @@ def command():
 def orbit(scene, frames, elevation, fov, width, height, up, out, animation, degrees_per_frame, fps):
     """A turntable orbit around the scene that keeps it in view (over its whole animation)."""
     from strokekit.camera.paths import orbit_path
-    from strokekit.scene.load import load_scene
 
-    check_not_an_input("--out", out, [("scene", scene)])
-    s = load_scene(scene)
-    say_warnings(s)
-    hint_up_axis(s, scene, _up_given())
-    center, radius, _ = s.framing(animation)
+    center, radius, _ = _framed(scene, out, animation)
     _emit(orbit_path(center, radius, frames, elevation=elevation, fov_y=fov, width=width, height=height,
                      fps=fps, degrees_per_frame=degrees_per_frame, up_axis=up), out)
 
@@ -77,13 +84,8 @@ def orbit(scene, frames, elevation, fov, width, height, up, out, animation, degr
 def dolly(scene, frames, elevation, fov, width, height, up, out, animation, start, end):
     """The camera moves straight away from (or toward) the scene, geometrically."""
     from strokekit.camera.paths import dolly_path
-    from strokekit.scene.load import load_scene
 
-    check_not_an_input("--out", out, [("scene", scene)])
-    s = load_scene(scene)
-    say_warnings(s)
-    hint_up_axis(s, scene, _up_given())
-    center, radius, _ = s.framing(animation)
+    center, radius, _ = _framed(scene, out, animation)
     _emit(dolly_path(center, radius, frames, start=start, end=end, fov_y=fov, width=width, height=height,
                      elevation=elevation, up_axis=up), out)
 
@@ -113,12 +115,8 @@ def parallel(scene, projection, azimuth, elevation, oblique_angle, frames, width
     5% of the image around it): isometric, dimetric, trimetric, cavalier, cabinet, or orthographic
     from --azimuth / --elevation."""
     from strokekit.camera.paths import parallel_path
-    from strokekit.scene.load import load_scene
 
-    check_not_an_input("--out", out, [("scene", scene)])
-    s = load_scene(scene)
-    hint_up_axis(s, scene, _up_given())
-    center, radius, points = s.framing(animation)
+    center, radius, points = _framed(scene, out, animation)
     try:
         path = parallel_path(center, radius, projection, azimuth=azimuth, elevation=elevation,
                              oblique_angle=oblique_angle, frames=frames, width=width, height=height, up_axis=up,
