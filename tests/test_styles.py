@@ -129,20 +129,27 @@ def test_a_set_that_selects_nothing_drawn_is_an_input_error(tmp_path, cli):
 
 def test_along_head_body_tail_only_the_body_stretches():
     """Seed 000's head, body and tail: the head and tail keep their lengths, the body between
-    takes what the stroke adds; points are added at the head's and tail's ends."""
+    takes what the stroke adds; the width drawn (linear between the points) follows the profile
+    within WIDTH_TOL_PX (and what the profile bends between samples at most SAMPLE_PX apart)."""
+    from strokekit.style import widths as W
+
     style = one_set(Along(head=8, tail=12, tip=0.25))
+
+    def ease(x):
+        x = np.clip(x, 0, 1)
+        return x * (2 - x)
+
     for length in (40.0, 100.0):
         st = apply_style(line([[0, 0], [length, 0]]), (), style)
         s, w = st.strokes.arc_length, st.width
         assert w[0] == pytest.approx(0.5) and w[-1] == pytest.approx(0.5)  # tip x width
-        full = (s >= 8) & (s <= length - 12)
-        assert np.allclose(w[full], 2.0) and full.sum() >= 2
-        assert 8.0 in s.round(9) and length - 12 in s.round(9)
-        x = s[(s > 0) & (s < 8)] / 8
-        assert np.allclose(w[(s > 0) & (s < 8)], 2.0 * (0.25 + 0.75 * x * (2 - x)))
+        assert np.allclose(w, 2.0 * (0.25 + 0.75 * np.minimum(ease(s / 8), ease((length - s) / 12))))
+        x = np.linspace(0, length, 4001)
+        want = 2.0 * (0.25 + 0.75 * np.minimum(ease(x / 8), ease((length - x) / 12)))
+        assert np.abs(np.interp(x, s, w) - want).max() <= W.WIDTH_TOL_PX + 0.003
+        assert np.abs(np.interp(x, s, w)[(x >= 8) & (x <= length - 12)] - 2.0).max() <= W.WIDTH_TOL_PX
     short = apply_style(line([[0, 0], [10, 0]]), (), style)  # head + tail shrink together: 4 and 6 px
-    s = short.strokes.arc_length
-    assert short.width[np.isclose(s, 4.0)] == pytest.approx(2.0)
+    assert np.interp(4.0, short.strokes.arc_length, short.width) == pytest.approx(2.0, abs=W.WIDTH_TOL_PX)
 
 
 def test_no_head_or_tail_where_two_strokes_of_a_line_meet():
@@ -230,11 +237,11 @@ def test_selection_first_set_wins_and_unselected_strokes_are_not_drawn():
 
 
 def test_the_compiled_widths_are_the_numpy_formulas_and_hold_between_points():
-    """The kernel's widths at every point (the strokes' own and those the halving added) are
-    numpy's modifier_factor product (the formulas' reference), on a perspective frame's curved,
-    joined and short strokes under all five modifiers; and halfway between two points the width
-    drawn (linear between them) is within WIDTH_TOL_PX of the formula, but where a segment
-    reached MIN_STEP_PX or MAX_HALVINGS."""
+    """The kernel's widths at every point (the strokes' own and those added) are numpy's
+    modifier_factor product (the formulas' reference), on a perspective frame's curved, joined and
+    short strokes under all five modifiers; and at every sample (each segment of the strokes given
+    split evenly, at most SAMPLE_PX apart) the width drawn, linear between the points, is within
+    WIDTH_TOL_PX of the formula; the points added are samples, on the strokes given."""
     from strokekit.style import widths as W
 
     cam = Camera(eye=(0, 0, 10), target=(0, 0, 0), up=(0, 1, 0), fov_y=40, width=200, height=200)
@@ -253,14 +260,23 @@ def test_the_compiled_widths_are_the_numpy_formulas_and_hold_between_points():
     base = np.array([2.0])
     ref = W._width_at(W.Sites.of_points(st.strokes), st.lineset, st.sets, base, st.free, st.depth_range)
     assert np.abs(st.width - ref).max() < 1e-9
-    o = st.strokes.offsets
-    sop, arc = st.strokes.stroke_of_point, st.strokes.arc_length
-    seg = np.flatnonzero(sop[1:] == sop[:-1])
-    mid = W.Sites.of_points(st.strokes).at(sop[seg], 0.5 * (arc[seg] + arc[seg + 1]))
-    wm = W._width_at(mid, st.lineset, st.sets, base, st.free, st.depth_range)
-    off = np.abs(wm - 0.5 * (st.width[seg] + st.width[seg + 1]))
-    short = arc[seg + 1] - arc[seg] <= 2 * W.MIN_STEP_PX * 1.0001
-    assert (off[~short] <= W.WIDTH_TOL_PX + 1e-9).mean() > 0.99 and o[-1] == len(st.width)
+    # the samples of the strokes given
+    sop, arc = s.stroke_of_point, s.arc_length
+    i = np.flatnonzero(sop[1:] == sop[:-1])
+    d = arc[i + 1] - arc[i]
+    n = np.where(d > W.SAMPLE_PX, np.ceil(d / W.SAMPLE_PX), 1).astype(int)
+    i_of = np.repeat(i, n)
+    j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+    at = arc[i_of] + d[np.repeat(np.arange(len(i)), n)] * j / n[np.repeat(np.arange(len(i)), n)]
+    k = sop[i_of]
+    want = W._width_at(W.Sites.of_points(s).at(k, at), st.lineset, st.sets, base, st.free, st.depth_range)
+    o, arc2 = st.strokes.offsets, st.strokes.arc_length
+    drawn = np.concatenate([np.interp(at[k == q], arc2[o[q]:o[q + 1]], st.width[o[q]:o[q + 1]]) for q in range(3)])
+    assert np.abs(drawn - want).max() <= W.WIDTH_TOL_PX + 1e-9
+    # every point is a point given or one of the samples
+    sample_xy = W.Sites.of_points(s).at(k, at).P
+    gap = np.min(np.linalg.norm(st.strokes.points[:, None] - np.r_[sample_xy, p][None], axis=2), axis=1)
+    assert gap.max() < 1e-9
 
 
 def test_the_compiled_outline_text_is_the_numpy_writer_s():

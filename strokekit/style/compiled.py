@@ -1,9 +1,8 @@
-"""Compiled loop (numba) of the widths' halving (strokekit.style.widths): the modifiers' width at
-every point of a frame's strokes, then every segment halved where its middle's width is off the
-line between its ends' (each half looked at again), depth first, in one pass instead of a few
-dozen numpy passes per halving. The formulas are strokekit.style.widths' (its module doc);
-the numpy `modifier_factor` there is their reference. Imports numpy and numba only; loaded on
-first use by `widths.style_kernels()`."""
+"""Compiled loop (numba) of the widths (strokekit.style.widths): the modifiers' width at every
+point of a frame's strokes and at even samples along each segment, and the samples the width
+drawn linearly between points needs, in one pass. The formulas are strokekit.style.widths' (its
+module doc); the numpy `modifier_factor` there is their reference. Imports numpy and numba
+only; loaded on first use by `widths.style_kernels()`."""
 
 from __future__ import annotations
 
@@ -126,32 +125,35 @@ def _width(k, s, h, px, py, u, z, P, arc, first, last, L, base, mods, m0, m1, en
 
 
 @kernel("(f8[:, ::1], f8[::1], f8[::1], f8[::1], i8[::1], i8[::1], f8[::1], f8[::1], f8[:, ::1], i8[::1],"
-        " f8[:, ::1], u8[:, ::1], b1, f8, f8, f8, f8, i8)", error_model="numpy")
-def halve(P, arc, u, z, offsets, which, length, base, mods, mod_start, ends, keys, persp, period, min_w, tol,
-          min_step, max_halvings):
+        " f8[:, ::1], u8[:, ::1], b1, f8, f8, f8, f8)", error_model="numpy")
+def fit_widths(P, arc, u, z, offsets, which, length, base, mods, mod_start, ends, keys, persp, period, min_w, tol,
+               sample_px):
     """The widths of strokes (points P (N, 2) px grouped by offsets (S + 1,), arc their arc lengths
     from each stroke's start, u, z their texture coordinates and view depths; stroke k drawn by
     set which[k] of base width base[set] and modifiers mods[mod_start[set]:mod_start[set + 1]];
     `length` (S,); ends (S, 2 x along modifiers): each along modifier's head and tail per stroke;
     keys (S, noise modifiers): each noise's hash key per stroke; persp: the depth between two
-    points is 1/z linear) with points added where a segment's middle is off the line between
-    its ends' by more than tol, halving at most max_halvings times and no segment shorter than
-    2 min_step. Returns (seg (M,), a (M,), w (M,)), the strokes' points in order: each on the
-    segment from point seg to seg + 1 at fraction a (0: the point seg itself), and its width."""
+    points is 1/z linear) at their points and at samples splitting each segment evenly, at most
+    sample_px apart; of the samples, those kept that the width drawn linearly between kept ones
+    needs to be within tol of the width at every sample (the farthest off first, then each side
+    again). Returns (seg (M,), a (M,), w (M,)), the strokes' points in order: each on the segment
+    from point seg to seg + 1 at fraction a (0: the point seg itself), and its width."""
     N = P.shape[0]
     S = offsets.shape[0] - 1
+    most = 1  # the most samples a segment is split into
+    for k in range(S):
+        for i in range(offsets[k], offsets[k + 1] - 1):
+            d = arc[i + 1] - arc[i]
+            if d > sample_px:
+                most = max(most, int(math.ceil(d / sample_px)))
+    ws = np.empty(most + 1, np.float64)
+    keep = np.zeros(most + 1, np.bool_)
+    todo = np.empty(2 * most + 2, np.int64)  # (from, to) sample ranges still to look at
     cap = 2 * N + 16
     seg = np.empty(cap, np.int64)
     frac = np.empty(cap, np.float64)
     wid = np.empty(cap, np.float64)
     w_pt = np.empty(N, np.float64)
-    # per level of the depth-first halving: the segment's start, end and end widths
-    st_s0 = np.empty(max_halvings + 1, np.float64)
-    st_s1 = np.empty(max_halvings + 1, np.float64)
-    st_w0 = np.empty(max_halvings + 1, np.float64)
-    st_w1 = np.empty(max_halvings + 1, np.float64)
-    st_state = np.empty(max_halvings + 1, np.int64)
-    st_wm = np.empty(max_halvings + 1, np.float64)
     m = 0
     for k in range(S):
         first, last = offsets[k], offsets[k + 1] - 1
@@ -171,52 +173,50 @@ def halve(P, arc, u, z, offsets, which, length, base, mods, mod_start, ends, key
             m += 1
             if i == last or m1 == m0:
                 continue
-            s0, s1 = arc[i], arc[i + 1]
-            if not s1 - s0 > 2 * min_step:
+            s0, d = arc[i], arc[i + 1] - arc[i]
+            if not d > sample_px:
                 continue
-            d = s1 - s0
-            # depth-first: state 0 = middle not yet looked at, 1 = left half done (emit the
-            # middle, then the right half), 2 = done
-            lev = 0
-            st_s0[0], st_s1[0], st_w0[0], st_w1[0], st_state[0] = s0, s1, w_pt[i], w_pt[i + 1], 0
-            while lev >= 0:
-                if st_state[lev] == 0:
-                    a0, a1 = st_s0[lev], st_s1[lev]
-                    mid = 0.5 * (a0 + a1)
-                    a = (mid - s0) / d
-                    px = P[i, 0] + a * (P[i + 1, 0] - P[i, 0])
-                    py = P[i, 1] + a * (P[i + 1, 1] - P[i, 1])
-                    uu = u[i] + a * (u[i + 1] - u[i])
-                    if persp:
-                        zz = 1.0 / ((1 - a) / z[i] + a / z[i + 1])
-                    else:
-                        zz = z[i] + a * (z[i + 1] - z[i])
-                    wm = _width(k, mid, i, px, py, uu, zz, P, arc, first, last, L, b, mods, m0, m1, ends, keys,
-                                period, min_w)
-                    if not abs(wm - 0.5 * (st_w0[lev] + st_w1[lev])) > tol:
-                        lev -= 1
-                        continue
-                    st_wm[lev] = wm
-                    st_state[lev] = 1
-                    if lev + 1 < max_halvings and a1 - mid > 2 * min_step:
-                        st_s0[lev + 1], st_s1[lev + 1] = a0, mid
-                        st_w0[lev + 1], st_w1[lev + 1], st_state[lev + 1] = st_w0[lev], wm, 0
-                        lev += 1
-                elif st_state[lev] == 1:
-                    a0, a1 = st_s0[lev], st_s1[lev]
-                    mid = 0.5 * (a0 + a1)
-                    if m + 1 >= cap:
-                        cap *= 2
-                        seg, frac, wid = _grow(seg, cap), _grow(frac, cap), _grow(wid, cap)
-                    seg[m], frac[m], wid[m] = i, (mid - s0) / d, st_wm[lev]
-                    m += 1
-                    st_state[lev] = 2
-                    if lev + 1 < max_halvings and a1 - mid > 2 * min_step:
-                        st_s0[lev + 1], st_s1[lev + 1] = mid, a1
-                        st_w0[lev + 1], st_w1[lev + 1], st_state[lev + 1] = st_wm[lev], st_w1[lev], 0
-                        lev += 1
+            n = int(math.ceil(d / sample_px))
+            ws[0], ws[n] = w_pt[i], w_pt[i + 1]
+            for j in range(1, n):
+                a = j / n
+                px = P[i, 0] + a * (P[i + 1, 0] - P[i, 0])
+                py = P[i, 1] + a * (P[i + 1, 1] - P[i, 1])
+                uu = u[i] + a * (u[i + 1] - u[i])
+                if persp:
+                    zz = 1.0 / ((1 - a) / z[i] + a / z[i + 1])
                 else:
-                    lev -= 1
+                    zz = z[i] + a * (z[i + 1] - z[i])
+                ws[j] = _width(k, s0 + a * d, i, px, py, uu, zz, P, arc, first, last, L, b, mods, m0, m1, ends, keys,
+                               period, min_w)
+                keep[j] = False
+            todo[0], todo[1] = 0, n
+            top, added = 2, 0
+            while top > 0:
+                lo, hi = todo[top - 2], todo[top - 1]
+                top -= 2
+                if hi - lo < 2:
+                    continue
+                w0, slope = ws[lo], (ws[hi] - ws[lo]) / (hi - lo)
+                far, at = -1.0, -1
+                for j in range(lo + 1, hi):
+                    off = abs(ws[j] - (w0 + slope * (j - lo)))
+                    if off > far:
+                        far, at = off, j
+                if far > tol:
+                    keep[at] = True
+                    added += 1
+                    todo[top], todo[top + 1], todo[top + 2], todo[top + 3] = lo, at, at, hi
+                    top += 4
+            if added == 0:
+                continue
+            while m + added + 1 >= cap:
+                cap *= 2
+                seg, frac, wid = _grow(seg, cap), _grow(frac, cap), _grow(wid, cap)
+            for j in range(1, n):
+                if keep[j]:
+                    seg[m], frac[m], wid[m] = i, j / n, ws[j]
+                    m += 1
     return seg[:m].copy(), frac[:m].copy(), wid[:m].copy()
 
 
@@ -229,7 +229,7 @@ def _grow(a, cap):
 
 @kernel("(f8[:, ::1], f8[::1], f8[:, ::1], f8[::1], i8[::1], f8[::1], b1)", error_model="numpy")
 def spread(P, u, X, z, seg, frac, persp):
-    """The points halve returned (seg, frac): their positions (M, 2), texture coordinates (M,)
+    """The points fit_widths returned (seg, frac): their positions (M, 2), texture coordinates (M,)
     and surface points (M, 3) from the points P, u, X (view depths z) they lie between: position
     and u linear, the surface point as sampling.surface_between (1/z linear on screen, where
     `persp` and both depths are positive)."""

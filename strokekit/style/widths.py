@@ -3,11 +3,12 @@ first line set that selects it (the others are not drawn), and a width in px at 
 the set's width times its thickness modifiers, in order.
 
 Where the width varies along a segment, points are added on it, so that the width drawn linearly
-between points (the SVG's outline, the ribbons) is the modifiers' width: at the along modifier's
-head and tail ends (its kinks), every half wavelength of a noise, then wherever a segment's
-width in its middle is off the line between its ends by more than WIDTH_TOL_PX (the segment is
-halved, and each half looked at again). The points added lie on the stroke: its centreline
-does not change.
+between points (the SVG's outline, the ribbons) is the modifiers' width: the width is found at
+samples splitting each segment evenly, at most SAMPLE_PX apart, and of those the sample farthest
+off the line between the segment's ends is kept as a point where it is off by more than
+WIDTH_TOL_PX, then each side looked at again, until the width drawn is within WIDTH_TOL_PX of
+the modifiers' at every sample. The points added lie on the stroke: its centreline does not
+change.
 
 The formulas (strokekit.style.linesets has each modifier's parameters), at a point at arc length
 s of a stroke of length L, u its texture coordinate (periods of P px), id its stroke id:
@@ -33,7 +34,7 @@ import numpy as np
 from strokekit.errors import UsageError
 from strokekit.model import KINDS, Strokes, kind_of, occlusion_of, row_norm
 from strokekit.numba_cache import LazyKernels
-from strokekit.sampling import locate, surface_between
+from strokekit.sampling import locate
 from strokekit.style.joins import stroke_joins
 from strokekit.style.linesets import (
     JOIN_ANGLE_DEG,
@@ -49,8 +50,6 @@ from strokekit.style.linesets import (
     Style,
 )
 
-#: No segment is halved below this length (px).
-MIN_STEP_PX = 0.25
 #: The curvature is 0 this close to a stroke's end (px): a shorter chord's direction is noise.
 END_CHORD_PX = 0.5
 
@@ -356,57 +355,22 @@ class Sites:
         return Sites(self.strokes, self.st[k], self.s[k], self.P[k], self.u[k], self.z[k])
 
 
-#: The width drawn between two points is linear: points are added until it is within this of
-#: the modifiers' width in the middle of every segment (px).
-WIDTH_TOL_PX = 0.01
-#: Segments are halved at most this many times looking for it.
-MAX_HALVINGS = 8
+#: The width drawn between two points is linear: of the samples along each segment, those are
+#: kept as points that bring it within this of the modifiers' width at every sample (px).
+WIDTH_TOL_PX = 0.02
+#: The samples split each segment evenly, at most this far apart (px).
+SAMPLE_PX = 0.5
 
 
 def _widths(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
             depth_range) -> tuple[Strokes, np.ndarray]:
-    """The strokes with the points their widths need (module doc) and the width at each."""
+    """The strokes with the points their widths need (module doc) and the width at each
+    (compiled: style.compiled.fit_widths)."""
     S = len(strokes)
     if S == 0:
         return strokes, np.zeros(0)
-    # Fixed points: the along modifiers' head and tail ends (the profile's kinks), and the noise's
-    # every half wavelength (a feature between two points a midpoint cannot see).
-    cut_st, cut_s = [], []
-    sop = strokes.stroke_of_point
-    seg, arc = strokes.segment_lengths, strokes.arc_length
-    step = np.array([min([m.wavelength / 2 for m in s.thickness if isinstance(m, Noise) and m.amplitude > 0],
-                         default=np.inf) for s in sets])[which]
-    n = np.ones(len(seg), np.int64)
-    fin = np.isfinite(step[sop])
-    n[fin] = np.ceil(seg[fin] / step[sop][fin]).astype(np.int64)
-    long = np.flatnonzero(n > 1)
-    if len(long):
-        reps = n[long] - 1
-        owner = np.repeat(long, reps)
-        k = np.arange(int(reps.sum())) - np.repeat(np.cumsum(reps) - reps, reps) + 1
-        cut_st.append(sop[owner])
-        cut_s.append(arc[owner] - seg[owner] + seg[owner] * k / n[owner])
-    for k_set, s in enumerate(sets):
-        for m in s.thickness:
-            st = np.flatnonzero(which == k_set)
-            if isinstance(m, Along) and len(st):
-                head, tail = along_lengths(m, strokes, st, free)
-                L = strokes.lengths[st]
-                cut_st += [st, st]
-                cut_s += [head, L - tail]
-    if cut_st:
-        strokes = insert_points(strokes, np.concatenate(cut_st), np.concatenate(cut_s))[0]
-    return _halve(strokes, which, sets, base, free, depth_range)
-
-
-def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base: np.ndarray, free: np.ndarray,
-           depth_range) -> tuple[Strokes, np.ndarray]:
-    """The widths at the strokes' points, and the points added by halving: a segment whose
-    middle's width is off the line between its ends' by more than WIDTH_TOL_PX gets a point
-    there, and both halves are looked at again (compiled: style.compiled.halve)."""
     K = style_kernels()
     ALONG, DEPTH, CURVATURE, CALLIGRAPHY, NOISE = K.ALONG, K.DEPTH, K.CURVATURE, K.CALLIGRAPHY, K.NOISE
-    S = len(strokes)
     rows, starts, ends, keys = [], [0], [], []
     for s in sets:
         for m in s.thickness:
@@ -437,13 +401,13 @@ def _halve(strokes: Strokes, which: np.ndarray, sets: tuple[LineSet, ...], base:
     N = len(strokes.points)
     z = cam.depth(strokes.surface) if cam is not None and N else np.full(N, np.nan)
     persp = cam is not None and not cam.is_ortho
-    seg, frac, w = K.halve(
+    seg, frac, w = K.fit_widths(
         np.ascontiguousarray(strokes.points, float), np.ascontiguousarray(strokes.arc_length, float),
         np.ascontiguousarray(strokes.u, float), np.ascontiguousarray(z, float),
         np.ascontiguousarray(strokes.offsets, np.int64), np.ascontiguousarray(which, np.int64),
         np.ascontiguousarray(strokes.lengths, float), np.ascontiguousarray(base, float), mods,
         np.asarray(starts, np.int64), ends_a, keys_a, persp, float(strokes.period_px), MIN_WIDTH_PX,
-        WIDTH_TOL_PX, MIN_STEP_PX, MAX_HALVINGS)
+        WIDTH_TOL_PX, SAMPLE_PX)
     if len(seg) == N:
         return strokes, w
     points, u, surface = K.spread(np.ascontiguousarray(strokes.points, float), np.ascontiguousarray(strokes.u, float),
@@ -499,46 +463,6 @@ def end_lengths(head: np.ndarray, tail: np.ndarray, free: np.ndarray, length: np
     a, b = head * free[:, 0], tail * free[:, 1]
     k = np.minimum(1.0, length / np.where(a + b > 0, a + b, 1.0))
     return a * k, b * k
-
-
-def insert_points(strokes: Strokes, stroke: np.ndarray, s: np.ndarray, values: np.ndarray | None = None,
-                  new_values: np.ndarray | None = None) -> tuple[Strokes, np.ndarray | None]:
-    """The strokes with a point added at arc length s (px) of each stroke `stroke`, inside its
-    segments (not at or beyond its points, each position once), position and u interpolated
-    linearly, the surface point as sampling.surface_between, the face of the segment's start;
-    and `values` (N,) of the points with `new_values` (of the points added) in the same order."""
-    L = strokes.lengths[stroke]
-    ok = (s > 0) & (s < L)
-    stroke, s = stroke[ok], s[ok]
-    nv = new_values[ok] if new_values is not None else None
-    if not len(s):
-        return strokes, values
-    order = np.lexsort((s, stroke))
-    stroke, s = stroke[order], s[order]
-    distinct = np.r_[True, (stroke[1:] != stroke[:-1]) | (s[1:] - s[:-1] > 1e-9)]
-    stroke, s = stroke[distinct], s[distinct]
-    if nv is not None:
-        nv = nv[order][distinct]
-    i, j, a = locate(strokes, stroke, s)
-    inside = (a > 1e-9) & (a < 1 - 1e-9) & (j == i + 1)
-    i, j, a, stroke = i[inside], j[inside], a[inside], stroke[inside]
-    if not len(i):
-        return strokes, values
-    P = strokes.points
-    new_p = P[i] + a[:, None] * (P[j] - P[i])
-    new_u = strokes.u[i] + a * (strokes.u[j] - strokes.u[i])
-    new_x = surface_between(strokes, i, j, a)
-    key = np.concatenate([np.arange(len(P), dtype=float), i + a])
-    order = np.argsort(key, kind="stable")
-    counts = np.diff(strokes.offsets) + np.bincount(stroke, minlength=len(strokes))
-    out = strokes.replace(points=np.concatenate([P, new_p])[order],
-                          surface=np.concatenate([strokes.surface, new_x])[order],
-                          face=np.concatenate([strokes.face, strokes.face[i]])[order],
-                          u=np.concatenate([strokes.u, new_u])[order],
-                          offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64))
-    if values is None:
-        return out, None
-    return out, np.concatenate([values, nv[inside]])[order]
 
 
 # --- the modifiers --------------------------------------------------------------------------------
