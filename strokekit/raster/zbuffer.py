@@ -905,11 +905,14 @@ def _draw_parallel(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, act
                    bary):
     _fill(fbox, fn, ftri, fplane, keep, S, WS, HS, T, active, off, rec, rid)
     ntx = (WS + T - 1) // T
-    nt = active.shape[0]
-    TC = 4  # tiles a chunk (one local buffer a chunk); a tile's result does not depend on its thread
-    for c in prange((nt + TC - 1) // TC):
+    ids = np.flatnonzero(active)
+    n = ids.shape[0]
+    # The drawn tiles dealt out in turn to G groups (one local buffer a group): a thread's share
+    # of them spreads over the whole image, not one band of it (the scene's tiles cost more).
+    # A tile's result does not depend on its thread.
+    G = 64
+    for g in prange(G):
         lrec = np.empty(T * T, np.int32)
         lkey = np.empty(T * T, np.float64)
-        for t in range(c * TC, min(nt, (c + 1) * TC)):
-            if active[t]:
-                _do_tile(t, ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)
+        for q in range(g, n, G):
+            _do_tile(ids[q], ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)
