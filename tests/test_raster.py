@@ -946,3 +946,22 @@ def test_raster_passes_are_the_same_bytes_in_another_process(tmp_path, capsys):
         assert sorted(there) == sorted(here), name
         assert [k for k in here if here[k] != there[k]] == [], name
 
+
+
+def test_regions_are_the_sorted_material_object_pairs():
+    """Scene.regions (a 1-D unique of one integer a pair) gives the pairs in (material, object)
+    order and each face's index among them, as a unique of the pairs as rows does (the oracle)."""
+    rng = np.random.default_rng(3)
+    n = 40
+    verts = rng.normal(size=(3 * n, 3))
+    faces = np.arange(3 * n).reshape(n, 3)
+    fm = rng.integers(0, 4, n)
+    fo = rng.integers(0, 3, n)
+    scene = build_scene(verts, faces, fo, fm, objects=("a", "b", "c"), materials=tuple(Material(f"m{i}") for i in range(4)))
+    region, mat, obj = scene.regions
+    pairs, inverse = np.unique(np.column_stack([scene.face_material, scene.face_object]).astype(np.int64), axis=0,
+                               return_inverse=True)
+    assert np.array_equal(mat, pairs[:, 0]) and np.array_equal(obj, pairs[:, 1])
+    assert region.dtype == np.int32 and np.array_equal(region, inverse.reshape(-1))
+    one = build_scene(verts, faces)
+    assert one.regions[0] is None and list(one.regions[1]) == [0] and list(one.regions[2]) == [0]

@@ -104,3 +104,15 @@ def test_a_render_on_a_terminal_says_what_it_waits_for_until_the_bar(tmp_path):
     print(f"status line after {first:.2f} s")
     got = _on_a_terminal(["render", "cube.obj", "--orbit", "2", "--size", "64x64", "--out", "q", "-q"], tmp_path)
     assert re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", "".join(t for _, t in got)).strip() == ""  # (codes aside)
+
+
+def test_a_frame_tasks_workspace_does_not_load_the_raster_kernels():
+    """A frame task asks for its z-buffer workspace before its lines: making one loaded the raster
+    kernels (numba's import and set-up), so the first frame's lines waited for the warm-up
+    thread. The workspace is made without numba; the kernels load when the raster pass starts."""
+    code = ("import sys\nfrom strokekit.raster.hits import thread_workspace\nw = thread_workspace()\n"
+            "a = w.get('face', (4, 4), 'int32')\nassert w.get('face', (4, 4), 'int32') is a\n"
+            "print('numba' in sys.modules)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.strip() == "False"

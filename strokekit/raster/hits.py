@@ -23,6 +23,7 @@ import numpy as np
 from strokekit.camera.view import Camera
 from strokekit.numba_cache import KernelGroup, LazyKernels
 from strokekit.raster.rays import cast_pixels, cast_samples
+from strokekit.raster.workspace import Workspace
 from strokekit.scene.load import Scene
 
 #: The z-buffer and the raster pass's own loops.
@@ -121,8 +122,9 @@ _local = threading.local()
 
 def thread_workspace():
     """This thread's zbuffer.Workspace: buffers reused from frame to frame. What a pass returns
-    with it lives until the next pass of this thread."""
+    with it lives until the next pass of this thread. Made without the kernels (a frame task asks
+    before its lines, while they may still be loading)."""
     w = getattr(_local, "work", None)
     if w is None:
-        w = _local.work = kernels().Workspace()
+        w = _local.work = Workspace()
     return w

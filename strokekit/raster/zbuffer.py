@@ -1,8 +1,8 @@
 """A z-buffer rasterizer for the raster pass: face id, view depth and barycentrics of
 the first surface behind the near plane, per sample, for perspective and orthographic cameras.
 
-Imports numpy and numba only. It returns what the ray-cast pass (strokekit's `cast_pixels` /
-`cast_samples`) returns, for the same sample positions:
+Imports numpy and numba only (and its buffers, `raster.workspace`). It returns what the ray-cast
+pass (strokekit's `cast_pixels` / `cast_samples`) returns, for the same sample positions:
 
 * image space as `Camera`: x right, y down, origin top-left, output pixel (i, j) covers
   [i, i+1] x [j, j+1];
@@ -70,6 +70,7 @@ import numpy as np
 from numba import njit, prange
 
 from strokekit.numba_cache import kernel
+from strokekit.raster.workspace import Workspace
 
 __all__ = ["View", "Projected", "ZHits", "Workspace", "view_from_camera", "project", "rasterize_grid",
            "rasterize_pixels", "sample_offsets", "TILE"]
@@ -186,23 +187,6 @@ class ZHits:
     face: np.ndarray
     depth: np.ndarray
     bary: np.ndarray
-
-
-class Workspace:
-    """Buffers reused from frame to frame: pass the same one to every call to skip allocating
-    (and first-touching) ~80 MB a frame at 2 x 2 and 1024 x 1024. The arrays a call returns
-    with a workspace are its buffers: the next call of the same kind (grid, or pixels) with it
-    overwrites them: copy what you keep. One workspace per thread."""
-
-    def __init__(self):
-        self._bufs: dict = {}
-
-    def get(self, name: str, shape: tuple, dtype) -> np.ndarray:
-        a = self._bufs.get(name)
-        if a is None or a.shape != tuple(shape) or a.dtype != np.dtype(dtype):
-            a = np.empty(shape, dtype)
-            self._bufs[name] = a
-        return a
 
 
 def _get(work: Workspace | None, name: str, shape: tuple, dtype) -> np.ndarray:
@@ -722,25 +706,25 @@ def _tris(rec, j0, j1, TX0, TX1, TY0, TY1, T, Si, lslots, lsat, lrec, lkey):
                         continue
                     xa = max(X0, pc * Si)
                     xb = min(X1, pc * Si + Si - 1)
-                    # Edge functions at the block's corner samples (affine: extremes at corners).
-                    lo_a = lo_b = lo_c = np.inf
-                    hi_a = hi_b = hi_c = -np.inf
-                    for Y in (ya, yb):
-                        py = Y + 0.5
-                        for X in (xa, xb):
-                            px = X + 0.5
-                            ea = as_ * (adx * (py - ay0) - ady * (px - ax0))
-                            eb = bs * (bdx * (py - by0) - bdy * (px - bx0))
-                            ec = cs * (cdx * (py - cy0) - cdy * (px - cx0))
-                            lo_a = min(lo_a, ea)
-                            hi_a = max(hi_a, ea)
-                            lo_b = min(lo_b, eb)
-                            hi_b = max(hi_b, eb)
-                            lo_c = min(lo_c, ec)
-                            hi_c = max(hi_c, ec)
-                    if hi_a < -ma or hi_b < -mb or hi_c < -mc:
+                    # Edge functions over the block's samples (affine): the value at its centre plus
+                    # or minus the half extents times the gradient's magnitudes (rounding: ma, mb, mc).
+                    hx = 0.5 * (xb - xa)
+                    hy = 0.5 * (yb - ya)
+                    qx = xa + 0.5 + hx
+                    qy = ya + 0.5 + hy
+                    ea = as_ * (adx * (qy - ay0) - ady * (qx - ax0))
+                    wa = abs(adx) * hy + abs(ady) * hx
+                    if ea + wa < -ma:
                         continue  # wholly outside an edge
-                    sure = lo_a > ma and lo_b > mb and lo_c > mc  # wholly inside
+                    eb = bs * (bdx * (qy - by0) - bdy * (qx - bx0))
+                    wb = abs(bdx) * hy + abs(bdy) * hx
+                    if eb + wb < -mb:
+                        continue
+                    ec = cs * (cdx * (qy - cy0) - cdy * (qx - cx0))
+                    wc = abs(cdx) * hy + abs(cdy) * hx
+                    if ec + wc < -mc:
+                        continue
+                    sure = ea - wa > ma and eb - wb > mb and ec - wc > mc  # wholly inside
                     for Y in range(ya, yb + 1):
                         py = Y + 0.5
                         ra = adx * (py - ay0)
@@ -750,6 +734,12 @@ def _tris(rec, j0, j1, TX0, TX1, TY0, TY1, T, Si, lslots, lsat, lrec, lkey):
                         base = (Y - TY0) * T - TX0
                         for X in range(xa, xb + 1):
                             px = X + 0.5
+                            # The depth test first: it rejects more samples than the edges, and
+                            # is cheaper (both must pass: their order changes nothing).
+                            k = gx * px + kr
+                            i = base + X
+                            if not (k > lkey[i]):
+                                continue
                             if not sure:
                                 ea = as_ * (ra - ady * (px - ax0))
                                 eb = bs * (rb - bdy * (px - bx0))
@@ -757,11 +747,8 @@ def _tris(rec, j0, j1, TX0, TX1, TY0, TY1, T, Si, lslots, lsat, lrec, lkey):
                                 if not ((ea > 0.0 or (ea == 0.0 and atl)) and (eb > 0.0 or (eb == 0.0 and btl))
                                         and (ec > 0.0 or (ec == 0.0 and ctl))):
                                     continue
-                            k = gx * px + kr
-                            i = base + X
-                            if k > lkey[i]:
-                                lkey[i] = k
-                                lrec[i] = j
+                            lkey[i] = k
+                            lrec[i] = j
             continue
         hz = ka == 3 or kb == 3 or kc == 3
         # Rounding of a crossing x0 + r inv: a few ulps of the coordinates' magnitude.
@@ -803,16 +790,17 @@ def _tris(rec, j0, j1, TX0, TX1, TY0, TY1, T, Si, lslots, lsat, lrec, lkey):
             base = (Y - TY0) * T - TX0
             for X in range(Xa, Xb + 1):
                 px = X + 0.5
+                k = gx * px + kr
+                i = base + X
+                if not (k > lkey[i]):  # the depth test first (as above)
+                    continue
                 ea = as_ * (ra - ady * (px - ax0))
                 eb = bs * (rb - bdy * (px - bx0))
                 ec = cs * (rc - cdy * (px - cx0))
                 if ((ea > 0.0 or (ea == 0.0 and atl)) and (eb > 0.0 or (eb == 0.0 and btl))
                         and (ec > 0.0 or (ec == 0.0 and ctl))):
-                    k = gx * px + kr
-                    i = base + X
-                    if k > lkey[i]:
-                        lkey[i] = k
-                        lrec[i] = j
+                    lkey[i] = k
+                    lrec[i] = j
 
 
 @njit(cache=True, error_model="numpy")
@@ -856,9 +844,9 @@ def _do_tile(t, ntx, T, Si, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, fac
     TY0 = ty * T
     TX1 = min(WS, TX0 + T)
     TY1 = min(HS, TY0 + T)
-    lrec[:] = -1
-    lkey[:] = -np.inf
     if slots.shape[0] == 0:
+        lrec[:] = -1
+        lkey[:] = -np.inf
         lslots = slots
         lsat = slots
     else:  # the tile's slots and their summed-area table, in cache
@@ -867,6 +855,15 @@ def _do_tile(t, ntx, T, Si, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, fac
         lslots[:(TY1 - TY0) // Si, :(TX1 - TX0) // Si] = slots[TY0 // Si:TY1 // Si, TX0 // Si:TX1 // Si]
         lsat = np.empty((Tp + 1, Tp + 1), np.int32)
         _slot_table(lslots, lsat)
+        # Only the listed pixels' samples are drawn and read: only they are cleared.
+        for pr in range(Tp):
+            for pc in range(Tp):
+                if lslots[pr, pc] >= 0:
+                    for sy in range(pr * Si, pr * Si + Si):
+                        b = sy * T + pc * Si
+                        for sx in range(Si):
+                            lrec[b + sx] = -1
+                            lkey[b + sx] = -np.inf
     _tris(rec, off[t], off[t + 1], TX0, TX1, TY0, TY1, T, Si, lslots, lsat, lrec, lkey)
     if slots.shape[0] == 0:
         for Y in range(TY0, TY1):
@@ -908,11 +905,14 @@ def _draw_parallel(fbox, fn, ftri, fplane, keep, S, WS, HS, T, ortho, slots, act
                    bary):
     _fill(fbox, fn, ftri, fplane, keep, S, WS, HS, T, active, off, rec, rid)
     ntx = (WS + T - 1) // T
-    nt = active.shape[0]
-    TC = 4  # tiles a chunk (one local buffer a chunk); a tile's result does not depend on its thread
-    for c in prange((nt + TC - 1) // TC):
+    ids = np.flatnonzero(active)
+    n = ids.shape[0]
+    # The drawn tiles dealt out in turn to G groups (one local buffer a group): a thread's share
+    # of them spreads over the whole image, not one band of it (the scene's tiles cost more).
+    # A tile's result does not depend on its thread.
+    G = 64
+    for g in prange(G):
         lrec = np.empty(T * T, np.int32)
         lkey = np.empty(T * T, np.float64)
-        for t in range(c * TC, min(nt, (c + 1) * TC)):
-            if active[t]:
-                _do_tile(t, ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)
+        for q in range(g, n, G):
+            _do_tile(ids[q], ntx, T, S, WS, HS, ortho, slots, off, rec, rid, lrec, lkey, face, depth, bary)
