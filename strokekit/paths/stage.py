@@ -92,27 +92,24 @@ def brush_step(prev: Strokes | None, lines: Strokes, o: PathOptions, next_id: in
     plen = p_s1 - p_s0
     ok, vk, s_in = landing(votes.m, cover, smp_piece, D, p_s0, p_s1)
     vu, vid, vw = votes.u[ok], votes.vid[ok], votes.w[ok]
-    ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
-
     pairs = LinkPairs.of(pieces, max(o.join_px, o.new_join_px), o.join_angle_deg)
 
-    def link(link_label, ends):
+    def link(link_label):  # (the ends' votes follow the labels)
+        ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
         group, rev, pos = link_pieces(pieces, o.join_px, o.join_angle_deg, link_label, o.new_join_px,
                                       lambda pa, pb: on_drawing(line_grid, pa, pb, D=D), free_px=2.0, ends=ends,
                                       pairs=pairs)
         return one_label_per_path(group, pos, link_label), rev, pos
 
-    group, rev, pos = link(link_label, ends)
+    group, rev, pos = link(link_label)
     orphan = orphans(group, link_label, plen, o.orphan_px)
     if orphan.any():  # (linked again as unclaimed pieces: an orphan joins the path it touches)
         link_label = np.where(orphan, -1, link_label)
-        ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
-        group, rev, pos = link(link_label, ends)
+        group, rev, pos = link(link_label)
     inner = interior_paths(group, rev, pos, link_label, plen, pairs)
     if (inner >= 0).any():  # (linked again: a path within another's line takes its label)
         link_label = np.where(inner >= 0, inner, link_label)
-        ends = EndVotes.of(vk, s_in, vu, vid, link_label, plen, lines.period_px) if len(votes) else None
-        group, rev, pos = link(link_label, ends)
+        group, rev, pos = link(link_label)
     paths, path_of, offset = concat(pieces, group, rev, pos, o.join_angle_deg, HAIRPIN_PX)
     paths = close_loops(paths, o.join_px, o.join_angle_deg, line_grid, D)
     # A hidden path's level: the fewest surfaces that hide any piece of it.
