@@ -20,7 +20,8 @@ def command(scene: str, as_json: bool, crease_angle: float | None):
     from strokekit.scene.load import load_scene
 
     # (render's check and default: a crease angle in (0, 180) degrees)
-    crease_angle = LineOptions(**({} if crease_angle is None else {"crease_angle_deg": crease_angle})).crease_angle_deg
+    lines = LineOptions() if crease_angle is None else LineOptions(crease_angle_deg=crease_angle)
+    crease_angle = lines.crease_angle_deg
     s = load_scene(scene)
     say_warnings(s)
     d = s.summary()

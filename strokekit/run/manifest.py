@@ -256,8 +256,13 @@ def resumes_from(old: dict | None, new: dict) -> bool:
         return False
     a, b = old["settings"], new["settings"]
     return all(a.get(k) == b.get(k) for k in a.keys() | b.keys() if k not in explained) \
-        and all(_unflat(m["settings"]) is not None and _digest(_unflat(m["settings"])) == m["options"]
-                for m in (old, new)) and _digest([old["scene"], old["options"]]) == old["run"]
+        and all(_digests_to(_unflat(m["settings"]), m["options"]) for m in (old, new)) \
+        and _digest([old["scene"], old["options"]]) == old["run"]
+
+
+def _digests_to(options: dict | None, digest: str) -> bool:
+    """Whether `options` (None: settings that unflatten to none) digest to `digest`."""
+    return options is not None and _digest(options) == digest
 
 
 def settings_changed(old: dict, new: dict, most: int = 3) -> str:
