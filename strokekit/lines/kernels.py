@@ -8,7 +8,7 @@ from strokekit.lines.levels import LEVEL_KERNELS
 from strokekit.numba_cache import KernelGroup, LazyKernels
 
 LINES = LazyKernels("strokekit.lines.compiled")
-HIDDEN_LINES = KernelGroup("hidden-line", (LINES, LEVEL_KERNELS), compile_seconds=15)
+HIDDEN_LINES = KernelGroup("hidden-line", (LINES, LEVEL_KERNELS), compile_seconds=12)
 
 #: The module `strokekit.lines.compiled`, its kernels loaded on first use.
 kernels = LINES.kernels

@@ -9,4 +9,4 @@ from strokekit.tracking.kernels import TRACKING
 
 BRUSH_PATHS = KernelGroup("brush path", TRACKING.modules + tuple(LazyKernels(m) for m in (
     "strokekit.paths.votes_kernels", "strokekit.paths.cover_kernels", "strokekit.paths.pieces_kernels")),
-    compile_seconds=50)
+    compile_seconds=25)

@@ -19,7 +19,7 @@ from strokekit.writers.exr import EXR_KERNELS, WRITTEN_COMPILED
 from strokekit.writers.outline import OUTLINE_KERNELS
 
 #: The kernels of styles with thickness modifiers: their widths and their SVG outlines.
-LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, OUTLINE_KERNELS), compile_seconds=15)
+LINE_STYLE = KernelGroup("line style", (STYLE_KERNELS, OUTLINE_KERNELS), compile_seconds=12)
 
 #: The run stage each group's load time is counted in (the report, --explain).
 STAGE_OF = {RASTER: RASTER_STAGES["kernels"][0], HIDDEN_LINES: "occlusion levels", BRUSH_PATHS: "brush paths",

@@ -9,4 +9,4 @@ from strokekit.numba_cache import KernelGroup, LazyKernels
 TRACKING = KernelGroup("tracking", tuple(LazyKernels(m) for m in (
     "strokekit.tracking.sort_kernels", "strokekit.tracking.grid_kernels", "strokekit.tracking.strokeops_kernels",
     "strokekit.tracking.votes_kernels", "strokekit.tracking.ufit_kernels", "strokekit.tracking.joins_kernels")),
-    compile_seconds=35)
+    compile_seconds=20)
